@@ -1,0 +1,118 @@
+#pragma once
+/// \file contact.hpp
+/// What a contact set (the stops active at once) implies, derived on first use and cached.
+///
+/// For a set S with normals W = [w_j]_{j∈S} (n × m) and Delassus matrix G = Wᵀ M⁻¹ W:
+///
+/// * Restitution (generalised Newton law). Impulses Λ ≥ 0 act along -W:
+///       v⁺ = v⁻ - M⁻¹ W Λ,     g'⁺ = g'⁻ - G Λ,
+///   with the complementarity 0 ≤ Λ ⊥ G Λ - (I + R) g'⁻ ≥ 0, R = diag(r_j). When every stop of S
+///   takes an impulse this is g'⁺ = -R g'⁻ and, for fixed stops,
+///       v⁺ = R_S v⁻,   R_S = I - M⁻¹ W G⁻¹ (I + R) Wᵀ,
+///   which for the paper's system is Wagg (2004) eq. (8): R1, R2, R3; in modal coordinates
+///   Ψ⁻¹ R_S Ψ (eq. 10). Where contacts couple (stops between masses, a full M) some Λ_j of the
+///   combined law can be negative; the LCP then decides which stops take an impulse.
+///
+/// * Sticking subsystem. Stuck stops hold Wᵀ x = s(t). Split the coordinates into m dependent
+///   ones D (chosen by column-pivoted QR of Wᵀ, so that A = Wᵀ_D is well conditioned) and free
+///   ones F: x_D = A⁻¹ (s(t) - Wᵀ_F x_F). Hence
+///       x = N y + P s(t),   y = x_F,   N = [I; -A⁻¹ Wᵀ_F] (rows F; D),   P = [0; A⁻¹],
+///   and y obeys  NᵀMN y'' + NᵀCN y' + NᵀKN y = Nᵀ (f - M P s'' - C P s' - K P s),
+///   again of the form F0 + Fc cos Ωt + Fs sin Ωt, so it has an exact LinearFlow. For stops on
+///   single masses the reduced coordinates are the free masses themselves: with mass 1 stuck
+///   this is Wagg's eq. (11), with mass 2 stuck eq. (14) (whose static solution is x1 = +s2/2,
+///   not the -s2/2 printed in eq. (16)).
+///
+/// * Contact forces, from Wᵀ x'' = s'':   λ = G⁻¹ (Wᵀ M⁻¹ (f - C v - K x) - s''),
+///   λ_j ≥ 0 while stop j holds. For the paper: with mass 1 stuck λ = -F2 of eq. (12); with mass
+///   2 stuck λ = -F1 of eq. (15) (the paper's F carries the sign of s_i: F_i s_i > 0).
+///   Which stops stay active after an event is the solution of the acceleration LCP
+///       0 ≤ λ ⊥ G λ - q ≥ 0,   q = Wᵀ M⁻¹ (f - C v - K x) - s''   (free gap acceleration).
+///
+/// Each ContactMode builds its restitution data on construction (cheap: m×m) and its reduced
+/// flow only when first asked for, so sets that are only impacted never pay for a sticking flow.
+#include "vibro/flow.hpp"
+#include "vibro/stops.hpp"
+
+#include <map>
+#include <memory>
+#include <vector>
+
+namespace vibro {
+
+/// Sorted indices of the stops in a set.
+using ContactSet = std::vector<int>;
+
+/// Solves 0 ≤ λ ⊥ G λ - q ≥ 0 for symmetric positive definite G (Murty's least-index principal
+/// pivoting, finite for P-matrices; K. G. Murty, "Note on a Bard-type scheme for solving the
+/// complementarity problem", Opsearch 11, 1974). Throws std::runtime_error after 2^m·m pivots.
+Eigen::VectorXd solve_lcp(const Eigen::MatrixXd& G, const Eigen::VectorXd& q);
+
+class ContactMode {
+ public:
+  ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptions flow_options);
+
+  const ContactSet& active() const { return active_; }
+  Eigen::Index size() const { return static_cast<Eigen::Index>(active_.size()); }
+
+  // --- restitution ---
+  /// G = Wᵀ M⁻¹ W (m × m).
+  const Eigen::MatrixXd& delassus() const { return delassus_; }
+  /// M⁻¹ W (n × m).
+  const Eigen::MatrixXd& mass_inverse_normals() const { return minv_w_; }
+  /// R_S of the combined Newton law (n × n), for fixed stops all taking an impulse.
+  const Eigen::MatrixXd& restitution_matrix() const { return restitution_; }
+
+  // --- sticking subsystem (built on first call) ---
+  struct Reduced {
+    std::vector<Eigen::Index> free;       ///< F, full indices of the reduced coordinates y
+    std::vector<Eigen::Index> dependent;  ///< D
+    Eigen::MatrixXd mass, damping, stiffness;  ///< NᵀMN, NᵀCN, NᵀKN
+    HarmonicForcing forcing;                   ///< reduced right-hand side
+    Eigen::MatrixXd to_full;   ///< T: full augmented state = T · reduced augmented state
+    std::unique_ptr<LinearFlow> flow;
+    /// Rows (reduced augmented space): gap g_j of each stop not in S, then -λ_j of each stop of
+    /// S, in the order of `watched`. An event is a crossing of a row from ≤ 0 to > 0.
+    std::unique_ptr<Functionals> watch;
+    std::vector<int> watched;  ///< stop index of each watch row
+    Eigen::Index gap_rows = 0;  ///< the first gap_rows rows are gaps, the rest are -λ
+    Eigen::MatrixXd force_rows;  ///< λ of the stops in S as rows in the full augmented space
+  };
+  const Reduced& reduced() const;
+  bool reduced_built() const { return reduced_ != nullptr; }
+
+  /// Reduced augmented state [x_F; v_F; cos; sin; 1] from a full state (the dependent
+  /// coordinates are implied, so rounding drift off the constraint is projected away).
+  Eigen::VectorXd reduce(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
+                         const Eigen::Ref<const Eigen::VectorXd>& v) const;
+
+ private:
+  void build_reduced() const;
+
+  const ImpactSystem* scene_;
+  ContactSet active_;
+  FlowOptions flow_options_;
+  Eigen::MatrixXd normals_;  // W (n × m)
+  Eigen::MatrixXd delassus_, minv_w_, restitution_;
+  mutable std::unique_ptr<Reduced> reduced_;
+};
+
+/// The lazily built modes of one scene, keyed by contact set. Not thread-safe: each simulation
+/// (each sweep point's thread) owns its own cache.
+class ContactModes {
+ public:
+  ContactModes(const ImpactSystem& scene, FlowOptions flow_options = {})
+      : scene_(&scene), flow_options_(flow_options) {}
+  const ContactMode& get(const ContactSet& set);
+  std::size_t built() const { return modes_.size(); }
+  /// Number of modes whose sticking subsystem has been built.
+  std::size_t reduced_built() const;
+  const ImpactSystem& scene() const { return *scene_; }
+
+ private:
+  const ImpactSystem* scene_;
+  FlowOptions flow_options_;
+  std::map<ContactSet, std::unique_ptr<ContactMode>> modes_;
+};
+
+}  // namespace vibro

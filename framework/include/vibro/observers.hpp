@@ -1,0 +1,140 @@
+#pragma once
+/// \file observers.hpp
+/// What a run records. The simulator calls only the observers a run was given; with none it does
+/// no recording work at all (no samples evaluated, no minima searched, nothing stored).
+///
+/// An observer sees two things:
+///  * segments: the exact motion in one contact mode over [t_begin, t_end] (a SegmentView). Any
+///    state inside it is computed from the exact flow, never interpolated;
+///  * events: impacts, sticks, releases and chatter limits, with the full state after the event.
+///
+/// Provided here: EventLog, ContactLog (contact intervals with the minimum contact force and its
+/// time, the quantity that detects rising), Samples (exact states at requested times), Poincare
+/// (stroboscopic points at the forcing period), PeriodStatistics (sticking proportion of each
+/// stop and impacts per forcing period).
+#include "vibro/contact.hpp"
+#include "vibro/events.hpp"
+
+#include <string>
+#include <vector>
+
+namespace vibro {
+
+enum class EventKind { impact, stick, release, chatter_limit };
+const char* to_string(EventKind kind);
+
+struct Event {
+  double t = 0.0;
+  int stop = -1;
+  EventKind kind = EventKind::impact;
+  double v_before = 0.0;  ///< g'_j before (approach speed > 0 means towards the stop)
+  double v_after = 0.0;   ///< g'_j after
+  double force = 0.0;     ///< contact force λ_j after the event (0 when free)
+};
+
+/// Exact motion in one contact mode over [t_begin, t_end].
+class SegmentView {
+ public:
+  SegmentView(const ContactMode& mode, const Segment& segment, double t_begin, double t_end,
+              double force_tolerance)
+      : mode_(&mode), segment_(&segment), t_begin_(t_begin), t_end_(t_end),
+        force_tolerance_(force_tolerance) {}
+
+  const ContactMode& mode() const { return *mode_; }
+  double t_begin() const { return t_begin_; }
+  double t_end() const { return t_end_; }
+  Eigen::Index dof() const { return mode_->reduced().to_full.rows() / 2 - 1; }
+
+  /// Full state at t ∈ [t_begin, t_end] from the exact flow.
+  void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const;
+  /// Contact force λ of the a-th stop of mode().active() at t.
+  double force(Eigen::Index a, double t) const;
+  /// Certified minimum of that force over the segment (value, time).
+  Minimum force_minimum(Eigen::Index a) const;
+
+ private:
+  const ContactMode* mode_;
+  const Segment* segment_;
+  double t_begin_, t_end_;
+  double force_tolerance_;
+};
+
+class Observer {
+ public:
+  virtual ~Observer() = default;
+  virtual void begin(const ImpactSystem& /*scene*/, double /*t0*/) {}
+  virtual void segment(const SegmentView& /*view*/) {}
+  virtual void event(const Event& /*event*/) {}
+  virtual void end(double /*t_end*/) {}
+};
+
+class EventLog : public Observer {
+ public:
+  void event(const Event& e) override { events.push_back(e); }
+  std::vector<Event> events;
+};
+
+/// One interval of contact of one stop (a sticking phase).
+struct ContactInterval {
+  int stop = -1;
+  double t_start = 0.0, t_end = 0.0;
+  double force_min = 0.0, t_force_min = 0.0;
+  bool closed = false;  ///< false if the run ended while the stop was still held
+};
+
+class ContactLog : public Observer {
+ public:
+  void begin(const ImpactSystem& scene, double t0) override;
+  void segment(const SegmentView& view) override;
+  void event(const Event& e) override;
+  void end(double t_end) override;
+  std::vector<ContactInterval> intervals;
+
+ private:
+  std::vector<long> open_;  // index into intervals per stop, -1 if free
+};
+
+/// Exact states at requested times (sorted ascending).
+class Samples : public Observer {
+ public:
+  explicit Samples(std::vector<double> times) : times_(std::move(times)) {}
+  void segment(const SegmentView& view) override;
+  std::vector<double> t;
+  std::vector<Eigen::VectorXd> x, v;
+
+ private:
+  std::vector<double> times_;
+  std::size_t next_ = 0;
+};
+
+/// States at t = phase + k·2π/Ω, k = 0, 1, … (Ω > 0 required).
+class Poincare : public Observer {
+ public:
+  explicit Poincare(double phase_time = 0.0) : phase_time_(phase_time) {}
+  void begin(const ImpactSystem& scene, double t0) override;
+  void segment(const SegmentView& view) override;
+  std::vector<double> t;
+  std::vector<Eigen::VectorXd> x, v;
+
+ private:
+  double phase_time_, period_ = 0.0;
+  long next_k_ = 0;
+};
+
+/// Per forcing period [t0 + kT, t0 + (k+1)T): time each stop is held (as a fraction of T) and
+/// number of impacts of each stop.
+class PeriodStatistics : public Observer {
+ public:
+  void begin(const ImpactSystem& scene, double t0) override;
+  void segment(const SegmentView& view) override;
+  void event(const Event& e) override;
+  std::vector<Eigen::VectorXd> sticking_fraction;  ///< one vector (per stop) per period
+  std::vector<Eigen::VectorXi> impacts;
+
+ private:
+  void ensure(long k);
+  double t0_ = 0.0, period_ = 0.0;
+  std::size_t stops_ = 0;
+};
+
+}  // namespace vibro

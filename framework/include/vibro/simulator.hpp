@@ -1,0 +1,104 @@
+#pragma once
+/// \file simulator.hpp
+/// The hybrid event loop: exact flows between events, certified event location, Newton impacts,
+/// chatter resolved into sticking, sticking ended where a contact force crosses zero.
+///
+/// procedure Run(t0, x0, v0, t_end):
+///     S ← Settle(stops touching with zero approach speed)      # acceleration LCP, contact.hpp
+///     loop
+///         mode ← contact set S (reduced flow built on first use)
+///         segment ← exact flow of mode from (t, x, v); guards: g_j for j ∉ S, -λ_j for j ∈ S
+///         τ* ← earliest guard rising above its trigger ε in (t, t_end]   # events.hpp guarantee
+///         report the segment [t, t + τ*] to the observers
+///         if none: stop at t_end
+///         t ← t + τ*;  (x, v) ← exact state there
+///         I ← gap guards at zero and closing within the simultaneity window  (impacts)
+///         L ← force guards at zero and decreasing                          (releases)
+///         if I ≠ ∅:
+///             slow ← {j ∈ I : r_j < 1, j would be held (LCP), next bounce below chatter_height}
+///             Λ ← impulse LCP over S ∪ I with r_j := 0 for j ∈ slow       # generalised Newton
+///             v ← v - M⁻¹ W Λ;   log impacts; log chatter limit of j ∈ slow at the
+///                 Budd–Dux accumulation time t + 2 r_j g'_j / (a_j (1 - r_j))
+///         S ← Settle(candidates: S \ L ∪ {j ∈ I : |g'_j⁺| ≤ v_contact})   # acceleration LCP
+///         log sticks (S grew) and releases (S shrank)
+///         if more than max_events events within one event window: stop (Zeno guard)
+///
+/// Tolerances are relative to scales of the problem: length L (stops, initial state, static and
+/// forced response), velocity V = L·ω_ref, force F = (largest stiffness or mass·ω²)·L, time
+/// T = 2π/ω_ref with ω_ref the forcing frequency (or the fastest natural frequency if unforced).
+#include "vibro/contact.hpp"
+#include "vibro/observers.hpp"
+
+#include <string>
+#include <vector>
+
+namespace vibro {
+
+struct SimulatorOptions {
+  /// Guards trigger when they exceed this fraction of L (gaps) or F (forces): no penetration
+  /// beyond it, and any excursion beyond it is detected.
+  double trigger = 1e-13;
+  /// Impacts closer in time than this fraction of T are treated as simultaneous.
+  double simultaneity = 1e-12;
+  /// Chatter is ended by jumping to its accumulation point (Budd & Dux 1994) at an impact on a
+  /// stop that would hold (acceleration LCP) when the next bounce would rise less than
+  /// chatter_height·L, i.e. (r u)² / (2 a) ≤ chatter_height·L for approach speed u and approach
+  /// acceleration a, or when u ≤ chatter_velocity·V. The state error of the jump is O(u²/a).
+  double chatter_height = 1e-9;
+  double chatter_velocity = 0.0;
+  /// Post-impact normal speeds below this fraction of V count as resting contact.
+  double contact_velocity = 1e-11;
+  /// Zeno guard: at most this many events within one event window (default one period T).
+  long max_events = 100000;
+  double event_window = 0.0;  ///< 0: T
+  /// Length scale L; 0 = automatic.
+  double length_scale = 0.0;
+  FlowOptions flow;
+
+  /// Throws InvalidInput naming the field, the value and the rule.
+  void validate() const;
+};
+
+enum class RunStatus { completed, event_cap, numerical_failure };
+const char* to_string(RunStatus s);
+
+struct RunSummary {
+  RunStatus status = RunStatus::completed;
+  std::string message;   ///< why the run stopped early (empty when completed)
+  double t = 0.0;        ///< time reached
+  Eigen::VectorXd x, v;  ///< state reached
+  ContactSet stuck;      ///< stops held at the end
+  long impacts = 0, sticks = 0, releases = 0, chatters = 0, segments = 0;
+  std::size_t contact_sets_built = 0;    ///< restitution data built (distinct sets visited)
+  std::size_t sticking_flows_built = 0;  ///< reduced sticking subsystems built
+  double length_scale = 0.0, velocity_scale = 0.0, force_scale = 0.0, time_scale = 0.0;
+};
+
+class Simulator {
+ public:
+  /// Validates options. The scene must outlive the simulator.
+  explicit Simulator(const ImpactSystem& scene, SimulatorOptions options = {});
+
+  /// Runs from (t0, x0, v0) to t_end, reporting to `observers`. Throws InvalidInput if x0
+  /// violates a stop by more than the trigger tolerance or sizes are wrong. Numerical trouble
+  /// and the Zeno guard end the run with a status and a message, never with NaN.
+  RunSummary run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t_end,
+                 const std::vector<Observer*>& observers = {});
+
+  const ContactModes& modes() const { return modes_; }
+  const ImpactSystem& scene() const { return *scene_; }
+
+ private:
+  struct Scales {
+    double L, V, F, T;
+  };
+  Scales scales(const Eigen::VectorXd& x0, const Eigen::VectorXd& v0) const;
+  ContactSet settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                    const ContactSet& candidates, Eigen::VectorXd* forces) const;
+
+  const ImpactSystem* scene_;
+  SimulatorOptions options_;
+  ContactModes modes_;
+};
+
+}  // namespace vibro

@@ -1,0 +1,87 @@
+#pragma once
+/// \file stops.hpp
+/// Rigid stops: unilateral constraints on a LinearSystem, and the validated ImpactSystem.
+///
+/// Every stop j is written in one canonical form, a gap function that must stay ≤ 0:
+///
+///     g_j(x, t) = w_jᵀ x - s_j(t) ≤ 0,     s_j(t) = s0_j + a_j cos(Ω t + φ_j),
+///
+/// where Ω is the forcing frequency of the system (a moving stop is driven by the same source as
+/// the forcing, so the reduced sticking equations stay in the F0 + Fc cos + Fs sin family).
+/// The three physical kinds map onto it as
+///   * upper stop on mass i at p (x_i ≤ p):        w = e_i,        s = p
+///   * lower stop on mass i at p (x_i ≥ p):        w = -e_i,       s = -p
+///   * stop between masses i, k (x_i - x_k ≤ gap): w = e_i - e_k,  s = gap
+/// A stop in contact pushes with a force λ_j ≥ 0 along -w_j: M x'' + C x' + K x = f - W λ.
+/// At an impact the relative normal velocity g'_j = w_jᵀ v - s_j'(t) obeys Newton's law
+/// g'_j⁺ = -r_j g'_j⁻ with r_j ∈ [0, 1] (Wagg 2004, eq. 6, generalised to moving stops and to
+/// simultaneous impacts through the contact LCP, see contact.hpp).
+///
+/// Usage:
+///     std::vector<vibro::Stop> stops{vibro::Stop::lower(0, -0.3, 0.7), vibro::Stop::upper(1, 0.1, 0.7)};
+///     vibro::ImpactSystem scene(std::move(system), std::move(stops));   // validated
+#include "vibro/system.hpp"
+
+#include <string>
+#include <vector>
+
+namespace vibro {
+
+struct Stop {
+  enum class Kind { upper, lower, between };
+  Kind kind = Kind::upper;
+  Eigen::Index mass = 0;        ///< i
+  Eigen::Index other = -1;      ///< k, for Kind::between
+  double position = 0.0;        ///< p (upper/lower) or gap (between), at rest
+  double restitution = 1.0;     ///< r ∈ [0, 1]
+  double amplitude = 0.0;       ///< a of a harmonically moving stop (0 = fixed)
+  double phase = 0.0;           ///< φ, radians
+  std::string name;             ///< for messages and output; defaulted by ImpactSystem
+
+  static Stop upper(Eigen::Index mass, double position, double restitution);
+  static Stop lower(Eigen::Index mass, double position, double restitution);
+  static Stop between(Eigen::Index mass, Eigen::Index other, double gap, double restitution);
+  /// The same stop, moving as position + amplitude cos(Ω t + phase).
+  Stop moving(double amplitude, double phase) const;
+
+  /// Canonical form: w (dense, length n), and s(t) = s0 + sc cos Ωt + ss sin Ωt.
+  Eigen::VectorXd normal(Eigen::Index n) const;
+  double s0() const;
+  double s_cos() const;
+  double s_sin() const;
+};
+
+/// A LinearSystem with its stops, validated together.
+class ImpactSystem {
+ public:
+  /// Throws InvalidInput naming the stop (index and name) when a mass index is out of range,
+  /// r ∉ [0, 1], a value is not finite, two stops are the same constraint, or an upper and a
+  /// lower stop on one mass leave no room (clearance ≤ 0, including the stops' motion).
+  ImpactSystem(LinearSystem system, std::vector<Stop> stops);
+
+  const LinearSystem& system() const { return system_; }
+  const std::vector<Stop>& stops() const { return stops_; }
+  Eigen::Index dof() const { return system_.dof(); }
+  std::size_t stop_count() const { return stops_.size(); }
+  /// n × m matrix of the stop normals w_j.
+  const Eigen::MatrixXd& normals() const { return normals_; }
+
+  /// g_j(x, t) for every stop.
+  Eigen::VectorXd gaps(double t, const Eigen::Ref<const Eigen::VectorXd>& x) const;
+  /// g'_j = w_jᵀ v - s_j'(t).
+  Eigen::VectorXd gap_rates(double t, const Eigen::Ref<const Eigen::VectorXd>& v) const;
+
+  /// A length of the problem: the largest of the stops' offsets and amplitudes and `extra`
+  /// (e.g. the initial displacement); used to make tolerances relative. Never below 1e-300.
+  double length_scale(double extra = 0.0) const;
+
+  /// Throws InvalidInput when x violates a stop by more than `tolerance` (names stop, value).
+  void check_admissible(double t, const Eigen::Ref<const Eigen::VectorXd>& x, double tolerance) const;
+
+ private:
+  LinearSystem system_;
+  std::vector<Stop> stops_;
+  Eigen::MatrixXd normals_;
+};
+
+}  // namespace vibro

@@ -1,0 +1,69 @@
+#pragma once
+/// \file system.hpp
+/// The linear mechanical system between events:
+///
+///     M x'' + C x' + K x = f(t),   f(t) = F0 + Fc cos(Ω t) + Fs sin(Ω t),
+///
+/// with n degrees of freedom, M symmetric positive definite, C and K symmetric positive
+/// semi-definite (a singular K means rigid-body modes; C = 0 is allowed). Units are the user's:
+/// the framework only assumes they are consistent (mass, length, time).
+///
+/// A LinearSystem is immutable and validated on construction: once built it is correct, and
+/// everything downstream (flows, contact sets, simulators) takes it by const reference.
+///
+/// Usage:
+///     vibro::HarmonicForcing f{.constant = Eigen::VectorXd::Zero(2),
+///                              .cosine = Eigen::Vector2d(0.5, 0.0),
+///                              .sine = Eigen::VectorXd::Zero(2), .frequency = 0.255};
+///     vibro::LinearSystem sys(M, C, K, f);     // throws vibro::InvalidInput on bad data
+#include <Eigen/Dense>
+
+#include <stdexcept>
+#include <string>
+
+namespace vibro {
+
+/// Bad user input: a message that names the quantity, the index and the value.
+class InvalidInput : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+/// f(t) = constant + cosine cos(Ω t) + sine sin(Ω t); Ω = frequency ≥ 0 (rad per unit time).
+struct HarmonicForcing {
+  Eigen::VectorXd constant;
+  Eigen::VectorXd cosine;
+  Eigen::VectorXd sine;
+  double frequency = 0.0;
+
+  /// No forcing at all on n degrees of freedom.
+  static HarmonicForcing zero(Eigen::Index n, double frequency = 0.0);
+  Eigen::VectorXd at(double t) const;
+};
+
+class LinearSystem {
+ public:
+  /// Validates and stores. Throws InvalidInput naming the matrix, the entry and the value when
+  /// sizes disagree, an entry is not finite, a matrix is not symmetric (relative 1e-12), M is not
+  /// positive definite (a non-positive mass is reported as such) or C, K is not semi-definite.
+  LinearSystem(Eigen::MatrixXd mass, Eigen::MatrixXd damping, Eigen::MatrixXd stiffness,
+               HarmonicForcing forcing);
+
+  Eigen::Index dof() const { return mass_.rows(); }
+  const Eigen::MatrixXd& mass() const { return mass_; }
+  const Eigen::MatrixXd& damping() const { return damping_; }
+  const Eigen::MatrixXd& stiffness() const { return stiffness_; }
+  const HarmonicForcing& forcing() const { return forcing_; }
+
+  /// Acceleration M⁻¹ (f(t) - C v - K x).
+  Eigen::VectorXd acceleration(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) const;
+  /// Kinetic plus elastic energy ½ vᵀMv + ½ xᵀKx.
+  double energy(const Eigen::VectorXd& x, const Eigen::VectorXd& v) const;
+
+ private:
+  Eigen::MatrixXd mass_, damping_, stiffness_;
+  HarmonicForcing forcing_;
+  Eigen::LLT<Eigen::MatrixXd> mass_llt_;
+};
+
+}  // namespace vibro

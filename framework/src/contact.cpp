@@ -1,0 +1,238 @@
+#include "vibro/contact.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace vibro {
+namespace {
+
+std::string set_name(const ContactSet& s) {
+  std::string out = "{";
+  for (std::size_t i = 0; i < s.size(); ++i) out += (i ? "," : "") + std::to_string(s[i]);
+  return out + "}";
+}
+
+Eigen::MatrixXd symmetric(const Eigen::MatrixXd& a) { return 0.5 * (a + a.transpose()); }
+
+}  // namespace
+
+Eigen::VectorXd solve_lcp(const Eigen::MatrixXd& G, const Eigen::VectorXd& q) {
+  // Find a basis B (stops with λ > 0) with λ_B = G_BB⁻¹ q_B ≥ 0 and w = G λ - q ≥ 0 outside B.
+  const Eigen::Index m = q.size();
+  std::vector<bool> basic(static_cast<std::size_t>(m), false);
+  Eigen::VectorXd lambda = Eigen::VectorXd::Zero(m);
+  const double scale = std::max(1.0, q.cwiseAbs().maxCoeff()) * 1e-14;
+  const long limit = (m < 20 ? (1L << m) : (1L << 20)) * std::max<Eigen::Index>(m, 1) + 10;
+  for (long pivot = 0; pivot < limit; ++pivot) {
+    std::vector<Eigen::Index> idx;
+    for (Eigen::Index i = 0; i < m; ++i)
+      if (basic[static_cast<std::size_t>(i)]) idx.push_back(i);
+    lambda.setZero();
+    if (!idx.empty()) {
+      const auto k = static_cast<Eigen::Index>(idx.size());
+      Eigen::MatrixXd Gb(k, k);
+      Eigen::VectorXd qb(k);
+      for (Eigen::Index a = 0; a < k; ++a) {
+        qb(a) = q(idx[static_cast<std::size_t>(a)]);
+        for (Eigen::Index b = 0; b < k; ++b)
+          Gb(a, b) = G(idx[static_cast<std::size_t>(a)], idx[static_cast<std::size_t>(b)]);
+      }
+      const Eigen::VectorXd lb = Gb.ldlt().solve(qb);
+      for (Eigen::Index a = 0; a < k; ++a) lambda(idx[static_cast<std::size_t>(a)]) = lb(a);
+    }
+    const Eigen::VectorXd w = G * lambda - q;
+    // Least index violating complementarity: a basic λ < 0 or a non-basic w < 0.
+    Eigen::Index bad = -1;
+    for (Eigen::Index i = 0; i < m && bad < 0; ++i) {
+      const bool b = basic[static_cast<std::size_t>(i)];
+      if ((b && lambda(i) < -scale) || (!b && w(i) < -scale)) bad = i;
+    }
+    if (bad < 0) {
+      for (Eigen::Index i = 0; i < m; ++i) lambda(i) = std::max(lambda(i), 0.0);
+      return lambda;
+    }
+    basic[static_cast<std::size_t>(bad)] = !basic[static_cast<std::size_t>(bad)];
+  }
+  throw std::runtime_error("contact LCP: no solution after " + std::to_string(limit) +
+                           " pivots (Delassus matrix not positive definite?)");
+}
+
+ContactMode::ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptions flow_options)
+    : scene_(&scene), active_(std::move(active)), flow_options_(flow_options) {
+  const Eigen::Index n = scene.dof();
+  const Eigen::Index m = size();
+  normals_.resize(n, m);
+  for (Eigen::Index a = 0; a < m; ++a)
+    normals_.col(a) = scene.normals().col(active_[static_cast<std::size_t>(a)]);
+  const LinearSystem& sys = scene.system();
+  minv_w_ = sys.mass().llt().solve(normals_);
+  delassus_ = symmetric(normals_.transpose() * minv_w_);
+  restitution_ = Eigen::MatrixXd::Identity(n, n);
+  if (m > 0) {
+    Eigen::LLT<Eigen::MatrixXd> g(delassus_);
+    if (g.info() != Eigen::Success)
+      throw std::runtime_error("contact set " + set_name(active_) +
+                               ": the stops' normals are linearly dependent (Delassus matrix "
+                               "singular); such a set cannot be held by independent forces");
+    Eigen::VectorXd one_plus_r(m);
+    for (Eigen::Index a = 0; a < m; ++a)
+      one_plus_r(a) = 1.0 + scene.stops()[static_cast<std::size_t>(active_[static_cast<std::size_t>(a)])].restitution;
+    restitution_ -= minv_w_ * g.solve(one_plus_r.asDiagonal() * normals_.transpose());
+  }
+}
+
+const ContactMode::Reduced& ContactMode::reduced() const {
+  if (!reduced_) build_reduced();
+  return *reduced_;
+}
+
+void ContactMode::build_reduced() const {
+  const ImpactSystem& scene = *scene_;
+  const LinearSystem& sys = scene.system();
+  const Eigen::Index n = sys.dof();
+  const Eigen::Index m = size();
+  const double omega = sys.forcing().frequency;
+  auto red = std::make_unique<Reduced>();
+
+  // Dependent coordinates D: the pivots of a column-pivoted QR of Wᵀ (m × n).
+  Eigen::MatrixXd N = Eigen::MatrixXd::Identity(n, n);
+  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(n, m);
+  if (m > 0) {
+    const Eigen::MatrixXd Wt = normals_.transpose();
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(Wt);
+    if (qr.rank() < m)
+      throw std::runtime_error("contact set " + set_name(active_) +
+                               ": the stops' normals are linearly dependent");
+    const auto& perm = qr.colsPermutation().indices();
+    std::vector<bool> is_dep(static_cast<std::size_t>(n), false);
+    for (Eigen::Index a = 0; a < m; ++a) is_dep[static_cast<std::size_t>(perm(a))] = true;
+    for (Eigen::Index i = 0; i < n; ++i)
+      (is_dep[static_cast<std::size_t>(i)] ? red->dependent : red->free).push_back(i);
+    const auto nf = static_cast<Eigen::Index>(red->free.size());
+    Eigen::MatrixXd A(m, m), B(m, nf);
+    for (Eigen::Index a = 0; a < m; ++a) A.col(a) = Wt.col(red->dependent[static_cast<std::size_t>(a)]);
+    for (Eigen::Index b = 0; b < nf; ++b) B.col(b) = Wt.col(red->free[static_cast<std::size_t>(b)]);
+    const auto lu = A.fullPivLu();
+    const Eigen::MatrixXd Ainv = lu.inverse();
+    const Eigen::MatrixXd AinvB = Ainv * B;
+    N = Eigen::MatrixXd::Zero(n, nf);
+    for (Eigen::Index b = 0; b < nf; ++b) N(red->free[static_cast<std::size_t>(b)], b) = 1.0;
+    for (Eigen::Index a = 0; a < m; ++a) {
+      const Eigen::Index d = red->dependent[static_cast<std::size_t>(a)];
+      N.row(d) = -AinvB.row(a);
+      P.row(d) = Ainv.row(a);
+    }
+  } else {
+    for (Eigen::Index i = 0; i < n; ++i) red->free.push_back(i);
+  }
+  const Eigen::Index nf = N.cols();
+
+  // s(t) = s0 + sc cos Ωt + ss sin Ωt of the active stops.
+  Eigen::VectorXd s0(m), sc(m), ss(m);
+  for (Eigen::Index a = 0; a < m; ++a) {
+    const Stop& st = scene.stops()[static_cast<std::size_t>(active_[static_cast<std::size_t>(a)])];
+    s0(a) = st.s0();
+    sc(a) = st.s_cos();
+    ss(a) = st.s_sin();
+  }
+  const Eigen::MatrixXd& M = sys.mass();
+  const Eigen::MatrixXd& C = sys.damping();
+  const Eigen::MatrixXd& K = sys.stiffness();
+  const HarmonicForcing& f = sys.forcing();
+  red->mass = symmetric(N.transpose() * M * N);
+  red->damping = symmetric(N.transpose() * C * N);
+  red->stiffness = symmetric(N.transpose() * K * N);
+  const double w2 = omega * omega;
+  red->forcing.frequency = omega;
+  red->forcing.constant = N.transpose() * (f.constant - K * P * s0);
+  red->forcing.cosine = N.transpose() * (f.cosine - K * P * sc - omega * C * P * ss + w2 * M * P * sc);
+  red->forcing.sine = N.transpose() * (f.sine - K * P * ss + omega * C * P * sc + w2 * M * P * ss);
+
+  // T maps [y; y'; c; s; 1] to [x; v; c; s; 1].
+  const Eigen::Index Nf = 2 * n + 3, Nr = 2 * nf + 3;
+  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(Nf, Nr);
+  T.block(0, 0, n, nf) = N;
+  T.block(n, nf, n, nf) = N;
+  T.block(0, 2 * nf, n, 1) = P * sc;
+  T.block(0, 2 * nf + 1, n, 1) = P * ss;
+  T.block(0, 2 * nf + 2, n, 1) = P * s0;
+  T.block(n, 2 * nf, n, 1) = omega * P * ss;
+  T.block(n, 2 * nf + 1, n, 1) = -omega * P * sc;
+  T.block(2 * n, 2 * nf, 3, 3).setIdentity();
+  red->to_full = T;
+
+  red->flow = std::make_unique<LinearFlow>(
+      augmented_generator(red->mass, red->damping, red->stiffness, red->forcing), nf, omega,
+      flow_options_);
+
+  // Contact forces as rows in the full augmented space.
+  const Eigen::Index total = static_cast<Eigen::Index>(scene.stop_count());
+  if (m > 0) {
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, Nf);  // f - C v - K x as rows of z
+    rhs.block(0, 0, n, n) = -K;
+    rhs.block(0, n, n, n) = -C;
+    rhs.col(2 * n) = f.cosine;
+    rhs.col(2 * n + 1) = f.sine;
+    rhs.col(2 * n + 2) = f.constant;
+    Eigen::MatrixXd q = minv_w_.transpose() * rhs;  // Wᵀ M⁻¹ (…)
+    q.col(2 * n) += w2 * sc;                         // - s'' = Ω² (sc cos + ss sin)
+    q.col(2 * n + 1) += w2 * ss;
+    red->force_rows = delassus_.llt().solve(q);
+  } else {
+    red->force_rows.resize(0, Nf);
+  }
+
+  // Watch rows: gaps of the stops not in S, then -λ of the stops in S.
+  Eigen::MatrixXd rows(total, Nr);
+  Eigen::Index r = 0;
+  for (Eigen::Index j = 0; j < total; ++j) {
+    if (std::binary_search(active_.begin(), active_.end(), static_cast<int>(j))) continue;
+    const Stop& st = scene.stops()[static_cast<std::size_t>(j)];
+    Eigen::RowVectorXd g = Eigen::RowVectorXd::Zero(Nf);
+    g.head(n) = scene.normals().col(j).transpose();
+    g(2 * n) = -st.s_cos();
+    g(2 * n + 1) = -st.s_sin();
+    g(2 * n + 2) = -st.s0();
+    rows.row(r++) = g * T;
+    red->watched.push_back(static_cast<int>(j));
+  }
+  red->gap_rows = r;
+  for (Eigen::Index a = 0; a < m; ++a) {
+    rows.row(r++) = -red->force_rows.row(a) * T;
+    red->watched.push_back(active_[static_cast<std::size_t>(a)]);
+  }
+  red->watch = std::make_unique<Functionals>(*red->flow, rows.topRows(r));
+  reduced_ = std::move(red);
+}
+
+Eigen::VectorXd ContactMode::reduce(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
+                                    const Eigen::Ref<const Eigen::VectorXd>& v) const {
+  const Reduced& red = reduced();
+  const auto nf = static_cast<Eigen::Index>(red.free.size());
+  Eigen::VectorXd z(2 * nf + 3);
+  for (Eigen::Index b = 0; b < nf; ++b) {
+    z(b) = x(red.free[static_cast<std::size_t>(b)]);
+    z(nf + b) = v(red.free[static_cast<std::size_t>(b)]);
+  }
+  const double omega = scene_->system().forcing().frequency;
+  z(2 * nf) = std::cos(omega * t);
+  z(2 * nf + 1) = std::sin(omega * t);
+  z(2 * nf + 2) = 1.0;
+  return z;
+}
+
+const ContactMode& ContactModes::get(const ContactSet& set) {
+  auto it = modes_.find(set);
+  if (it == modes_.end())
+    it = modes_.emplace(set, std::make_unique<ContactMode>(*scene_, set, flow_options_)).first;
+  return *it->second;
+}
+
+std::size_t ContactModes::reduced_built() const {
+  std::size_t count = 0;
+  for (const auto& [set, mode] : modes_) count += mode->reduced_built() ? 1 : 0;
+  return count;
+}
+
+}  // namespace vibro

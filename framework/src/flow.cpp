@@ -1,0 +1,200 @@
+#include "vibro/flow.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <unsupported/Eigen/MatrixFunctions>
+
+#include <cmath>
+#include <limits>
+
+namespace vibro {
+namespace {
+
+Eigen::MatrixXd build_generator(const LinearSystem& sys) {
+  return augmented_generator(sys.mass(), sys.damping(), sys.stiffness(), sys.forcing());
+}
+
+}  // namespace
+
+Eigen::MatrixXd augmented_generator(const Eigen::MatrixXd& M, const Eigen::MatrixXd& C,
+                                    const Eigen::MatrixXd& K, const HarmonicForcing& f) {
+  const Eigen::Index n = M.rows();
+  const Eigen::Index N = 2 * n + 3;
+  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(N, N);
+  if (n > 0) {
+    const Eigen::LLT<Eigen::MatrixXd> llt(M);
+    g.block(0, n, n, n).setIdentity();
+    g.block(n, 0, n, n) = -llt.solve(K);
+    g.block(n, n, n, n) = -llt.solve(C);
+    g.block(n, 2 * n, n, 1) = llt.solve(f.cosine);
+    g.block(n, 2 * n + 1, n, 1) = llt.solve(f.sine);
+    g.block(n, 2 * n + 2, n, 1) = llt.solve(f.constant);
+  }
+  g(2 * n, 2 * n + 1) = -f.frequency;
+  g(2 * n + 1, 2 * n) = f.frequency;
+  return g;
+}
+
+LinearFlow::LinearFlow(const LinearSystem& system, Options options)
+    : LinearFlow(build_generator(system), system.dof(), system.forcing().frequency, options) {}
+
+LinearFlow::LinearFlow(Eigen::MatrixXd generator, Eigen::Index dof, double frequency,
+                       Options options)
+    : n_(dof),
+      omega_(frequency),
+      method_(Method::exponential),
+      condition_(std::numeric_limits<double>::infinity()),
+      generator_(std::move(generator)) {
+  const Eigen::Index N = size();
+  if (generator_.rows() != N || generator_.cols() != N)
+    throw InvalidInput("flow: generator is " + std::to_string(generator_.rows()) + "x" +
+                       std::to_string(generator_.cols()) + ", expected " + std::to_string(N) +
+                       "x" + std::to_string(N) + " for " + std::to_string(dof) + " DOF");
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> sym(0.5 * (generator_ + generator_.transpose()),
+                                                    Eigen::EigenvaluesOnly);
+  log_norm_ = sym.eigenvalues()(N - 1);
+
+  Eigen::EigenSolver<Eigen::MatrixXd> eig(generator_, true);
+  if (eig.info() == Eigen::Success) {
+    lambda_ = eig.eigenvalues();
+    vectors_ = eig.eigenvectors();
+    spectral_radius_ = lambda_.cwiseAbs().maxCoeff();
+    Eigen::JacobiSVD<Eigen::MatrixXcd> svd(vectors_);
+    const auto& s = svd.singularValues();
+    condition_ = s(N - 1) > 0 ? s(0) / s(N - 1) : std::numeric_limits<double>::infinity();
+  } else {
+    spectral_radius_ = generator_.cwiseAbs().rowwise().sum().maxCoeff();  // ∞-norm bounds |λ|
+  }
+
+  bool spectral_ok = std::isfinite(condition_) && condition_ <= options.max_condition;
+  if (spectral_ok) {
+    inverse_ = vectors_.partialPivLu().inverse();
+    // The decomposition must reproduce Â: ‖V Λ V⁻¹ - Â‖ ≤ 1e-13 ‖Â‖ (max-norm).
+    const Eigen::MatrixXcd rebuilt = vectors_ * lambda_.asDiagonal() * inverse_;
+    const double scale = std::max(generator_.cwiseAbs().maxCoeff(), 1e-300);
+    const double err = (rebuilt - generator_.cast<std::complex<double>>()).cwiseAbs().maxCoeff();
+    spectral_ok = err <= 1e-13 * scale * std::max(1.0, condition_ / 100.0);
+  }
+  const bool use_spectral = options.method == Method::spectral ||
+                            (options.method == Method::automatic && spectral_ok);
+  if (options.method == Method::spectral && eig.info() != Eigen::Success)
+    throw InvalidInput("flow: the spectral method was requested but the eigen-decomposition failed");
+  if (use_spectral) {
+    if (inverse_.size() == 0) inverse_ = vectors_.partialPivLu().inverse();
+    method_ = Method::spectral;
+  } else {
+    method_ = Method::exponential;
+    lambda_.resize(0);
+    vectors_.resize(0, 0);
+    inverse_.resize(0, 0);
+  }
+}
+
+Eigen::VectorXd LinearFlow::augment(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
+                                    const Eigen::Ref<const Eigen::VectorXd>& v) const {
+  Eigen::VectorXd z(size());
+  z.head(n_) = x;
+  z.segment(n_, n_) = v;
+  z(2 * n_) = std::cos(omega_ * t);
+  z(2 * n_ + 1) = std::sin(omega_ * t);
+  z(2 * n_ + 2) = 1.0;
+  return z;
+}
+
+Eigen::MatrixXd LinearFlow::transition_matrix(double tau) const {
+  return (generator_ * tau).exp();
+}
+
+void LinearFlow::propagate(const Eigen::Ref<const Eigen::VectorXd>& z, double tau,
+                           Eigen::Ref<Eigen::VectorXd> out) const {
+  if (method_ == Method::spectral) {
+    Eigen::VectorXcd c = inverse_ * z.cast<std::complex<double>>();
+    for (Eigen::Index k = 0; k < c.size(); ++k) c(k) *= std::exp(lambda_(k) * tau);
+    out = (vectors_ * c).real();
+  } else {
+    out = transition_matrix(tau) * z;
+  }
+}
+
+LinearFlow::State LinearFlow::state(double t0, const Eigen::Ref<const Eigen::VectorXd>& x0,
+                                    const Eigen::Ref<const Eigen::VectorXd>& v0, double t) const {
+  Eigen::VectorXd z(size());
+  propagate(augment(t0, x0, v0), t - t0, z);
+  // The forcing components are known exactly; only x and v come from the flow.
+  const Eigen::VectorXd exact = augment(t, z.head(n_), z.segment(n_, n_));
+  const Eigen::VectorXd dz = generator_ * exact;
+  return {exact.head(n_), exact.segment(n_, n_), dz.segment(n_, n_)};
+}
+
+// ---------------------------------------------------------------------------------------------
+
+Functionals::Functionals(const LinearFlow& flow, Eigen::MatrixXd rows) : flow_(&flow) {
+  rows_[0] = std::move(rows);
+  for (int d = 1; d < 4; ++d) rows_[d] = rows_[d - 1] * flow.generator();
+  if (flow.method() == LinearFlow::Method::spectral)
+    modal_rows_ = rows_[0].cast<std::complex<double>>() * flow.eigenvectors();
+}
+
+Segment::Segment(const Functionals& functionals, double t0,
+                 const Eigen::Ref<const Eigen::VectorXd>& z0)
+    : functionals_(&functionals),
+      t0_(t0),
+      z0_(z0),
+      cached_tau_(std::numeric_limits<double>::quiet_NaN()) {
+  const LinearFlow& flow = functionals.flow();
+  if (flow.method() == LinearFlow::Method::spectral) {
+    modal_ = flow.inverse_eigenvectors() * z0_.cast<std::complex<double>>();
+    coefficients_ = functionals.modal_rows() * modal_.asDiagonal();
+  }
+}
+
+const Eigen::VectorXd& Segment::exponential_state(double tau) const {
+  if (!(tau == cached_tau_)) {
+    cached_z_ = functionals_->flow().transition_matrix(tau) * z0_;
+    cached_tau_ = tau;
+  }
+  return cached_z_;
+}
+
+double Segment::value(Eigen::Index i, double tau, int derivative) const {
+  const LinearFlow& flow = functionals_->flow();
+  if (flow.method() == LinearFlow::Method::spectral) {
+    const Eigen::VectorXcd& lambda = flow.eigenvalues();
+    double sum = 0.0;
+    for (Eigen::Index k = 0; k < lambda.size(); ++k) {
+      std::complex<double> term = coefficients_(i, k) * std::exp(lambda(k) * tau);
+      for (int d = 0; d < derivative; ++d) term *= lambda(k);
+      sum += term.real();
+    }
+    return sum;
+  }
+  return functionals_->rows(derivative).row(i).dot(exponential_state(tau));
+}
+
+double Segment::second_derivative_bound(Eigen::Index i, double a, double b) const {
+  const LinearFlow& flow = functionals_->flow();
+  if (flow.method() == LinearFlow::Method::spectral) {
+    const Eigen::VectorXcd& lambda = flow.eigenvalues();
+    double bound = 0.0;
+    for (Eigen::Index k = 0; k < lambda.size(); ++k) {
+      const double growth = std::exp(std::max(lambda(k).real() * a, lambda(k).real() * b));
+      bound += std::abs(coefficients_(i, k)) * std::norm(lambda(k)) * growth;
+    }
+    return bound * (1.0 + 1e-12);
+  }
+  const double mu = flow.log_norm();
+  return functionals_->rows(2).row(i).norm() * exponential_state(a).norm() *
+         std::exp(std::max(0.0, mu * (b - a))) * (1.0 + 1e-12);
+}
+
+void Segment::state(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
+  const LinearFlow& flow = functionals_->flow();
+  if (flow.method() == LinearFlow::Method::spectral) {
+    Eigen::VectorXcd c = modal_;
+    for (Eigen::Index k = 0; k < c.size(); ++k) c(k) *= std::exp(flow.eigenvalues()(k) * tau);
+    out = (flow.eigenvectors() * c).real();
+  } else {
+    out = exponential_state(tau);
+  }
+}
+
+}  // namespace vibro

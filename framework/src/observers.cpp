@@ -1,0 +1,159 @@
+#include "vibro/observers.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+namespace vibro {
+
+const char* to_string(EventKind kind) {
+  switch (kind) {
+    case EventKind::impact: return "impact";
+    case EventKind::stick: return "stick";
+    case EventKind::release: return "release";
+    case EventKind::chatter_limit: return "chatter-limit";
+  }
+  return "?";
+}
+
+void SegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const {
+  const auto& red = mode_->reduced();
+  Eigen::VectorXd zr(red.flow->size());
+  segment_->state(t - t_begin_, zr);
+  const Eigen::VectorXd z = red.to_full * zr;
+  const Eigen::Index n = x.size();
+  x = z.head(n);
+  v = z.segment(n, n);
+}
+
+double SegmentView::force(Eigen::Index a, double t) const {
+  const auto& red = mode_->reduced();
+  return -segment_->value(red.gap_rows + a, t - t_begin_);
+}
+
+Minimum SegmentView::force_minimum(Eigen::Index a) const {
+  // The watch row is -λ: minimise λ = -row.
+  const Eigen::Index row = mode_->reduced().gap_rows + a;
+  const Minimum m = minimize_row(*segment_, row, 0.0, t_end_ - t_begin_, force_tolerance_, -1.0);
+  return {m.value, t_begin_ + m.tau};
+}
+
+// --- ContactLog ------------------------------------------------------------------------------
+
+void ContactLog::begin(const ImpactSystem& scene, double) { open_.assign(scene.stop_count(), -1); }
+
+void ContactLog::event(const Event& e) {
+  auto& slot = open_[static_cast<std::size_t>(e.stop)];
+  if (e.kind == EventKind::stick || e.kind == EventKind::chatter_limit) {
+    if (slot >= 0) return;
+    slot = static_cast<long>(intervals.size());
+    intervals.push_back({e.stop, e.t, e.t, e.force, e.t, false});
+  } else if (e.kind == EventKind::release && slot >= 0) {
+    auto& iv = intervals[static_cast<std::size_t>(slot)];
+    iv.t_end = e.t;
+    iv.closed = true;
+    slot = -1;
+  }
+}
+
+void ContactLog::segment(const SegmentView& view) {
+  const ContactSet& active = view.mode().active();
+  for (std::size_t a = 0; a < active.size(); ++a) {
+    const long slot = open_[static_cast<std::size_t>(active[a])];
+    if (slot < 0) continue;
+    auto& iv = intervals[static_cast<std::size_t>(slot)];
+    const Minimum m = view.force_minimum(static_cast<Eigen::Index>(a));
+    if (m.value < iv.force_min) {
+      iv.force_min = m.value;
+      iv.t_force_min = m.tau;
+    }
+    iv.t_end = view.t_end();
+  }
+}
+
+void ContactLog::end(double t_end) {
+  for (long slot : open_)
+    if (slot >= 0) intervals[static_cast<std::size_t>(slot)].t_end = t_end;
+}
+
+// --- Samples, Poincare ---------------------------------------------------------------------------
+
+void Samples::segment(const SegmentView& view) {
+  const Eigen::Index n = view.dof();
+  while (next_ < times_.size() && times_[next_] <= view.t_end()) {
+    const double ts = times_[next_];
+    if (ts >= view.t_begin()) {
+      Eigen::VectorXd xs(n), vs(n);
+      view.state(ts, xs, vs);
+      t.push_back(ts);
+      x.push_back(xs);
+      v.push_back(vs);
+    }
+    ++next_;
+  }
+}
+
+void Poincare::begin(const ImpactSystem& scene, double t0) {
+  const double omega = scene.system().forcing().frequency;
+  if (!(omega > 0.0)) throw InvalidInput("poincare: needs a forcing frequency > 0");
+  period_ = 2.0 * std::numbers::pi / omega;
+  next_k_ = static_cast<long>(std::ceil((t0 - phase_time_) / period_ - 1e-12));
+}
+
+void Poincare::segment(const SegmentView& view) {
+  const Eigen::Index n = view.dof();
+  while (true) {
+    const double ts = phase_time_ + static_cast<double>(next_k_) * period_;
+    if (ts > view.t_end()) break;
+    if (ts >= view.t_begin()) {
+      Eigen::VectorXd xs(n), vs(n);
+      view.state(ts, xs, vs);
+      t.push_back(ts);
+      x.push_back(xs);
+      v.push_back(vs);
+    }
+    ++next_k_;
+  }
+}
+
+// --- PeriodStatistics ----------------------------------------------------------------------------
+
+void PeriodStatistics::begin(const ImpactSystem& scene, double t0) {
+  const double omega = scene.system().forcing().frequency;
+  if (!(omega > 0.0)) throw InvalidInput("statistics: per-period statistics need a forcing frequency > 0");
+  period_ = 2.0 * std::numbers::pi / omega;
+  t0_ = t0;
+  stops_ = scene.stop_count();
+}
+
+void PeriodStatistics::ensure(long k) {
+  while (static_cast<long>(sticking_fraction.size()) <= k) {
+    sticking_fraction.push_back(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(stops_)));
+    impacts.push_back(Eigen::VectorXi::Zero(static_cast<Eigen::Index>(stops_)));
+  }
+}
+
+void PeriodStatistics::segment(const SegmentView& view) {
+  const ContactSet& active = view.mode().active();
+  if (active.empty()) return;
+  double a = view.t_begin();
+  const double b = view.t_end();
+  while (a < b) {
+    const long k = static_cast<long>(std::floor((a - t0_) / period_));
+    const double period_end = t0_ + static_cast<double>(k + 1) * period_;
+    const double piece = std::min(b, period_end) - a;
+    ensure(k);
+    for (int j : active) sticking_fraction[static_cast<std::size_t>(k)](j) += piece / period_;
+    a = std::min(b, period_end);
+    if (piece <= 0.0) break;
+  }
+}
+
+void PeriodStatistics::event(const Event& e) {
+  if (e.kind != EventKind::impact) return;
+  const long k = static_cast<long>(std::floor((e.t - t0_) / period_));
+  ensure(k);
+  impacts[static_cast<std::size_t>(k)](e.stop) += 1;
+}
+
+}  // namespace vibro

@@ -1,0 +1,378 @@
+#include "vibro/simulator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <sstream>
+#include <stdexcept>
+
+namespace vibro {
+namespace {
+
+std::string show(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+std::string show(const Eigen::VectorXd& v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << "[";
+  for (Eigen::Index i = 0; i < v.size(); ++i) s << (i ? ", " : "") << v(i);
+  s << "]";
+  return s.str();
+}
+
+bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
+
+ContactSet merge(const ContactSet& a, const ContactSet& b) {
+  ContactSet out;
+  std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
+  return out;
+}
+
+void require_positive(double value, const char* field, bool allow_zero = false) {
+  if (!std::isfinite(value) || value < 0.0 || (!allow_zero && value == 0.0))
+    throw InvalidInput(std::string("solver.") + field + " = " + show(value) + ": must be a finite number " +
+                       (allow_zero ? "≥ 0" : "> 0"));
+}
+
+/// Ring buffer of recent event times for the Zeno guard (allocated once per run).
+class EventRate {
+ public:
+  EventRate(long capacity, double window)
+      : times_(static_cast<std::size_t>(capacity) + 1), window_(window) {}
+  /// Records an event at t; true if more than `capacity` events fall within the window.
+  bool exceeded(double t) {
+    times_[head_] = t;
+    head_ = (head_ + 1) % times_.size();
+    count_ = std::min(count_ + 1, times_.size());
+    if (count_ < times_.size()) return false;
+    return t - times_[head_] < window_;  // the oldest of capacity+1 events is within the window
+  }
+
+ private:
+  std::vector<double> times_;
+  std::size_t head_ = 0, count_ = 0;
+  double window_;
+};
+
+}  // namespace
+
+const char* to_string(RunStatus s) {
+  switch (s) {
+    case RunStatus::completed: return "completed";
+    case RunStatus::event_cap: return "event cap reached";
+    case RunStatus::numerical_failure: return "numerical failure";
+  }
+  return "?";
+}
+
+void SimulatorOptions::validate() const {
+  require_positive(trigger, "trigger");
+  require_positive(simultaneity, "simultaneity", true);
+  require_positive(chatter_velocity, "chatter_velocity", true);
+  require_positive(chatter_height, "chatter_height", true);
+  require_positive(contact_velocity, "contact_velocity", true);
+  require_positive(event_window, "event_window", true);
+  require_positive(length_scale, "length_scale", true);
+  if (max_events < 1)
+    throw InvalidInput("solver.max_events = " + std::to_string(max_events) + ": must be ≥ 1");
+  if (trigger >= 1e-3)
+    throw InvalidInput("solver.trigger = " + show(trigger) +
+                       ": must be < 1e-3 (it is the allowed penetration relative to the length scale)");
+}
+
+Simulator::Simulator(const ImpactSystem& scene, SimulatorOptions options)
+    : scene_(&scene), options_(options), modes_(scene, options.flow) {
+  options_.validate();
+}
+
+Simulator::Scales Simulator::scales(const Eigen::VectorXd& x0, const Eigen::VectorXd& v0) const {
+  const LinearSystem& sys = scene_->system();
+  double omega = sys.forcing().frequency;
+  if (omega == 0.0) {
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(sys.stiffness(), sys.mass(),
+                                                                  Eigen::EigenvaluesOnly);
+    omega = std::sqrt(std::max(0.0, eig.eigenvalues().maxCoeff()));
+  }
+  if (!(omega > 0.0)) omega = 1.0;
+  const double kmax = sys.stiffness().cwiseAbs().maxCoeff();
+  const double mmax = sys.mass().cwiseAbs().maxCoeff();
+  const double stiff = std::max(kmax, mmax * omega * omega);
+  const HarmonicForcing& f = sys.forcing();
+  const double fmax = f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() +
+                      f.sine.cwiseAbs().maxCoeff();
+  double L = options_.length_scale;
+  if (L == 0.0) {
+    L = scene_->length_scale(x0.cwiseAbs().maxCoeff());
+    L = std::max({L, v0.cwiseAbs().maxCoeff() / omega, fmax / stiff});
+  }
+  return {L, L * omega, std::max(stiff * L, fmax), 2.0 * std::numbers::pi / omega};
+}
+
+ContactSet Simulator::settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                             const ContactSet& candidates, Eigen::VectorXd* forces) const {
+  if (candidates.empty()) {
+    if (forces) forces->resize(0);
+    return {};
+  }
+  const LinearSystem& sys = scene_->system();
+  const double omega = sys.forcing().frequency;
+  const auto m = static_cast<Eigen::Index>(candidates.size());
+  // q = free gap acceleration Wᵀ M⁻¹ (f - C v - K x) - s''(t).
+  const Eigen::VectorXd acc = sys.acceleration(t, x, v);
+  Eigen::VectorXd q(m);
+  Eigen::MatrixXd G(m, m);
+  const Eigen::MatrixXd& W = scene_->normals();
+  const Eigen::LLT<Eigen::MatrixXd> llt(sys.mass());
+  Eigen::MatrixXd Wc(W.rows(), m);
+  for (Eigen::Index a = 0; a < m; ++a) {
+    const int j = candidates[static_cast<std::size_t>(a)];
+    const Stop& st = scene_->stops()[static_cast<std::size_t>(j)];
+    const double s_dd = -omega * omega * (st.s_cos() * std::cos(omega * t) + st.s_sin() * std::sin(omega * t));
+    q(a) = W.col(j).dot(acc) - s_dd;
+    Wc.col(a) = W.col(j);
+  }
+  G = Wc.transpose() * llt.solve(Wc);
+  const Eigen::VectorXd lambda = solve_lcp(G, q);
+  ContactSet held;
+  for (Eigen::Index a = 0; a < m; ++a)
+    if (lambda(a) > 0.0) held.push_back(candidates[static_cast<std::size_t>(a)]);
+  if (forces) *forces = lambda;
+  return held;
+}
+
+RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                          double t_end, const std::vector<Observer*>& observers) {
+  const ImpactSystem& scene = *scene_;
+  const LinearSystem& sys = scene.system();
+  const Eigen::Index n = sys.dof();
+  const int stops = static_cast<int>(scene.stop_count());
+  if (x0.size() != n || v0.size() != n)
+    throw InvalidInput("initial state: x has " + std::to_string(x0.size()) + " and v has " +
+                       std::to_string(v0.size()) + " entries, expected " + std::to_string(n));
+  if (!x0.allFinite() || !v0.allFinite())
+    throw InvalidInput("initial state: x = " + show(x0) + ", v = " + show(v0) + " is not finite");
+  if (!std::isfinite(t0) || !std::isfinite(t_end) || t_end < t0)
+    throw InvalidInput("time span: [" + show(t0) + ", " + show(t_end) + "] must be finite with t_end ≥ t0");
+
+  const Scales sc = scales(x0, v0);
+  const double eps_gap = options_.trigger * sc.L;
+  const double eps_force = options_.trigger * sc.F;
+  const double v_chatter = options_.chatter_velocity * sc.V;
+  const double h_chatter = options_.chatter_height * sc.L;
+  const double v_contact = options_.contact_velocity * sc.V;
+  const double dt_simultaneous = options_.simultaneity * sc.T;
+  const double window = options_.event_window > 0.0 ? options_.event_window : sc.T;
+  scene.check_admissible(t0, x0, eps_gap);
+
+  RunSummary summary;
+  summary.length_scale = sc.L;
+  summary.velocity_scale = sc.V;
+  summary.force_scale = sc.F;
+  summary.time_scale = sc.T;
+  for (Observer* o : observers) o->begin(scene, t0);
+
+  double t = t0;
+  Eigen::VectorXd x = x0, v = v0;
+  ContactSet stuck;
+  EventRate rate(options_.max_events, window);
+  auto emit = [&](const Event& e) {
+    for (Observer* o : observers) o->event(e);
+  };
+  auto finish = [&](RunStatus status, std::string message) {
+    summary.status = status;
+    summary.message = std::move(message);
+    summary.t = t;
+    summary.x = x;
+    summary.v = v;
+    summary.stuck = stuck;
+    summary.contact_sets_built = modes_.built();
+    summary.sticking_flows_built = modes_.reduced_built();
+    for (Observer* o : observers) o->end(t);
+    return summary;
+  };
+
+  // Handles an event at time t: impacts on `impacting`, releases of `releasing`.
+  auto handle = [&](const ContactSet& impacting, const ContactSet& releasing) {
+    ContactSet candidates;
+    std::set_difference(stuck.begin(), stuck.end(), releasing.begin(), releasing.end(),
+                        std::back_inserter(candidates));
+    ContactSet chatter;
+    Eigen::VectorXd g_before;
+    if (!impacting.empty()) {
+      g_before = scene.gap_rates(t, v);
+      // Chatter candidates: stops that would hold (acceleration LCP with them stuck) and whose
+      // next bounce would be too small to resolve (or too slow).
+      ContactSet slow;
+      for (int j : impacting)
+        if (scene.stops()[static_cast<std::size_t>(j)].restitution < 1.0) slow.push_back(j);
+      if (!slow.empty()) {
+        Eigen::VectorXd hold_force;
+        const ContactSet test = merge(candidates, slow);
+        const ContactSet held = settle(t, x, v, test, &hold_force);
+        for (int j : slow) {
+          if (!contains(held, j)) continue;
+          const auto a_idx = std::lower_bound(test.begin(), test.end(), j) - test.begin();
+          const double accel = modes_.get({j}).delassus()(0, 0) * hold_force(a_idx);
+          const double r = scene.stops()[static_cast<std::size_t>(j)].restitution;
+          const double u = g_before(j);
+          const double rise = (r * u) * (r * u) / (2.0 * accel);
+          if (u <= v_chatter || rise <= h_chatter) chatter.push_back(j);
+        }
+      }
+      const ContactSet all = merge(stuck, impacting);
+      const ContactMode& mode = modes_.get(all);
+      const auto m = static_cast<Eigen::Index>(all.size());
+      Eigen::VectorXd q(m);
+      for (Eigen::Index a = 0; a < m; ++a) {
+        const int j = all[static_cast<std::size_t>(a)];
+        const bool resting = contains(stuck, j) || contains(chatter, j);
+        const double r = resting ? 0.0 : scene.stops()[static_cast<std::size_t>(j)].restitution;
+        q(a) = (1.0 + r) * g_before(j);
+      }
+      const Eigen::VectorXd impulse = solve_lcp(mode.delassus(), q);
+      v -= mode.mass_inverse_normals() * impulse;
+      const Eigen::VectorXd g_after = scene.gap_rates(t, v);
+      for (int j : impacting) {
+        emit({t, j, EventKind::impact, g_before(j), g_after(j), 0.0});
+        ++summary.impacts;
+      }
+      for (int j : all)
+        if (g_after(j) >= -v_contact && !contains(candidates, j)) candidates.push_back(j);
+      std::sort(candidates.begin(), candidates.end());
+    }
+    Eigen::VectorXd forces;
+    ContactSet next = settle(t, x, v, candidates, &forces);
+    // Remove the residual normal velocity of the held stops (rounding, or < v_contact).
+    if (!next.empty()) {
+      const ContactMode& mode = modes_.get(next);
+      const Eigen::VectorXd g = scene.gap_rates(t, v);
+      Eigen::VectorXd gn(static_cast<Eigen::Index>(next.size()));
+      for (std::size_t a = 0; a < next.size(); ++a) gn(static_cast<Eigen::Index>(a)) = g(next[a]);
+      v -= mode.mass_inverse_normals() * mode.delassus().llt().solve(gn);
+    }
+    auto force_of = [&](int j) {
+      for (std::size_t a = 0; a < candidates.size(); ++a)
+        if (candidates[a] == j) return forces(static_cast<Eigen::Index>(a));
+      return 0.0;
+    };
+    for (int j : next) {
+      if (contains(stuck, j)) continue;
+      if (contains(chatter, j)) {
+        // Budd & Dux (1994): bounces of speed r^k u under a constant approach acceleration a
+        // accumulate at t + 2 r u / (a (1 - r)).
+        const double r = scene.stops()[static_cast<std::size_t>(j)].restitution;
+        const ContactMode& single = modes_.get({j});
+        const double a = single.delassus()(0, 0) * force_of(j);
+        const double u = g_before(j);
+        const double t_limit = a > 0.0 ? t + 2.0 * r * u / (a * (1.0 - r)) : t;
+        emit({t_limit, j, EventKind::chatter_limit, r * u, 0.0, force_of(j)});
+        ++summary.chatters;
+      } else {
+        emit({t, j, EventKind::stick, g_before.size() ? g_before(j) : 0.0, 0.0, force_of(j)});
+      }
+      ++summary.sticks;
+    }
+    const Eigen::VectorXd g_now = scene.gap_rates(t, v);
+    for (int j : stuck) {
+      if (contains(next, j)) continue;
+      emit({t, j, EventKind::release, 0.0, g_now(j), 0.0});
+      ++summary.releases;
+    }
+    stuck = next;
+  };
+
+  try {
+    // Initial contacts: stops touched at t0 (within ε) that are approached or resting.
+    {
+      const Eigen::VectorXd g = scene.gaps(t, x), gd = scene.gap_rates(t, v);
+      ContactSet impacting, resting;
+      for (int j = 0; j < stops; ++j) {
+        if (g(j) < -eps_gap) continue;
+        if (gd(j) > v_contact) impacting.push_back(j);
+        else if (gd(j) >= -v_contact) resting.push_back(j);
+      }
+      ContactSet none;
+      stuck = resting;  // candidates for the first settle
+      handle(impacting, none);
+    }
+
+    while (true) {
+      const ContactMode& mode = modes_.get(stuck);
+      const ContactMode::Reduced& red = mode.reduced();
+      const Segment segment(*red.watch, t, mode.reduce(t, x, v));
+      const Eigen::Index rows = red.watch->count();
+      Eigen::VectorXd triggers(rows);
+      for (Eigen::Index i = 0; i < rows; ++i) {
+        triggers(i) = i < red.gap_rows ? eps_gap : eps_force;
+        // A guard that starts inside its tolerance band while moving away (just after an impact
+        // or a release) is only re-armed above where it starts, so rounding cannot re-fire it.
+        const double h0 = segment.value(i, 0.0);
+        if (h0 > 0.0 && segment.value(i, 0.0, 1) <= 0.0) triggers(i) += h0;
+      }
+      const double resolution =
+          8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end), sc.T);
+      CrossingFinder finder(segment, triggers, resolution);
+      const double step = 1.0 / std::max(red.flow->spectral_radius(), 1e-300);
+      const double span = t_end - t;
+      std::optional<Crossing> hit;
+      for (double a = 0.0; a < span && !hit;) {
+        const double b = std::min(a + step, span);
+        if (rows > 0) hit = finder.first(a, b);
+        a = b;
+      }
+      const double tau = hit ? hit->tau : span;
+      const double t_next = hit ? t + tau : t_end;
+      ++summary.segments;
+      if (!observers.empty()) {
+        const SegmentView view(mode, segment, t, t_next, eps_force);
+        for (Observer* o : observers) o->segment(view);
+      }
+      Eigen::VectorXd zr(red.flow->size());
+      segment.state(tau, zr);
+      const Eigen::VectorXd z = red.to_full * zr;
+      x = z.head(n);
+      v = z.segment(n, n);
+      t = t_next;
+      if (!x.allFinite() || !v.allFinite())
+        return finish(RunStatus::numerical_failure,
+                      "non-finite state at t = " + show(t) + " in contact set of " +
+                          std::to_string(stuck.size()) + " stops");
+      if (!hit) break;
+
+      // Which guards fire together (within the simultaneity window).
+      ContactSet impacting, releasing;
+      for (Eigen::Index i = 0; i < rows; ++i) {
+        const double h = segment.value(i, tau), hd = segment.value(i, tau, 1);
+        const bool fired = i == hit->row ||
+                           (hd > 0.0 && h >= -std::max(triggers(i), hd * dt_simultaneous));
+        if (!fired) continue;
+        (i < red.gap_rows ? impacting : releasing).push_back(red.watched[static_cast<std::size_t>(i)]);
+      }
+      std::sort(impacting.begin(), impacting.end());
+      std::sort(releasing.begin(), releasing.end());
+      handle(impacting, releasing);
+      if (rate.exceeded(t)) {
+        const int j = !impacting.empty() ? impacting.front() : releasing.front();
+        return finish(RunStatus::event_cap,
+                      "event cap: more than " + std::to_string(options_.max_events) +
+                          " events within " + show(window) + " time units, at t = " + show(t) +
+                          ", stop " + std::to_string(j) + " (" +
+                          scene.stops()[static_cast<std::size_t>(j)].name + "), x = " + show(x) +
+                          ", v = " + show(v) +
+                          " (Zeno behaviour the chatter rule did not resolve: raise "
+                          "solver.chatter_velocity or solver.max_events)");
+      }
+    }
+  } catch (const std::runtime_error& e) {
+    return finish(RunStatus::numerical_failure, std::string(e.what()) + " (at t = " + show(t) + ")");
+  }
+  return finish(RunStatus::completed, "");
+}
+
+}  // namespace vibro

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Installs every build, test and figure dependency of vibroimpact from Debian's packages.
+# Idempotent: installs only what is missing and prints nothing when all is present.
+# Runs as root on a fresh Debian 12 machine (or with sudo when available).
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config
+  libeigen3-dev libyaml-cpp-dev libhdf5-dev catch2 libcli11-dev libfmt-dev
+  python3-numpy python3-matplotlib python3-h5py
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+
+sudo=""
+if [ "$(id -u)" -ne 0 ]; then
+  if command -v sudo >/dev/null 2>&1; then sudo="sudo"; else
+    echo "bootstrap: need root to install: ${missing[*]}" >&2; exit 1
+  fi
+fi
+echo "bootstrap: installing ${missing[*]}" >&2
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get update -qq >/dev/null
+$sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
