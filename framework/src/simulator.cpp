@@ -197,11 +197,14 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     return summary;
   };
 
-  // Handles an event at time t: impacts on `impacting`, releases of `releasing`.
-  auto handle = [&](const ContactSet& impacting, const ContactSet& releasing) {
+  // Handles an event at time t: impacts on `impacting`, releases of `releasing`; `resting`
+  // are further stops touching with zero normal speed (at the start of a run).
+  auto handle = [&](const ContactSet& impacting, const ContactSet& releasing,
+                    const ContactSet& resting) {
     ContactSet candidates;
     std::set_difference(stuck.begin(), stuck.end(), releasing.begin(), releasing.end(),
                         std::back_inserter(candidates));
+    candidates = merge(candidates, resting);
     ContactSet chatter;
     Eigen::VectorXd g_before;
     if (!impacting.empty()) {
@@ -297,9 +300,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
         if (gd(j) > v_contact) impacting.push_back(j);
         else if (gd(j) >= -v_contact) resting.push_back(j);
       }
-      ContactSet none;
-      stuck = resting;  // candidates for the first settle
-      handle(impacting, none);
+      handle(impacting, {}, resting);
     }
 
     while (true) {
@@ -356,7 +357,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
       }
       std::sort(impacting.begin(), impacting.end());
       std::sort(releasing.begin(), releasing.end());
-      handle(impacting, releasing);
+      handle(impacting, releasing, {});
       if (rate.exceeded(t)) {
         const int j = !impacting.empty() ? impacting.front() : releasing.front();
         return finish(RunStatus::event_cap,
