@@ -35,8 +35,8 @@ std::optional<Crossing> CrossingFinder::first(double a, double b) {
     if (limit <= a) break;
     last_below_ = -std::numeric_limits<double>::infinity();
     search_start_ = a;
-    const double ha = segment_->value(i, a), da = segment_->value(i, a, 1);
-    const double hb = segment_->value(i, limit), db = segment_->value(i, limit, 1);
+    const auto [ha, da] = segment_->value_and_slope(i, a);
+    const auto [hb, db] = segment_->value_and_slope(i, limit);
     if (auto tau = search(i, a, limit, ha, da, hb, db)) {
       if (!best || *tau < best->tau) best = Crossing{*tau, i};
     }
@@ -57,13 +57,14 @@ std::optional<double> CrossingFinder::search(Eigen::Index row, double a, double 
       // a later rise, so split until it is bracketed from below.
       if (b - a <= resolution_) return from_last_below(row, b);
       const double m = 0.5 * (a + b);
-      const double hm = segment_->value(row, m), dm = segment_->value(row, m, 1);
+      const auto [hm, dm] = segment_->value_and_slope(row, m);
       if (auto left = search(row, a, m, ha, da, hm, dm)) return left;
       return search(row, m, b, hm, dm, hb, db);
     }
     const double r = refine_root(row, a, b);
     if (r <= a) return a;
-    const double hr = std::min(segment_->value(row, r), eps), dr = segment_->value(row, r, 1);
+    const auto [hr_raw, dr] = segment_->value_and_slope(row, r);
+    const double hr = std::min(hr_raw, eps);
     if (auto earlier = search(row, a, r, ha, da, hr, dr)) return earlier;
     return r;
   }
@@ -79,7 +80,7 @@ std::optional<double> CrossingFinder::search(Eigen::Index row, double a, double 
                              std::to_string(segment_->t0() + a) +
                              " (a guard stays within rounding of zero over a long interval)");
   const double m = 0.5 * (a + b);
-  const double hm = segment_->value(row, m), dm = segment_->value(row, m, 1);
+  const auto [hm, dm] = segment_->value_and_slope(row, m);
   if (auto left = search(row, a, m, ha, da, hm, dm)) return left;
   return search(row, m, b, hm, dm, hb, db);
 }
@@ -108,8 +109,7 @@ double CrossingFinder::refine_root(Eigen::Index row, double a, double b) const {
     const double ulp = std::numeric_limits<double>::epsilon() *
                        std::max({std::abs(segment_->t0() + a), std::abs(segment_->t0() + b), 1e-300});
     if (width <= 2.0 * ulp) break;
-    const double hb = segment_->value(row, b);
-    const double db = segment_->value(row, b, 1);
+    const auto [hb, db] = segment_->value_and_slope(row, b);
     double x = (db > 0.0) ? b - hb / db : 0.5 * (a + b);
     if (!(x > a && x < b) || it % 3 == 2) x = 0.5 * (a + b);
     const double hx = segment_->value(row, x);

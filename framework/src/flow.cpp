@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <unsupported/Eigen/MatrixFunctions>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -81,6 +82,26 @@ LinearFlow::LinearFlow(Eigen::MatrixXd generator, Eigen::Index dof, double frequ
   if (use_spectral) {
     if (inverse_.size() == 0) inverse_ = vectors_.partialPivLu().inverse();
     method_ = Method::spectral;
+    // Eigen lists a complex pair as (λ, conj λ) in consecutive places.
+    for (Eigen::Index k = 0; k < N; ++k) {
+      if (lambda_(k).imag() != 0.0 && k + 1 < N && lambda_(k + 1) == std::conj(lambda_(k))) {
+        representatives_.push_back(k);
+        weights_.push_back(2.0);
+        ++k;
+      } else {
+        representatives_.push_back(k);
+        weights_.push_back(lambda_(k).imag() == 0.0 ? 1.0 : 0.0);
+      }
+    }
+    // An unpaired complex eigenvalue (not expected for a real Â) falls back to the full sum.
+    if (std::find(weights_.begin(), weights_.end(), 0.0) != weights_.end()) {
+      representatives_.clear();
+      weights_.clear();
+      for (Eigen::Index k = 0; k < N; ++k) {
+        representatives_.push_back(k);
+        weights_.push_back(1.0);
+      }
+    }
   } else {
     method_ = Method::exponential;
     lambda_.resize(0);
@@ -143,7 +164,21 @@ Segment::Segment(const Functionals& functionals, double t0,
   const LinearFlow& flow = functionals.flow();
   if (flow.method() == LinearFlow::Method::spectral) {
     modal_ = flow.inverse_eigenvectors() * z0_.cast<std::complex<double>>();
-    coefficients_ = functionals.modal_rows() * modal_.asDiagonal();
+    const auto& reps = flow.representatives();
+    const auto K = static_cast<Eigen::Index>(reps.size());
+    const Eigen::Index rows = functionals.count();
+    lambda_.resize(K);
+    coefficients_.resize(rows, K);
+    curvature_.resize(rows, K);
+    for (Eigen::Index r = 0; r < K; ++r) {
+      const Eigen::Index k = reps[static_cast<std::size_t>(r)];
+      lambda_(r) = flow.eigenvalues()(k);
+      const double w = flow.weights()[static_cast<std::size_t>(r)];
+      for (Eigen::Index i = 0; i < rows; ++i) {
+        coefficients_(i, r) = w * functionals.modal_rows()(i, k) * modal_(k);
+        curvature_(i, r) = std::abs(coefficients_(i, r)) * std::norm(lambda_(r));
+      }
+    }
   }
 }
 
@@ -155,14 +190,23 @@ const Eigen::VectorXd& Segment::exponential_state(double tau) const {
   return cached_z_;
 }
 
+const Eigen::VectorXcd& Segment::exponentials(double tau) const {
+  if (!(tau == cached_tau_)) {
+    cached_e_.resize(lambda_.size());
+    for (Eigen::Index r = 0; r < lambda_.size(); ++r) cached_e_(r) = std::exp(lambda_(r) * tau);
+    cached_tau_ = tau;
+  }
+  return cached_e_;
+}
+
 double Segment::value(Eigen::Index i, double tau, int derivative) const {
   const LinearFlow& flow = functionals_->flow();
   if (flow.method() == LinearFlow::Method::spectral) {
-    const Eigen::VectorXcd& lambda = flow.eigenvalues();
+    const Eigen::VectorXcd& e = exponentials(tau);
     double sum = 0.0;
-    for (Eigen::Index k = 0; k < lambda.size(); ++k) {
-      std::complex<double> term = coefficients_(i, k) * std::exp(lambda(k) * tau);
-      for (int d = 0; d < derivative; ++d) term *= lambda(k);
+    for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
+      std::complex<double> term = coefficients_(i, r) * e(r);
+      for (int d = 0; d < derivative; ++d) term *= lambda_(r);
       sum += term.real();
     }
     return sum;
@@ -170,14 +214,30 @@ double Segment::value(Eigen::Index i, double tau, int derivative) const {
   return functionals_->rows(derivative).row(i).dot(exponential_state(tau));
 }
 
+std::pair<double, double> Segment::value_and_slope(Eigen::Index i, double tau) const {
+  const LinearFlow& flow = functionals_->flow();
+  if (flow.method() == LinearFlow::Method::spectral) {
+    const Eigen::VectorXcd& e = exponentials(tau);
+    double h = 0.0, dh = 0.0;
+    for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
+      const std::complex<double> term = coefficients_(i, r) * e(r);
+      h += term.real();
+      dh += (term * lambda_(r)).real();
+    }
+    return {h, dh};
+  }
+  const Eigen::VectorXd& z = exponential_state(tau);
+  return {functionals_->rows(0).row(i).dot(z), functionals_->rows(1).row(i).dot(z)};
+}
+
 double Segment::second_derivative_bound(Eigen::Index i, double a, double b) const {
   const LinearFlow& flow = functionals_->flow();
   if (flow.method() == LinearFlow::Method::spectral) {
-    const Eigen::VectorXcd& lambda = flow.eigenvalues();
     double bound = 0.0;
-    for (Eigen::Index k = 0; k < lambda.size(); ++k) {
-      const double growth = std::exp(std::max(lambda(k).real() * a, lambda(k).real() * b));
-      bound += std::abs(coefficients_(i, k)) * std::norm(lambda(k)) * growth;
+    for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
+      const double re = lambda_(r).real();
+      const double growth = re == 0.0 ? 1.0 : std::exp(std::max(re * a, re * b));
+      bound += curvature_(i, r) * growth;
     }
     return bound * (1.0 + 1e-12);
   }

@@ -40,6 +40,8 @@
 #include <Eigen/Dense>
 
 #include <complex>
+#include <utility>
+#include <vector>
 
 namespace vibro {
 
@@ -104,6 +106,11 @@ class LinearFlow {
   const Eigen::MatrixXcd& eigenvectors() const { return vectors_; }
   const Eigen::MatrixXcd& inverse_eigenvectors() const { return inverse_; }
 
+  /// One eigenvalue of each conjugate pair (and each real one), with weight 2 (pair) or 1
+  /// (real): since z is real, Σₖ cₖ e^{λₖτ} = Re Σ_{representatives} weight·cₖ e^{λₖτ}.
+  const std::vector<Eigen::Index>& representatives() const { return representatives_; }
+  const std::vector<double>& weights() const { return weights_; }
+
   /// Largest |λ| of Â (fastest rate of the system, including Ω). Always available.
   double spectral_radius() const { return spectral_radius_; }
   /// Logarithmic 2-norm μ(Â) = λmax((Â + Âᵀ)/2): ‖exp(Âτ)‖₂ ≤ exp(μ τ) for τ ≥ 0.
@@ -119,6 +126,8 @@ class LinearFlow {
   Eigen::MatrixXd generator_;
   Eigen::VectorXcd lambda_;
   Eigen::MatrixXcd vectors_, inverse_;
+  std::vector<Eigen::Index> representatives_;
+  std::vector<double> weights_;
 };
 
 /// A piece of trajectory z(t0 + τ) = exp(Âτ) z0 seen through a fixed set of linear functionals
@@ -155,6 +164,8 @@ class Segment {
 
   /// dᵈ/dτᵈ ℓᵢᵀ z(τ), d ∈ {0, 1, 2, 3}.
   double value(Eigen::Index i, double tau, int derivative = 0) const;
+  /// Value and first derivative together (one evaluation of the exponentials).
+  std::pair<double, double> value_and_slope(Eigen::Index i, double tau) const;
   /// An upper bound of |d²/dτ² ℓᵢᵀ z(τ)| over τ ∈ [a, b] (a ≤ b).
   double second_derivative_bound(Eigen::Index i, double a, double b) const;
   /// Full augmented state at τ.
@@ -166,10 +177,17 @@ class Segment {
   const Functionals* functionals_;
   double t0_;
   Eigen::VectorXd z0_;
+  const Eigen::VectorXcd& exponentials(double tau) const;
+
   Eigen::VectorXcd modal_;        // V⁻¹ z0 (spectral)
-  Eigen::MatrixXcd coefficients_;  // αᵢₖ (spectral)
+  // Spectral: per representative eigenvalue λₖ (see LinearFlow::representatives), the weighted
+  // coefficients weight·αᵢₖ and their moduli times |λₖ|² (for the second-derivative bound).
+  Eigen::VectorXcd lambda_;
+  Eigen::MatrixXcd coefficients_;
+  Eigen::MatrixXd curvature_;
   mutable double cached_tau_;
-  mutable Eigen::VectorXd cached_z_;
+  mutable Eigen::VectorXd cached_z_;   // exponential method: z(cached_tau_)
+  mutable Eigen::VectorXcd cached_e_;  // spectral method: e^{λₖ cached_tau_}
 };
 
 }  // namespace vibro
