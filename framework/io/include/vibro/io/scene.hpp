@@ -1,0 +1,119 @@
+#pragma once
+/// \file scene.hpp
+/// Scene files: YAML in, a validated plain description out. This is the io layer: the core
+/// (framework/include/vibro) knows nothing of YAML.
+///
+/// A scene holds the model (a chain builder or explicit M, C, K), the forcing, the stops, the
+/// initial state, the solver settings, what to record, and the run (simulate or sweep). Every key
+/// is documented in docs/scenes.md. Every numeric value is addressable by a path into the YAML
+/// tree — `forcing.frequency`, `stops[1].position`, `model.chain.masses[3]` — which is how
+/// `--set PATH=VALUE` and sweeps change a scene: they edit the tree and the scene is rebuilt from
+/// it, so nothing can be changed that the file could not have said.
+///
+/// Errors: every malformed scene raises SceneError with `file:line:column: key.path: expected
+/// …, found …` (unknown keys add "did you mean …"); the command turns it into exit code 2.
+///
+/// Usage:
+///     vibro::io::SceneDocument doc = vibro::io::SceneDocument::load("experiments/x.yaml");
+///     doc.set("forcing.frequency", 0.26);          // --set
+///     vibro::io::Scene scene = doc.build();         // validated; throws SceneError
+///     vibro::ImpactSystem system = scene.impact_system();
+#include "vibro/simulator.hpp"
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace vibro::io {
+
+/// A malformed scene. what() is the full message: "file:line:col: path: problem".
+class SceneError : public std::runtime_error {
+ public:
+  SceneError(std::string file, int line, int column, std::string path, std::string problem);
+  const std::string& file() const { return file_; }
+  int line() const { return line_; }
+  int column() const { return column_; }
+  const std::string& path() const { return path_; }
+  const std::string& problem() const { return problem_; }
+
+ private:
+  std::string file_;
+  int line_, column_;
+  std::string path_, problem_;
+};
+
+/// What a run records (each observer exists only if asked for).
+struct RecordSpec {
+  bool events = false;
+  bool contacts = false;
+  bool statistics = false;
+  bool poincare = false;
+  int samples_per_period = 0;          ///< exact samples, evenly spaced in each recorded period
+  std::vector<double> sample_times;    ///< or explicit times (relative to the recording start)
+};
+
+/// One swept parameter: a path into the scene and its values.
+struct SweepAxis {
+  std::string path;
+  std::vector<double> values;
+};
+
+struct RunSpec {
+  enum class Kind { simulate, sweep };
+  Kind kind = Kind::simulate;
+  double transient_periods = 0.0;  ///< simulated, not recorded
+  double periods = 1.0;            ///< recorded forcing periods (or time units when Ω = 0)
+  /// Sweep: one axis (1-D) or two (2-D grid, the second varying fastest).
+  std::vector<SweepAxis> axes;
+  bool follow = false;   ///< each point starts from the previous point's final state
+  bool reverse = false;  ///< walk the grid from its last point to its first
+};
+
+/// The resolved, validated scene.
+struct Scene {
+  std::string file;       ///< path it was read from ("<string>" if none)
+  std::string yaml_text;  ///< the file's text, verbatim
+  std::string name;       ///< optional `name:`
+  LinearSystem system;
+  std::vector<Stop> stops;
+  double t0 = 0.0;
+  Eigen::VectorXd x0, v0;
+  SimulatorOptions solver;
+  RecordSpec record;
+  RunSpec run;
+
+  ImpactSystem impact_system() const { return ImpactSystem(system, stops); }
+  /// Forcing period 2π/Ω, or 1 when Ω = 0 (periods then count time units).
+  double period() const;
+};
+
+/// The YAML tree of a scene with the source positions of its nodes; editable by path.
+class SceneDocument {
+ public:
+  static SceneDocument load(const std::string& path);
+  static SceneDocument parse(const std::string& text, const std::string& file = "<string>");
+  SceneDocument(const SceneDocument&);
+  SceneDocument& operator=(const SceneDocument&);
+  ~SceneDocument();
+
+  /// Sets the numeric value at `path` (e.g. "stops[1].position"). Throws SceneError if the path
+  /// does not name an existing numeric value (message names the path and what is there).
+  void set(const std::string& path, double value);
+  /// Parses "PATH=VALUE" (for --set) and applies it.
+  void set_assignment(const std::string& assignment);
+  /// The numeric value at `path`.
+  double get(const std::string& path) const;
+
+  /// Builds and validates the scene. Throws SceneError.
+  Scene build() const;
+  const std::string& file() const;
+  const std::string& text() const;
+
+ private:
+  SceneDocument();
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace vibro::io

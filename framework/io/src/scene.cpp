@@ -1,0 +1,609 @@
+#include "vibro/io/scene.hpp"
+
+#include "vibro/models/chain.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <numbers>
+#include <set>
+#include <sstream>
+
+namespace vibro::io {
+namespace {
+
+std::string show(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diag = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
+std::string describe(const YAML::Node& n) {
+  switch (n.Type()) {
+    case YAML::NodeType::Null: return "nothing";
+    case YAML::NodeType::Scalar: return "'" + n.Scalar() + "'";
+    case YAML::NodeType::Sequence: return "a list of " + std::to_string(n.size());
+    case YAML::NodeType::Map: return "a mapping";
+    default: return "an undefined value";
+  }
+}
+
+/// Reads the YAML tree of one scene, with the file name and key paths in every error.
+class Reader {
+ public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void fail(const YAML::Node& node, const std::string& path,
+                         const std::string& problem) const {
+    const YAML::Mark m = node.Mark();
+    const int line = m.is_null() ? last_line_ : m.line + 1;
+    const int col = m.is_null() ? last_col_ : m.column + 1;
+    throw SceneError(file_, line, col, path, problem);
+  }
+
+  void note(const YAML::Node& node) {
+    const YAML::Mark m = node.Mark();
+    if (!m.is_null()) {
+      last_line_ = m.line + 1;
+      last_col_ = m.column + 1;
+    }
+  }
+
+  /// A mapping whose keys must be among `allowed`.
+  void expect_map(const YAML::Node& node, const std::string& path,
+                  const std::vector<std::string>& allowed) {
+    note(node);
+    if (!node.IsMap()) fail(node, path, "expected a mapping, found " + describe(node));
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      const std::string key = it->first.Scalar();
+      if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
+      std::string best;
+      std::size_t best_d = 3;
+      for (const auto& a : allowed) {
+        const std::size_t d = edit_distance(key, a);
+        if (d < best_d) {
+          best_d = d;
+          best = a;
+        }
+      }
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      fail(it->first, join(path, key),
+           "unknown key '" + key + "'" + (best.empty() ? "" : "; did you mean '" + best + "'?") +
+               " (allowed: " + list + ")");
+    }
+  }
+
+  double number(const YAML::Node& node, const std::string& path) {
+    note(node);
+    if (!node.IsScalar()) fail(node, path, "expected a number, found " + describe(node));
+    const std::string& s = node.Scalar();
+    std::size_t used = 0;
+    double v = 0.0;
+    try {
+      v = std::stod(s, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != s.size()) fail(node, path, "expected a number, found '" + s + "'");
+    if (!std::isfinite(v)) fail(node, path, "expected a finite number, found '" + s + "'");
+    return v;
+  }
+
+  double number_in(const YAML::Node& node, const std::string& path, double lo, double hi,
+                   const std::string& rule) {
+    const double v = number(node, path);
+    if (!(v >= lo && v <= hi)) fail(node, path, "expected " + rule + ", found " + show(v));
+    return v;
+  }
+
+  long integer(const YAML::Node& node, const std::string& path, long lo, long hi) {
+    const double v = number(node, path);
+    if (v != std::floor(v) || v < static_cast<double>(lo) || v > static_cast<double>(hi))
+      fail(node, path, "expected a whole number in [" + std::to_string(lo) + ", " +
+                           std::to_string(hi) + "], found " + show(v));
+    return static_cast<long>(v);
+  }
+
+  bool boolean(const YAML::Node& node, const std::string& path) {
+    note(node);
+    if (node.IsScalar()) {
+      const std::string& s = node.Scalar();
+      if (s == "true" || s == "yes" || s == "on") return true;
+      if (s == "false" || s == "no" || s == "off") return false;
+    }
+    fail(node, path, "expected true or false, found " + describe(node));
+  }
+
+  std::string text(const YAML::Node& node, const std::string& path) {
+    note(node);
+    if (!node.IsScalar()) fail(node, path, "expected a text, found " + describe(node));
+    return node.Scalar();
+  }
+
+  std::string choice(const YAML::Node& node, const std::string& path,
+                     const std::vector<std::string>& options) {
+    const std::string s = text(node, path);
+    if (std::find(options.begin(), options.end(), s) != options.end()) return s;
+    std::string list;
+    for (const auto& o : options) list += (list.empty() ? "" : ", ") + o;
+    fail(node, path, "expected one of " + list + ", found '" + s + "'");
+  }
+
+  /// A list of numbers, of length `size` when size ≥ 0.
+  std::vector<double> numbers(const YAML::Node& node, const std::string& path, long size,
+                              const std::string& what) {
+    note(node);
+    if (!node.IsSequence())
+      fail(node, path, "expected a list of numbers (" + what + "), found " + describe(node));
+    if (size >= 0 && static_cast<long>(node.size()) != size)
+      fail(node, path, "expected a list of " + std::to_string(size) + " numbers (" + what +
+                           "), found " + std::to_string(node.size()));
+    std::vector<double> out;
+    for (std::size_t i = 0; i < node.size(); ++i)
+      out.push_back(number(node[i], path + "[" + std::to_string(i) + "]"));
+    return out;
+  }
+
+  Eigen::MatrixXd matrix(const YAML::Node& node, const std::string& path, long n) {
+    note(node);
+    if (!node.IsSequence() || (n >= 0 && static_cast<long>(node.size()) != n))
+      fail(node, path, "expected a list of " + (n >= 0 ? std::to_string(n) : std::string("n")) +
+                           " rows, found " + describe(node));
+    const long rows = static_cast<long>(node.size());
+    Eigen::MatrixXd m(rows, rows);
+    for (long i = 0; i < rows; ++i) {
+      const auto row = numbers(node[static_cast<std::size_t>(i)], path + "[" + std::to_string(i) + "]",
+                               rows, "one entry per degree of freedom");
+      for (long j = 0; j < rows; ++j) m(i, j) = row[static_cast<std::size_t>(j)];
+    }
+    return m;
+  }
+
+  static std::string join(const std::string& path, const std::string& key) {
+    return path.empty() ? key : path + "." + key;
+  }
+
+ private:
+  std::string file_;
+  int last_line_ = 1, last_col_ = 1;
+};
+
+/// Splits "a.b[2].c" into keys and indices.
+struct PathStep {
+  std::string key;  // empty for an index step
+  std::size_t index = 0;
+};
+
+std::vector<PathStep> split_path(const std::string& path) {
+  std::vector<PathStep> steps;
+  std::size_t i = 0;
+  while (i < path.size()) {
+    if (path[i] == '.') {
+      ++i;
+      continue;
+    }
+    if (path[i] == '[') {
+      const std::size_t close = path.find(']', i);
+      if (close == std::string::npos) throw std::invalid_argument("unclosed '['");
+      const std::string digits = path.substr(i + 1, close - i - 1);
+      if (digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos)
+        throw std::invalid_argument("index '" + digits + "' is not a whole number");
+      steps.push_back({"", std::stoul(digits)});
+      i = close + 1;
+      continue;
+    }
+    const std::size_t end = path.find_first_of(".[", i);
+    steps.push_back({path.substr(i, end - i), 0});
+    i = end == std::string::npos ? path.size() : end;
+  }
+  if (steps.empty()) throw std::invalid_argument("empty path");
+  return steps;
+}
+
+Eigen::VectorXd to_vector(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+std::vector<double> spaced(const std::vector<double>& spec, bool logarithmic, Reader& r,
+                           const YAML::Node& node, const std::string& path) {
+  const double a = spec[0], b = spec[1];
+  const double count = spec[2];
+  if (count != std::floor(count) || count < 1 || count > 1e7)
+    r.fail(node, path, "expected [start, stop, count] with a whole count in [1, 1e7], found count " + show(count));
+  if (logarithmic && !(a > 0 && b > 0))
+    r.fail(node, path, "expected positive start and stop for a logarithmic spacing, found " + show(a) + ", " + show(b));
+  const auto n = static_cast<long>(count);
+  std::vector<double> out;
+  for (long i = 0; i < n; ++i) {
+    const double f = n == 1 ? 0.0 : static_cast<double>(i) / static_cast<double>(n - 1);
+    out.push_back(logarithmic ? std::exp(std::log(a) + f * (std::log(b) - std::log(a)))
+                              : (i == n - 1 ? b : a + f * (b - a)));
+  }
+  return out;
+}
+
+}  // namespace
+
+SceneError::SceneError(std::string file, int line, int column, std::string path, std::string problem)
+    : std::runtime_error(file + ":" + std::to_string(line) + ":" + std::to_string(column) + ": " +
+                         (path.empty() ? "" : path + ": ") + problem),
+      file_(std::move(file)),
+      line_(line),
+      column_(column),
+      path_(std::move(path)),
+      problem_(std::move(problem)) {}
+
+double Scene::period() const {
+  const double w = system.forcing().frequency;
+  return w > 0.0 ? 2.0 * std::numbers::pi / w : 1.0;
+}
+
+struct SceneDocument::Impl {
+  std::string file, text;
+  YAML::Node root;
+};
+
+SceneDocument::SceneDocument() : impl_(std::make_unique<Impl>()) {}
+SceneDocument::~SceneDocument() = default;
+SceneDocument::SceneDocument(const SceneDocument& o) : impl_(std::make_unique<Impl>()) {
+  impl_->file = o.impl_->file;
+  impl_->text = o.impl_->text;
+  impl_->root = YAML::Clone(o.impl_->root);
+}
+SceneDocument& SceneDocument::operator=(const SceneDocument& o) {
+  if (this != &o) {
+    impl_->file = o.impl_->file;
+    impl_->text = o.impl_->text;
+    impl_->root = YAML::Clone(o.impl_->root);
+  }
+  return *this;
+}
+
+const std::string& SceneDocument::file() const { return impl_->file; }
+const std::string& SceneDocument::text() const { return impl_->text; }
+
+SceneDocument SceneDocument::load(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError(path, 0, 0, "", "cannot open the scene file");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return parse(s.str(), path);
+}
+
+SceneDocument SceneDocument::parse(const std::string& text, const std::string& file) {
+  SceneDocument doc;
+  doc.impl_->file = file;
+  doc.impl_->text = text;
+  try {
+    doc.impl_->root = YAML::Load(text);
+  } catch (const YAML::ParserException& e) {
+    throw SceneError(file, e.mark.line + 1, e.mark.column + 1, "", "YAML syntax error: " + e.msg);
+  }
+  if (!doc.impl_->root.IsMap())
+    throw SceneError(file, 1, 1, "", "expected a mapping of sections (model, forcing, stops, ...), found " +
+                                         describe(doc.impl_->root));
+  return doc;
+}
+
+namespace {
+
+YAML::Node find_node(const YAML::Node& root, const std::string& path, const std::string& file) {
+  std::vector<PathStep> steps;
+  try {
+    steps = split_path(path);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(file, 0, 0, path, std::string("malformed path: ") + e.what());
+  }
+  YAML::Node node = root;
+  std::string walked;
+  for (const PathStep& step : steps) {
+    const YAML::Node& look = node;  // const lookups never insert keys
+    if (step.key.empty()) {
+      if (!look.IsSequence() || step.index >= look.size())
+        throw SceneError(file, node.Mark().line + 1, node.Mark().column + 1, walked,
+                         "has no element [" + std::to_string(step.index) + "] (" + describe(node) + ")");
+      node.reset(node[step.index]);
+      walked += "[" + std::to_string(step.index) + "]";
+    } else {
+      if (!look.IsMap() || !look[step.key])
+        throw SceneError(file, node.Mark().line + 1, node.Mark().column + 1, walked,
+                         "has no key '" + step.key + "' (paths name values the scene file already sets)");
+      node.reset(node[step.key]);
+      walked += (walked.empty() ? "" : ".") + step.key;
+    }
+  }
+  return node;
+}
+
+}  // namespace
+
+void SceneDocument::set(const std::string& path, double value) {
+  YAML::Node node = find_node(impl_->root, path, impl_->file);
+  Reader r(impl_->file);
+  r.number(node, path);  // must already be a number
+  node = show(value);
+}
+
+void SceneDocument::set_assignment(const std::string& assignment) {
+  const std::size_t eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw SceneError("--set", 0, 0, assignment, "expected PATH=VALUE, e.g. forcing.frequency=0.26");
+  const std::string path = assignment.substr(0, eq);
+  const std::string value = assignment.substr(eq + 1);
+  std::size_t used = 0;
+  double v = 0.0;
+  try {
+    v = std::stod(value, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != value.size() || !std::isfinite(v))
+    throw SceneError("--set", 0, 0, path, "expected a finite number, found '" + value + "'");
+  set(path, v);
+}
+
+double SceneDocument::get(const std::string& path) const {
+  Reader r(impl_->file);
+  return r.number(find_node(impl_->root, path, impl_->file), path);
+}
+
+Scene SceneDocument::build() const {
+  Reader r(impl_->file);
+  const YAML::Node& root = impl_->root;
+  r.expect_map(root, "", {"name", "model", "forcing", "stops", "initial", "solver", "record", "run"});
+
+  // --- model ---
+  const YAML::Node model = root["model"];
+  if (!model) r.fail(root, "model", "missing: a scene needs a model (model.chain or model.matrices)");
+  r.expect_map(model, "model", {"chain", "matrices"});
+  if (model["chain"] && model["matrices"])
+    r.fail(model, "model", "give either model.chain or model.matrices, not both");
+  Eigen::MatrixXd M, C, K;
+  long n = 0;
+  if (const YAML::Node chain = model["chain"]) {
+    r.expect_map(chain, "model.chain", {"masses", "springs", "dampers", "left_wall", "right_wall"});
+    if (!chain["masses"]) r.fail(chain, "model.chain.masses", "missing: one mass per degree of freedom");
+    models::Chain c;
+    c.masses = r.numbers(chain["masses"], "model.chain.masses", -1, "one mass per degree of freedom");
+    n = static_cast<long>(c.masses.size());
+    if (n == 0) r.fail(chain["masses"], "model.chain.masses", "expected at least one mass, found an empty list");
+    for (long i = 0; i < n; ++i)
+      if (!(c.masses[static_cast<std::size_t>(i)] > 0.0))
+        r.fail(chain["masses"][static_cast<std::size_t>(i)], "model.chain.masses[" + std::to_string(i) + "]",
+               "expected a mass > 0, found " + show(c.masses[static_cast<std::size_t>(i)]));
+    auto links = [&](const char* key, std::vector<double>& out) {
+      const std::string path = std::string("model.chain.") + key;
+      if (!chain[key]) return;
+      out = r.numbers(chain[key], path, n - 1, "one per link between neighbouring masses");
+      for (std::size_t i = 0; i < out.size(); ++i)
+        if (out[i] < 0.0)
+          r.fail(chain[key][i], path + "[" + std::to_string(i) + "]", "expected a value ≥ 0, found " + show(out[i]));
+    };
+    links("springs", c.springs);
+    links("dampers", c.dampers);
+    if (c.springs.empty() && n > 1) c.springs.assign(static_cast<std::size_t>(n - 1), 0.0);
+    auto wall = [&](const char* key, double& spring, double& damper) {
+      const YAML::Node w = chain[key];
+      if (!w) return;
+      const std::string path = std::string("model.chain.") + key;
+      r.expect_map(w, path, {"spring", "damper"});
+      if (w["spring"]) spring = r.number_in(w["spring"], path + ".spring", 0, 1e300, "a value ≥ 0");
+      if (w["damper"]) damper = r.number_in(w["damper"], path + ".damper", 0, 1e300, "a value ≥ 0");
+    };
+    wall("left_wall", c.left_spring, c.left_damper);
+    wall("right_wall", c.right_spring, c.right_damper);
+    const LinearSystem chain_system = models::build_chain(c);
+    M = chain_system.mass();
+    C = chain_system.damping();
+    K = chain_system.stiffness();
+  } else if (const YAML::Node mats = model["matrices"]) {
+    r.expect_map(mats, "model.matrices", {"mass", "damping", "stiffness"});
+    if (!mats["mass"]) r.fail(mats, "model.matrices.mass", "missing: the mass matrix");
+    M = r.matrix(mats["mass"], "model.matrices.mass", -1);
+    n = M.rows();
+    C = mats["damping"] ? r.matrix(mats["damping"], "model.matrices.damping", n) : Eigen::MatrixXd::Zero(n, n);
+    K = mats["stiffness"] ? r.matrix(mats["stiffness"], "model.matrices.stiffness", n) : Eigen::MatrixXd::Zero(n, n);
+  } else {
+    r.fail(model, "model", "expected model.chain or model.matrices");
+  }
+
+  // --- forcing ---
+  HarmonicForcing f = HarmonicForcing::zero(n);
+  if (const YAML::Node fn = root["forcing"]) {
+    r.expect_map(fn, "forcing", {"frequency", "constant", "cosine", "sine"});
+    if (fn["frequency"]) f.frequency = r.number_in(fn["frequency"], "forcing.frequency", 0, 1e300, "a frequency ≥ 0 (rad per unit time)");
+    if (fn["constant"]) f.constant = to_vector(r.numbers(fn["constant"], "forcing.constant", n, "one force per mass"));
+    if (fn["cosine"]) f.cosine = to_vector(r.numbers(fn["cosine"], "forcing.cosine", n, "one amplitude per mass"));
+    if (fn["sine"]) f.sine = to_vector(r.numbers(fn["sine"], "forcing.sine", n, "one amplitude per mass"));
+  }
+  std::optional<LinearSystem> system;
+  try {
+    system.emplace(M, C, K, f);
+  } catch (const InvalidInput& e) {
+    r.fail(model, "model", e.what());
+  }
+
+  // --- stops ---
+  std::vector<Stop> stops;
+  if (const YAML::Node sn = root["stops"]) {
+    if (!sn.IsSequence()) r.fail(sn, "stops", "expected a list of stops, found " + describe(sn));
+    for (std::size_t j = 0; j < sn.size(); ++j) {
+      const YAML::Node s = sn[j];
+      const std::string path = "stops[" + std::to_string(j) + "]";
+      r.expect_map(s, path, {"mass", "side", "between", "position", "gap", "restitution", "amplitude", "phase", "name"});
+      Stop stop;
+      if (s["between"]) {
+        if (s["mass"] || s["side"] || s["position"])
+          r.fail(s, path, "a stop between masses takes 'between' and 'gap', not 'mass', 'side' or 'position'");
+        const auto pair = r.numbers(s["between"], path + ".between", 2, "the two masses i, k of x_i - x_k ≤ gap");
+        for (int q = 0; q < 2; ++q)
+          r.integer(s["between"][static_cast<std::size_t>(q)], path + ".between[" + std::to_string(q) + "]", 0, n - 1);
+        if (!s["gap"]) r.fail(s, path + ".gap", "missing: the gap of x_i - x_k ≤ gap");
+        stop = Stop::between(static_cast<Eigen::Index>(pair[0]), static_cast<Eigen::Index>(pair[1]),
+                             r.number(s["gap"], path + ".gap"), 1.0);
+      } else {
+        if (!s["mass"]) r.fail(s, path + ".mass", "missing: the mass the stop limits (0-based)");
+        if (!s["side"]) r.fail(s, path + ".side", "missing: 'upper' (x ≤ position) or 'lower' (x ≥ position)");
+        if (!s["position"]) r.fail(s, path + ".position", "missing: where the stop is");
+        if (s["gap"]) r.fail(s["gap"], path + ".gap", "'gap' is for stops between masses; use 'position'");
+        const long i = r.integer(s["mass"], path + ".mass", 0, n - 1);
+        const std::string side = r.choice(s["side"], path + ".side", {"upper", "lower"});
+        const double p = r.number(s["position"], path + ".position");
+        stop = side == "upper" ? Stop::upper(i, p, 1.0) : Stop::lower(i, p, 1.0);
+      }
+      if (!s["restitution"]) r.fail(s, path + ".restitution", "missing: the restitution coefficient r ∈ [0, 1]");
+      stop.restitution = r.number_in(s["restitution"], path + ".restitution", 0, 1, "a restitution coefficient in [0, 1]");
+      if (s["amplitude"]) stop.amplitude = r.number_in(s["amplitude"], path + ".amplitude", 0, 1e300, "an amplitude ≥ 0");
+      if (s["phase"]) stop.phase = r.number(s["phase"], path + ".phase");
+      if (s["name"]) stop.name = r.text(s["name"], path + ".name");
+      stops.push_back(stop);
+    }
+  }
+  std::optional<ImpactSystem> impact;
+  try {
+    impact.emplace(*system, stops);
+  } catch (const InvalidInput& e) {
+    // The message names the stop index ("stops[j]"); point at that stop.
+    const std::string msg = e.what();
+    const std::size_t at = msg.find("stops[");
+    YAML::Node where = root["stops"];
+    std::string path = "stops";
+    if (at != std::string::npos) {
+      const std::size_t j = std::stoul(msg.substr(at + 6));
+      if (where && j < where.size()) {
+        path = "stops[" + std::to_string(j) + "]";
+        where = where[j];
+      }
+    }
+    r.fail(where ? where : root, path, msg);
+  }
+
+  // --- initial state ---
+  double t0 = 0.0;
+  Eigen::VectorXd x0 = Eigen::VectorXd::Zero(n), v0 = Eigen::VectorXd::Zero(n);
+  if (const YAML::Node in = root["initial"]) {
+    r.expect_map(in, "initial", {"time", "x", "v"});
+    if (in["time"]) t0 = r.number(in["time"], "initial.time");
+    if (in["x"]) x0 = to_vector(r.numbers(in["x"], "initial.x", n, "one displacement per mass"));
+    if (in["v"]) v0 = to_vector(r.numbers(in["v"], "initial.v", n, "one velocity per mass"));
+  }
+  try {
+    impact->check_admissible(t0, x0, 1e-12 * impact->length_scale(x0.cwiseAbs().maxCoeff()));
+  } catch (const InvalidInput& e) {
+    r.fail(root["initial"] && root["initial"]["x"] ? root["initial"]["x"] : root, "initial.x", e.what());
+  }
+
+  // --- solver ---
+  SimulatorOptions opt;
+  if (const YAML::Node sv = root["solver"]) {
+    r.expect_map(sv, "solver", {"trigger", "simultaneity", "chatter_height", "chatter_velocity", "contact_velocity",
+                                "max_events", "event_window", "length_scale", "flow_method", "max_condition"});
+    if (sv["trigger"]) opt.trigger = r.number_in(sv["trigger"], "solver.trigger", 1e-16, 1e-4, "a relative tolerance in [1e-16, 1e-4]");
+    if (sv["simultaneity"]) opt.simultaneity = r.number_in(sv["simultaneity"], "solver.simultaneity", 0, 1e-2, "a relative time in [0, 1e-2]");
+    if (sv["chatter_height"]) opt.chatter_height = r.number_in(sv["chatter_height"], "solver.chatter_height", 0, 1e-1, "a relative height in [0, 0.1]");
+    if (sv["chatter_velocity"]) opt.chatter_velocity = r.number_in(sv["chatter_velocity"], "solver.chatter_velocity", 0, 1e-1, "a relative speed in [0, 0.1]");
+    if (sv["contact_velocity"]) opt.contact_velocity = r.number_in(sv["contact_velocity"], "solver.contact_velocity", 0, 1e-3, "a relative speed in [0, 1e-3]");
+    if (sv["max_events"]) opt.max_events = r.integer(sv["max_events"], "solver.max_events", 1, 1000000000L);
+    if (sv["event_window"]) opt.event_window = r.number_in(sv["event_window"], "solver.event_window", 0, 1e300, "a time ≥ 0 (0: one forcing period)");
+    if (sv["length_scale"]) opt.length_scale = r.number_in(sv["length_scale"], "solver.length_scale", 0, 1e300, "a length ≥ 0 (0: automatic)");
+    if (sv["flow_method"]) {
+      const std::string m = r.choice(sv["flow_method"], "solver.flow_method", {"automatic", "spectral", "exponential"});
+      opt.flow.method = m == "spectral" ? FlowMethod::spectral : m == "exponential" ? FlowMethod::exponential : FlowMethod::automatic;
+    }
+    if (sv["max_condition"]) opt.flow.max_condition = r.number_in(sv["max_condition"], "solver.max_condition", 1, 1e16, "a condition number in [1, 1e16]");
+  }
+
+  // --- record ---
+  RecordSpec rec;
+  if (const YAML::Node rn = root["record"]) {
+    r.expect_map(rn, "record", {"events", "contacts", "statistics", "poincare", "samples"});
+    if (rn["events"]) rec.events = r.boolean(rn["events"], "record.events");
+    if (rn["contacts"]) rec.contacts = r.boolean(rn["contacts"], "record.contacts");
+    if (rn["statistics"]) rec.statistics = r.boolean(rn["statistics"], "record.statistics");
+    if (rn["poincare"]) rec.poincare = r.boolean(rn["poincare"], "record.poincare");
+    if (const YAML::Node sm = rn["samples"]) {
+      r.expect_map(sm, "record.samples", {"per_period", "times"});
+      if (sm["per_period"] && sm["times"]) r.fail(sm, "record.samples", "give either per_period or times, not both");
+      if (sm["per_period"]) rec.samples_per_period = static_cast<int>(r.integer(sm["per_period"], "record.samples.per_period", 1, 1000000));
+      if (sm["times"]) {
+        rec.sample_times = r.numbers(sm["times"], "record.samples.times", -1, "times from the start of recording");
+        if (!std::is_sorted(rec.sample_times.begin(), rec.sample_times.end()))
+          r.fail(sm["times"], "record.samples.times", "expected times in increasing order");
+      }
+    }
+    if ((rec.statistics || rec.poincare) && !(f.frequency > 0.0))
+      r.fail(rn, "record", "statistics and poincare need a forcing frequency > 0 (forcing.frequency)");
+  }
+
+  // --- run ---
+  RunSpec run;
+  if (const YAML::Node rn = root["run"]) {
+    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep"});
+    if (rn["kind"]) run.kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep"}) == "sweep" ? RunSpec::Kind::sweep : RunSpec::Kind::simulate;
+    if (rn["transient_periods"]) run.transient_periods = r.number_in(rn["transient_periods"], "run.transient_periods", 0, 1e9, "a number of periods ≥ 0");
+    if (rn["periods"]) run.periods = r.number_in(rn["periods"], "run.periods", 1e-12, 1e9, "a number of periods > 0");
+    const YAML::Node sw = rn["sweep"];
+    if (run.kind == RunSpec::Kind::sweep && !sw) r.fail(rn, "run.sweep", "missing: a sweep needs run.sweep.parameters");
+    if (run.kind == RunSpec::Kind::simulate && sw) r.fail(sw, "run.sweep", "only for run.kind: sweep");
+    if (sw) {
+      r.expect_map(sw, "run.sweep", {"parameters", "follow", "reverse"});
+      if (sw["follow"]) run.follow = r.boolean(sw["follow"], "run.sweep.follow");
+      if (sw["reverse"]) run.reverse = r.boolean(sw["reverse"], "run.sweep.reverse");
+      const YAML::Node ps = sw["parameters"];
+      if (!ps || !ps.IsSequence() || ps.size() == 0 || ps.size() > 2)
+        r.fail(ps ? ps : sw, "run.sweep.parameters", "expected a list of one or two parameters, found " + (ps ? describe(ps) : std::string("nothing")));
+      for (std::size_t a = 0; a < ps.size(); ++a) {
+        const std::string path = "run.sweep.parameters[" + std::to_string(a) + "]";
+        const YAML::Node p = ps[a];
+        r.expect_map(p, path, {"path", "linspace", "logspace", "values"});
+        if (!p["path"]) r.fail(p, path + ".path", "missing: the scene value to sweep, e.g. forcing.frequency");
+        SweepAxis axis;
+        axis.path = r.text(p["path"], path + ".path");
+        if (axis.path.rfind("run.", 0) == 0) r.fail(p["path"], path + ".path", "the run section cannot be swept");
+        try {
+          (void)get(axis.path);
+        } catch (const SceneError& e) {
+          r.fail(p["path"], path + ".path", "'" + axis.path + "' does not name a number in this scene: " + e.problem());
+        }
+        const int given = (p["linspace"] ? 1 : 0) + (p["logspace"] ? 1 : 0) + (p["values"] ? 1 : 0);
+        if (given != 1) r.fail(p, path, "give exactly one of linspace, logspace, values");
+        if (p["values"]) {
+          axis.values = r.numbers(p["values"], path + ".values", -1, "the values to visit");
+          if (axis.values.empty()) r.fail(p["values"], path + ".values", "expected at least one value");
+        } else {
+          const bool lg = static_cast<bool>(p["logspace"]);
+          const std::string key = lg ? "logspace" : "linspace";
+          const auto spec = r.numbers(p[key], path + "." + key, 3, "start, stop, count");
+          axis.values = spaced(spec, lg, r, p[key], path + "." + key);
+        }
+        run.axes.push_back(axis);
+      }
+    }
+  }
+
+  return Scene{impl_->file, impl_->text,
+               root["name"] ? r.text(root["name"], "name") : std::string(),
+               std::move(*system), impact->stops(), t0, x0, v0, opt, rec, run};
+}
+
+}  // namespace vibro::io

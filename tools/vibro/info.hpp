@@ -1,0 +1,14 @@
+#pragma once
+/// \file info.hpp
+/// `vibro info`: natural frequencies, modal damping, stops, and for each contact set the
+/// restitution matrix (and its modal form) and the reduced sticking equations with their contact
+/// forces — for the paper's system, its eqs. 8, 10, 11, 12, 14 and 15.
+#include "vibro/io/scene.hpp"
+
+#include <string>
+
+namespace vibro::cli {
+
+std::string describe_scene(const io::Scene& scene);
+
+}  // namespace vibro::cli
