@@ -77,8 +77,12 @@ LinearFlow::LinearFlow(Eigen::MatrixXd generator, Eigen::Index dof, double frequ
   }
   const bool use_spectral = options.method == Method::spectral ||
                             (options.method == Method::automatic && spectral_ok);
-  if (options.method == Method::spectral && eig.info() != Eigen::Success)
-    throw InvalidInput("flow: the spectral method was requested but the eigen-decomposition failed");
+  // Forcing the spectral method on a (nearly) defective generator would silently return wrong
+  // states; refuse where its error bound cond(V)·ε exceeds 1e-8.
+  if (options.method == Method::spectral && (eig.info() != Eigen::Success || !(condition_ <= 1e8)))
+    throw InvalidInput("flow: the spectral method was requested but the eigenvector matrix has "
+                       "condition number " + std::to_string(condition_) +
+                       " (> 1e8: Â is defective or nearly so); use the automatic or exponential method");
   if (use_spectral) {
     if (inverse_.size() == 0) inverse_ = vectors_.partialPivLu().inverse();
     method_ = Method::spectral;

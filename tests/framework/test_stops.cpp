@@ -271,7 +271,7 @@ TEST_CASE("stops: length_scale is the largest offset, amplitude or extra", "[sto
 TEST_CASE("stops: check_admissible names the violated stop and the violation", "[stops]") {
   const double omega = 2.0;
   std::vector<Stop> stops{Stop::upper(0, 0.3, 0.5), Stop::lower(1, -0.2, 0.5),
-                          Stop::between(2, 0, 0.15, 0.5), Stop::upper(2, 0.5, 0.5).moving(0.1, 0.0)};
+                          Stop::between(2, 0, 0.3, 0.5), Stop::upper(2, 0.5, 0.5).moving(0.1, 0.0)};
   stops[1].name = "left wall";
   const ImpactSystem scene(three_dof(omega), stops);
   const double tol = 1e-12;
@@ -299,14 +299,14 @@ TEST_CASE("stops: check_admissible names the violated stop and the violation", "
   msg = message(0.0, Eigen::Vector3d(0.0, -0.25, 0.1));
   CHECK_THAT(msg, Contains("violates stops[1] (left wall)"));
   CHECK(std::abs(number_after(msg, " by ") - 0.05) <= 1e-16);
-  // Between stop 2: x2 - x0 = 0.3 - 0.1 = 0.2 > 0.15 by 0.05.
-  msg = message(0.0, Eigen::Vector3d(0.1, 0.0, 0.3));
+  // Between stop 2: x2 - x0 = 0.45 - 0.1 = 0.35 > 0.3 by 0.05.
+  msg = message(0.0, Eigen::Vector3d(0.1, 0.0, 0.45));
   CHECK_THAT(msg, Contains("violates stops[2] (between x2-x0)"));
   CHECK(std::abs(number_after(msg, " by ") - 0.05) <= 1e-16);
   // Moving stop 3: x2 = 0.55 is admissible at t = 0 (s = 0.6) but violates it by 0.15 at
-  // t = π/Ω (s = 0.5 + 0.1 cos π = 0.4). x0 = 0.45 keeps the between stop satisfied.
-  CHECK(message(0.0, Eigen::Vector3d(0.45, 0.0, 0.55)) == "<no exception>");
-  msg = message(std::numbers::pi / omega, Eigen::Vector3d(0.45, 0.0, 0.55));
+  // t = π/Ω (s = 0.5 + 0.1 cos π = 0.4). x0 = 0.28 keeps stops 0 and 2 satisfied.
+  CHECK(message(0.0, Eigen::Vector3d(0.28, 0.0, 0.55)) == "<no exception>");
+  msg = message(std::numbers::pi / omega, Eigen::Vector3d(0.28, 0.0, 0.55));
   CHECK_THAT(msg, Contains("violates stops[3] (upper x2)"));
   CHECK(std::abs(number_after(msg, " by ") - 0.15) <= 1e-15);
   CHECK(std::abs(number_after(msg, "at t = ") - std::numbers::pi / omega) <= 1e-15);

@@ -4,25 +4,24 @@
 //   vibro check SCENE [--set PATH=VALUE ...]
 //   vibro info SCENE [--set PATH=VALUE ...]
 //
-// Exit codes: 0 success, 1 the run stopped early (event cap, numerical failure), 2 bad input.
+// Exit codes: 0 success, 1 a run stopped early (event cap, numerical failure), 2 bad input,
+// 3 the result file could not be written, 130 interrupted (a sweep keeps OUT.partial).
 #include "info.hpp"
 
+#include "vibro/io/result_file.hpp"
+#include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+
+#include <unistd.h>
 
 #include <cstdio>
 #include <string>
 #include <vector>
 
 namespace {
-
-vibro::io::Scene load(const std::string& path, const std::vector<std::string>& sets) {
-  vibro::io::SceneDocument doc = vibro::io::SceneDocument::load(path);
-  for (const std::string& s : sets) doc.set_assignment(s);
-  return doc.build();
-}
 
 std::string resolved(const vibro::io::Scene& s) {
   std::string out = fmt::format("scene {} is valid\n", s.file);
@@ -53,12 +52,25 @@ std::string resolved(const vibro::io::Scene& s) {
 int main(int argc, char** argv) {
   CLI::App app{"vibro — exact simulation of vibro-impact systems.\n"
                "Examples:\n"
+               "  vibro run experiments/wagg2004/fig2_sticking_orbit.yaml -o fig2.h5\n"
+               "  vibro run experiments/examples/three_mass_sweep.yaml -o sweep.h5 --threads 2\n"
+               "  vibro run sweep.yaml -o sweep.h5 --resume       # finish an interrupted sweep\n"
                "  vibro info experiments/wagg2004/fig2_sticking_orbit.yaml\n"
                "  vibro check experiments/wagg2004/fig2_sticking_orbit.yaml --set forcing.frequency=0.26\n",
                "vibro"};
   app.require_subcommand(1);
   std::string scene_path;
   std::vector<std::string> sets;
+
+  std::string output;
+  int threads = 0;
+  bool resume = false;
+  CLI::App* run = app.add_subcommand("run", "Simulate a scene (or sweep it) and write an HDF5 result file");
+  run->add_option("scene", scene_path, "scene file (YAML)")->required();
+  run->add_option("-o,--output", output, "result file (default: the scene's name with .h5, in the current folder)");
+  run->add_option("--set", sets, "override a value: PATH=VALUE (repeatable)");
+  run->add_option("--threads", threads, "threads for sweeps (default: all cores)")->check(CLI::NonNegativeNumber);
+  run->add_flag("--resume", resume, "finish an interrupted sweep from OUT.partial");
 
   CLI::App* check = app.add_subcommand("check", "Validate a scene and print it resolved");
   check->add_option("scene", scene_path, "scene file (YAML)")->required();
@@ -70,7 +82,19 @@ int main(int argc, char** argv) {
 
   CLI11_PARSE(app, argc, argv);
   try {
-    const vibro::io::Scene scene = load(scene_path, sets);
+    vibro::io::SceneDocument doc = vibro::io::SceneDocument::load(scene_path);
+    for (const std::string& s : sets) doc.set_assignment(s);
+    const vibro::io::Scene scene = doc.build();
+    if (run->parsed()) {
+      if (output.empty()) {
+        std::string base = scene_path.substr(scene_path.find_last_of('/') + 1);
+        output = base.substr(0, base.find_last_of('.')) + ".h5";
+      }
+      vibro::io::RunRequest request{output, threads, resume, isatty(STDERR_FILENO) == 1};
+      const vibro::io::RunReport report = vibro::io::run_scene(doc, scene, request);
+      std::fprintf(stderr, "%s\n", report.summary.c_str());
+      return report.exit_code;
+    }
     if (check->parsed()) std::fputs(resolved(scene).c_str(), stdout);
     if (info->parsed()) std::fputs(vibro::cli::describe_scene(scene).c_str(), stdout);
   } catch (const vibro::io::SceneError& e) {
@@ -79,6 +103,9 @@ int main(int argc, char** argv) {
   } catch (const vibro::InvalidInput& e) {
     std::fprintf(stderr, "error: %s: %s\n", scene_path.c_str(), e.what());
     return 2;
+  } catch (const vibro::io::ResultError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 3;
   }
   return 0;
 }

@@ -30,7 +30,8 @@
 ///    case (critical damping, resonance, rigid-body modes) cond(V) → ∞ and this rule rejects it.
 ///  * exponential (always right): exp(Âτ) by scaling and squaring with a [13/13] Padé
 ///    approximant (Higham 2005, via Eigen's MatrixFunctions), O(N³) per evaluation.
-/// Method::automatic takes spectral when the rule accepts it and exponential otherwise.
+/// Method::automatic takes spectral when the rule accepts it and exponential otherwise; an
+/// explicit Method::spectral is refused (InvalidInput) where cond(V) > 1e8.
 ///
 /// Usage:
 ///     vibro::LinearFlow flow(system);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <set>
 #include <sstream>
@@ -50,14 +51,24 @@ std::string describe(const YAML::Node& n) {
 /// Reads the YAML tree of one scene, with the file name and key paths in every error.
 class Reader {
  public:
-  explicit Reader(std::string file) : file_(std::move(file)) {}
+  explicit Reader(std::string file, std::vector<std::pair<std::string, double>> overrides = {})
+      : file_(std::move(file)), overrides_(std::move(overrides)) {}
 
   [[noreturn]] void fail(const YAML::Node& node, const std::string& path,
                          const std::string& problem) const {
-    const YAML::Mark m = node.Mark();
+    YAML::Mark m = node.Mark();
+    if (m.is_null() || node.IsNull()) {
+      // A key with no value has no position of its own: point at the key.
+      const auto it = key_marks_.find(path);
+      if (it != key_marks_.end()) m = it->second;
+    }
     const int line = m.is_null() ? last_line_ : m.line + 1;
     const int col = m.is_null() ? last_col_ : m.column + 1;
-    throw SceneError(file_, line, col, path, problem);
+    std::string note;
+    for (const auto& [p, v] : overrides_)
+      if (p == path || path.rfind(p, 0) == 0)
+        note = " (the value comes from --set " + p + "=" + show(v) + ")";
+    throw SceneError(file_, line, col, path, problem + note);
   }
 
   void note(const YAML::Node& node) {
@@ -73,8 +84,12 @@ class Reader {
                   const std::vector<std::string>& allowed) {
     note(node);
     if (!node.IsMap()) fail(node, path, "expected a mapping, found " + describe(node));
+    std::set<std::string> seen;
     for (auto it = node.begin(); it != node.end(); ++it) {
       const std::string key = it->first.Scalar();
+      if (!seen.insert(key).second)
+        fail(it->first, join(path, key), "duplicate key '" + key + "' (each key may appear once)");
+      key_marks_[join(path, key)] = it->first.Mark();
       if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
       std::string best;
       std::size_t best_d = 3;
@@ -112,7 +127,7 @@ class Reader {
   double number_in(const YAML::Node& node, const std::string& path, double lo, double hi,
                    const std::string& rule) {
     const double v = number(node, path);
-    if (!(v >= lo && v <= hi)) fail(node, path, "expected " + rule + ", found " + show(v));
+    if (!(v >= lo && v <= hi)) fail(node, path, "expected " + rule + ", found " + node.Scalar());
     return v;
   }
 
@@ -120,7 +135,7 @@ class Reader {
     const double v = number(node, path);
     if (v != std::floor(v) || v < static_cast<double>(lo) || v > static_cast<double>(hi))
       fail(node, path, "expected a whole number in [" + std::to_string(lo) + ", " +
-                           std::to_string(hi) + "], found " + show(v));
+                           std::to_string(hi) + "], found " + node.Scalar());
     return static_cast<long>(v);
   }
 
@@ -185,6 +200,8 @@ class Reader {
 
  private:
   std::string file_;
+  std::vector<std::pair<std::string, double>> overrides_;
+  std::map<std::string, YAML::Mark> key_marks_;
   int last_line_ = 1, last_col_ = 1;
 };
 
@@ -245,8 +262,8 @@ std::vector<double> spaced(const std::vector<double>& spec, bool logarithmic, Re
 }  // namespace
 
 SceneError::SceneError(std::string file, int line, int column, std::string path, std::string problem)
-    : std::runtime_error(file + ":" + std::to_string(line) + ":" + std::to_string(column) + ": " +
-                         (path.empty() ? "" : path + ": ") + problem),
+    : std::runtime_error(file + (line > 0 ? ":" + std::to_string(line) + ":" + std::to_string(column) : "") +
+                         ": " + (path.empty() ? "" : path + ": ") + problem),
       file_(std::move(file)),
       line_(line),
       column_(column),
@@ -261,20 +278,19 @@ double Scene::period() const {
 struct SceneDocument::Impl {
   std::string file, text;
   YAML::Node root;
+  std::vector<std::pair<std::string, double>> overrides;  // set() calls, in order
 };
 
 SceneDocument::SceneDocument() : impl_(std::make_unique<Impl>()) {}
 SceneDocument::~SceneDocument() = default;
-SceneDocument::SceneDocument(const SceneDocument& o) : impl_(std::make_unique<Impl>()) {
-  impl_->file = o.impl_->file;
-  impl_->text = o.impl_->text;
-  impl_->root = YAML::Clone(o.impl_->root);
-}
+// A copy re-parses the text and replays the edits: YAML::Clone would lose the source positions
+// that every error message needs.
+SceneDocument::SceneDocument(const SceneDocument& o) : impl_(std::make_unique<Impl>()) { *this = o; }
 SceneDocument& SceneDocument::operator=(const SceneDocument& o) {
   if (this != &o) {
-    impl_->file = o.impl_->file;
-    impl_->text = o.impl_->text;
-    impl_->root = YAML::Clone(o.impl_->root);
+    SceneDocument fresh = parse(o.impl_->text, o.impl_->file);
+    for (const auto& [path, value] : o.impl_->overrides) fresh.set(path, value);
+    std::swap(impl_, fresh.impl_);
   }
   return *this;
 }
@@ -299,9 +315,12 @@ SceneDocument SceneDocument::parse(const std::string& text, const std::string& f
   } catch (const YAML::ParserException& e) {
     throw SceneError(file, e.mark.line + 1, e.mark.column + 1, "", "YAML syntax error: " + e.msg);
   }
-  if (!doc.impl_->root.IsMap())
-    throw SceneError(file, 1, 1, "", "expected a mapping of sections (model, forcing, stops, ...), found " +
-                                         describe(doc.impl_->root));
+  if (!doc.impl_->root.IsMap()) {
+    const YAML::Mark m = doc.impl_->root.Mark();
+    throw SceneError(file, m.is_null() ? 1 : m.line + 1, m.is_null() ? 1 : m.column + 1, "",
+                     "expected a mapping of sections (model, forcing, stops, ...), found " +
+                         describe(doc.impl_->root));
+  }
   return doc;
 }
 
@@ -342,6 +361,7 @@ void SceneDocument::set(const std::string& path, double value) {
   Reader r(impl_->file);
   r.number(node, path);  // must already be a number
   node = show(value);
+  impl_->overrides.emplace_back(path, value);
 }
 
 void SceneDocument::set_assignment(const std::string& assignment) {
@@ -359,7 +379,12 @@ void SceneDocument::set_assignment(const std::string& assignment) {
   }
   if (used == 0 || used != value.size() || !std::isfinite(v))
     throw SceneError("--set", 0, 0, path, "expected a finite number, found '" + value + "'");
-  set(path, v);
+  try {
+    set(path, v);
+  } catch (const SceneError& e) {
+    throw SceneError("--set", 0, 0, path,
+                     e.problem() + " (in " + e.file() + (e.path().empty() ? "" : " at " + e.path()) + ")");
+  }
 }
 
 double SceneDocument::get(const std::string& path) const {
@@ -367,8 +392,10 @@ double SceneDocument::get(const std::string& path) const {
   return r.number(find_node(impl_->root, path, impl_->file), path);
 }
 
-Scene SceneDocument::build() const {
-  Reader r(impl_->file);
+Scene SceneDocument::build() const { return build_checked(true); }
+
+Scene SceneDocument::build_checked(bool check_sweep) const {
+  Reader r(impl_->file, impl_->overrides);
   const YAML::Node& root = impl_->root;
   r.expect_map(root, "", {"name", "model", "forcing", "stops", "initial", "solver", "record", "run"});
 
@@ -390,14 +417,14 @@ Scene SceneDocument::build() const {
     for (long i = 0; i < n; ++i)
       if (!(c.masses[static_cast<std::size_t>(i)] > 0.0))
         r.fail(chain["masses"][static_cast<std::size_t>(i)], "model.chain.masses[" + std::to_string(i) + "]",
-               "expected a mass > 0, found " + show(c.masses[static_cast<std::size_t>(i)]));
+               "expected a mass > 0, found " + chain["masses"][static_cast<std::size_t>(i)].Scalar());
     auto links = [&](const char* key, std::vector<double>& out) {
       const std::string path = std::string("model.chain.") + key;
       if (!chain[key]) return;
       out = r.numbers(chain[key], path, n - 1, "one per link between neighbouring masses");
       for (std::size_t i = 0; i < out.size(); ++i)
         if (out[i] < 0.0)
-          r.fail(chain[key][i], path + "[" + std::to_string(i) + "]", "expected a value ≥ 0, found " + show(out[i]));
+          r.fail(chain[key][i], path + "[" + std::to_string(i) + "]", "expected a value ≥ 0, found " + chain[key][i].Scalar());
     };
     links("springs", c.springs);
     links("dampers", c.dampers);
@@ -440,7 +467,19 @@ Scene SceneDocument::build() const {
   try {
     system.emplace(M, C, K, f);
   } catch (const InvalidInput& e) {
-    r.fail(model, "model", e.what());
+    // Point at the matrix or forcing entry the message names.
+    const std::string msg = e.what();
+    const YAML::Node mats = model["matrices"];
+    const YAML::Node fn = root["forcing"];
+    const std::pair<const char*, const char*> where[] = {
+        {"mass matrix", "mass"}, {"damping matrix", "damping"}, {"stiffness matrix", "stiffness"}};
+    for (const auto& [prefix, key] : where)
+      if (msg.rfind(prefix, 0) == 0 && mats && mats[key])
+        r.fail(mats[key], std::string("model.matrices.") + key, msg.substr(msg.find(':') + 2));
+    for (const char* key : {"constant", "cosine", "sine", "frequency"})
+      if (msg.rfind(std::string("forcing.") + key, 0) == 0 && fn && fn[key])
+        r.fail(fn[key], std::string("forcing.") + key, msg.substr(msg.find(':') + 2));
+    r.fail(model, "model", msg);
   }
 
   // --- stops ---
@@ -458,6 +497,9 @@ Scene SceneDocument::build() const {
         const auto pair = r.numbers(s["between"], path + ".between", 2, "the two masses i, k of x_i - x_k ≤ gap");
         for (int q = 0; q < 2; ++q)
           r.integer(s["between"][static_cast<std::size_t>(q)], path + ".between[" + std::to_string(q) + "]", 0, n - 1);
+        if (pair[0] == pair[1])
+          r.fail(s["between"], path + ".between", "expected two different masses, found mass " +
+                                                      s["between"][0].Scalar() + " twice");
         if (!s["gap"]) r.fail(s, path + ".gap", "missing: the gap of x_i - x_k ≤ gap");
         stop = Stop::between(static_cast<Eigen::Index>(pair[0]), static_cast<Eigen::Index>(pair[1]),
                              r.number(s["gap"], path + ".gap"), 1.0);
@@ -473,7 +515,12 @@ Scene SceneDocument::build() const {
       }
       if (!s["restitution"]) r.fail(s, path + ".restitution", "missing: the restitution coefficient r ∈ [0, 1]");
       stop.restitution = r.number_in(s["restitution"], path + ".restitution", 0, 1, "a restitution coefficient in [0, 1]");
-      if (s["amplitude"]) stop.amplitude = r.number_in(s["amplitude"], path + ".amplitude", 0, 1e300, "an amplitude ≥ 0");
+      if (s["amplitude"]) {
+        stop.amplitude = r.number_in(s["amplitude"], path + ".amplitude", 0, 1e300, "an amplitude ≥ 0");
+        if (stop.amplitude > 0.0 && !(f.frequency > 0.0))
+          r.fail(s["amplitude"], path + ".amplitude",
+                 "a moving stop moves at the forcing frequency: set forcing.frequency > 0");
+      }
       if (s["phase"]) stop.phase = r.number(s["phase"], path + ".phase");
       if (s["name"]) stop.name = r.text(s["name"], path + ".name");
       stops.push_back(stop);
@@ -483,16 +530,18 @@ Scene SceneDocument::build() const {
   try {
     impact.emplace(*system, stops);
   } catch (const InvalidInput& e) {
-    // The message names the stop index ("stops[j]"); point at that stop.
-    const std::string msg = e.what();
-    const std::size_t at = msg.find("stops[");
+    // The message starts with the stop ("stops[j] (name): ..."); point at that stop and do not
+    // repeat its label.
+    std::string msg = e.what();
     YAML::Node where = root["stops"];
     std::string path = "stops";
-    if (at != std::string::npos) {
-      const std::size_t j = std::stoul(msg.substr(at + 6));
+    if (msg.rfind("stops[", 0) == 0) {
+      const std::size_t j = std::stoul(msg.substr(6));
       if (where && j < where.size()) {
         path = "stops[" + std::to_string(j) + "]";
         where = where[j];
+        const std::size_t colon = msg.find("): ");
+        if (colon != std::string::npos && msg.find(" and ") > colon) msg = msg.substr(colon + 3);
       }
     }
     r.fail(where ? where : root, path, msg);
@@ -510,7 +559,21 @@ Scene SceneDocument::build() const {
   try {
     impact->check_admissible(t0, x0, 1e-12 * impact->length_scale(x0.cwiseAbs().maxCoeff()));
   } catch (const InvalidInput& e) {
-    r.fail(root["initial"] && root["initial"]["x"] ? root["initial"]["x"] : root, "initial.x", e.what());
+    const YAML::Node in = root["initial"];
+    if (in && in["x"]) r.fail(in["x"], "initial.x", e.what());
+    // The default initial state (rest at 0) violates a stop: point at that stop's position.
+    const std::string msg = e.what();
+    const std::size_t at = msg.find("stops[");
+    const YAML::Node sn = root["stops"];
+    if (at != std::string::npos && sn) {
+      const std::size_t j = std::stoul(msg.substr(at + 6));
+      if (j < sn.size()) {
+        const char* key = sn[j]["between"] ? "gap" : "position";
+        r.fail(sn[j][key], "stops[" + std::to_string(j) + "]." + key,
+               msg + "; the initial state defaults to rest at x = 0 (set initial.x)");
+      }
+    }
+    r.fail(root, "initial.x", msg);
   }
 
   // --- solver ---
@@ -547,12 +610,18 @@ Scene SceneDocument::build() const {
       if (sm["per_period"]) rec.samples_per_period = static_cast<int>(r.integer(sm["per_period"], "record.samples.per_period", 1, 1000000));
       if (sm["times"]) {
         rec.sample_times = r.numbers(sm["times"], "record.samples.times", -1, "times from the start of recording");
+        for (std::size_t i = 0; i < rec.sample_times.size(); ++i)
+          if (rec.sample_times[i] < 0.0)
+            r.fail(sm["times"][i], "record.samples.times[" + std::to_string(i) + "]",
+                   "expected a time ≥ 0 (from the start of recording), found " + sm["times"][i].Scalar());
         if (!std::is_sorted(rec.sample_times.begin(), rec.sample_times.end()))
           r.fail(sm["times"], "record.samples.times", "expected times in increasing order");
       }
     }
-    if ((rec.statistics || rec.poincare) && !(f.frequency > 0.0))
-      r.fail(rn, "record", "statistics and poincare need a forcing frequency > 0 (forcing.frequency)");
+    for (const char* key : {"statistics", "poincare"})
+      if (rn[key] && r.boolean(rn[key], std::string("record.") + key) && !(f.frequency > 0.0))
+        r.fail(rn[key], std::string("record.") + key,
+               "per-period statistics and Poincaré points need a forcing frequency > 0 (forcing.frequency)");
   }
 
   // --- run ---
@@ -565,7 +634,7 @@ Scene SceneDocument::build() const {
     const YAML::Node sw = rn["sweep"];
     if (run.kind == RunSpec::Kind::sweep && !sw) r.fail(rn, "run.sweep", "missing: a sweep needs run.sweep.parameters");
     if (run.kind == RunSpec::Kind::simulate && sw) r.fail(sw, "run.sweep", "only for run.kind: sweep");
-    if (sw) {
+    if (sw && check_sweep) {
       r.expect_map(sw, "run.sweep", {"parameters", "follow", "reverse"});
       if (sw["follow"]) run.follow = r.boolean(sw["follow"], "run.sweep.follow");
       if (sw["reverse"]) run.reverse = r.boolean(sw["reverse"], "run.sweep.reverse");
@@ -579,6 +648,9 @@ Scene SceneDocument::build() const {
         if (!p["path"]) r.fail(p, path + ".path", "missing: the scene value to sweep, e.g. forcing.frequency");
         SweepAxis axis;
         axis.path = r.text(p["path"], path + ".path");
+        for (const SweepAxis& other : run.axes)
+          if (other.path == axis.path)
+            r.fail(p["path"], path + ".path", "'" + axis.path + "' is swept twice");
         if (axis.path.rfind("run.", 0) == 0) r.fail(p["path"], path + ".path", "the run section cannot be swept");
         try {
           (void)get(axis.path);
@@ -597,6 +669,25 @@ Scene SceneDocument::build() const {
           axis.values = spaced(spec, lg, r, p[key], path + "." + key);
         }
         run.axes.push_back(axis);
+      }
+      // Every value must make a valid scene: find out now, at the value, not mid-run.
+      for (std::size_t a = 0; check_sweep && a < run.axes.size(); ++a) {
+        const SweepAxis& axis = run.axes[a];
+        const YAML::Node p = ps[a];
+        const std::string path = "run.sweep.parameters[" + std::to_string(a) + "]";
+        for (std::size_t i = 0; i < axis.values.size(); ++i) {
+          SceneDocument point(*this);
+          point.set(axis.path, axis.values[i]);
+          try {
+            (void)point.build_checked(false);
+          } catch (const SceneError& e) {
+            const bool listed = static_cast<bool>(p["values"]);
+            const YAML::Node at = listed ? p["values"][i] : p[p["linspace"] ? "linspace" : "logspace"];
+            r.fail(at, listed ? path + ".values[" + std::to_string(i) + "]" : path,
+                   axis.path + " = " + show(axis.values[i]) + " makes the scene invalid: " + e.problem() +
+                       " (" + e.path() + ")");
+          }
+        }
       }
     }
   }

@@ -112,6 +112,7 @@ class SceneDocument {
 
  private:
   SceneDocument();
+  Scene build_checked(bool check_sweep) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -1,0 +1,131 @@
+#pragma once
+/// \file result_file.hpp
+/// The HDF5 result file of one run: ResultFile writes it, ResultReader reads it back (tests,
+/// tools). The layout is docs/results.md; this header is its C++ side and does not include HDF5.
+///
+/// Life of a file:
+///  * create() opens `OUT.partial` and writes /scene and the start of /meta;
+///  * a simulation writes its recording once (write_simulation); a sweep calls begin_sweep(), then
+///    append_point() for points 0, 1, 2, … in this order (the caller buffers points that complete
+///    out of order). Each point is written whole, then counted in /sweep (attribute `completed`),
+///    then the file is flushed: a sweep killed at any moment keeps every point counted so far;
+///  * finish() completes /meta and renames `OUT.partial` to `OUT` (std::rename, atomic).
+///  * Destroyed without finish() (an exception, Ctrl-C handled by unwinding): a simulation's
+///    `.partial` is deleted, a sweep's is kept, and open_partial() resumes it: it checks that the
+///    scene is the same, drops whatever an interrupted point left behind, and reports how many
+///    points are done.
+///
+/// Usage (a sweep):
+///     auto file = resume ? ResultFile::open_partial(out, scene)
+///                        : ResultFile::create(out, scene, current_meta(threads));
+///     file.begin_sweep({"forcing.frequency"}, grid.size());      // on resume: only checks
+///     for (std::size_t p = file.completed_points(); p < grid.size(); ++p)
+///       file.append_point(p, {grid[p]}, run_point(p));          // a Recording
+///     file.finish(meta);
+///
+/// Every HDF5 failure becomes a ResultError naming the file and the object; a value that is not
+/// finite is never written: ResultError names the dataset, the point and the entry. Use one
+/// ResultFile from one thread.
+#include "vibro/io/results.hpp"
+
+#include <Eigen/Dense>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace vibro::io {
+
+/// A result file could not be written or read: "FILE: /OBJECT: what (HDF5: reason)".
+class ResultError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Writes one run's HDF5 file (docs/results.md).
+class ResultFile {
+ public:
+  /// Starts `path + ".partial"` (replacing any file of that name): /scene, and in /meta the
+  /// facts of `meta` (version, commit, date, compiler, threads) and the scene's tolerances.
+  static ResultFile create(const std::string& path, const Scene& scene, const RunMeta& meta);
+  /// Reopens the `.partial` of an interrupted sweep of `scene`. Throws ResultError if there is
+  /// none, if it is not a sweep, or if its /scene differs from `scene` (YAML text or any resolved
+  /// value, e.g. another --set). Data of a point that was being written is discarded.
+  static ResultFile open_partial(const std::string& path, const Scene& scene);
+  static std::string partial_path(const std::string& path) { return path + ".partial"; }
+
+  ResultFile(ResultFile&&) noexcept;
+  ResultFile& operator=(ResultFile&&) noexcept;
+  ResultFile(const ResultFile&) = delete;
+  ResultFile& operator=(const ResultFile&) = delete;
+  /// Without finish(): closes the file, deletes it unless the run is a sweep.
+  ~ResultFile();
+
+  /// run.kind = simulate: writes the recorded groups and the run's counts and status to /meta.
+  void write_simulation(const Recording& recording);
+
+  /// run.kind = sweep: `parameters` are the swept paths (columns of /sweep/values), `points` the
+  /// grid size. On a resumed file it only checks that both agree with the file.
+  void begin_sweep(const std::vector<std::string>& parameters, std::size_t points);
+  /// Appends point `index` (must equal completed_points()) with its parameter values, then
+  /// flushes. Throws ResultError, leaving the file as before the call, if a value is not finite.
+  void append_point(std::size_t index, const std::vector<double>& values,
+                    const Recording& recording);
+  std::size_t completed_points() const;
+  std::size_t total_points() const;
+  /// State reached by the last completed point (for `follow` sweeps that resume); false if none.
+  bool last_state(double& t, Eigen::VectorXd& x, Eigen::VectorXd& v) const;
+
+  /// Writes wall time, threads and (sweep) the summed counts and status to /meta, closes the file
+  /// and renames it to its final path. A sweep must have all its points.
+  void finish(const RunMeta& meta);
+
+  const std::string& path() const;  ///< the final path (without ".partial")
+
+ private:
+  struct Impl;
+  explicit ResultFile(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Read access to a result file (or any HDF5 file) for tests and tools. Paths are absolute
+/// HDF5 paths ("/events/t"); attributes live on an object ("/meta", "/scene", "/events/kind").
+class ResultReader {
+ public:
+  explicit ResultReader(const std::string& path);
+  ResultReader(ResultReader&&) noexcept;
+  ResultReader& operator=(ResultReader&&) noexcept;
+  ~ResultReader();
+
+  bool exists(const std::string& object) const;
+  bool is_dataset(const std::string& object) const;
+  /// Every group and dataset below the root, sorted ("/events", "/events/t", …).
+  std::vector<std::string> objects() const;
+  std::vector<std::size_t> shape(const std::string& dataset) const;
+  /// "f64", "i32", "i64" or "str" (other types: "other").
+  std::string type(const std::string& dataset) const;
+
+  /// All values, row-major, converted to double (exact for our integers).
+  std::vector<double> read(const std::string& dataset) const;
+  std::vector<std::int64_t> read_integers(const std::string& dataset) const;
+  std::vector<std::string> read_strings(const std::string& dataset) const;
+  /// 1-D: one column; 2-D: as stored; more: first axis as rows, the others flattened.
+  Eigen::MatrixXd read_matrix(const std::string& dataset) const;
+
+  std::vector<std::string> attributes(const std::string& object) const;
+  bool attribute_is_string(const std::string& object, const std::string& name) const;
+  std::string attribute_string(const std::string& object, const std::string& name) const;
+  std::vector<std::string> attribute_strings(const std::string& object,
+                                             const std::string& name) const;
+  double attribute_number(const std::string& object, const std::string& name) const;
+  std::vector<double> attribute_numbers(const std::string& object, const std::string& name) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace vibro::io
