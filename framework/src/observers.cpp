@@ -1,6 +1,8 @@
 #include "vibro/observers.hpp"
 
 #include <cmath>
+#include <limits>
+#include <optional>
 #include <numbers>
 #include <stdexcept>
 
@@ -38,9 +40,50 @@ Minimum SegmentView::force_minimum(Eigen::Index a) const {
   return {m.value, t_begin_ + m.tau};
 }
 
+std::vector<Minimum> SegmentView::force_local_minima(Eigen::Index a) const {
+  const auto& red = mode_->reduced();
+  const Eigen::Index row = red.gap_rows + a;
+  // Guards λ' and -λ' (the watch row is -λ): an interior minimum is λ' crossing 0 upwards, a
+  // maximum -λ' crossing upwards. The search alternates between them, one guard armed at a time
+  // (the other's trigger is +∞), so it steps from extremum to extremum without stalling.
+  Eigen::MatrixXd rows(2, red.watch->rows(1).cols());
+  rows.row(0) = -red.watch->rows(1).row(row);
+  rows.row(1) = red.watch->rows(1).row(row);
+  const Functionals slope(*red.flow, rows);
+  const Segment seg(slope, segment_->t0(), segment_->initial_state());
+  const double span = t_end_ - t_begin_;
+  const double inf = std::numeric_limits<double>::infinity();
+  const double eps = std::max(1e-13 * std::abs(seg.value(0, 0.0)), force_tolerance_ * 1e-3 * red.flow->spectral_radius());
+  const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(t_end_));
+  const double step = 1.0 / std::max(red.flow->spectral_radius(), 1e-300);
+  std::vector<Minimum> out;
+  bool seek_min = seg.value(0, 0.0) <= 0.0;
+  double from = 0.0;
+  for (int guard = 0; from < span && guard < 10000; ++guard) {
+    Eigen::VectorXd trigger(2);
+    trigger << (seek_min ? eps : inf), (seek_min ? inf : eps);
+    CrossingFinder finder(seg, trigger, resolution);
+    std::optional<Crossing> hit;
+    for (double s = from; s < span && !hit;) {
+      const double e = std::min(s + step, span);
+      hit = finder.first(s, e);
+      s = e;
+    }
+    if (!hit || hit->tau >= span) break;
+    if (seek_min && hit->tau > 0.0) out.push_back({force(a, t_begin_ + hit->tau), t_begin_ + hit->tau});
+    from = std::max(hit->tau, from) + resolution;
+    seek_min = !seek_min;
+  }
+  return out;
+}
+
 // --- ContactLog ------------------------------------------------------------------------------
 
-void ContactLog::begin(const ImpactSystem& scene, double) { open_.assign(scene.stop_count(), -1); }
+void ContactLog::begin(const ImpactSystem& scene, double) {
+  open_.assign(scene.stop_count(), -1);
+  has_interior_.assign(scene.stop_count(), false);
+  last_end_force_.assign(scene.stop_count(), 0.0);
+}
 
 void ContactLog::event(const Event& e) {
   auto& slot = open_[static_cast<std::size_t>(e.stop)];
@@ -48,6 +91,7 @@ void ContactLog::event(const Event& e) {
     if (slot >= 0) return;
     slot = static_cast<long>(intervals.size());
     intervals.push_back({e.stop, e.t, e.t, e.force, e.t, false});
+    has_interior_[static_cast<std::size_t>(e.stop)] = false;
   } else if (e.kind == EventKind::release && slot >= 0) {
     auto& iv = intervals[static_cast<std::size_t>(slot)];
     iv.t_end = e.t;
@@ -59,21 +103,42 @@ void ContactLog::event(const Event& e) {
 void ContactLog::segment(const SegmentView& view) {
   const ContactSet& active = view.mode().active();
   for (std::size_t a = 0; a < active.size(); ++a) {
-    const long slot = open_[static_cast<std::size_t>(active[a])];
+    const auto j = static_cast<std::size_t>(active[a]);
+    const long slot = open_[j];
     if (slot < 0) continue;
     auto& iv = intervals[static_cast<std::size_t>(slot)];
-    const Minimum m = view.force_minimum(static_cast<Eigen::Index>(a));
-    if (m.value < iv.force_min) {
-      iv.force_min = m.value;
-      iv.t_force_min = m.tau;
+    const auto idx = static_cast<Eigen::Index>(a);
+    // Interior minima take precedence; until one is seen, the least value at segment starts.
+    for (const Minimum& m : view.force_local_minima(idx)) {
+      if (!has_interior_[j] || m.value < iv.force_min) {
+        iv.force_min = m.value;
+        iv.t_force_min = m.tau;
+      }
+      has_interior_[j] = true;
+    }
+    if (!has_interior_[j]) {
+      const double begin = view.force(idx, view.t_begin());
+      if (view.t_begin() <= iv.t_start || begin < iv.force_min) {
+        iv.force_min = begin;
+        iv.t_force_min = view.t_begin();
+      }
     }
     iv.t_end = view.t_end();
+    last_end_force_[j] = view.force(idx, view.t_end());
   }
 }
 
 void ContactLog::end(double t_end) {
-  for (long slot : open_)
-    if (slot >= 0) intervals[static_cast<std::size_t>(slot)].t_end = t_end;
+  for (std::size_t j = 0; j < open_.size(); ++j) {
+    if (open_[j] < 0) continue;
+    auto& iv = intervals[static_cast<std::size_t>(open_[j])];
+    iv.t_end = t_end;
+    // Still held at the end of the run: the end is not a release, so it counts.
+    if (!has_interior_[j] && last_end_force_[j] < iv.force_min) {
+      iv.force_min = last_end_force_[j];
+      iv.t_force_min = t_end;
+    }
+  }
 }
 
 // --- Samples, Poincare ---------------------------------------------------------------------------

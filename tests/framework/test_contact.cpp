@@ -63,7 +63,8 @@ using vibro::models::Wagg2004;
 double max_abs(const Eigen::MatrixXd& a) { return a.size() == 0 ? 0.0 : a.cwiseAbs().maxCoeff(); }
 
 /// Full augmented state [x; v; cos Ωt; sin Ωt; 1] written out here (not LinearFlow::augment).
-Eigen::VectorXd augmented(double omega, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
+Eigen::VectorXd augmented(double omega, double t, const Eigen::VectorXd& x,
+                          const Eigen::VectorXd& v) {
   const Eigen::Index n = x.size();
   Eigen::VectorXd z(2 * n + 3);
   z << x, v, std::cos(omega * t), std::sin(omega * t), 1.0;
@@ -86,8 +87,10 @@ double stop_s(const Stop& st, double omega, double t, int derivative = 0) {
 /// Normal w of a stop, from its definition.
 Eigen::VectorXd stop_w(const Stop& st, Eigen::Index n) {
   Eigen::VectorXd w = Eigen::VectorXd::Zero(n);
-  if (st.kind == Stop::Kind::lower) w(st.mass) = -1.0;
-  else w(st.mass) = 1.0;
+  if (st.kind == Stop::Kind::lower)
+    w(st.mass) = -1.0;
+  else
+    w(st.mass) = 1.0;
   if (st.kind == Stop::Kind::between) w(st.other) = -1.0;
   return w;
 }
@@ -152,7 +155,8 @@ PaperRestitutionErrors paper_restitution_errors(double r) {
   const Eigen::MatrixXd& S3 = modes.get({0, 1}).restitution_matrix();
   PaperRestitutionErrors e;
   e.physical = std::max({max_abs(S1 - R1), max_abs(S2 - R2), max_abs(S3 - R3)});
-  e.modal = std::max({max_abs(psi_inv * S1 * psi - modal_r1(r)), max_abs(psi_inv * S2 * psi - modal_r2(r)),
+  e.modal = std::max({max_abs(psi_inv * S1 * psi - modal_r1(r)),
+                      max_abs(psi_inv * S2 * psi - modal_r2(r)),
                       max_abs(psi_inv * S3 * psi - modal_r3(r))});
   return e;
 }
@@ -227,7 +231,8 @@ NewtonLawErrors newton_law_errors() {
       Eigen::VectorXd v(4);
       for (Eigen::Index i = 0; i < 4; ++i) v(i) = u(rng);
       const double vn = v.norm();
-      e.newton = std::max(e.newton, (W.transpose() * R * v + r.asDiagonal() * (W.transpose() * v)).norm() / vn);
+      e.newton = std::max(
+          e.newton, (W.transpose() * R * v + r.asDiagonal() * (W.transpose() * v)).norm() / vn);
       const Eigen::VectorXd impulse = M * (R * v - v);  // = -W Λ if the impulse is along -W
       const Eigen::VectorXd outside = impulse - W * range_w.solve(impulse);
       e.direction = std::max(e.direction, outside.norm() / vn);
@@ -249,8 +254,8 @@ NewtonLawErrors newton_law_errors() {
     e.reflection = std::max({e.reflection, max_abs(Re * Re - Eigen::MatrixXd::Identity(4, 4)),
                              max_abs(Re.transpose() * M * Re - M) / max_abs(M)});
     const Eigen::MatrixXd& Rp = plastic_modes.get(set).restitution_matrix();
-    e.projection = std::max({e.projection, max_abs(Rp * Rp - Rp),
-                             max_abs(normals_of(plastic, set).transpose() * Rp)});
+    e.projection = std::max(
+        {e.projection, max_abs(Rp * Rp - Rp), max_abs(normals_of(plastic, set).transpose() * Rp)});
   }
   return e;
 }
@@ -260,8 +265,15 @@ NewtonLawErrors newton_law_errors() {
 // =============================================================================================
 
 /// Non-default parameters for the paper's model (A2 ≠ 0, m ≠ 1, s2 ≠ -s1/3).
-const Wagg2004 kOther{.m = 2.0, .k = 3.0, .c = 0.05, .A1 = 0.7, .A2 = 0.2, .frequency = 0.9,
-                      .s1 = -0.4, .s2 = 0.25, .r = 0.6};
+const Wagg2004 kOther{.m = 2.0,
+                      .k = 3.0,
+                      .c = 0.05,
+                      .A1 = 0.7,
+                      .A2 = 0.2,
+                      .frequency = 0.9,
+                      .s1 = -0.4,
+                      .s2 = 0.25,
+                      .r = 0.6};
 
 struct Motion {
   double x, v;
@@ -321,15 +333,18 @@ double sticking_closed_form_error(const Wagg2004& p, int set) {
   const auto& red = mode.reduced();
   const double ts = 1.7;
   const Motion start{set == 0 ? 0.05 : -0.35, set == 0 ? 0.4 : -0.6};
-  const Eigen::Vector2d x0 = set == 0 ? Eigen::Vector2d(p.s1, start.x) : Eigen::Vector2d(start.x, p.s2);
-  const Eigen::Vector2d v0 = set == 0 ? Eigen::Vector2d(0.0, start.v) : Eigen::Vector2d(start.v, 0.0);
+  const Eigen::Vector2d x0 =
+      set == 0 ? Eigen::Vector2d(p.s1, start.x) : Eigen::Vector2d(start.x, p.s2);
+  const Eigen::Vector2d v0 =
+      set == 0 ? Eigen::Vector2d(0.0, start.v) : Eigen::Vector2d(start.v, 0.0);
   const Eigen::VectorXd z0 = mode.reduce(ts, x0, v0);
   Eigen::VectorXd z(z0.size());
   double worst = 0.0;
   for (int j = 0; j <= 200; ++j) {
     const double tau = 0.2 * j;
     red.flow->propagate(z0, tau, z);
-    const Motion exact = set == 0 ? eq13_motion(p, ts, start, ts + tau) : eq16_motion(p, ts, start, ts + tau);
+    const Motion exact =
+        set == 0 ? eq13_motion(p, ts, start, ts + tau) : eq16_motion(p, ts, start, ts + tau);
     worst = std::max({worst, std::abs(z(0) - exact.x), std::abs(z(1) - exact.v)});
   }
   return worst;
@@ -366,9 +381,11 @@ struct ForceErrors {
 /// λ at random states of mass 1 stuck (set {0}) and of mass 2 stuck (set {1}), against the force
 /// balance of the stuck mass (eqs. 1-2 with the contact force; λ ≥ 0 acts along -w):
 ///  * set {0}, x1 = s1, x1' = x1'' = 0, contact pushes mass 1 up (+λ):
-///      c(0 - x2') + k(2 s1 - x2) = A1 cos Ωt + λ   ⇒  λ = -(c x2' + k(x2 - 2 s1) + A1 cos Ωt) = -F2;
+///      c(0 - x2') + k(2 s1 - x2) = A1 cos Ωt + λ   ⇒  λ = -(c x2' + k(x2 - 2 s1) + A1 cos Ωt) =
+///      -F2;
 ///  * set {1}, x2 = s2, x2' = x2'' = 0, contact pushes mass 2 down (-λ):
-///      c(0 - x1') + k(s2 - x1) = A2 cos Ωt - λ    ⇒  λ = c x1' + k(x1 - s2) + A2 cos Ωt = F1 (+A2 cos).
+///      c(0 - x1') + k(s2 - x1) = A2 cos Ωt - λ    ⇒  λ = c x1' + k(x1 - s2) + A2 cos Ωt = F1 (+A2
+///      cos).
 /// The scale of each comparison is the sum of the magnitudes of the terms (rounding is relative
 /// to it, cancellation is not).
 ForceErrors contact_force_errors(const Wagg2004& p) {
@@ -395,7 +412,8 @@ ForceErrors contact_force_errors(const Wagg2004& p) {
         v << 0.0, yd;
         F = p.c * yd + p.k * (y - 2 * p.s1) + p.A1 * cw;  // eq. (12)
         lambda = -F;
-        scale = std::abs(p.c * yd) + std::abs(p.k * y) + std::abs(2 * p.k * p.s1) + std::abs(p.A1 * cw);
+        scale =
+            std::abs(p.c * yd) + std::abs(p.k * y) + std::abs(2 * p.k * p.s1) + std::abs(p.A1 * cw);
         s = p.s1;
         other_gap = y - p.s2;  // stop 1: x2 - s2
       } else {
@@ -428,13 +446,13 @@ ForceErrors contact_force_errors(const Wagg2004& p) {
 // =============================================================================================
 
 struct ConstrainedErrors {
-  double position = 0.0;      // |wᵀx - s(t)|
-  double rate = 0.0;          // |wᵀv - s'(t)|
+  double position = 0.0;        // |wᵀx - s(t)|
+  double rate = 0.0;            // |wᵀv - s'(t)|
   double constraint_acc = 0.0;  // |wᵀa - s''(t)| / max|a|, a from λ of force_rows
-  double generator = 0.0;     // |d/dt (T z_r) - (v, a)| / max(|v|, |a|)
-  double difference = 0.0;    // |5-point FD of v - a| / max|a|
-  double watch = 0.0;         // |watch rows - (gaps, -λ)| / (1 + |λ|)
-  double start = 0.0;         // |T reduce(x0, v0) - z0|
+  double generator = 0.0;       // |d/dt (T z_r) - (v, a)| / max(|v|, |a|)
+  double difference = 0.0;      // |5-point FD of v - a| / max|a|
+  double watch = 0.0;           // |watch rows - (gaps, -λ)| / (1 + |λ|)
+  double start = 0.0;           // |T reduce(x0, v0) - z0|
 };
 
 /// Propagates the sticking mode `set` of `scene` from (t0, x0, v0) (on the constraint) for
@@ -442,7 +460,8 @@ struct ConstrainedErrors {
 ///     M a = f(t) - C v - K x - W λ,   Wᵀ x = s(t),
 /// using only the system matrices and the stops' definitions.
 ConstrainedErrors constrained_errors(const ImpactSystem& scene, const ContactSet& set, double t0,
-                                     const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double span) {
+                                     const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                                     double span) {
   const LinearSystem& sys = scene.system();
   const Eigen::Index n = sys.dof();
   const double W = sys.forcing().frequency;
@@ -471,7 +490,8 @@ ConstrainedErrors constrained_errors(const ImpactSystem& scene, const ContactSet
     const Eigen::VectorXd z = red.to_full * zr;
     const Eigen::VectorXd x = z.head(n), v = z.segment(n, n);
     const Eigen::VectorXd lambda = red.force_rows * z;
-    const Eigen::VectorXd a = mass.solve(force_at(sys.forcing(), t) - sys.damping() * v - sys.stiffness() * x - Wn * lambda);
+    const Eigen::VectorXd a = mass.solve(force_at(sys.forcing(), t) - sys.damping() * v -
+                                         sys.stiffness() * x - Wn * lambda);
     max_a = std::max(max_a, a.lpNorm<Eigen::Infinity>());
     max_v = std::max(max_v, v.lpNorm<Eigen::Infinity>());
     for (std::size_t k = 0; k < set.size(); ++k) {
@@ -485,7 +505,8 @@ ConstrainedErrors constrained_errors(const ImpactSystem& scene, const ContactSet
     gen_err.push_back(std::max((dz.head(n) - v).lpNorm<Eigen::Infinity>(),
                                (dz.segment(n, n) - a).lpNorm<Eigen::Infinity>()));
     const Eigen::VectorXd fd = (-full_velocity(tau + 2 * h) + 8 * full_velocity(tau + h) -
-                                8 * full_velocity(tau - h) + full_velocity(tau - 2 * h)) / (12 * h);
+                                8 * full_velocity(tau - h) + full_velocity(tau - 2 * h)) /
+                               (12 * h);
     fd_err.push_back((fd - a).lpNorm<Eigen::Infinity>());
     // Watch rows: gaps of the other stops (own formula), then -λ.
     const Eigen::VectorXd watch = red.watch->rows(0) * zr;
@@ -499,7 +520,8 @@ ConstrainedErrors constrained_errors(const ImpactSystem& scene, const ContactSet
         const auto it = std::find(set.begin(), set.end(), j_stop);
         expected = -lambda(static_cast<Eigen::Index>(it - set.begin()));
       }
-      e.watch = std::max(e.watch, std::abs(watch(r) - expected) / (1.0 + lambda.lpNorm<Eigen::Infinity>()));
+      e.watch = std::max(e.watch,
+                         std::abs(watch(r) - expected) / (1.0 + lambda.lpNorm<Eigen::Infinity>()));
     }
   }
   for (double v : acc_err) e.constraint_acc = std::max(e.constraint_acc, v / max_a);
@@ -606,7 +628,8 @@ Eigen::VectorXd brute_force_lcp(const Eigen::MatrixXd& G, const Eigen::VectorXd&
       Eigen::VectorXd qb(k);
       for (Eigen::Index a = 0; a < k; ++a) {
         qb(a) = q(B[static_cast<std::size_t>(a)]);
-        for (Eigen::Index b = 0; b < k; ++b) Gb(a, b) = G(B[static_cast<std::size_t>(a)], B[static_cast<std::size_t>(b)]);
+        for (Eigen::Index b = 0; b < k; ++b)
+          Gb(a, b) = G(B[static_cast<std::size_t>(a)], B[static_cast<std::size_t>(b)]);
       }
       const Eigen::VectorXd lb = Gb.partialPivLu().solve(qb);
       for (Eigen::Index a = 0; a < k; ++a) lambda(B[static_cast<std::size_t>(a)]) = lb(a);
@@ -631,7 +654,8 @@ struct LcpErrors {
 
 /// Complementarity residual of λ for (G, q), relative to s = max(|q|, ‖G‖ |λ|):
 /// max(-λ_i ‖G‖, -(Gλ - q)_i, min(λ_i ‖G‖, |Gλ - q|_i)) / s.
-double complementarity_residual(const Eigen::MatrixXd& G, const Eigen::VectorXd& q, const Eigen::VectorXd& lambda) {
+double complementarity_residual(const Eigen::MatrixXd& G, const Eigen::VectorXd& q,
+                                const Eigen::VectorXd& lambda) {
   const double g = G.cwiseAbs().rowwise().sum().maxCoeff();
   const Eigen::VectorXd w = G * lambda - q;
   const double scale = std::max(q.lpNorm<Eigen::Infinity>(), g * lambda.lpNorm<Eigen::Infinity>());
@@ -714,7 +738,8 @@ TEST_CASE("contact: the closed-form modal matrix diagonalises E (sanity of the r
   const Eigen::Matrix2d psi = paper_modal_matrix();
   Eigen::Matrix2d E;
   E << 2, -1, -1, 1;
-  const Eigen::Matrix2d lambda = Eigen::Vector2d((3 - std::sqrt(5.0)) / 2, (3 + std::sqrt(5.0)) / 2).asDiagonal();
+  const Eigen::Matrix2d lambda =
+      Eigen::Vector2d((3 - std::sqrt(5.0)) / 2, (3 + std::sqrt(5.0)) / 2).asDiagonal();
   CHECK(max_abs(psi.transpose() * psi - Eigen::Matrix2d::Identity()) <= 1e-15);
   CHECK(max_abs(psi.transpose() * E * psi - lambda) <= 1e-15);
   const ImpactSystem scene = vibro::models::wagg2004();
@@ -726,8 +751,7 @@ TEST_CASE("contact: the closed-form modal matrix diagonalises E (sanity of the r
   CHECK(std::abs(psi(1, 1) + psi(0, 0)) <= 1e-15);
 }
 
-TEST_CASE("contact: restitution matrices of the paper are R1, R2, R3 of eq. (8), also modally "
-          "(eq. 10)",
+TEST_CASE("contact: the paper's restitution matrices are eq. (8), and eq. (10) modally",
           "[contact][wagg2004]") {
   // Tolerance (physical) 1e-15: with M = I and unit normals R_S = I - (1 + r) w wᵀ, entries
   // 1, -r computed with ≤ 2 roundings of numbers ≤ 2 (error ≤ 4.4e-16).
@@ -744,9 +768,9 @@ TEST_CASE("contact: restitution matrices of the paper are R1, R2, R3 of eq. (8),
 
 TEST_CASE("contact: R_S of coupled contacts (full M, stops between masses) obeys Newton's law",
           "[contact]") {
-  // Tolerance 1e-13 relative to |v|: M is a random SPD 4×4 (cond ≈ 10-100), G = WᵀM⁻¹W and its
-  // Cholesky solve lose ≈ cond(G)·ε ≈ 1e-14; a wrong restitution or impulse direction shows up
-  // at the size of r or of |v|, O(0.1).
+  // Tolerance 1e-13 relative to |v|: M is a random SPD 4×4 (AAᵀ + I/2, cond(M) ≈ 7.5), so
+  // G = WᵀM⁻¹W (cond ≲ 4·7.5) and its Cholesky solve lose ≲ cond(G)·ε ≈ 7e-15; a wrong restitution
+  // or impulse direction shows up at the size of r or of |v|, O(0.1).
   const NewtonLawErrors e = newton_law_errors();
   CHECK(e.newton <= kCoupledTolerance);
   CHECK(e.direction <= kCoupledTolerance);
@@ -855,7 +879,8 @@ TEST_CASE("contact: both masses stuck, λ is the static balance of eqs. (1)-(2)"
       CAPTURE(p.m, t);
       const double cw = std::cos(p.frequency * t);
       const Eigen::VectorXd lambda =
-          red.force_rows * augmented(p.frequency, t, Eigen::Vector2d(p.s1, p.s2), Eigen::Vector2d::Zero());
+          red.force_rows *
+          augmented(p.frequency, t, Eigen::Vector2d(p.s1, p.s2), Eigen::Vector2d::Zero());
       const double scale = 3 * p.k * (std::abs(p.s1) + std::abs(p.s2)) + p.A1 + p.A2;
       CHECK(std::abs(lambda(0) - (p.k * (2 * p.s1 - p.s2) - p.A1 * cw)) <= 1e-15 * scale);
       CHECK(std::abs(lambda(1) - (p.A2 * cw - p.k * (p.s2 - p.s1))) <= 1e-15 * scale);
@@ -901,8 +926,8 @@ TEST_CASE("contact: a mass held on a moving stop follows s(t) = p + a cos(Ωt + 
 
 TEST_CASE("contact: two moving stops held at once with a full mass matrix: constrained flow",
           "[contact]") {
-  // Same tolerances and reasons as above (cond(M) ≈ 10-100 costs at most a factor 100 on the
-  // ≈ 1e-15 rounding of the acceleration, still below 1e-12).
+  // Same tolerances and reasons as above (cond(M) ≈ 7.5 costs at most that factor on the
+  // ≈ 1e-15 rounding of the acceleration, still far below 1e-12).
   const ConstrainedErrors e = full_mass_moving_errors();
   CHECK(e.start <= kConstraintTolerance);
   CHECK(e.position <= kConstraintTolerance);
@@ -934,27 +959,50 @@ TEST_CASE("contact: solve_lcp closed-form cases", "[contact][lcp]") {
   const Eigen::VectorXd d = Eigen::VectorXd::LinSpaced(4, 0.5, 3.0);
   const Eigen::Vector4d q(1.0, -0.5, 0.25, 0.0);
   const Eigen::VectorXd lambda = vibro::solve_lcp(d.asDiagonal().toDenseMatrix(), q);
-  for (Eigen::Index i = 0; i < 4; ++i) CHECK(std::abs(lambda(i) - std::max(q(i), 0.0) / d(i)) <= 2.3e-16);
+  for (Eigen::Index i = 0; i < 4; ++i)
+    CHECK(std::abs(lambda(i) - std::max(q(i), 0.0) / d(i)) <= 2.3e-16);
   // 2×2, G = [[2, 1], [1, 2]], q = (1, 1): both active, λ = G⁻¹q = (1/3, 1/3).
   // q = (1, -1): only the first, λ = (1/2, 0) and w2 = 1/2 + 1 > 0.
   Eigen::Matrix2d G2;
   G2 << 2, 1, 1, 2;
-  CHECK((vibro::solve_lcp(G2, Eigen::Vector2d(1, 1)) - Eigen::Vector2d(1.0 / 3, 1.0 / 3)).norm() <= 1e-15);
+  CHECK((vibro::solve_lcp(G2, Eigen::Vector2d(1, 1)) - Eigen::Vector2d(1.0 / 3, 1.0 / 3)).norm() <=
+        1e-15);
   CHECK((vibro::solve_lcp(G2, Eigen::Vector2d(1, -1)) - Eigen::Vector2d(0.5, 0.0)).norm() <= 1e-15);
   // q = (1, 0.4): the second would want 0.4 - 0.5 < 0, stays off: λ = (1/2, 0).
-  CHECK((vibro::solve_lcp(G2, Eigen::Vector2d(1, 0.4)) - Eigen::Vector2d(0.5, 0.0)).norm() <= 1e-15);
+  CHECK((vibro::solve_lcp(G2, Eigen::Vector2d(1, 0.4)) - Eigen::Vector2d(0.5, 0.0)).norm() <=
+        1e-15);
 }
 
 // BUG (contact.cpp, solve_lcp): the pivoting tolerance is absolute, 1e-14·max(1, |q|∞), and is
-// compared with both λ (a force) and w (an acceleration). The LCP is not invariant under a change
-// of units: for |q| < 1e-14 every problem is "solved" by λ = 0 (e.g. G = I, q = 1e-20·(1) gives
-// λ = 0 instead of 1e-20), so in small units every contact is released.
+// compared both with w = Gλ - q (an acceleration) and with λ (a force, units of q/G). So the LCP
+// is not invariant under a change of units:
+//  * |q| < 1e-14: λ = 0 is accepted at once (G = [1], q = [1e-20] gives λ = 0, not 1e-20), so in
+//    small units every contact is released (the simulator's hold test is λ > 0);
+//  * |q/G| ≪ 1e-14: a negative basic λ is never pivoted out, then clamped to 0
+//    (G = 1e8·[[1, 0.9], [0.9, 1]], q = 1e-10·(0.5, 1) gives λ = (0, 2.895e-18) with
+//    w = (2.1e-10, 1.9e-10), not λ = (0, 1e-18), w = (4e-11, 0)).
 TEST_CASE("contact: solve_lcp is invariant under a change of units", "[contact][lcp][!mayfail]") {
-  // solve_lcp(βG, αq) = (α/β) solve_lcp(G, q). Tolerance 1e-11 relative, as for brute force.
+  // The two minimal cases above, tolerance 1e-15 relative (one division resp. a 1×1 solve).
+  Eigen::MatrixXd G1(1, 1);
+  G1 << 1.0;
+  const double lambda1 = vibro::solve_lcp(G1, Eigen::VectorXd::Constant(1, 1e-20))(0);
+  INFO("G = [1], q = [1e-20]: lambda = " << lambda1 << ", expected 1e-20");
+  CHECK(std::abs(lambda1 - 1e-20) / 1e-20 <= 1e-15);
+  Eigen::MatrixXd G2(2, 2);
+  G2 << 1e8, 0.9e8, 0.9e8, 1e8;
+  const Eigen::VectorXd lambda2 = vibro::solve_lcp(G2, Eigen::Vector2d(0.5e-10, 1e-10));
+  INFO("G = 1e8 [[1, 0.9], [0.9, 1]], q = 1e-10 (0.5, 1): lambda = (" << lambda2(0) << ", "
+                                                                      << lambda2(1)
+                                                                      << "), expected (0, 1e-18)");
+  CHECK(std::abs(lambda2(0)) / 1e-18 <= 1e-15);
+  CHECK(std::abs(lambda2(1) - 1e-18) / 1e-18 <= 1e-15);
+  // Random problems: solve_lcp(βG, αq) = (α/β) λ_bf(G, q). Tolerance 1e-11 relative, as for the
+  // brute-force comparison (the rescaling by powers of ten adds ≤ 2 roundings).
   for (double alpha : {1.0, 1e-20, 1e-10, 1e10}) {
     for (double beta : {1.0, 1e-8, 1e8}) {
-      CAPTURE(alpha, beta);
-      CHECK(lcp_scale_error(alpha, beta) <= kLcpReferenceTolerance);
+      const double error = lcp_scale_error(alpha, beta);
+      INFO("alpha = " << alpha << ", beta = " << beta << ": relative error " << error);
+      CHECK(error <= kLcpReferenceTolerance);
     }
   }
 }
@@ -970,7 +1018,8 @@ TEST_CASE("contact: ContactModes builds only the sets asked for, reduced flows o
   chain.force_cosine[0] = 0.3;
   chain.frequency = 0.8;
   std::vector<Stop> stops;
-  for (Eigen::Index i = 0; i < 20; ++i) stops.push_back(Stop::upper(i, 0.1 + 0.01 * static_cast<double>(i), 0.5));
+  for (Eigen::Index i = 0; i < 20; ++i)
+    stops.push_back(Stop::upper(i, 0.1 + 0.01 * static_cast<double>(i), 0.5));
   const ImpactSystem scene(vibro::models::build_chain(chain), std::move(stops));
   ContactModes modes(scene);
   CHECK(modes.built() == 0);
@@ -1017,7 +1066,8 @@ TEST_CASE("contact accuracy report", "[.report]") {
     modal = std::max(modal, e.modal);
   }
   std::printf("\ncontact accuracy report (error / tolerance)\n");
-  std::printf("  restitution eq. (8)                       %9.2e / %.0e\n", physical, kRestitutionTolerance);
+  std::printf("  restitution eq. (8)                       %9.2e / %.0e\n", physical,
+              kRestitutionTolerance);
   std::printf("  restitution modal eq. (10)                %9.2e / %.0e\n", modal, kModalTolerance);
   const NewtonLawErrors n = newton_law_errors();
   std::printf("  coupled Newton law / direction / tangent  %9.2e %9.2e %9.2e / %.0e\n", n.newton,
@@ -1035,20 +1085,24 @@ TEST_CASE("contact accuracy report", "[.report]") {
   }
   for (const Wagg2004& p : {Wagg2004{}, fast})
     stat = std::max({stat, static_equilibrium_error(p, 0), static_equilibrium_error(p, 1)});
-  std::printf("  sticking flow vs eqs. (13), (16)          %9.2e / %.0e\n", closed, kClosedFormTolerance);
+  std::printf("  sticking flow vs eqs. (13), (16)          %9.2e / %.0e\n", closed,
+              kClosedFormTolerance);
   std::printf("  static equilibrium s1, +s2/2              %9.2e / %.0e\n", stat, kStaticTolerance);
-  std::printf("  contact force rows / watch rows           %9.2e %9.2e / %.0e\n", force, watch, kForceTolerance);
+  std::printf("  contact force rows / watch rows           %9.2e %9.2e / %.0e\n", force, watch,
+              kForceTolerance);
   for (const auto& [name, e] : {std::pair{"between-masses stop", between_stop_errors()},
                                 std::pair{"moving stop", moving_stop_errors()},
                                 std::pair{"full M, 2 moving", full_mass_moving_errors()}}) {
-    std::printf("  %-20s start %8.1e pos %8.1e rate %8.1e  acc(constraint) %8.1e  acc(generator) %8.1e  "
-                "acc(FD) %8.1e  watch %8.1e\n",
-                name, e.start, e.position, e.rate, e.constraint_acc, e.generator, e.difference, e.watch);
+    std::printf(
+        "  %-20s start %8.1e pos %8.1e rate %8.1e  acc(constraint) %8.1e  acc(generator) %8.1e  "
+        "acc(FD) %8.1e  watch %8.1e\n",
+        name, e.start, e.position, e.rate, e.constraint_acc, e.generator, e.difference, e.watch);
   }
   const LcpErrors l = lcp_errors();
   std::printf("  LCP complementarity / brute force         %9.2e %9.2e  (%d problems, %d active)\n",
               l.complementarity, l.brute_force, l.problems, l.active_total);
   for (double alpha : {1e-20, 1e-10, 1e10})
     for (double beta : {1.0, 1e-8, 1e8})
-      std::printf("  LCP rescaled alpha %7.0e beta %7.0e   %9.2e\n", alpha, beta, lcp_scale_error(alpha, beta));
+      std::printf("  LCP rescaled alpha %7.0e beta %7.0e   %9.2e\n", alpha, beta,
+                  lcp_scale_error(alpha, beta));
 }

@@ -86,8 +86,8 @@ TEST_CASE("stops: restitution outside [0, 1] is rejected naming the stop and the
     const std::vector<Stop> stops{Stop::upper(0, 0.1, 0.5), Stop::lower(1, -0.2, r)};
     REQUIRE_THROWS_AS(ImpactSystem(three_dof(1.0), stops), InvalidInput);
     REQUIRE_THROWS_WITH(ImpactSystem(three_dof(1.0), stops),
-                        Contains("stops[1]") && Contains("(lower x1)") &&
-                            Contains("restitution") && Contains("[0, 1]"));
+                        Contains("stops[1]") && Contains("(lower x1)") && Contains("restitution") &&
+                            Contains("[0, 1]"));
   }
   // The value itself is printed (full precision): re-read it.
   CHECK(number_after(rejection({Stop::upper(0, 0.1, 0.5), Stop::lower(1, -0.2, -0.1)}),
@@ -98,10 +98,10 @@ TEST_CASE("stops: restitution outside [0, 1] is rejected naming the stop and the
   CHECK(rejection({Stop::upper(0, 0.1, 0.0), Stop::lower(1, -0.2, 1.0)}) == "<no exception>");
 }
 
-TEST_CASE("stops: a mass index out of range is rejected with the index and the range",
-          "[stops]") {
-  REQUIRE_THROWS_WITH(ImpactSystem(three_dof(1.0), {Stop::upper(0, 0.1, 0.5), Stop::upper(3, 0.1, 0.5)}),
-                      Contains("stops[1]") && Contains("mass index 3") && Contains("[0, 2]"));
+TEST_CASE("stops: a mass index out of range is rejected with the index and the range", "[stops]") {
+  REQUIRE_THROWS_WITH(
+      ImpactSystem(three_dof(1.0), {Stop::upper(0, 0.1, 0.5), Stop::upper(3, 0.1, 0.5)}),
+      Contains("stops[1]") && Contains("mass index 3") && Contains("[0, 2]"));
   REQUIRE_THROWS_WITH(ImpactSystem(three_dof(1.0), {Stop::lower(-1, 0.1, 0.5)}),
                       Contains("stops[0]") && Contains("mass index -1"));
   REQUIRE_THROWS_WITH(ImpactSystem(three_dof(1.0), {Stop::between(0, 7, 0.1, 0.5)}),
@@ -109,21 +109,22 @@ TEST_CASE("stops: a mass index out of range is rejected with the index and the r
 }
 
 TEST_CASE("stops: a stop between a mass and itself is rejected", "[stops]") {
-  REQUIRE_THROWS_WITH(ImpactSystem(three_dof(1.0), {Stop::upper(0, 0.1, 0.5), Stop::between(2, 2, 0.1, 0.5)}),
-                      Contains("stops[1]") && Contains("two different masses") &&
-                          Contains("2 twice"));
+  REQUIRE_THROWS_WITH(
+      ImpactSystem(three_dof(1.0), {Stop::upper(0, 0.1, 0.5), Stop::between(2, 2, 0.1, 0.5)}),
+      Contains("stops[1]") && Contains("two different masses") && Contains("2 twice"));
 }
 
 TEST_CASE("stops: duplicate stops (same coordinate, same side) are rejected naming both",
           "[stops]") {
   // Same side, different positions: one of the two is redundant, still rejected.
-  REQUIRE_THROWS_WITH(ImpactSystem(three_dof(1.0), {Stop::upper(1, 0.1, 0.5), Stop::lower(0, -0.1, 0.5),
-                                                    Stop::upper(1, 0.3, 0.9)}),
-                      Contains("stops[2]") && Contains("duplicates stops[0]") &&
-                          Contains("same side"));
+  REQUIRE_THROWS_WITH(
+      ImpactSystem(three_dof(1.0),
+                   {Stop::upper(1, 0.1, 0.5), Stop::lower(0, -0.1, 0.5), Stop::upper(1, 0.3, 0.9)}),
+      Contains("stops[2]") && Contains("duplicates stops[0]") && Contains("same side"));
   // A between stop written twice with the same orientation.
-  REQUIRE_THROWS_WITH(ImpactSystem(three_dof(1.0), {Stop::between(0, 1, 0.1, 0.5), Stop::between(0, 1, 0.2, 0.5)}),
-                      Contains("stops[1]") && Contains("duplicates stops[0]"));
+  REQUIRE_THROWS_WITH(
+      ImpactSystem(three_dof(1.0), {Stop::between(0, 1, 0.1, 0.5), Stop::between(0, 1, 0.2, 0.5)}),
+      Contains("stops[1]") && Contains("duplicates stops[0]"));
   // Opposite sides of the same coordinate with room between them are fine.
   CHECK(rejection({Stop::between(0, 1, 0.1, 0.5), Stop::between(1, 0, 0.2, 0.5)}) ==
         "<no exception>");
@@ -153,16 +154,17 @@ TEST_CASE("stops: upper and lower stops leaving no room are rejected with the cl
 }
 
 TEST_CASE("stops: a moving stop needs a forcing frequency", "[stops]") {
-  REQUIRE_THROWS_WITH(ImpactSystem(three_dof(0.0), {Stop::upper(0, 0.1, 0.5).moving(0.01, 0.0)}),
-                      Contains("stops[0]") && Contains("moving stop") &&
-                          Contains("forcing frequency"));
+  REQUIRE_THROWS_WITH(
+      ImpactSystem(three_dof(0.0), {Stop::upper(0, 0.1, 0.5).moving(0.01, 0.0)}),
+      Contains("stops[0]") && Contains("moving stop") && Contains("forcing frequency"));
   // A fixed stop without a forcing frequency is fine.
   CHECK(rejection({Stop::upper(0, 0.1, 0.5)}, 0.0) == "<no exception>");
 }
 
 TEST_CASE("stops: non-finite positions, phases and negative amplitudes are rejected", "[stops]") {
   CHECK_THAT(rejection({Stop::upper(0, kNaN, 0.5)}), Contains("stops[0]") && Contains("position"));
-  CHECK_THAT(rejection({Stop::upper(0, 0.1, 0.5), Stop::upper(1, std::numeric_limits<double>::infinity(), 0.5)}),
+  CHECK_THAT(rejection({Stop::upper(0, 0.1, 0.5),
+                        Stop::upper(1, std::numeric_limits<double>::infinity(), 0.5)}),
              Contains("stops[1]") && Contains("position") && Contains("finite"));
   CHECK_THAT(rejection({Stop::upper(0, 0.1, 0.5).moving(-0.01, 0.0)}),
              Contains("stops[0]") && Contains("amplitude"));
@@ -191,11 +193,11 @@ TEST_CASE("stops: normals, gaps and gap rates of every kind, fixed and moving, b
           "[stops]") {
   const double omega = 1.7;
   const std::vector<Stop> stops{
-      Stop::upper(0, 0.3, 0.5),                        // x0 ≤ 0.3
-      Stop::lower(1, -0.2, 0.5),                       // x1 ≥ -0.2
-      Stop::between(2, 0, 0.15, 0.5),                  // x2 - x0 ≤ 0.15
-      Stop::upper(2, 0.5, 0.5).moving(0.1, 0.4),       // x2 ≤ 0.5 + 0.1 cos(Ωt + 0.4)
-      Stop::lower(0, -0.6, 0.5).moving(0.05, -1.1),    // x0 ≥ -0.6 + 0.05 cos(Ωt - 1.1)
+      Stop::upper(0, 0.3, 0.5),                          // x0 ≤ 0.3
+      Stop::lower(1, -0.2, 0.5),                         // x1 ≥ -0.2
+      Stop::between(2, 0, 0.15, 0.5),                    // x2 - x0 ≤ 0.15
+      Stop::upper(2, 0.5, 0.5).moving(0.1, 0.4),         // x2 ≤ 0.5 + 0.1 cos(Ωt + 0.4)
+      Stop::lower(0, -0.6, 0.5).moving(0.05, -1.1),      // x0 ≥ -0.6 + 0.05 cos(Ωt - 1.1)
       Stop::between(1, 2, 0.25, 0.5).moving(0.02, 2.0),  // x1 - x2 ≤ 0.25 + 0.02 cos(Ωt + 2)
   };
   const ImpactSystem scene(three_dof(omega), stops);
@@ -223,8 +225,12 @@ TEST_CASE("stops: normals, gaps and gap rates of every kind, fixed and moving, b
       const Eigen::VectorXd gd = scene.gap_rates(t, v);
       REQUIRE(g.size() == 6);
       REQUIRE(gd.size() == 6);
-      const auto pos = [&](int j) { return physical_position(stops[static_cast<std::size_t>(j)], omega, t); };
-      const auto vel = [&](int j) { return physical_velocity(stops[static_cast<std::size_t>(j)], omega, t); };
+      const auto pos = [&](int j) {
+        return physical_position(stops[static_cast<std::size_t>(j)], omega, t);
+      };
+      const auto vel = [&](int j) {
+        return physical_velocity(stops[static_cast<std::size_t>(j)], omega, t);
+      };
       // Upper: x_i - s(t). Lower: s(t) - x_i. Between: x_i - x_k - gap(t).
       const double g_hand[6] = {x(0) - pos(0), pos(1) - x(1), x(2) - x(0) - pos(2),
                                 x(2) - pos(3), pos(4) - x(0), x(1) - x(2) - pos(5)};
@@ -240,7 +246,8 @@ TEST_CASE("stops: normals, gaps and gap rates of every kind, fixed and moving, b
   }
   // The moving stops do move: at t = 0.37 the gap of stop 3 differs from its fixed value.
   CHECK(std::abs(scene.gaps(0.37, xs[0])(3) - (xs[0](2) - 0.5)) > 1e-2);
-  WARN("worst gap / gap-rate error vs hand formulas: " << worst);
+  // Measured worst difference: 2.2e-16.
+  CHECK(worst <= kTolerance);
 }
 
 TEST_CASE("stops: s(t) coefficients of a moving lower stop carry the flipped sign", "[stops]") {

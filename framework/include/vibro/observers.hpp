@@ -51,6 +51,11 @@ class SegmentView {
   double force(Eigen::Index a, double t) const;
   /// Certified minimum of that force over the segment (value, time).
   Minimum force_minimum(Eigen::Index a) const;
+  /// Interior local minima of that force (λ' = 0 with λ' rising through zero), in time order:
+  /// found as the crossings of the guard λ' with the same certified search as events
+  /// (events.hpp), so none is missed. These are what detects rising: the orbit becomes tangent to
+  /// the boundary ∂S (λ = 0) where the least interior minimum touches zero.
+  std::vector<Minimum> force_local_minima(Eigen::Index a) const;
 
  private:
   const ContactMode* mode_;
@@ -75,6 +80,10 @@ class EventLog : public Observer {
 };
 
 /// One interval of contact of one stop (a sticking phase).
+/// force_min is the least contact force inside the interval away from its ends: the smallest
+/// interior local minimum of λ (see SegmentView::force_local_minima), or, where λ has none, the
+/// smaller of its values at the start and, if the interval did not end by a release, at the end.
+/// It is positive while the stop holds; rising happens where it reaches zero.
 struct ContactInterval {
   int stop = -1;
   double t_start = 0.0, t_end = 0.0;
@@ -92,6 +101,8 @@ class ContactLog : public Observer {
 
  private:
   std::vector<long> open_;  // index into intervals per stop, -1 if free
+  std::vector<bool> has_interior_;  // per stop: its open interval has an interior minimum
+  std::vector<double> last_end_force_;  // per stop: λ at the end of its last segment
 };
 
 /// Exact states at requested times (sorted ascending).
