@@ -985,17 +985,20 @@ TEST_CASE("contact: solve_lcp is invariant under a change of units", "[contact][
   // The two minimal cases above, tolerance 1e-15 relative (one division resp. a 1×1 solve).
   Eigen::MatrixXd G1(1, 1);
   G1 << 1.0;
-  const double lambda1 = vibro::solve_lcp(G1, Eigen::VectorXd::Constant(1, 1e-20))(0);
-  INFO("G = [1], q = [1e-20]: lambda = " << lambda1 << ", expected 1e-20");
-  CHECK(std::abs(lambda1 - 1e-20) / 1e-20 <= 1e-15);
-  Eigen::MatrixXd G2(2, 2);
-  G2 << 1e8, 0.9e8, 0.9e8, 1e8;
-  const Eigen::VectorXd lambda2 = vibro::solve_lcp(G2, Eigen::Vector2d(0.5e-10, 1e-10));
-  INFO("G = 1e8 [[1, 0.9], [0.9, 1]], q = 1e-10 (0.5, 1): lambda = (" << lambda2(0) << ", "
-                                                                      << lambda2(1)
-                                                                      << "), expected (0, 1e-18)");
-  CHECK(std::abs(lambda2(0)) / 1e-18 <= 1e-15);
-  CHECK(std::abs(lambda2(1) - 1e-18) / 1e-18 <= 1e-15);
+  {
+    const double lambda1 = vibro::solve_lcp(G1, Eigen::VectorXd::Constant(1, 1e-20))(0);
+    INFO("G = [1], q = [1e-20]: lambda = " << lambda1 << ", expected 1e-20");
+    CHECK(std::abs(lambda1 - 1e-20) / 1e-20 <= 1e-15);
+  }
+  {
+    Eigen::MatrixXd G2(2, 2);
+    G2 << 1e8, 0.9e8, 0.9e8, 1e8;
+    const Eigen::VectorXd lambda2 = vibro::solve_lcp(G2, Eigen::Vector2d(0.5e-10, 1e-10));
+    INFO("G = 1e8 [[1, 0.9], [0.9, 1]], q = 1e-10 (0.5, 1): lambda = ("
+         << lambda2(0) << ", " << lambda2(1) << "), expected (0, 1e-18)");
+    CHECK(std::abs(lambda2(0)) / 1e-18 <= 1e-15);
+    CHECK(std::abs(lambda2(1) - 1e-18) / 1e-18 <= 1e-15);
+  }
   // Random problems: solve_lcp(βG, αq) = (α/β) λ_bf(G, q). Tolerance 1e-11 relative, as for the
   // brute-force comparison (the rescaling by powers of ten adds ≤ 2 roundings).
   for (double alpha : {1.0, 1e-20, 1e-10, 1e10}) {

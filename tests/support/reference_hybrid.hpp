@@ -45,11 +45,7 @@
 ///     vibro::test::ReferenceHybrid ref(scene);
 ///     ref.run(0.0L, x0, v0, t_end);           // long double vectors (VectorL)
 ///     for (const vibro::test::ReferenceEvent& e : ref.events) ...
-#include "support/reference_integrator.hpp"
-#include "vibro/stops.hpp"
-
 #include <Eigen/Dense>
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -57,6 +53,9 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "support/reference_integrator.hpp"
+#include "vibro/stops.hpp"
 
 namespace vibro::test {
 
@@ -195,7 +194,9 @@ class ReferenceHybrid {
     long double t, c, s;
   };
 
-  Clock at(long double time) const { return {time, std::cos(omega_ * time), std::sin(omega_ * time)}; }
+  Clock at(long double time) const {
+    return {time, std::cos(omega_ * time), std::sin(omega_ * time)};
+  }
   Clock shifted(const Clock& k, long double dt) const {
     const long double cd = std::cos(omega_ * dt), sd = std::sin(omega_ * dt);
     return {k.t + dt, k.c * cd - k.s * sd, k.s * cd + k.c * sd};
@@ -204,14 +205,18 @@ class ReferenceHybrid {
   /// d^derivative/dt^derivative of P_j.
   long double position(int j, const Clock& k, int derivative = 0) const {
     const StopData& s = stops_[static_cast<std::size_t>(j)];
-    const long double c = k.c * s.cos_phi - k.s * s.sin_phi;  // cos(Ωt + φ)
+    const long double c = k.c * s.cos_phi - k.s * s.sin_phi;   // cos(Ωt + φ)
     const long double sn = k.s * s.cos_phi + k.c * s.sin_phi;  // sin(Ωt + φ)
     const long double w = omega_;
     switch (derivative) {
-      case 0: return s.p + s.a * c;
-      case 1: return -s.a * w * sn;
-      case 2: return -s.a * w * w * c;
-      default: return s.a * w * w * w * sn;
+      case 0:
+        return s.p + s.a * c;
+      case 1:
+        return -s.a * w * sn;
+      case 2:
+        return -s.a * w * w * c;
+      default:
+        return s.a * w * w * w * sn;
     }
   }
 
@@ -220,7 +225,8 @@ class ReferenceHybrid {
     Vec F(n_);
     for (Eigen::Index i = 0; i < n_; ++i) {  // plain loops: Eigen's GEMV is slow at n = 2
       long double sum = f0_(i) + fc_(i) * k.c + fs_(i) * k.s;
-      for (Eigen::Index m = 0; m < n_; ++m) sum -= damping_(i, m) * vs(m) + stiffness_(i, m) * xs(m);
+      for (Eigen::Index m = 0; m < n_; ++m)
+        sum -= damping_(i, m) * vs(m) + stiffness_(i, m) * xs(m);
       F(i) = sum;
     }
     return F;
@@ -229,7 +235,8 @@ class ReferenceHybrid {
   Vec acceleration(const Clock& k, const Vec& xs, const Vec& vs) const {
     Vec a = free_force(k, xs, vs).cwiseQuotient(mass_);
     for (Eigen::Index i = 0; i < n_; ++i)
-      if (held_by_[static_cast<std::size_t>(i)] >= 0) a(i) = position(held_by_[static_cast<std::size_t>(i)], k, 2);
+      if (held_by_[static_cast<std::size_t>(i)] >= 0)
+        a(i) = position(held_by_[static_cast<std::size_t>(i)], k, 2);
     return a;
   }
 

@@ -231,6 +231,7 @@ RunReport run_sweep(const SceneDocument& doc, const Scene& scene, const RunReque
         totals.chatters += r.summary.chatters;
         ++next_to_write;
         progress.update(next_to_write);
+        if (request.interrupt_after > 0 && next_to_write >= request.interrupt_after) g_interrupted.store(true);
       }
     }
   }

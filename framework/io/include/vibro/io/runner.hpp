@@ -25,6 +25,9 @@ struct RunRequest {
   int threads = 0;         ///< 0: OpenMP's default
   bool resume = false;     ///< continue OUT.partial of an interrupted sweep
   bool progress = false;   ///< progress bar with ETA on stderr
+  /// Behave as if interrupted once this many points are written (0: never). For tests of
+  /// interruption and --resume, which must not depend on timing a real signal.
+  std::size_t interrupt_after = 0;
 };
 
 struct RunReport {
