@@ -22,7 +22,9 @@ Eigen::VectorXd solve_lcp(const Eigen::MatrixXd& G, const Eigen::VectorXd& q) {
   const Eigen::Index m = q.size();
   std::vector<bool> basic(static_cast<std::size_t>(m), false);
   Eigen::VectorXd lambda = Eigen::VectorXd::Zero(m);
-  const double scale = std::max(1.0, q.cwiseAbs().maxCoeff()) * 1e-14;
+  // Tolerances relative to the problem's own scale, so the answer does not depend on units.
+  const double q_scale = q.cwiseAbs().maxCoeff();
+  const double g_scale = G.cwiseAbs().maxCoeff();
   const long limit = (m < 20 ? (1L << m) : (1L << 20)) * std::max<Eigen::Index>(m, 1) + 10;
   for (long pivot = 0; pivot < limit; ++pivot) {
     std::vector<Eigen::Index> idx;
@@ -42,11 +44,13 @@ Eigen::VectorXd solve_lcp(const Eigen::MatrixXd& G, const Eigen::VectorXd& q) {
       for (Eigen::Index a = 0; a < k; ++a) lambda(idx[static_cast<std::size_t>(a)]) = lb(a);
     }
     const Eigen::VectorXd w = G * lambda - q;
+    const double w_tol = 1e-14 * (q_scale + g_scale * lambda.cwiseAbs().maxCoeff());
+    const double l_tol = g_scale > 0.0 ? w_tol / g_scale : 0.0;
     // Least index violating complementarity: a basic λ < 0 or a non-basic w < 0.
     Eigen::Index bad = -1;
     for (Eigen::Index i = 0; i < m && bad < 0; ++i) {
       const bool b = basic[static_cast<std::size_t>(i)];
-      if ((b && lambda(i) < -scale) || (!b && w(i) < -scale)) bad = i;
+      if ((b && lambda(i) < -l_tol) || (!b && w(i) < -w_tol)) bad = i;
     }
     if (bad < 0) {
       for (Eigen::Index i = 0; i < m; ++i) lambda(i) = std::max(lambda(i), 0.0);

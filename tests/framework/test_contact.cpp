@@ -19,8 +19,9 @@
 ///     (contact.hpp's comment says "-F1"; that contradicts both the balance and its own
 ///     F_i s_i > 0 remark, and the code computes +F1, which is what is tested);
 ///     both masses stuck: λ from the static balance;
-///  4. the reduced flow is the constrained flow: for a stop between masses of a 3-DOF chain and
-///     for a harmonically moving stop, the full state T z_r stays on the constraint, and the
+///  4. the reduced flow is the constrained flow: for a stop between masses of a 3-DOF chain, for
+///     a harmonically moving stop, and for two moving stops (one between masses) held at once
+///     with a full mass matrix, the full state T z_r stays on the constraints, and the
 ///     acceleration M⁻¹(f - Cv - Kx - Wλ) with λ from force_rows equals both the derivative of
 ///     T z_r given by the reduced generator and a 5-point finite difference of the exact flow;
 ///  5. solve_lcp: complementarity on random SPD problems of size 1..8, against brute-force
@@ -55,7 +56,6 @@ using vibro::ContactModes;
 using vibro::ContactSet;
 using vibro::HarmonicForcing;
 using vibro::ImpactSystem;
-using vibro::LinearFlow;
 using vibro::LinearSystem;
 using vibro::Stop;
 using vibro::models::Wagg2004;
@@ -381,11 +381,11 @@ struct ForceErrors {
 /// λ at random states of mass 1 stuck (set {0}) and of mass 2 stuck (set {1}), against the force
 /// balance of the stuck mass (eqs. 1-2 with the contact force; λ ≥ 0 acts along -w):
 ///  * set {0}, x1 = s1, x1' = x1'' = 0, contact pushes mass 1 up (+λ):
-///      c(0 - x2') + k(2 s1 - x2) = A1 cos Ωt + λ   ⇒  λ = -(c x2' + k(x2 - 2 s1) + A1 cos Ωt) =
-///      -F2;
+///        c(0 - x2') + k(2 s1 - x2) = A1 cos Ωt + λ
+///      ⇒ λ = -(c x2' + k(x2 - 2 s1) + A1 cos Ωt) = -F2;
 ///  * set {1}, x2 = s2, x2' = x2'' = 0, contact pushes mass 2 down (-λ):
-///      c(0 - x1') + k(s2 - x1) = A2 cos Ωt - λ    ⇒  λ = c x1' + k(x1 - s2) + A2 cos Ωt = F1 (+A2
-///      cos).
+///        c(0 - x1') + k(s2 - x1) = A2 cos Ωt - λ
+///      ⇒ λ = c x1' + k(x1 - s2) + A2 cos Ωt = F1 + A2 cos Ωt.
 /// The scale of each comparison is the sum of the magnitudes of the terms (rounding is relative
 /// to it, cancellation is not).
 ForceErrors contact_force_errors(const Wagg2004& p) {
@@ -973,15 +973,10 @@ TEST_CASE("contact: solve_lcp closed-form cases", "[contact][lcp]") {
         1e-15);
 }
 
-// BUG (contact.cpp, solve_lcp): the pivoting tolerance is absolute, 1e-14·max(1, |q|∞), and is
-// compared both with w = Gλ - q (an acceleration) and with λ (a force, units of q/G). So the LCP
-// is not invariant under a change of units:
-//  * |q| < 1e-14: λ = 0 is accepted at once (G = [1], q = [1e-20] gives λ = 0, not 1e-20), so in
-//    small units every contact is released (the simulator's hold test is λ > 0);
-//  * |q/G| ≪ 1e-14: a negative basic λ is never pivoted out, then clamped to 0
-//    (G = 1e8·[[1, 0.9], [0.9, 1]], q = 1e-10·(0.5, 1) gives λ = (0, 2.895e-18) with
-//    w = (2.1e-10, 1.9e-10), not λ = (0, 1e-18), w = (4e-11, 0)).
-TEST_CASE("contact: solve_lcp is invariant under a change of units", "[contact][lcp][!mayfail]") {
+// A regression test: solve_lcp once used an absolute pivoting tolerance, 1e-14·max(1, |q|∞), so
+// in small units every contact was released (G = [1], q = [1e-20] gave λ = 0) and a negative
+// basic λ could survive (G = 1e8·[[1, 0.9], [0.9, 1]], q = 1e-10·(0.5, 1) gave λ = (0, 2.9e-18)).
+TEST_CASE("contact: solve_lcp is invariant under a change of units", "[contact][lcp]") {
   // The two minimal cases above, tolerance 1e-15 relative (one division resp. a 1×1 solve).
   Eigen::MatrixXd G1(1, 1);
   G1 << 1.0;

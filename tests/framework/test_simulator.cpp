@@ -20,24 +20,25 @@
 ///  8. contact sets built lazily, counted against the sets the events visit.
 /// Measured worst errors are printed by the hidden test "[.report]":
 ///     ./vibro_tests_engine "[.report]"
-#include <Eigen/Dense>
-#include <algorithm>
+#include "support/reference_hybrid.hpp"
+#include "support/reference_integrator.hpp"
+#include "vibro/models/chain.hpp"
+#include "vibro/simulator.hpp"
+
 #include <catch2/catch.hpp>
+
+#include <Eigen/Dense>
+
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
-#include <map>
 #include <numbers>
 #include <set>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include "support/reference_hybrid.hpp"
-#include "support/reference_integrator.hpp"
-#include "vibro/models/chain.hpp"
-#include "vibro/simulator.hpp"
 
 namespace {
 
@@ -495,9 +496,11 @@ BallResult check_bouncing_ball(double r) {
   CHECK(run.summary.releases == 0);
   CHECK(std::abs(run.summary.x(0)) <= kPenetration * run.summary.length_scale);
   CHECK(run.summary.v(0) == 0.0);
-  // Stuck from the chatter impact on: every later segment holds stop 0 and does not move.
+  // One segment per flight, then one held segment from the chatter impact to t_end.
+  CHECK(static_cast<long>(run.audit.segments.size()) == out.impacts + 1);
   const SegmentRecord& last = run.audit.segments.back();
   CHECK(last.active == ContactSet{0});
+  CHECK(last.t_begin == ev[ev.size() - 2].t);
   CHECK(last.t_end == t_end);
   // Error budget of t_k: each flight 2 u_k / g is computed from the exact flow and located to a
   // few ulps, ≲ 20 impacts accumulate ≲ 1e-14 relative: 1e-12 leaves a factor 100.
@@ -558,8 +561,9 @@ TEST_CASE(
     CHECK(run.summary.stuck == ContactSet{0});
     CHECK(run.summary.x(0) == 0.0);
   }
-  // A spring pulls the mass up off the floor (equilibrium +0.2 above it): no event at all, and
-  // the free motion x = 0.2 (1 - cos 2t) from the closed form.
+  // A spring pulls the mass up off the floor (equilibrium +0.2 above it): the free motion
+  // x = 0.2 (1 - cos 2t) returns to touch the floor with zero speed at t = π, an exact tangency
+  // that is no impact: no event at all, and the final state from the closed form.
   {
     const ImpactSystem scene(one_mass(1.0, 0.0, 4.0, forcing1(0.8, 0.0, 0.0)),
                              {Stop::lower(0, 0.0, 0.7)});
@@ -927,13 +931,9 @@ TEST_CASE(
   check_paper(paper_against_reference(0.27));
 }
 
-TEST_CASE(
-    "simulator: the chatter limit converges to the reference like the chatter height "
-    "(Budd-Dux error O(Delta^2))",
-    "[simulator][reference][chatter]") {
-  // Δ² ∝ u² ∝ chatter_height, so lowering it from 1e-9 to 1e-10 must shrink the chatter-limit
-  // error about tenfold (measured 8.7e-8 → 1.2e-8); below ~1e-11 both sides' rounding of
-  // bounces slower than ~1e-6 takes over.
+/// Chatter-limit errors against the reference (10 periods of the paper at Ω = 0.255) for
+/// chatter_height = 1e-9 and 1e-10.
+std::pair<double, double> chatter_convergence() {
   vibro::models::Wagg2004 p;
   const ImpactSystem scene = vibro::models::wagg2004(p);
   const double t_end = 10.0 * 2.0 * kPi / p.frequency;
@@ -954,7 +954,18 @@ TEST_CASE(
     REQUIRE(c.chatters > 5);
     errors[i++] = c.chatter_time;
   }
-  CHECK(errors[1] <= errors[0] / 4.0);
+  return {errors[0], errors[1]};
+}
+
+TEST_CASE(
+    "simulator: the chatter limit converges to the reference like the chatter height "
+    "(Budd-Dux error O(Delta^2))",
+    "[simulator][reference][chatter]") {
+  // Δ² ∝ u² ∝ chatter_height, so lowering it from 1e-9 to 1e-10 must shrink the chatter-limit
+  // error about tenfold (measured in the report); below ~1e-11 both sides' rounding of bounces
+  // slower than ~1e-6 takes over. A factor 4 is required.
+  const auto [coarse, fine] = chatter_convergence();
+  CHECK(fine <= coarse / 4.0);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -962,6 +973,7 @@ TEST_CASE(
 
 struct GrazingResult {
   double time_error = 0.0;   ///< worst |t - t*| over the impact cases
+  double relative = 0.0;     ///< worst |t - t*| / t*
   double allowed = 0.0;      ///< the tolerance at that case
   double worst_ratio = 0.0;  ///< worst |t - t*| / tolerance
   long missed = 0, spurious = 0;
@@ -988,8 +1000,8 @@ void grazing_one(double t_peak, double delta, bool mirror, GrazingResult& out) {
   const double sign = mirror ? -1.0 : 1.0;
   const VectorXd x0 = vec({sign * A * std::cos(-w * t_peak)});
   const VectorXd v0 = vec({-sign * A * w * std::sin(-w * t_peak)});
-  const Harmonic1 exact(w, sign * x0(0),
-                        sign * v0(0));  // the unmirrored motion, from the rounded state
+  // The unmirrored motion, from the rounded initial state.
+  const Harmonic1 exact(w, sign * x0(0), sign * v0(0));
   const double p = static_cast<double>(exact.R + delta);
   const ImpactSystem scene(one_mass(1.0, 0.0, w * w, HarmonicForcing::zero(1)),
                            {mirror ? Stop::lower(0, -p, 1.0) : Stop::upper(0, p, 1.0)});
@@ -1023,9 +1035,11 @@ void grazing_one(double t_peak, double delta, bool mirror, GrazingResult& out) {
   const double slope = std::abs(static_cast<double>(exact.v(t_cross)));
   const double tol = 8.0 * kEps * A / slope + 1e-12 * static_cast<double>(t_cross);
   const double err = std::abs(e.t - static_cast<double>(t_cross));
+  const double e_time = e.t;
   CHECK(err <= tol);
   CHECK(e.v_before == Approx(slope).epsilon(1e-4));
   out.time_error = std::max(out.time_error, err);
+  out.relative = std::max(out.relative, err / e_time);
   if (err / tol > out.worst_ratio) {
     out.worst_ratio = err / tol;
     out.allowed = tol;
@@ -1114,8 +1128,10 @@ void grazing_two(double t_peak, double delta, GrazingResult& out) {
   const double slope = static_cast<double>(x_first(t, 1));
   const double tol = 8.0 * kEps * std::abs(p) / slope + 1e-12 * static_cast<double>(t);
   const double err = std::abs(run.audit.events.front().t - static_cast<double>(t));
+  const double e_time = run.audit.events.front().t;
   CHECK(err <= tol);
   out.time_error = std::max(out.time_error, err);
+  out.relative = std::max(out.relative, err / e_time);
   if (err / tol > out.worst_ratio) {
     out.worst_ratio = err / tol;
     out.allowed = tol;
@@ -1407,19 +1423,23 @@ TEST_CASE(
   CHECK(m.find(t_text) != std::string::npos);
   CHECK(z.summary.t < 10.0);
   CHECK(z.summary.t > 2.0 / (kGravity * 0.3) * 0.999);
+  // It returns: 2e4 events take ~3 s on a loaded 2-core machine; a hang would not.
+  CHECK(z.seconds < 30.0);
 }
 
 TEST_CASE(
     "simulator: Zeno run: the bounces accumulate at 2 v0 / (g (1 - r)) without the ball "
     "sinking into the stop",
     "[simulator][zeno][!mayfail]") {
-  // BUG (engine, re-arming of guards): once bounces are too small for their return to be
-  // located at g = 0 (rebound ~3e-9 here), the impact is found where the gap has risen to the
-  // trigger ε = 1e-13 L and the ball starts its next flight ε below the stop; the guard is then
-  // re-armed at ε above that start, so every bounce sinks another ε. The ball ratchets down
-  // (x = -9.8e-8 = 1e5 ε after 1e5 events) and bounces on for ever at the speed where the energy
-  // gained per sink balances restitution, √(2 g ε / (1 - r²)) = 6.1e-6, far past the
-  // accumulation point 0.6796.
+  // BUG (engine: re-arming of guards, simulator.cpp, and from_last_below, events.cpp). After the
+  // 55th impact (rebound 3.0e-9) the next segment starts a hair past the floor (gap +7.7e-34,
+  // rounding) while moving away, so the gap guard is re-armed at ε + 7.7e-34 (ε = 1e-13 L);
+  // the bounce dips only 4.6e-19 below the surface, under the 1e-3 ε tolerance of the certified
+  // minimum, so the return is located where the gap reaches ε (4.5e-7 later, x = -9.8e-13)
+  // instead of at g = 0. The next flight starts ε inside the stop, is re-armed at 2ε, and so on:
+  // each bounce sinks another ε (x = -9.8e-8 = 1e5 ε after 1e5 events) and gains g·ε, so the
+  // ball bounces on for ever at √(2 g ε / (1 - r²)) = 6.1e-6, far past the accumulation point
+  // 0.6796, against the guarantee that no state is more than ε past a stop.
   const ZenoResult z = zeno(0.7, 0.0, 20000);
   CHECK(z.penetration <= kPenetration);
   CHECK(z.summary.t <= 2.0 / (kGravity * 0.3) + 1e-9);
@@ -1595,11 +1615,17 @@ TEST_CASE("simulator accuracy report", "[.report]") {
                 p.reference.impact_time, p.reference.release_time, p.reference.stick_time);
   }
   {
+    const auto [coarse, fine] = chatter_convergence();
+    std::printf("   chatter limit error, chatter_height 1e-9: %9.2e, 1e-10: %9.2e (10 periods)\n",
+                coarse, fine);
+  }
+  {
     const GrazingResult g = grazing_all();
     std::printf(
-        "\n4. grazing: worst |dt| %9.2e (tolerance there %9.2e, worst ratio %.2f), missed %ld, "
+        "\n4. grazing: worst |dt| %9.2e (relative %9.2e; tolerance there %9.2e, worst ratio %.2f), "
+        "missed %ld, "
         "spurious %ld, state error %9.2e\n",
-        g.time_error, g.allowed, g.worst_ratio, g.missed, g.spurious, g.state_error);
+        g.time_error, g.relative, g.allowed, g.worst_ratio, g.missed, g.spurious, g.state_error);
   }
   {
     const PlasticResult p = plastic_impacts();

@@ -450,15 +450,20 @@ TEST_CASE("An interrupted sweep resumes to the same file as an uninterrupted one
   SECTION("a killed process keeps the points it flushed") {
     const pid_t child = ::fork();
     REQUIRE(child >= 0);
-    if (child == 0) {
-      ResultFile file = ResultFile::create(resumed, sweep_point(0), current_meta(1));
-      file.begin_sweep({"forcing.frequency"}, 5);
-      append_points(file, 0, 2);
-      ::raise(SIGKILL);  // no destructor, no close: as `kill -9`
+    if (child == 0) {  // the child must never return into Catch
+      try {
+        ResultFile file = ResultFile::create(resumed, sweep_point(0), current_meta(1));
+        file.begin_sweep({"forcing.frequency"}, 5);
+        append_points(file, 0, 2);
+        ::raise(SIGKILL);  // no destructor, no close: as `kill -9`
+      } catch (...) {
+      }
+      ::_exit(1);
     }
     int status = 0;
     ::waitpid(child, &status, 0);
     REQUIRE(WIFSIGNALED(status));
+    REQUIRE(WTERMSIG(status) == SIGKILL);
     ResultFile file = ResultFile::open_partial(resumed, sweep_point(0));
     CHECK(file.completed_points() == 2);
     append_points(file, 2, 5);

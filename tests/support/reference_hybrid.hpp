@@ -16,7 +16,9 @@
 ///    11-stage, order-8 Cooper–Verner method (tableau in reference_integrator.hpp) in long double
 ///    with a fixed step h, h·ρ = step_rate (ρ = max(|λ(A)|, Ω), A = [0 I; -M⁻¹K -M⁻¹C]). The
 ///    local error per step is ≈ (hρ)⁹/9! ≈ 5e-18 of the state at step_rate 0.05 (measured in
-///    test_flow.cpp), so ~4e4 steps accumulate ≲ 2e-13.
+///    test_flow.cpp), so ~4e4 steps accumulate ≲ 2e-13. Measured on the paper's system over
+///    50 periods (test_simulator.cpp): halving the step from 0.05 moves impact times by ≲ 7e-13
+///    and release times by ≲ 3e-13.
 ///  * Sticking of mass i on stop j: x_i = P_j(t), x_i'' = P_j''(t); the other masses keep their
 ///    rows of the full equations (M diagonal, so the stop's force acts on row i only). The
 ///    contact force follows from row i of  M x'' = f - C v - K x - σ λ e_i:
@@ -35,8 +37,10 @@
 ///  * Impact (Newton's law on the relative velocity): v_i⁺ = P' - r (v_i⁻ - P'), x_i := P(t).
 ///    When the rebound speed |g'⁺| is below stick_velocity and the stop, if held, would push
 ///    (λ > 0), the mass sticks (v_i := P'). So chatter is resolved by integrating the bounces
-///    themselves down to stick_velocity (default 1e-9: a bounce height of ~1e-18, still 50 ulps of
-///    a position of order 0.3 in long double; slower bounces could not be resolved in x).
+///    themselves down to stick_velocity, default 1e-7 (bounce heights ~1e-14, ~1e6 ulps of a
+///    position of order 0.3 in long double); the stick event's t_limit adds the accumulation
+///    time of the remaining, unresolved bounces. Integrating on to 1e-9 (heights ~1e-18, ~50
+///    ulps) was measured to make the accumulation time noisier (~1e-8), not better.
 ///  * Release where λ_j crosses zero (located like any other guard); after every event, stops
 ///    whose force is no longer positive (an impact of another mass can make it jump) are
 ///    released at once.
@@ -45,7 +49,11 @@
 ///     vibro::test::ReferenceHybrid ref(scene);
 ///     ref.run(0.0L, x0, v0, t_end);           // long double vectors (VectorL)
 ///     for (const vibro::test::ReferenceEvent& e : ref.events) ...
+#include "support/reference_integrator.hpp"
+#include "vibro/stops.hpp"
+
 #include <Eigen/Dense>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -53,9 +61,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include "support/reference_integrator.hpp"
-#include "vibro/stops.hpp"
 
 namespace vibro::test {
 
@@ -69,14 +74,15 @@ struct ReferenceEvent {
   long double v_after = 0.0L;   ///< g' after; impacts
   /// Sticks only: where the bounces too slow to integrate would have accumulated. The last
   /// bounce left at |g'⁺| = r u < stick_velocity under the approach acceleration a = λ/m of the
-  /// held stop; its remaining flights 2 r u/a, 2 r² u/a, … sum to 2 r u / (a (1 - r)) (Budd &
-  /// Dux 1994): a correction of ~1e-8 whose own error is of the order of its square.
+  /// held stop; its remaining flights 2 r u/a, 2 r² u/a, … sum to Δ = 2 r u / (a (1 - r))
+  /// (Budd & Dux 1994), exact for constant a; a drifting a moves the true accumulation point by
+  /// O(Δ² |a'/a|): ≲ 1e-10 for u < 1e-7 and a ≳ 0.1 (Δ ≲ 5e-6).
   long double t_limit = 0.0L;
 };
 
 struct ReferenceHybridOptions {
   long double step_rate = 0.05L;       ///< h · ρ
-  long double stick_velocity = 1e-9L;  ///< rebounds slower than this stick (if the stop holds)
+  long double stick_velocity = 1e-7L;  ///< rebounds slower than this stick (if the stop holds)
   long max_events = 2000000;           ///< safety net against a runaway run
 };
 

@@ -12,18 +12,22 @@
 /// output says); a rate repetition is a batch of calls sized to last ≥ 50 ms. Results are summed
 /// into a volatile sink so that nothing is optimised away.
 ///
-/// Usage:  bench_flow [--quick]      (--quick: n = 2, 10 only, a smoke test)
+/// Usage:  bench_flow [--quick]      (--quick: n = 2, 10 only, a smoke test, seconds)
+/// The full run is dominated by the single n = 1000 set-up: about half an hour of CPU time with
+/// LinearFlow as of this writing, most of it in the JacobiSVD that computes cond(V).
 #include "vibro/flow.hpp"
 #include "vibro/models/chain.hpp"
 
 #include <Eigen/Core>
 
 #include <sched.h>
+#include <time.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <fstream>
 #include <memory>
 #include <string>
@@ -39,6 +43,14 @@ volatile double sink = 0.0;  // every measured result ends up here
 
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+/// CPU time of this thread: unlike the wall time it does not grow when other processes compete
+/// for the cores, so it is reported beside the set-up's wall time.
+double thread_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
 double median(std::vector<double> v) {
@@ -108,6 +120,29 @@ std::string format(const char* fmt, double v) {
   return buf;
 }
 
+std::string format_ms(double ms) { return ms >= 1e3 ? format("%.0f", ms) : format("%.4g", ms); }
+
+/// Constructs LinearFlow(sys, options) `reps` times; the last flow is kept. Fills row.setup with
+/// the median wall time and returns a note with the median CPU time.
+std::unique_ptr<vibro::LinearFlow> timed_setup(const vibro::LinearSystem& sys,
+                                               vibro::FlowOptions options, int reps, Row& row) {
+  std::vector<double> wall, cpu;
+  std::unique_ptr<vibro::LinearFlow> flow;
+  for (int r = 0; r < reps; ++r) {
+    flow.reset();
+    const auto start = Clock::now();
+    const double cpu_start = thread_cpu_seconds();
+    flow = std::make_unique<vibro::LinearFlow>(sys, options);
+    cpu.push_back(thread_cpu_seconds() - cpu_start);
+    wall.push_back(seconds_since(start));
+    sink = sink + flow->spectral_radius();
+  }
+  row.setup = format_ms(1e3 * median(wall));
+  row.note = "set-up median of " + std::to_string(reps) + " (CPU time " +
+             format_ms(1e3 * median(cpu)) + " ms)";
+  return flow;
+}
+
 struct Plan {
   int setup_reps;      // repetitions of the LinearFlow construction
   int rate_reps;       // repetitions of each rate batch
@@ -154,18 +189,9 @@ void bench_size(int n, const Plan& plan, std::vector<Row>& rows) {
   {
     Row row;
     row.n = n;
-    std::vector<double> t;
-    std::unique_ptr<vibro::LinearFlow> flow;
-    for (int r = 0; r < plan.setup_reps; ++r) {
-      const auto start = Clock::now();
-      flow = std::make_unique<vibro::LinearFlow>(sys);
-      t.push_back(seconds_since(start));
-      sink = sink + flow->spectral_radius();
-    }
+    const auto flow = timed_setup(sys, vibro::FlowOptions{}, plan.setup_reps, row);
     row.method = std::string("automatic → ") + method_name(flow->method());
-    row.setup = format("%.4g", 1e3 * median(t));
-    row.note = "cond(V) = " + format("%.3g", flow->eigenvector_condition()) +
-               ", set-up median of " + std::to_string(plan.setup_reps);
+    row.note = "cond(V) = " + format("%.3g", flow->eigenvector_condition()) + ", " + row.note;
     std::fprintf(stderr, "  set-up %s ms (%s)\n", row.setup.c_str(), row.note.c_str());
     measure_rates(*flow, plan.rate_reps, row);
     rows.push_back(row);
@@ -199,17 +225,9 @@ void bench_size(int n, const Plan& plan, std::vector<Row>& rows) {
   {
     Row row;
     row.n = n;
-    std::vector<double> t;
-    std::unique_ptr<vibro::LinearFlow> flow;
-    for (int r = 0; r < plan.setup_reps; ++r) {
-      const auto start = Clock::now();
-      flow = std::make_unique<vibro::LinearFlow>(sys, vibro::FlowOptions{vibro::FlowMethod::exponential});
-      t.push_back(seconds_since(start));
-      sink = sink + flow->spectral_radius();
-    }
+    const auto flow = timed_setup(sys, vibro::FlowOptions{vibro::FlowMethod::exponential},
+                                  plan.setup_reps, row);
     row.method = method_name(flow->method());
-    row.setup = format("%.4g", 1e3 * median(t));
-    row.note = "set-up median of " + std::to_string(plan.setup_reps);
     measure_rates(*flow, plan.rate_reps, row);
     rows.push_back(row);
   }
@@ -224,6 +242,13 @@ std::string cpu_model() {
       return colon == std::string::npos ? line : line.substr(colon + 2);
     }
   return "unknown";
+}
+
+std::string load_average() {
+  std::ifstream in("/proc/loadavg");
+  std::string one, five, fifteen;
+  in >> one >> five >> fifteen;
+  return in ? one + " " + five + " " + fifteen : "unknown";
 }
 
 int available_cpus() {
@@ -247,8 +272,9 @@ int main(int argc, char** argv) {
     }
   }
 
-  std::printf("machine: nproc = %d, CPU = %s, Eigen %d.%d.%d, threads used = 1", available_cpus(),
-              cpu_model().c_str(), EIGEN_WORLD_VERSION, EIGEN_MAJOR_VERSION, EIGEN_MINOR_VERSION);
+  std::printf("machine: nproc = %d, CPU = %s, Eigen %d.%d.%d, Eigen threads = %d", available_cpus(),
+              cpu_model().c_str(), EIGEN_WORLD_VERSION, EIGEN_MAJOR_VERSION, EIGEN_MINOR_VERSION,
+              Eigen::nbThreads());
 #ifdef __VERSION__
   std::printf(", compiler %s", __VERSION__);
 #endif
@@ -257,6 +283,7 @@ int main(int argc, char** argv) {
 #else
   std::printf(", WARNING: assertions on (not a Release build)\n");
 #endif
+  std::printf("load average at the start: %s\n", load_average().c_str());
   std::printf("chain: unit masses and springs, dampers 0.02, left wall, cos force on mass 0 at "
               "Ω = 0.7; τ ∈ (0, 10)\n\n");
 
@@ -277,6 +304,8 @@ int main(int argc, char** argv) {
   std::printf("\nnotes:\n");
   for (const Row& r : rows)
     std::printf("- n = %d, %s: %s\n", r.n, r.method.c_str(), r.note.c_str());
-  std::printf("\ntotal run time %.1f s (sink %g)\n", seconds_since(start), static_cast<double>(sink));
+  std::printf("\nload average at the end: %s (wall times grow when it exceeds nproc)\n",
+              load_average().c_str());
+  std::printf("total run time %.1f s (sink %g)\n", seconds_since(start), static_cast<double>(sink));
   return 0;
 }

@@ -24,8 +24,9 @@
 ///   not the -s2/2 printed in eq. (16)).
 ///
 /// * Contact forces, from Wᵀ x'' = s'':   λ = G⁻¹ (Wᵀ M⁻¹ (f - C v - K x) - s''),
-///   λ_j ≥ 0 while stop j holds. For the paper: with mass 1 stuck λ = -F2 of eq. (12); with mass
-///   2 stuck λ = -F1 of eq. (15) (the paper's F carries the sign of s_i: F_i s_i > 0).
+///   λ_j ≥ 0 while stop j holds. For the paper: with mass 1 stuck (lower stop, s1 < 0) λ = -F2 of
+///   eq. (12); with mass 2 stuck (upper stop, s2 > 0) λ = +F1 of eq. (15) (plus A2 cos Ωt when
+///   A2 ≠ 0): the paper's F carries the sign of s_i, F_i s_i > 0 while the stop holds.
 ///   Which stops stay active after an event is the solution of the acceleration LCP
 ///       0 ≤ λ ⊥ G λ - q ≥ 0,   q = Wᵀ M⁻¹ (f - C v - K x) - s''   (free gap acceleration).
 ///

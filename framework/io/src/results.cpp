@@ -602,13 +602,6 @@ class Store {
           object, "cannot list its attributes");
     return names;
   }
-  bool has_attribute(const std::string& object, const std::string& name) const {
-    if (!exists(object)) return false;
-    Hid handle = open_object(object);
-    const htri_t found = H5Aexists(handle, name.c_str());
-    if (found < 0) fail(object, "cannot look for attribute `" + name + "`");
-    return found > 0;
-  }
   bool attribute_is_text(const std::string& object, const std::string& name) const {
     Hid attribute = open_attribute(object, name);
     Hid type(check_id(H5Aget_type(attribute), object, "cannot read attribute `" + name + "`"),
@@ -907,7 +900,8 @@ const char* flow_method_name(FlowMethod method) {
   return "?";
 }
 
-/// The solver tolerances, written to /meta (and compared on resume).
+/// The solver tolerances, written to /meta (and compared on resume); max_events is the one
+/// integer among them (stored as i64, compared here as a double: exact below 2^53).
 std::vector<std::pair<std::string, double>> tolerances(const SimulatorOptions& o) {
   return {{"trigger", o.trigger},
           {"simultaneity", o.simultaneity},
@@ -1198,7 +1192,11 @@ struct ResultFile::Impl {
     store.set_text("/meta", "date", meta.date);
     store.set_text("/meta", "compiler", meta.compiler);
     store.set_integer("/meta", "threads", meta.threads);
-    for (const auto& [name, value] : tolerances(scene.solver)) store.set_real("/meta", name, value);
+    for (const auto& [name, value] : tolerances(scene.solver))
+      if (name == "max_events")
+        store.set_integer("/meta", name, scene.solver.max_events);
+      else
+        store.set_real("/meta", name, value);
     store.set_text("/meta", "flow_method", flow_method_name(scene.solver.flow.method));
     store.set_text("/meta", "status", "running");
     store.set_text("/meta", "message", "");

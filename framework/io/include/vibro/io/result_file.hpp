@@ -7,13 +7,15 @@
 ///  * create() opens `OUT.partial` and writes /scene and the start of /meta;
 ///  * a simulation writes its recording once (write_simulation); a sweep calls begin_sweep(), then
 ///    append_point() for points 0, 1, 2, … in this order (the caller buffers points that complete
-///    out of order). Each point is written whole, then counted in /sweep (attribute `completed`),
-///    then the file is flushed: a sweep killed at any moment keeps every point counted so far;
+///    out of order). Each point is written whole and flushed, then counted in /sweep (attribute
+///    `completed`) and flushed again: a sweep killed at any moment keeps the points it counted;
 ///  * finish() completes /meta and renames `OUT.partial` to `OUT` (std::rename, atomic).
 ///  * Destroyed without finish() (an exception, Ctrl-C handled by unwinding): a simulation's
-///    `.partial` is deleted, a sweep's is kept, and open_partial() resumes it: it checks that the
-///    scene is the same, drops whatever an interrupted point left behind, and reports how many
-///    points are done.
+///    `.partial` is deleted, a sweep's is kept, and open_partial() resumes it. It checks that the
+///    scene is the same, then copies the counted points, each read back and checked, into a new
+///    file that replaces the old one (HDF5 1.10 files are not crash-safe: a kill during a flush
+///    can leave half-written metadata, which the copy leaves behind with the unfinished point).
+///    A counted point that does not read back whole is dropped and computed again.
 ///
 /// Usage (a sweep):
 ///     auto file = resume ? ResultFile::open_partial(out, scene)
@@ -51,9 +53,11 @@ class ResultFile {
   /// Starts `path + ".partial"` (replacing any file of that name): /scene, and in /meta the
   /// facts of `meta` (version, commit, date, compiler, threads) and the scene's tolerances.
   static ResultFile create(const std::string& path, const Scene& scene, const RunMeta& meta);
-  /// Reopens the `.partial` of an interrupted sweep of `scene`. Throws ResultError if there is
-  /// none, if it is not a sweep, or if its /scene differs from `scene` (YAML text or any resolved
-  /// value, e.g. another --set). Data of a point that was being written is discarded.
+  /// Resumes the `.partial` of an interrupted sweep of `scene` (see above; the copy is written as
+  /// `.partial.resume` and renamed over the `.partial`, which is untouched until then). Throws
+  /// ResultError if there is none, if it is not a sweep, or if its /scene differs from `scene`
+  /// (YAML text, any resolved value — e.g. another --set — or a tolerance). Then
+  /// completed_points() says where to continue; begin_sweep() only checks the grid.
   static ResultFile open_partial(const std::string& path, const Scene& scene);
   static std::string partial_path(const std::string& path) { return path + ".partial"; }
 
