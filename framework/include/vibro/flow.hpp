@@ -26,7 +26,7 @@
 ///    Cost: one O(N³) decomposition per flow; then O(N²) per state, and O(N) per scalar
 ///    functional ℓᵀz(τ) once a segment has its N coefficients (see Segment). Its rounding error is
 ///    about cond(V)·ε, so it is used only where cond(V) ≤ Options::max_condition (default 1e4,
-///    i.e. error ≲ 2e-12) and the decomposition reproduces Â to 1e-13 relative. Near a defective
+///    i.e. error ≲ 2e-12) and the decomposition reproduces Â to 1e-13·max(1, cond(V)/100) relative. Near a defective
 ///    case (critical damping, resonance, rigid-body modes) cond(V) → ∞ and this rule rejects it.
 ///  * exponential (always right): exp(Âτ) by scaling and squaring with a [13/13] Padé
 ///    approximant (Higham 2005, via Eigen's MatrixFunctions), O(N³) per evaluation.

@@ -6,7 +6,9 @@
 /// An observer sees two things:
 ///  * segments: the exact motion in one contact mode over [t_begin, t_end] (a SegmentView). Any
 ///    state inside it is computed from the exact flow, never interpolated;
-///  * events: impacts, sticks, releases and chatter limits, with the full state after the event.
+///  * events: impacts, sticks, releases and chatter limits (time, stop, normal rates before and
+///    after, contact force); the state around an event is the end of one segment and the start
+///    of the next.
 ///
 /// Provided here: EventLog, ContactLog (contact intervals with the minimum contact force and its
 /// time, the quantity that detects rising), Samples (exact states at requested times), Poincare

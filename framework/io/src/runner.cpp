@@ -11,6 +11,7 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
+#include <filesystem>
 #include <cstdio>
 #include <map>
 #include <mutex>
@@ -160,6 +161,10 @@ RunReport run_sweep(const SceneDocument& doc, const Scene& scene, const RunReque
 #else
   const int threads = 1;
 #endif
+  if (!request.resume && std::filesystem::exists(ResultFile::partial_path(request.output)))
+    throw SceneError(scene.file, 0, 0, "",
+                     "an interrupted sweep exists in " + ResultFile::partial_path(request.output) +
+                         ": finish it with --resume, or delete it to start again");
   ResultFile file = request.resume ? ResultFile::open_partial(request.output, scene)
                                    : ResultFile::create(request.output, scene, current_meta(threads));
   file.begin_sweep(names, total);
