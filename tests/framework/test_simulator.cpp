@@ -1439,38 +1439,6 @@ TEST_CASE(
   // ball bounced on for ever at √(2 g ε / (1 - r²)). Fixed by placing impacting gaps exactly at
   // zero after each impact (simulator.cpp).
   const ZenoResult z = zeno(0.7, 0.0, 20000);
-  CHECK(z.summary.status == RunStatus::event_cap);
-  CHECK(z.events == 20001);
-  const std::string& m = z.summary.message;
-  INFO(m);
-  CHECK(m.find("event cap") != std::string::npos);
-  CHECK(m.find("t = ") != std::string::npos);
-  CHECK(m.find("stop 0 (lower x0)") != std::string::npos);
-  CHECK(m.find(std::to_string(20000)) != std::string::npos);
-  // The run stops where it reached the cap, and the message gives that time.
-  char t_text[64];
-  std::snprintf(t_text, sizeof t_text, "t = %.17g", z.summary.t);
-  CHECK(m.find(t_text) != std::string::npos);
-  CHECK(z.summary.t < 10.0);
-  CHECK(z.summary.t > 2.0 / (kGravity * 0.3) * 0.999);
-  // It returns: 2e4 events take ~3 s on a loaded 2-core machine; a hang would not.
-  CHECK(z.seconds < 30.0);
-}
-
-TEST_CASE(
-    "simulator: Zeno run: the bounces accumulate at 2 v0 / (g (1 - r)) without the ball "
-    "sinking into the stop",
-    "[simulator][zeno]") {
-  // BUG (engine: re-arming of guards, simulator.cpp, and from_last_below, events.cpp). After the
-  // 55th impact (rebound 3.0e-9) the next segment starts a hair past the floor (gap +7.7e-34,
-  // rounding) while moving away, so the gap guard is re-armed at ε + 7.7e-34 (ε = 1e-13 L);
-  // the bounce dips only 4.6e-19 below the surface, under the 1e-3 ε tolerance of the certified
-  // minimum, so the return is located where the gap reaches ε (4.5e-7 later, x = -9.8e-13)
-  // instead of at g = 0. The next flight starts ε inside the stop, is re-armed at 2ε, and so on:
-  // each bounce sinks another ε (x = -9.8e-8 = 1e5 ε after 1e5 events) and gains g·ε, so the
-  // ball bounces on for ever at √(2 g ε / (1 - r²)) = 6.1e-6, far past the accumulation point
-  // 0.6796, against the guarantee that no state is more than ε past a stop.
-  const ZenoResult z = zeno(0.7, 0.0, 20000);
   CHECK(z.penetration <= kPenetration);
   CHECK(z.summary.t <= 2.0 / (kGravity * 0.3) + 1e-9);
 }
