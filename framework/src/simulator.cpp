@@ -10,14 +10,7 @@
 namespace vibro {
 namespace {
 
-std::string show(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
-
-std::string show(const Eigen::VectorXd& v) {
+std::string vector_text(const Eigen::VectorXd& v) {
   std::ostringstream s;
   s.precision(17);
   s << "[";
@@ -36,7 +29,7 @@ ContactSet merge(const ContactSet& a, const ContactSet& b) {
 
 void require_positive(double value, const char* field, bool allow_zero = false) {
   if (!std::isfinite(value) || value < 0.0 || (!allow_zero && value == 0.0))
-    throw InvalidInput(std::string("solver.") + field + " = " + show(value) + ": must be a finite number " +
+    throw InvalidInput(std::string("solver.") + field + " = " + number_text(value) + ": must be a finite number " +
                        (allow_zero ? "≥ 0" : "> 0"));
 }
 
@@ -82,7 +75,7 @@ void SimulatorOptions::validate() const {
   if (max_events < 1)
     throw InvalidInput("solver.max_events = " + std::to_string(max_events) + ": must be ≥ 1");
   if (trigger >= 1e-3)
-    throw InvalidInput("solver.trigger = " + show(trigger) +
+    throw InvalidInput("solver.trigger = " + number_text(trigger) +
                        ": must be < 1e-3 (it is the allowed penetration relative to the length scale)");
 }
 
@@ -156,9 +149,9 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     throw InvalidInput("initial state: x has " + std::to_string(x0.size()) + " and v has " +
                        std::to_string(v0.size()) + " entries, expected " + std::to_string(n));
   if (!x0.allFinite() || !v0.allFinite())
-    throw InvalidInput("initial state: x = " + show(x0) + ", v = " + show(v0) + " is not finite");
+    throw InvalidInput("initial state: x = " + vector_text(x0) + ", v = " + vector_text(v0) + " is not finite");
   if (!std::isfinite(t0) || !std::isfinite(t_end) || t_end < t0)
-    throw InvalidInput("time span: [" + show(t0) + ", " + show(t_end) + "] must be finite with t_end ≥ t0");
+    throw InvalidInput("time span: [" + number_text(t0) + ", " + number_text(t_end) + "] must be finite with t_end ≥ t0");
 
   const Scales sc = scales(x0, v0);
   const double eps_gap = options_.trigger * sc.L;
@@ -355,7 +348,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
       t = t_next;
       if (!x.allFinite() || !v.allFinite())
         return finish(RunStatus::numerical_failure,
-                      "non-finite state at t = " + show(t) + " in contact set of " +
+                      "non-finite state at t = " + number_text(t) + " in contact set of " +
                           std::to_string(stuck.size()) + " stops");
       if (!hit) break;
 
@@ -375,16 +368,16 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
         const int j = !impacting.empty() ? impacting.front() : releasing.front();
         return finish(RunStatus::event_cap,
                       "event cap: more than " + std::to_string(options_.max_events) +
-                          " events within " + show(window) + " time units, at t = " + show(t) +
+                          " events within " + number_text(window) + " time units, at t = " + number_text(t) +
                           ", stop " + std::to_string(j) + " (" +
-                          scene.stops()[static_cast<std::size_t>(j)].name + "), x = " + show(x) +
-                          ", v = " + show(v) +
+                          scene.stops()[static_cast<std::size_t>(j)].name + "), x = " + vector_text(x) +
+                          ", v = " + vector_text(v) +
                           " (Zeno behaviour the chatter rule did not resolve: raise "
                           "solver.chatter_velocity or solver.max_events)");
       }
     }
   } catch (const std::runtime_error& e) {
-    return finish(RunStatus::numerical_failure, std::string(e.what()) + " (at t = " + show(t) + ")");
+    return finish(RunStatus::numerical_failure, std::string(e.what()) + " (at t = " + number_text(t) + ")");
   }
   return finish(RunStatus::completed, "");
 }

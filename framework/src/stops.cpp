@@ -6,13 +6,6 @@
 namespace vibro {
 namespace {
 
-std::string show(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
-
 std::string label(const Stop& stop, std::size_t j) {
   return "stops[" + std::to_string(j) + "] (" + stop.name + ")";
 }
@@ -103,14 +96,14 @@ ImpactSystem::ImpactSystem(LinearSystem system, std::vector<Stop> stops)
                            std::to_string(s.mass) + " twice");
     }
     if (!std::isfinite(s.position))
-      throw InvalidInput(who + ": position is " + show(s.position) + ": must be finite");
+      throw InvalidInput(who + ": position is " + number_text(s.position) + ": must be finite");
     if (!(s.restitution >= 0.0 && s.restitution <= 1.0))
-      throw InvalidInput(who + ": restitution is " + show(s.restitution) +
+      throw InvalidInput(who + ": restitution is " + number_text(s.restitution) +
                          ": must lie in [0, 1]");
     if (!std::isfinite(s.amplitude) || s.amplitude < 0.0)
-      throw InvalidInput(who + ": amplitude is " + show(s.amplitude) + ": must be finite and ≥ 0");
+      throw InvalidInput(who + ": amplitude is " + number_text(s.amplitude) + ": must be finite and ≥ 0");
     if (!std::isfinite(s.phase))
-      throw InvalidInput(who + ": phase is " + show(s.phase) + ": must be finite");
+      throw InvalidInput(who + ": phase is " + number_text(s.phase) + ": must be finite");
     if (s.amplitude > 0.0 && system_.forcing().frequency == 0.0)
       throw InvalidInput(who + ": a moving stop needs a forcing frequency > 0 (it moves at Ω)");
   }
@@ -133,8 +126,8 @@ ImpactSystem::ImpactSystem(LinearSystem system, std::vector<Stop> stops)
         const double room = a.s0() + b.s0() - a.amplitude - b.amplitude;
         if (!(room > 0.0))
           throw InvalidInput(label(a, j) + " and " + label(b, k) +
-                             " leave no room between them (clearance " + show(a.s0() + b.s0()) +
-                             ", stop amplitudes " + show(a.amplitude) + " + " + show(b.amplitude) +
+                             " leave no room between them (clearance " + number_text(a.s0() + b.s0()) +
+                             ", stop amplitudes " + number_text(a.amplitude) + " + " + number_text(b.amplitude) +
                              "): the clearance must stay positive");
       }
     }
@@ -173,9 +166,9 @@ void ImpactSystem::check_admissible(double t, const Eigen::Ref<const Eigen::Vect
   for (std::size_t j = 0; j < stops_.size(); ++j)
     if (g(static_cast<Eigen::Index>(j)) > tolerance)
       throw InvalidInput("initial state violates " + label(stops_[j], j) + " by " +
-                         show(g(static_cast<Eigen::Index>(j))) + " at t = " + show(t) +
-                         " (x" + std::to_string(stops_[j].mass) + " = " + show(x(stops_[j].mass)) +
-                         ", stop position " + show(stops_[j].position) + ")");
+                         number_text(g(static_cast<Eigen::Index>(j))) + " at t = " + number_text(t) +
+                         " (x" + std::to_string(stops_[j].mass) + " = " + number_text(x(stops_[j].mass)) +
+                         ", stop position " + number_text(stops_[j].position) + ")");
 }
 
 }  // namespace vibro

@@ -8,19 +8,12 @@
 namespace vibro {
 namespace {
 
-std::string fmt_value(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
-
 void require_finite_matrix(const Eigen::MatrixXd& a, const char* name) {
   for (Eigen::Index i = 0; i < a.rows(); ++i)
     for (Eigen::Index j = 0; j < a.cols(); ++j)
       if (!std::isfinite(a(i, j)))
         throw InvalidInput(std::string(name) + ": entry (" + std::to_string(i) + "," +
-                           std::to_string(j) + ") is " + fmt_value(a(i, j)) +
+                           std::to_string(j) + ") is " + number_text(a(i, j)) +
                            ": every entry must be a finite number");
 }
 
@@ -37,9 +30,9 @@ void require_symmetric(const Eigen::MatrixXd& a, const char* name) {
     for (Eigen::Index j = i + 1; j < a.cols(); ++j)
       if (std::abs(a(i, j) - a(j, i)) > 1e-12 * scale)
         throw InvalidInput(std::string(name) + ": entry (" + std::to_string(i) + "," +
-                           std::to_string(j) + ") = " + fmt_value(a(i, j)) + " but (" +
+                           std::to_string(j) + ") = " + number_text(a(i, j)) + " but (" +
                            std::to_string(j) + "," + std::to_string(i) + ") = " +
-                           fmt_value(a(j, i)) + ": the matrix must be symmetric");
+                           number_text(a(j, i)) + ": the matrix must be symmetric");
 }
 
 /// Smallest eigenvalue must be ≥ -1e-12 ‖A‖ (semi-definite up to rounding).
@@ -49,7 +42,7 @@ void require_semidefinite(const Eigen::MatrixXd& a, const char* name) {
   const double scale = std::max(a.cwiseAbs().maxCoeff(), 1e-300);
   const double lowest = eig.eigenvalues()(0);
   if (lowest < -1e-12 * scale)
-    throw InvalidInput(std::string(name) + ": smallest eigenvalue is " + fmt_value(lowest) +
+    throw InvalidInput(std::string(name) + ": smallest eigenvalue is " + number_text(lowest) +
                        ": the matrix must be positive semi-definite");
 }
 
@@ -60,10 +53,17 @@ void require_vector(const Eigen::VectorXd& v, Eigen::Index n, const char* name) 
   for (Eigen::Index i = 0; i < n; ++i)
     if (!std::isfinite(v(i)))
       throw InvalidInput(std::string("forcing.") + name + ": entry " + std::to_string(i) +
-                         " is " + fmt_value(v(i)) + ": must be a finite number");
+                         " is " + number_text(v(i)) + ": must be a finite number");
 }
 
 }  // namespace
+
+std::string number_text(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
 
 HarmonicForcing HarmonicForcing::zero(Eigen::Index n, double frequency) {
   return {Eigen::VectorXd::Zero(n), Eigen::VectorXd::Zero(n), Eigen::VectorXd::Zero(n), frequency};
@@ -91,7 +91,7 @@ LinearSystem::LinearSystem(Eigen::MatrixXd mass, Eigen::MatrixXd damping, Eigen:
   for (Eigen::Index i = 0; i < n; ++i)
     if (!(mass_(i, i) > 0.0))
       throw InvalidInput("mass matrix: diagonal entry " + std::to_string(i) + " is " +
-                         fmt_value(mass_(i, i)) + ": every mass must be positive");
+                         number_text(mass_(i, i)) + ": every mass must be positive");
   require_symmetric(mass_, "mass matrix");
   require_symmetric(damping_, "damping matrix");
   require_symmetric(stiffness_, "stiffness matrix");
@@ -104,7 +104,7 @@ LinearSystem::LinearSystem(Eigen::MatrixXd mass, Eigen::MatrixXd damping, Eigen:
   require_vector(forcing_.cosine, n, "cosine");
   require_vector(forcing_.sine, n, "sine");
   if (!std::isfinite(forcing_.frequency) || forcing_.frequency < 0.0)
-    throw InvalidInput("forcing.frequency: is " + fmt_value(forcing_.frequency) +
+    throw InvalidInput("forcing.frequency: is " + number_text(forcing_.frequency) +
                        ": must be a finite number ≥ 0");
 }
 

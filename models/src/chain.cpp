@@ -7,25 +7,18 @@
 namespace vibro::models {
 namespace {
 
-std::string show(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
-
 void check_entries(const std::vector<double>& values, const char* field, bool positive) {
   for (std::size_t i = 0; i < values.size(); ++i) {
     const double v = values[i];
     if (!std::isfinite(v) || (positive ? !(v > 0.0) : v < 0.0))
-      throw InvalidInput("chain." + std::string(field) + "[" + std::to_string(i) + "] = " + show(v) +
+      throw InvalidInput("chain." + std::string(field) + "[" + std::to_string(i) + "] = " + number_text(v) +
                          ": must be a finite number " + (positive ? "> 0" : "≥ 0"));
   }
 }
 
 void check_scalar(double v, const char* field) {
   if (!std::isfinite(v) || v < 0.0)
-    throw InvalidInput("chain." + std::string(field) + " = " + show(v) +
+    throw InvalidInput("chain." + std::string(field) + " = " + number_text(v) +
                        ": must be a finite number ≥ 0");
 }
 

@@ -23,6 +23,9 @@
 
 namespace vibro {
 
+/// A number as text with all 17 significant digits, for messages that must give the exact value.
+std::string number_text(double v);
+
 /// Bad user input: a message that names the quantity, the index and the value.
 class InvalidInput : public std::invalid_argument {
  public:

@@ -26,13 +26,6 @@ namespace vibro::io {
 
 namespace {
 
-std::string show(double value) {
-  std::ostringstream s;
-  s.precision(17);
-  s << value;
-  return s.str();
-}
-
 bool records_samples(const RecordSpec& spec) {
   return spec.samples_per_period > 0 || !spec.sample_times.empty();
 }
@@ -47,8 +40,8 @@ std::vector<double> sample_times(const Scene& scene, double t_start) {
     for (std::size_t i = 0; i < spec.sample_times.size(); ++i) {
       const double s = spec.sample_times[i];
       if (!std::isfinite(s) || s < 0.0 || s > span)
-        throw InvalidInput("record.sample_times[" + std::to_string(i) + "] = " + show(s) +
-                           ": must lie in the recorded span [0, " + show(span) +
+        throw InvalidInput("record.sample_times[" + std::to_string(i) + "] = " + number_text(s) +
+                           ": must lie in the recorded span [0, " + number_text(span) +
                            "] (run.periods × period)");
       times.push_back(t_start + s);
     }
@@ -833,7 +826,7 @@ void require_finite(const std::string& file, const std::string& dataset, const C
   for (std::size_t i = 0; i < c.f64.size(); ++i)
     if (!std::isfinite(c.f64[i]))
       throw ResultError(file + ": " + dataset + ": entry " + index_text(i, c.shape) + where +
-                        " is " + show(c.f64[i]) + ": not written, result values must be finite");
+                        " is " + number_text(c.f64[i]) + ": not written, result values must be finite");
 }
 
 /// The resolved scene as datasets of /scene.

@@ -16,13 +16,6 @@
 namespace vibro::io {
 namespace {
 
-std::string show(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
-
 std::size_t edit_distance(const std::string& a, const std::string& b) {
   std::vector<std::size_t> row(b.size() + 1);
   for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
@@ -67,7 +60,7 @@ class Reader {
     std::string note;
     for (const auto& [p, v] : overrides_)
       if (p == path || path.rfind(p, 0) == 0)
-        note = " (the value comes from --set " + p + "=" + show(v) + ")";
+        note = " (the value comes from --set " + p + "=" + number_text(v) + ")";
     throw SceneError(file_, line, col, path, problem + note);
   }
 
@@ -246,9 +239,9 @@ std::vector<double> spaced(const std::vector<double>& spec, bool logarithmic, Re
   const double a = spec[0], b = spec[1];
   const double count = spec[2];
   if (count != std::floor(count) || count < 1 || count > 1e7)
-    r.fail(node, path, "expected [start, stop, count] with a whole count in [1, 1e7], found count " + show(count));
+    r.fail(node, path, "expected [start, stop, count] with a whole count in [1, 1e7], found count " + number_text(count));
   if (logarithmic && !(a > 0 && b > 0))
-    r.fail(node, path, "expected positive start and stop for a logarithmic spacing, found " + show(a) + ", " + show(b));
+    r.fail(node, path, "expected positive start and stop for a logarithmic spacing, found " + number_text(a) + ", " + number_text(b));
   const auto n = static_cast<long>(count);
   std::vector<double> out;
   for (long i = 0; i < n; ++i) {
@@ -360,7 +353,7 @@ void SceneDocument::set(const std::string& path, double value) {
   YAML::Node node = find_node(impl_->root, path, impl_->file);
   Reader r(impl_->file);
   r.number(node, path);  // must already be a number
-  node = show(value);
+  node = number_text(value);
   impl_->overrides.emplace_back(path, value);
 }
 
@@ -684,7 +677,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
             const bool listed = static_cast<bool>(p["values"]);
             const YAML::Node at = listed ? p["values"][i] : p[p["linspace"] ? "linspace" : "logspace"];
             r.fail(at, listed ? path + ".values[" + std::to_string(i) + "]" : path,
-                   axis.path + " = " + show(axis.values[i]) + " makes the scene invalid: " + e.problem() +
+                   axis.path + " = " + number_text(axis.values[i]) + " makes the scene invalid: " + e.problem() +
                        " (" + e.path() + ")");
           }
         }
