@@ -143,19 +143,24 @@ void ContactLog::end(double t_end) {
 
 // --- Samples, Poincare ---------------------------------------------------------------------------
 
+namespace {
+
+/// Appends the exact state at ts to (t, x, v) if ts lies in the segment.
+void record_state(const SegmentView& view, double ts, std::vector<double>& t,
+                  std::vector<Eigen::VectorXd>& x, std::vector<Eigen::VectorXd>& v) {
+  if (ts < view.t_begin()) return;
+  Eigen::VectorXd xs(view.dof()), vs(view.dof());
+  view.state(ts, xs, vs);
+  t.push_back(ts);
+  x.push_back(std::move(xs));
+  v.push_back(std::move(vs));
+}
+
+}  // namespace
+
 void Samples::segment(const SegmentView& view) {
-  const Eigen::Index n = view.dof();
-  while (next_ < times_.size() && times_[next_] <= view.t_end()) {
-    const double ts = times_[next_];
-    if (ts >= view.t_begin()) {
-      Eigen::VectorXd xs(n), vs(n);
-      view.state(ts, xs, vs);
-      t.push_back(ts);
-      x.push_back(xs);
-      v.push_back(vs);
-    }
-    ++next_;
-  }
+  for (; next_ < times_.size() && times_[next_] <= view.t_end(); ++next_)
+    record_state(view, times_[next_], t, x, v);
 }
 
 void Poincare::begin(const ImpactSystem& scene, double t0) {
@@ -166,18 +171,10 @@ void Poincare::begin(const ImpactSystem& scene, double t0) {
 }
 
 void Poincare::segment(const SegmentView& view) {
-  const Eigen::Index n = view.dof();
-  while (true) {
+  for (;; ++next_k_) {
     const double ts = phase_time_ + static_cast<double>(next_k_) * period_;
     if (ts > view.t_end()) break;
-    if (ts >= view.t_begin()) {
-      Eigen::VectorXd xs(n), vs(n);
-      view.state(ts, xs, vs);
-      t.push_back(ts);
-      x.push_back(xs);
-      v.push_back(vs);
-    }
-    ++next_k_;
+    record_state(view, ts, t, x, v);
   }
 }
 
