@@ -1,5 +1,6 @@
 #include "vibro/observers.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -93,10 +94,18 @@ void ContactLog::event(const Event& e) {
     intervals.push_back({e.stop, e.t, e.t, e.force, e.t, false});
     has_interior_[static_cast<std::size_t>(e.stop)] = false;
   } else if (e.kind == EventKind::release && slot >= 0) {
-    auto& iv = intervals[static_cast<std::size_t>(slot)];
-    iv.t_end = e.t;
-    iv.closed = true;
+    const auto index = static_cast<std::size_t>(slot);
     slot = -1;
+    if (e.t <= intervals[index].t_start) {
+      // Released before the chatter's accumulation point: the bounces never converged, the
+      // stop never stuck (the simulator held it only within the chatter rule's O(u²/a)).
+      intervals.erase(intervals.begin() + static_cast<std::ptrdiff_t>(index));
+      for (long& other : open_)
+        if (other > static_cast<long>(index)) --other;
+      return;
+    }
+    intervals[index].t_end = e.t;
+    intervals[index].closed = true;
   }
 }
 
@@ -110,6 +119,7 @@ void ContactLog::segment(const SegmentView& view) {
     const auto idx = static_cast<Eigen::Index>(a);
     // Interior minima take precedence; until one is seen, the least value at segment starts.
     for (const Minimum& m : view.force_local_minima(idx)) {
+      if (m.tau < iv.t_start) continue;  // before the chatter limit: not yet sticking
       if (!has_interior_[j] || m.value < iv.force_min) {
         iv.force_min = m.value;
         iv.t_force_min = m.tau;
@@ -117,10 +127,13 @@ void ContactLog::segment(const SegmentView& view) {
       has_interior_[j] = true;
     }
     if (!has_interior_[j]) {
-      const double begin = view.force(idx, view.t_begin());
-      if (view.t_begin() <= iv.t_start || begin < iv.force_min) {
-        iv.force_min = begin;
-        iv.t_force_min = view.t_begin();
+      // The interval starts at the chatter limit, which can lie inside (or after) this segment
+      // when the chatter rule caught the stop early: take its first value inside the interval.
+      const double t_first = std::clamp(iv.t_start, view.t_begin(), view.t_end());
+      const double first = view.force(idx, t_first);
+      if (t_first <= iv.t_start || first < iv.force_min) {
+        iv.force_min = first;
+        iv.t_force_min = t_first;
       }
     }
     iv.t_end = view.t_end();
@@ -186,6 +199,7 @@ void PeriodStatistics::begin(const ImpactSystem& scene, double t0) {
   period_ = 2.0 * std::numbers::pi / omega;
   t0_ = t0;
   stops_ = scene.stop_count();
+  sticks_from_.assign(stops_, -std::numeric_limits<double>::infinity());
 }
 
 void PeriodStatistics::ensure(long k) {
@@ -196,22 +210,26 @@ void PeriodStatistics::ensure(long k) {
 }
 
 void PeriodStatistics::segment(const SegmentView& view) {
-  const ContactSet& active = view.mode().active();
-  if (active.empty()) return;
-  double a = view.t_begin();
-  const double b = view.t_end();
-  while (a < b) {
-    const long k = static_cast<long>(std::floor((a - t0_) / period_));
-    const double period_end = t0_ + static_cast<double>(k + 1) * period_;
-    const double piece = std::min(b, period_end) - a;
-    ensure(k);
-    for (int j : active) sticking_fraction[static_cast<std::size_t>(k)](j) += piece / period_;
-    a = std::min(b, period_end);
-    if (piece <= 0.0) break;
+  for (int j : view.mode().active()) {
+    // A stop caught by the chatter rule is held from the impact that triggered it, but it sticks
+    // only from the bounces' accumulation point on (the chatter-limit event's time), as in
+    // ContactLog: count from there.
+    double a = std::max(view.t_begin(), sticks_from_[static_cast<std::size_t>(j)]);
+    const double b = view.t_end();
+    while (a < b) {
+      const long k = static_cast<long>(std::floor((a - t0_) / period_));
+      const double period_end = t0_ + static_cast<double>(k + 1) * period_;
+      const double piece = std::min(b, period_end) - a;
+      ensure(k);
+      sticking_fraction[static_cast<std::size_t>(k)](j) += piece / period_;
+      a = std::min(b, period_end);
+      if (piece <= 0.0) break;
+    }
   }
 }
 
 void PeriodStatistics::event(const Event& e) {
+  if (e.kind == EventKind::chatter_limit) sticks_from_[static_cast<std::size_t>(e.stop)] = e.t;
   if (e.kind != EventKind::impact) return;
   const long k = static_cast<long>(std::floor((e.t - t0_) / period_));
   ensure(k);

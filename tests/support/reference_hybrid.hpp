@@ -57,6 +57,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -166,6 +167,7 @@ class ReferenceHybrid {
         if (far > 0.0L) best = std::min(best, locate(j, far));
       }
       if (best == std::numeric_limits<long double>::infinity()) {
+        if (on_step) on_step(now_.t, x, v, h);
         x = x1;
         v = v1;
         now_ = at(now_.t + h);
@@ -186,6 +188,21 @@ class ReferenceHybrid {
 
   /// The stop holding mass i, or -1.
   int held_by(Eigen::Index i) const { return held_by_[static_cast<std::size_t>(i)]; }
+  bool holds(int j) const { return held(j); }
+
+  /// Called for every full step taken without an event, with the step's start (t, x, v) and its
+  /// length h, before the step is applied: lets a test look inside steps (e.g. minimise a contact
+  /// force with force_after) without changing the run.
+  std::function<void(long double t, const Vec& x, const Vec& v, long double h)> on_step;
+
+  /// Contact force of held stop j at t + tau, from (t, x, v) by one Runge–Kutta step of length
+  /// tau (accurate like a full step for tau up to a few steps). Valid inside on_step.
+  long double force_after(int j, long double t, const Vec& xs, const Vec& vs, long double tau) const {
+    Vec xa = xs, va = vs;
+    const Clock k = at(t);
+    advance(k, tau, xa, va);
+    return contact_force(j, shifted(k, tau), xa, va);
+  }
 
  private:
   struct StopData {

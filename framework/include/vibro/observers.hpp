@@ -85,7 +85,9 @@ class EventLog : public Observer {
 /// force_min is the least contact force inside the interval away from its ends: the smallest
 /// interior local minimum of λ (see SegmentView::force_local_minima), or, where λ has none, the
 /// smaller of its values at the start and, if the interval did not end by a release, at the end.
-/// It is positive while the stop holds; rising happens where it reaches zero.
+/// It is positive while the stop holds; rising happens where it reaches zero. A chatter released
+/// before its accumulation point (the force turned before the bounces converged) never stuck
+/// and leaves no interval.
 struct ContactInterval {
   int stop = -1;
   double t_start = 0.0, t_end = 0.0;
@@ -134,8 +136,9 @@ class Poincare : public Observer {
   long next_k_ = 0;
 };
 
-/// Per forcing period [t0 + kT, t0 + (k+1)T): time each stop is held (as a fraction of T) and
-/// number of impacts of each stop.
+/// Per forcing period [t0 + kT, t0 + (k+1)T): time each stop sticks (as a fraction of T) and
+/// number of impacts of each stop. A stop caught by the chatter rule sticks from the chatter
+/// limit (the accumulation point of its bounces), as in ContactLog.
 class PeriodStatistics : public Observer {
  public:
   void begin(const ImpactSystem& scene, double t0) override;
@@ -148,6 +151,7 @@ class PeriodStatistics : public Observer {
   void ensure(long k);
   double t0_ = 0.0, period_ = 0.0;
   std::size_t stops_ = 0;
+  std::vector<double> sticks_from_;  // per stop: time of its last chatter limit
 };
 
 }  // namespace vibro

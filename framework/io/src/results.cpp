@@ -1169,7 +1169,9 @@ struct ResultFile::Impl {
     store.set_text("/scene", "file", scene.file);
     store.set_text("/scene", "name", scene.name);
     store.set_text("/scene", "run_kind",
-                   scene.run.kind == RunSpec::Kind::sweep ? "sweep" : "simulate");
+                   scene.run.kind == RunSpec::Kind::sweep    ? "sweep"
+                   : scene.run.kind == RunSpec::Kind::locate ? "locate"
+                                                             : "simulate");
     store.set_real("/scene", "period", scene.period());
     for (const auto& [name, value] : scene_numbers(scene)) store.set_real("/scene", name, value);
     for (const Column& c : scene_columns(scene)) {
@@ -1428,6 +1430,34 @@ void ResultFile::write_simulation(const Recording& recording) {
   f.status = status_name(s.status);
   f.message = s.message;
   f.simulation_written = true;
+}
+
+void ResultFile::write_group(const std::string& group, const std::vector<Dataset>& datasets,
+                             const std::vector<std::pair<std::string, std::string>>& attributes) {
+  Impl& f = *impl_;
+  if (f.sweep_run) throw std::logic_error("results: write_group on a sweep");
+  const std::string path = "/" + group;
+  std::vector<Column> columns;
+  for (const Dataset& d : datasets) {
+    const Dims shape(d.shape.begin(), d.shape.end());
+    Column c = d.integer ? int64s(d.name, d.integers, shape) : reals(d.name, d.reals, shape);
+    c.labels = d.labels;
+    require_finite(f.store.name(), path + "/" + d.name, c, "");
+    columns.push_back(std::move(c));
+  }
+  f.store.create_group(path);
+  for (const Column& c : columns) f.store.write(path + "/" + c.name, c);
+  for (const auto& [name, text] : attributes) f.store.set_text(path, name, text);
+  f.store.flush();
+}
+
+void ResultFile::set_outcome(const std::string& status, const std::string& message,
+                             const std::vector<std::pair<std::string, std::int64_t>>& counts) {
+  Impl& f = *impl_;
+  f.status = status;
+  f.message = message;
+  for (const auto& [name, value] : counts) f.store.set_integer("/meta", name, value);
+  f.simulation_written = true;  // finish() may now complete the file
 }
 
 void ResultFile::begin_sweep(const std::vector<std::string>& parameters, std::size_t points) {

@@ -619,14 +619,64 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
 
   // --- run ---
   RunSpec run;
+  // One varied value: `path` and exactly one of linspace, logspace, values (sweeps and locate).
+  auto parse_axis = [&](const YAML::Node& p, const std::string& path, const std::vector<SweepAxis>& others,
+                        std::vector<std::string> keys) {
+    keys.insert(keys.end(), {"path", "linspace", "logspace", "values"});
+    r.expect_map(p, path, keys);
+    if (!p["path"]) r.fail(p, path + ".path", "missing: the scene value to vary, e.g. forcing.frequency");
+    SweepAxis axis;
+    axis.path = r.text(p["path"], path + ".path");
+    for (const SweepAxis& other : others)
+      if (other.path == axis.path) r.fail(p["path"], path + ".path", "'" + axis.path + "' is swept twice");
+    if (axis.path.rfind("run.", 0) == 0) r.fail(p["path"], path + ".path", "the run section cannot be swept");
+    try {
+      (void)get(axis.path);
+    } catch (const SceneError& e) {
+      r.fail(p["path"], path + ".path", "'" + axis.path + "' does not name a number in this scene: " + e.problem());
+    }
+    const int given = (p["linspace"] ? 1 : 0) + (p["logspace"] ? 1 : 0) + (p["values"] ? 1 : 0);
+    if (given != 1) r.fail(p, path, "give exactly one of linspace, logspace, values");
+    if (p["values"]) {
+      axis.values = r.numbers(p["values"], path + ".values", -1, "the values to visit");
+      if (axis.values.empty()) r.fail(p["values"], path + ".values", "expected at least one value");
+    } else {
+      const bool lg = static_cast<bool>(p["logspace"]);
+      const std::string key = lg ? "logspace" : "linspace";
+      const auto spec = r.numbers(p[key], path + "." + key, 3, "start, stop, count");
+      axis.values = spaced(spec, lg, r, p[key], path + "." + key);
+    }
+    return axis;
+  };
+  // Every value must make a valid scene: find out now, at the value, not mid-run.
+  auto check_values = [&](const SweepAxis& axis, const YAML::Node& p, const std::string& path) {
+    for (std::size_t i = 0; i < axis.values.size(); ++i) {
+      SceneDocument point(*this);
+      point.set(axis.path, axis.values[i]);
+      try {
+        (void)point.build_checked(false);
+      } catch (const SceneError& e) {
+        const bool listed = static_cast<bool>(p["values"]);
+        const YAML::Node at = listed ? p["values"][i] : p[p["linspace"] ? "linspace" : "logspace"];
+        r.fail(at, listed ? path + ".values[" + std::to_string(i) + "]" : path,
+               axis.path + " = " + number_text(axis.values[i]) + " makes the scene invalid: " + e.problem() +
+                   " (" + e.path() + ")");
+      }
+    }
+  };
   if (const YAML::Node rn = root["run"]) {
-    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep"});
-    if (rn["kind"]) run.kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep"}) == "sweep" ? RunSpec::Kind::sweep : RunSpec::Kind::simulate;
+    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep", "locate"});
+    if (rn["kind"]) {
+      const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate"});
+      run.kind = kind == "sweep" ? RunSpec::Kind::sweep : kind == "locate" ? RunSpec::Kind::locate : RunSpec::Kind::simulate;
+    }
     if (rn["transient_periods"]) run.transient_periods = r.number_in(rn["transient_periods"], "run.transient_periods", 0, 1e9, "a number of periods ≥ 0");
     if (rn["periods"]) run.periods = r.number_in(rn["periods"], "run.periods", 1e-12, 1e9, "a number of periods > 0");
-    const YAML::Node sw = rn["sweep"];
+    const YAML::Node sw = rn["sweep"], lc = rn["locate"];
     if (run.kind == RunSpec::Kind::sweep && !sw) r.fail(rn, "run.sweep", "missing: a sweep needs run.sweep.parameters");
-    if (run.kind == RunSpec::Kind::simulate && sw) r.fail(sw, "run.sweep", "only for run.kind: sweep");
+    if (run.kind != RunSpec::Kind::sweep && sw) r.fail(sw, "run.sweep", "only for run.kind: sweep");
+    if (run.kind == RunSpec::Kind::locate && !lc) r.fail(rn, "run.locate", "missing: run.kind: locate needs run.locate (path and grid)");
+    if (run.kind != RunSpec::Kind::locate && lc) r.fail(lc, "run.locate", "only for run.kind: locate");
     if (sw && check_sweep) {
       r.expect_map(sw, "run.sweep", {"parameters", "follow", "reverse"});
       if (sw["follow"]) run.follow = r.boolean(sw["follow"], "run.sweep.follow");
@@ -634,54 +684,26 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       const YAML::Node ps = sw["parameters"];
       if (!ps || !ps.IsSequence() || ps.size() == 0 || ps.size() > 2)
         r.fail(ps ? ps : sw, "run.sweep.parameters", "expected a list of one or two parameters, found " + (ps ? describe(ps) : std::string("nothing")));
-      for (std::size_t a = 0; a < ps.size(); ++a) {
-        const std::string path = "run.sweep.parameters[" + std::to_string(a) + "]";
-        const YAML::Node p = ps[a];
-        r.expect_map(p, path, {"path", "linspace", "logspace", "values"});
-        if (!p["path"]) r.fail(p, path + ".path", "missing: the scene value to sweep, e.g. forcing.frequency");
-        SweepAxis axis;
-        axis.path = r.text(p["path"], path + ".path");
-        for (const SweepAxis& other : run.axes)
-          if (other.path == axis.path)
-            r.fail(p["path"], path + ".path", "'" + axis.path + "' is swept twice");
-        if (axis.path.rfind("run.", 0) == 0) r.fail(p["path"], path + ".path", "the run section cannot be swept");
-        try {
-          (void)get(axis.path);
-        } catch (const SceneError& e) {
-          r.fail(p["path"], path + ".path", "'" + axis.path + "' does not name a number in this scene: " + e.problem());
-        }
-        const int given = (p["linspace"] ? 1 : 0) + (p["logspace"] ? 1 : 0) + (p["values"] ? 1 : 0);
-        if (given != 1) r.fail(p, path, "give exactly one of linspace, logspace, values");
-        if (p["values"]) {
-          axis.values = r.numbers(p["values"], path + ".values", -1, "the values to visit");
-          if (axis.values.empty()) r.fail(p["values"], path + ".values", "expected at least one value");
-        } else {
-          const bool lg = static_cast<bool>(p["logspace"]);
-          const std::string key = lg ? "logspace" : "linspace";
-          const auto spec = r.numbers(p[key], path + "." + key, 3, "start, stop, count");
-          axis.values = spaced(spec, lg, r, p[key], path + "." + key);
-        }
-        run.axes.push_back(axis);
+      for (std::size_t a = 0; a < ps.size(); ++a)
+        run.axes.push_back(parse_axis(ps[a], "run.sweep.parameters[" + std::to_string(a) + "]", run.axes, {}));
+      for (std::size_t a = 0; a < run.axes.size(); ++a)
+        check_values(run.axes[a], ps[a], "run.sweep.parameters[" + std::to_string(a) + "]");
+    }
+    if (lc && check_sweep) {
+      LocateSpec& l = run.locate;
+      run.axes.push_back(parse_axis(lc, "run.locate", {}, {"tolerance", "periodicity", "max_period", "max_periods", "jump"}));
+      if (run.axes[0].values.size() < 2) r.fail(lc, "run.locate", "expected at least two grid values to scan between");
+      for (std::size_t i = 1; i < run.axes[0].values.size(); ++i) {
+        const auto& v = run.axes[0].values;
+        if ((v[i] - v[i - 1]) * (v[1] - v[0]) <= 0.0)
+          r.fail(lc, "run.locate", "the grid must be strictly increasing or decreasing (value " + std::to_string(i) + ")");
       }
-      // Every value must make a valid scene: find out now, at the value, not mid-run.
-      for (std::size_t a = 0; check_sweep && a < run.axes.size(); ++a) {
-        const SweepAxis& axis = run.axes[a];
-        const YAML::Node p = ps[a];
-        const std::string path = "run.sweep.parameters[" + std::to_string(a) + "]";
-        for (std::size_t i = 0; i < axis.values.size(); ++i) {
-          SceneDocument point(*this);
-          point.set(axis.path, axis.values[i]);
-          try {
-            (void)point.build_checked(false);
-          } catch (const SceneError& e) {
-            const bool listed = static_cast<bool>(p["values"]);
-            const YAML::Node at = listed ? p["values"][i] : p[p["linspace"] ? "linspace" : "logspace"];
-            r.fail(at, listed ? path + ".values[" + std::to_string(i) + "]" : path,
-                   axis.path + " = " + number_text(axis.values[i]) + " makes the scene invalid: " + e.problem() +
-                       " (" + e.path() + ")");
-          }
-        }
-      }
+      if (lc["tolerance"]) l.tolerance = r.number_in(lc["tolerance"], "run.locate.tolerance", 1e-15, 1e300, "a bracket width > 0 in the parameter's units");
+      if (lc["periodicity"]) l.periodicity = r.number_in(lc["periodicity"], "run.locate.periodicity", 1e-15, 1e-2, "a relative tolerance in [1e-15, 1e-2]");
+      if (lc["max_period"]) l.max_period = static_cast<int>(r.integer(lc["max_period"], "run.locate.max_period", 1, 64));
+      if (lc["max_periods"]) l.max_periods = r.integer(lc["max_periods"], "run.locate.max_periods", 2, 100000000);
+      if (lc["jump"]) l.jump = r.number_in(lc["jump"], "run.locate.jump", 0, 1, "a fraction of the period in [0, 1] (0: no jump search)");
+      check_values(run.axes[0], lc, "run.locate");
     }
   }
 

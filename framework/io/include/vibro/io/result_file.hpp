@@ -47,6 +47,17 @@ class ResultError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// One dataset of a run kind that writes its own groups (run.kind: locate): row-major values of
+/// `shape`, reals or integers, with string-array attributes (e.g. `names` of an enumeration).
+struct Dataset {
+  std::string name;
+  std::vector<std::size_t> shape;
+  std::vector<double> reals;           ///< f64 values, or
+  std::vector<std::int64_t> integers;  ///< i64 values when `integer`
+  bool integer = false;
+  std::vector<std::pair<std::string, std::vector<std::string>>> labels;
+};
+
 /// Writes one run's HDF5 file (docs/results.md).
 class ResultFile {
  public:
@@ -79,6 +90,15 @@ class ResultFile {
   void append_point(std::size_t index, const std::vector<double>& values,
                     const Recording& recording);
   std::size_t completed_points() const;
+
+  /// Any other run kind (not simulate or sweep): writes group `/group` with `datasets` (no value
+  /// may be non-finite: ResultError names it) and string attributes. Call set_outcome() before
+  /// finish().
+  void write_group(const std::string& group, const std::vector<Dataset>& datasets,
+                   const std::vector<std::pair<std::string, std::string>>& attributes = {});
+  /// Status and message for /meta (`completed`, or why not), and counts (name, value).
+  void set_outcome(const std::string& status, const std::string& message,
+                   const std::vector<std::pair<std::string, std::int64_t>>& counts = {});
   std::size_t total_points() const;
   /// State reached by the last completed point (for `follow` sweeps that resume); false if none.
   bool last_state(double& t, Eigen::VectorXd& x, Eigen::VectorXd& v) const;

@@ -59,13 +59,23 @@ struct SweepAxis {
   std::vector<double> values;
 };
 
+/// run.kind: locate — bifurcations of periodic orbits along one parameter (vibro/bifurcation.hpp).
+struct LocateSpec {
+  double tolerance = 1e-8;     ///< final bracket width of each located transition
+  double periodicity = 1e-10;  ///< |z(t + kT) − z(t)| relative to L and V
+  int max_period = 8;          ///< k looked for
+  long max_periods = 2000;     ///< forcing periods per orbit search, at most
+  double jump = 0.02;          ///< sticking-fraction change searched for a jump (0: none)
+};
+
 struct RunSpec {
-  enum class Kind { simulate, sweep };
+  enum class Kind { simulate, sweep, locate };
   Kind kind = Kind::simulate;
   double transient_periods = 0.0;  ///< simulated, not recorded
   double periods = 1.0;            ///< recorded forcing periods (or time units when Ω = 0)
-  /// Sweep: one axis (1-D) or two (2-D grid, the second varying fastest).
+  /// Sweep: one axis (1-D) or two (2-D grid, the second varying fastest). Locate: one axis.
   std::vector<SweepAxis> axes;
+  LocateSpec locate;
   bool follow = false;   ///< each point starts from the previous point's final state
   bool reverse = false;  ///< walk the grid from its last point to its first
 };
@@ -107,6 +117,9 @@ class SceneDocument {
 
   /// Builds and validates the scene. Throws SceneError.
   Scene build() const;
+  /// Builds and validates the scene but not the values of its sweep or locate grid (for the
+  /// points of such a run, whose grid build() has checked once).
+  Scene build_point() const { return build_checked(false); }
   const std::string& file() const;
   const std::string& text() const;
 

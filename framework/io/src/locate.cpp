@@ -1,0 +1,220 @@
+#include "vibro/io/locate.hpp"
+
+#include "vibro/bifurcation.hpp"
+#include "vibro/io/result_file.hpp"
+
+#include <fmt/format.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include <algorithm>
+#include <chrono>
+#include <exception>
+#include <mutex>
+
+namespace vibro::io {
+namespace {
+
+Dataset reals(std::string name, std::vector<double> values, std::vector<std::size_t> shape) {
+  Dataset d;
+  d.name = std::move(name);
+  d.reals = std::move(values);
+  d.shape = std::move(shape);
+  return d;
+}
+
+Dataset integers(std::string name, std::vector<std::int64_t> values) {
+  Dataset d;
+  d.name = std::move(name);
+  d.shape = {values.size()};
+  d.integers = std::move(values);
+  d.integer = true;
+  return d;
+}
+
+/// Rows of equal length as one row-major rows × cols dataset.
+Dataset table(std::string name, const std::vector<Eigen::VectorXd>& rows, std::size_t cols) {
+  std::vector<double> values;
+  for (const Eigen::VectorXd& r : rows) values.insert(values.end(), r.data(), r.data() + r.size());
+  return reals(std::move(name), std::move(values), {rows.size(), cols});
+}
+
+/// The least-force and shortest-phase limits are "none" (−1 in the file) where no phase exists.
+double or_none(double value) { return std::isfinite(value) ? value : -1.0; }
+
+std::vector<std::string> kind_names() {
+  std::vector<std::string> names;
+  for (TransitionKind k : {TransitionKind::rising, TransitionKind::vanishing, TransitionKind::drop,
+                           TransitionKind::period, TransitionKind::periodicity, TransitionKind::other})
+    names.emplace_back(to_string(k));
+  return names;
+}
+
+void write_scan(ResultFile& file, const std::vector<ScanPoint>& points, std::size_t n, std::size_t m,
+                const std::string& path) {
+  std::vector<double> p, residual, t_start;
+  std::vector<std::int64_t> periodic, k, periods_run, chatter;
+  std::vector<Eigen::VectorXd> sticking, impacts, x, v;
+  std::vector<double> ph_phase, ph_duration, ph_force, ph_tforce, ph_start;
+  std::vector<std::int64_t> ph_point, ph_stop;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Orbit& o = points[i].orbit;
+    p.push_back(points[i].p);
+    periodic.push_back(o.periodic ? 1 : 0);
+    k.push_back(o.k);
+    residual.push_back(o.residual);
+    periods_run.push_back(o.periods_run);
+    chatter.push_back(o.chatter_limits);
+    t_start.push_back(o.t_start);
+    sticking.push_back(o.sticking_fraction(m));
+    Eigen::VectorXd imp(static_cast<Eigen::Index>(m));
+    for (std::size_t j = 0; j < m; ++j) imp(static_cast<Eigen::Index>(j)) = o.impact_count(static_cast<int>(j));
+    impacts.push_back(imp);
+    x.push_back(o.x);
+    v.push_back(o.v);
+    for (const ContactPhase& ph : o.phases) {
+      ph_point.push_back(static_cast<std::int64_t>(i));
+      ph_stop.push_back(ph.stop);
+      ph_start.push_back(ph.t_start);
+      ph_phase.push_back(ph.phase / o.period);
+      ph_duration.push_back(ph.duration / o.period);
+      ph_force.push_back(ph.force_min);
+      ph_tforce.push_back(ph.t_force_min);
+    }
+  }
+  const std::size_t rows = points.size();
+  file.write_group("scan",
+                   {reals("parameter", p, {rows}), integers("periodic", periodic), integers("k", k),
+                    reals("residual", residual, {rows}), integers("periods_run", periods_run),
+                    table("sticking_fraction", sticking, m), table("impacts", impacts, m),
+                    integers("chatter_limits", chatter), reals("t_start", t_start, {rows}),
+                    table("x", x, n), table("v", v, n)},
+                   {{"parameter", path}});
+  const std::size_t r = ph_point.size();
+  file.write_group("phases", {integers("point", ph_point), integers("stop", ph_stop),
+                              reals("t_start", ph_start, {r}), reals("phase", ph_phase, {r}),
+                              reals("duration", ph_duration, {r}), reals("force_min", ph_force, {r}),
+                              reals("t_force_min", ph_tforce, {r})});
+}
+
+void write_transitions(ResultFile& file, const std::vector<Transition>& found, std::size_t m) {
+  std::vector<std::int64_t> kind, stop, evaluations, k_low, k_high;
+  std::vector<double> p, lo, hi, force, duration;
+  std::vector<Eigen::VectorXd> stick_lo, stick_hi;
+  for (const Transition& t : found) {
+    kind.push_back(static_cast<std::int64_t>(t.kind));
+    stop.push_back(t.stop);
+    evaluations.push_back(t.evaluations);
+    p.push_back(t.p);
+    lo.push_back(t.p_low);
+    hi.push_back(t.p_high);
+    force.push_back(or_none(t.force_limit));
+    duration.push_back(or_none(t.duration_limit));
+    k_low.push_back(t.low.orbit.k);
+    k_high.push_back(t.high.orbit.k);
+    stick_lo.push_back(t.low.orbit.sticking_fraction(m));
+    stick_hi.push_back(t.high.orbit.sticking_fraction(m));
+  }
+  const std::size_t r = found.size();
+  Dataset kinds = integers("kind", kind);
+  kinds.labels.emplace_back("names", kind_names());
+  file.write_group("transitions",
+                   {kinds, integers("stop", stop), reals("parameter", p, {r}), reals("parameter_low", lo, {r}),
+                    reals("parameter_high", hi, {r}), reals("force_limit", force, {r}),
+                    reals("duration_limit", duration, {r}), integers("evaluations", evaluations),
+                    integers("k_low", k_low), integers("k_high", k_high),
+                    table("sticking_low", stick_lo, m), table("sticking_high", stick_hi, m)});
+}
+
+}  // namespace
+
+RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  const SweepAxis& axis = scene.run.axes.at(0);
+  const LocateSpec& spec = scene.run.locate;
+  // Grid values were validated at load; a bisection point between two valid values that is not
+  // valid itself surfaces as SceneError from here, before anything is written.
+  const SystemFamily family = [&doc, &axis](double value) {
+    SceneDocument point(doc);
+    point.set(axis.path, value);
+    return point.build_point().impact_system();
+  };
+  ScanOptions options;
+  options.orbit.solver = scene.solver;
+  options.orbit.tolerance = spec.periodicity;
+  options.orbit.max_period = spec.max_period;
+  options.orbit.max_periods = spec.max_periods;
+  options.first_transient = static_cast<long>(std::ceil(scene.run.transient_periods));
+  options.tolerance = spec.tolerance;
+  options.jump = spec.jump;
+  const std::size_t n = static_cast<std::size_t>(scene.system.dof());
+  const std::size_t m = scene.stops.size();
+
+  ResultFile file = ResultFile::create(request.output, scene, current_meta(request.threads));
+  const std::vector<ScanPoint> points = scan(family, axis.values, scene.t0, scene.x0, scene.v0, options);
+
+  // Bisections between neighbouring grid points are independent: in parallel, gathered in order.
+  const std::size_t steps = points.size() - 1;
+  std::vector<std::vector<Transition>> found(steps);
+  long orbits = static_cast<long>(points.size());
+  std::exception_ptr failure;
+  std::mutex lock;
+  int threads = 1;
+#ifdef _OPENMP
+  if (request.threads > 0) omp_set_num_threads(request.threads);
+  threads = omp_get_max_threads();
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : orbits)
+#endif
+  for (std::size_t i = 0; i < steps; ++i) {
+    try {
+      found[i] = locate_between(family, points[i], points[i + 1], options, &orbits);
+    } catch (...) {
+      const std::lock_guard<std::mutex> hold(lock);
+      if (!failure) failure = std::current_exception();
+    }
+  }
+  if (failure) std::rethrow_exception(failure);
+  std::vector<Transition> transitions;
+  for (auto& f : found) transitions.insert(transitions.end(), f.begin(), f.end());
+  std::sort(transitions.begin(), transitions.end(),
+            [](const Transition& a, const Transition& b) { return a.p < b.p; });
+
+  write_scan(file, points, n, m, axis.path);
+  write_transitions(file, transitions, m);
+
+  long not_periodic = 0, failed = 0;
+  std::string failure_message;
+  for (const ScanPoint& s : points) {
+    if (!s.orbit.periodic) ++not_periodic;
+    if (s.orbit.status != RunStatus::completed) {
+      ++failed;
+      if (failure_message.empty()) failure_message = fmt::format("at {} = {:.12g}: {}", axis.path, s.p, s.orbit.message);
+    }
+  }
+  file.set_outcome(failed ? "points_stopped_early" : "completed", failure_message,
+                   {{"orbits_computed", orbits}, {"transitions", static_cast<std::int64_t>(transitions.size())},
+                    {"points_not_periodic", not_periodic}});
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  RunMeta meta = current_meta(threads);
+  meta.wall_seconds = wall;
+  file.finish(meta);
+
+  std::string text = fmt::format("Located {} transitions of {} over {} .. {} ({} grid points, {} orbits, "
+                                 "{} threads, {:.2f} s):\n",
+                                 transitions.size(), axis.path, axis.values.front(), axis.values.back(),
+                                 points.size(), orbits, threads, wall);
+  text += fmt::format("  {:<12} {:>5} {:>18} {:>11} {:>12} {:>12}\n", "kind", "stop", axis.path, "bracket",
+                      "force_limit", "dur_limit");
+  for (const Transition& t : transitions)
+    text += fmt::format("  {:<12} {:>5} {:>18.10f} {:>11.1e} {:>12.3e} {:>12.3e}\n", to_string(t.kind),
+                        t.stop >= 0 ? scene.stops[static_cast<std::size_t>(t.stop)].name : std::string("-"),
+                        t.p, t.p_high - t.p_low, or_none(t.force_limit), or_none(t.duration_limit));
+  if (not_periodic > 0)
+    text += fmt::format("  {} of {} grid points are not periodic within {} periods (see /scan/periodic).\n",
+                        not_periodic, points.size(), spec.max_periods);
+  text += fmt::format("Results in {}.", request.output);
+  return {failed ? 1 : 0, text};
+}
+
+}  // namespace vibro::io

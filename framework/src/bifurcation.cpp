@@ -1,0 +1,243 @@
+#include "vibro/bifurcation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "vibro/system.hpp"
+
+namespace vibro {
+
+const char* to_string(TransitionKind kind) {
+  switch (kind) {
+    case TransitionKind::rising: return "rising";
+    case TransitionKind::vanishing: return "vanishing";
+    case TransitionKind::drop: return "drop";
+    case TransitionKind::period: return "period";
+    case TransitionKind::periodicity: return "periodicity";
+    case TransitionKind::other: return "other";
+  }
+  return "?";
+}
+
+void ScanOptions::validate() const {
+  orbit.validate();
+  if (first_transient < 0) throw InvalidInput("scan: first_transient must be ≥ 0");
+  if (!(tolerance > 0.0) || !std::isfinite(tolerance))
+    throw InvalidInput("scan: tolerance must be a positive number, got " + number_text(tolerance));
+  if (max_transitions < 0) throw InvalidInput("scan: max_transitions must be ≥ 0");
+  if (!(jump >= 0.0) || !std::isfinite(jump))
+    throw InvalidInput("scan: jump must be a number ≥ 0, got " + number_text(jump));
+}
+
+namespace {
+
+/// (periodic?, k, phases per orbit of each stop): what bisection compares.
+std::vector<int> signature(const Orbit& o, std::size_t stops) {
+  std::vector<int> s{o.periodic ? 1 : 0, o.k};
+  for (std::size_t j = 0; j < stops; ++j) s.push_back(o.phase_count(static_cast<int>(j)));
+  return s;
+}
+
+/// The time at forcing frequency `omega_to` with the same forcing phase as t at `omega_from`.
+double same_phase(double t, double omega_from, double omega_to) {
+  const double two_pi = 2.0 * std::numbers::pi;
+  double phase = std::fmod(omega_from * t, two_pi);
+  if (phase < 0.0) phase += two_pi;
+  return phase / omega_to;
+}
+
+class Continuation {
+ public:
+  Continuation(const SystemFamily& family, const ScanOptions& options)
+      : family_(family), options_(options) {}
+
+  /// The periodic orbit at p, starting from `from`'s final state (at the same forcing phase).
+  ScanPoint from(const ScanPoint& previous, double p) {
+    const double t = same_phase(previous.orbit.t_start, omega(previous), omega_of(p));
+    return at(p, t, previous.orbit.x, previous.orbit.v, options_.orbit.min_periods);
+  }
+
+  ScanPoint at(double p, double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+               long min_periods) {
+    OrbitOptions o = options_.orbit;
+    o.min_periods = min_periods;
+    o.max_periods = std::max(o.max_periods, min_periods + o.max_period + 1);
+    ++computed;
+    return {p, find_periodic_orbit(family_(p), o, t0, x0, v0)};
+  }
+
+  std::size_t stops(double p) const { return family_(p).stops().size(); }
+  long computed = 0;
+
+ private:
+  double omega(const ScanPoint& s) const { return 2.0 * std::numbers::pi / s.orbit.period; }
+  double omega_of(double p) const { return family_(p).system().forcing().frequency; }
+
+  const SystemFamily& family_;
+  const ScanOptions& options_;
+};
+
+/// Least interior force of stop j's phases, and its shortest phase / kT (∞ if it has none).
+double least_force(const Orbit& o, int stop) {
+  double f = std::numeric_limits<double>::infinity();
+  for (const ContactPhase& p : o.phases)
+    if (p.stop == stop) f = std::min(f, p.force_min);
+  return f;
+}
+double shortest_phase(const Orbit& o, int stop) {
+  double d = std::numeric_limits<double>::infinity();
+  for (const ContactPhase& p : o.phases)
+    if (p.stop == stop) d = std::min(d, p.duration / (o.k * o.period));
+  return d;
+}
+
+/// Names the change between the bracket ends (see the header).
+void classify(Transition& tr, std::size_t stops, double force_scale) {
+  const Orbit& a = tr.low.orbit;
+  const Orbit& b = tr.high.orbit;
+  if (a.periodic != b.periodic) {
+    tr.kind = TransitionKind::periodicity;
+    return;
+  }
+  if (a.k != b.k) {
+    tr.kind = TransitionKind::period;
+    return;
+  }
+  int changed = 0;
+  for (std::size_t j = 0; j < stops; ++j) {
+    const int stop = static_cast<int>(j);
+    const int na = a.phase_count(stop), nb = b.phase_count(stop);
+    if (na == nb) continue;
+    ++changed;
+    tr.stop = stop;
+    const Orbit& fewer = na < nb ? a : b;
+    const Orbit& more = na < nb ? b : a;
+    tr.force_limit = least_force(fewer, stop);
+    tr.duration_limit = shortest_phase(more, stop);
+    tr.kind = tr.force_limit / force_scale < tr.duration_limit ? TransitionKind::rising
+                                                               : TransitionKind::vanishing;
+  }
+  if (changed != 1) {
+    tr.kind = TransitionKind::other;
+    tr.stop = -1;
+  }
+}
+
+/// Ends the transition: bracket, orbits at its ends, evaluations.
+void close(Transition& tr, ScanPoint lo, ScanPoint hi) {
+  tr.p_low = std::min(lo.p, hi.p);
+  tr.p_high = std::max(lo.p, hi.p);
+  tr.p = 0.5 * (lo.p + hi.p);
+  if (lo.p > hi.p) std::swap(lo, hi);
+  tr.low = std::move(lo);
+  tr.high = std::move(hi);
+}
+
+/// The stop whose sticking fraction differs most between two orbits, and by how much.
+std::pair<int, double> largest_jump(const Orbit& a, const Orbit& b, std::size_t stops) {
+  if (!a.periodic || !b.periodic) return {-1, 0.0};
+  const Eigen::VectorXd d = b.sticking_fraction(stops) - a.sticking_fraction(stops);
+  Eigen::Index j = 0;
+  const double size = d.cwiseAbs().maxCoeff(&j);
+  return {static_cast<int>(j), size};
+}
+
+/// Refines [lo, hi] (see the header) and appends what it finds, in order of p.
+class Locator {
+ public:
+  Locator(Continuation& c, std::size_t stops, const ScanOptions& options, std::vector<Transition>& out)
+      : c_(c), stops_(stops), options_(options), out_(out) {}
+
+  void explore(const ScanPoint& lo, const ScanPoint& hi, int depth_evaluations = 0) {
+    if (static_cast<int>(out_.size()) >= options_.max_transitions) return;
+    const bool same = signature(lo.orbit, stops_) == signature(hi.orbit, stops_);
+    const auto [stop, jump] = largest_jump(lo.orbit, hi.orbit, stops_);
+    if (std::abs(hi.p - lo.p) <= options_.tolerance) {
+      if (!same) record(lo, hi, depth_evaluations);
+      else if (options_.jump > 0.0 && jump > 0.5 * options_.jump) record_jump(lo, hi, stop, depth_evaluations);
+      return;
+    }
+    if (same && !(options_.jump > 0.0 && jump > options_.jump)) return;
+    const ScanPoint mid = c_.from(lo, 0.5 * (lo.p + hi.p));
+    explore(lo, mid, depth_evaluations + 1);
+    explore(mid, hi, depth_evaluations + 1);
+  }
+
+ private:
+  void record(const ScanPoint& lo, const ScanPoint& hi, int evaluations) {
+    Transition tr;
+    tr.evaluations = evaluations;
+    close(tr, lo, hi);
+    classify(tr, stops_, std::max(lo.orbit.force_scale, hi.orbit.force_scale));
+    out_.push_back(std::move(tr));
+  }
+
+  /// Equal signatures, sticking time still jumping at the tolerance: a phase cut short.
+  void record_jump(const ScanPoint& lo, const ScanPoint& hi, int stop, int evaluations) {
+    Transition tr;
+    tr.evaluations = evaluations;
+    const Eigen::VectorXd fl = lo.orbit.sticking_fraction(stops_), fh = hi.orbit.sticking_fraction(stops_);
+    const ScanPoint& longer = fl(stop) > fh(stop) ? lo : hi;
+    tr.stop = stop;
+    tr.force_limit = least_force(longer.orbit, stop);
+    tr.duration_limit = std::abs(fh(stop) - fl(stop));
+    const double force_scale = std::max(lo.orbit.force_scale, hi.orbit.force_scale);
+    tr.kind = tr.force_limit / force_scale < tr.duration_limit ? TransitionKind::rising
+                                                               : TransitionKind::drop;
+    close(tr, lo, hi);
+    out_.push_back(std::move(tr));
+  }
+
+  Continuation& c_;
+  std::size_t stops_;
+  const ScanOptions& options_;
+  std::vector<Transition>& out_;
+};
+
+}  // namespace
+
+std::vector<ScanPoint> scan(const SystemFamily& family, const std::vector<double>& grid, double t0,
+                            const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                            const ScanOptions& options) {
+  options.validate();
+  if (grid.empty()) throw InvalidInput("scan: the grid is empty");
+  for (std::size_t i = 1; i < grid.size(); ++i)
+    if ((grid[i] - grid[i - 1]) * (grid[1] - grid[0]) <= 0.0)
+      throw InvalidInput("scan: the grid must be strictly monotonic (at index " + std::to_string(i) + ")");
+  Continuation c(family, options);
+  std::vector<ScanPoint> points;
+  points.push_back(c.at(grid[0], t0, x0, v0, options.first_transient));
+  for (std::size_t i = 1; i < grid.size(); ++i) points.push_back(c.from(points.back(), grid[i]));
+  return points;
+}
+
+std::vector<Transition> locate_between(const SystemFamily& family, const ScanPoint& lo,
+                                       const ScanPoint& hi, const ScanOptions& options,
+                                       long* orbits_computed) {
+  options.validate();
+  Continuation c(family, options);
+  std::vector<Transition> found;
+  Locator(c, family(lo.p).stops().size(), options, found).explore(lo, hi);
+  if (orbits_computed) *orbits_computed += c.computed;
+  return found;
+}
+
+ScanResult scan_and_locate(const SystemFamily& family, const std::vector<double>& grid, double t0,
+                           const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                           const ScanOptions& options) {
+  ScanResult result;
+  result.points = scan(family, grid, t0, x0, v0, options);
+  result.orbits_computed = static_cast<long>(result.points.size());
+  for (std::size_t i = 1; i < result.points.size(); ++i) {
+    std::vector<Transition> found = locate_between(family, result.points[i - 1], result.points[i],
+                                                   options, &result.orbits_computed);
+    for (Transition& t : found) result.transitions.push_back(std::move(t));
+  }
+  std::sort(result.transitions.begin(), result.transitions.end(),
+            [](const Transition& a, const Transition& b) { return a.p < b.p; });
+  return result;
+}
+
+}  // namespace vibro

@@ -1,0 +1,105 @@
+// vibro run with run.kind: locate — the file holds the scan and the located transitions, equal to
+// the library (vibro/bifurcation.hpp) called directly; bad input leaves no file behind.
+#include "vibro/bifurcation.hpp"
+#include "vibro/io/result_file.hpp"
+#include "vibro/io/runner.hpp"
+#include "vibro/io/scene.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <string>
+
+using namespace vibro;
+using namespace vibro::io;
+
+namespace {
+
+// The paper's system with a two-point grid around its rising (0.256006…, tests/study).
+const std::string kLocate = R"(
+name: locate-test
+model:
+  chain:
+    masses: [1, 1]
+    springs: [1]
+    dampers: [0.1]
+    left_wall: {spring: 1, damper: 0.1}
+forcing:
+  frequency: 0.255
+  cosine: [0.5, 0]
+stops:
+  - {mass: 0, side: lower, position: -0.3, restitution: 0.7, name: s1}
+  - {mass: 1, side: upper, position: 0.1, restitution: 0.7, name: s2}
+run:
+  kind: locate
+  transient_periods: 200
+  locate:
+    path: forcing.frequency
+    values: [0.2559, 0.2561]
+    tolerance: 1e-8
+)";
+
+std::string temp_path(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("vibro_test_locate_" + name)).string();
+}
+
+}  // namespace
+
+TEST_CASE("a locate run writes the scan and the transitions the library finds", "[runner][locate]") {
+  const SceneDocument doc = SceneDocument::parse(kLocate, "locate.yaml");
+  const Scene scene = doc.build();
+  const std::string out = temp_path("rising.h5");
+  std::filesystem::remove(out);
+  const RunReport report = run_scene(doc, scene, {out, 2, false, false, 0});
+  CAPTURE(report.summary);
+  REQUIRE(report.exit_code == 0);
+  REQUIRE(std::filesystem::exists(out));
+  REQUIRE_FALSE(std::filesystem::exists(ResultFile::partial_path(out)));
+
+  // The library, called directly with the same settings.
+  ScanOptions options;
+  options.orbit.solver = scene.solver;
+  options.first_transient = 200;
+  options.tolerance = 1e-8;
+  const SystemFamily family = [&](double omega) {
+    SceneDocument point(doc);
+    point.set("forcing.frequency", omega);
+    return point.build_point().impact_system();
+  };
+  const ScanResult direct = scan_and_locate(family, {0.2559, 0.2561}, 0.0, scene.x0, scene.v0, options);
+  REQUIRE(direct.transitions.size() == 1);
+
+  const ResultReader r(out);
+  CHECK(r.attribute_string("/scene", "run_kind") == "locate");
+  CHECK(r.attribute_string("/meta", "status") == "completed");
+  CHECK(r.attribute_string("/scan", "parameter") == "forcing.frequency");
+  CHECK(r.read("/scan/parameter") == std::vector<double>{0.2559, 0.2561});
+  CHECK(r.read("/scan/periodic") == std::vector<double>{1, 1});
+  const auto names = r.attribute_strings("/transitions/kind", "names");
+  const auto kinds = r.read_integers("/transitions/kind");
+  REQUIRE(kinds.size() == 1);
+  CHECK(names.at(static_cast<std::size_t>(kinds[0])) == "rising");
+  CHECK(r.read_integers("/transitions/stop") == std::vector<std::int64_t>{0});
+  // Same computation, same numbers, to the bit (the bisection is deterministic).
+  CHECK(r.read("/transitions/parameter") == std::vector<double>{direct.transitions[0].p});
+  CHECK(r.read("/transitions/force_limit") == std::vector<double>{direct.transitions[0].force_limit});
+  // Phases: one of stop 0 at the first point, two (split) at the second.
+  const auto point = r.read_integers("/phases/point");
+  const auto stop = r.read_integers("/phases/stop");
+  int before = 0, after = 0;
+  for (std::size_t i = 0; i < point.size(); ++i)
+    if (stop[i] == 0) (point[i] == 0 ? before : after) += 1;
+  CHECK(before == 1);
+  CHECK(after == 2);
+  std::filesystem::remove(out);
+}
+
+TEST_CASE("a locate grid value that makes the scene invalid is refused before any file exists", "[runner][locate]") {
+  std::string text = kLocate;
+  text.replace(text.find("values: [0.2559, 0.2561]"), 24, "values: [0.2559, -0.25]");
+  const std::string out = temp_path("invalid.h5");
+  std::filesystem::remove(out);
+  REQUIRE_THROWS_AS(SceneDocument::parse(text, "locate.yaml").build(), SceneError);
+  CHECK_FALSE(std::filesystem::exists(out));
+  CHECK_FALSE(std::filesystem::exists(ResultFile::partial_path(out)));
+}
