@@ -212,9 +212,15 @@ void ContactMode::build_reduced() const {
 
 Eigen::VectorXd ContactMode::reduce(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
                                     const Eigen::Ref<const Eigen::VectorXd>& v) const {
+  Eigen::VectorXd z(reduced().flow->size());
+  reduce(t, x, v, z);
+  return z;
+}
+
+void ContactMode::reduce(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
+                         const Eigen::Ref<const Eigen::VectorXd>& v, Eigen::Ref<Eigen::VectorXd> z) const {
   const Reduced& red = reduced();
   const auto nf = static_cast<Eigen::Index>(red.free.size());
-  Eigen::VectorXd z(2 * nf + 3);
   for (Eigen::Index b = 0; b < nf; ++b) {
     z(b) = x(red.free[static_cast<std::size_t>(b)]);
     z(nf + b) = v(red.free[static_cast<std::size_t>(b)]);
@@ -223,7 +229,6 @@ Eigen::VectorXd ContactMode::reduce(double t, const Eigen::Ref<const Eigen::Vect
   z(2 * nf) = std::cos(omega * t);
   z(2 * nf + 1) = std::sin(omega * t);
   z(2 * nf + 2) = 1.0;
-  return z;
 }
 
 const ContactMode& ContactModes::get(const ContactSet& set) {

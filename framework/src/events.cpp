@@ -24,8 +24,8 @@ double lower_bound(double ha, double da, double hb, double db, double B, double 
 
 }  // namespace
 
-CrossingFinder::CrossingFinder(const Segment& segment, const Eigen::VectorXd& triggers,
-                               double resolution)
+CrossingFinder::CrossingFinder(const Segment& segment,
+                               const Eigen::Ref<const Eigen::VectorXd>& triggers, double resolution)
     : segment_(&segment), triggers_(triggers), resolution_(resolution) {}
 
 std::optional<Crossing> CrossingFinder::first(double a, double b) {

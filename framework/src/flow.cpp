@@ -54,13 +54,39 @@ LinearFlow::LinearFlow(Eigen::MatrixXd generator, Eigen::Index dof, double frequ
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> sym(0.5 * (generator_ + generator_.transpose()),
                                                     Eigen::EigenvaluesOnly);
   log_norm_ = sym.eigenvalues()(N - 1);
+  // Scaled logarithmic norm (see flow.hpp): Gershgorin bound of λmax(sym(D Â D⁻¹)), O(N²).
+  if (n_ > 0) {
+    const double kscale = generator_.block(n_, 0, n_, n_).cwiseAbs().rowwise().sum().maxCoeff();
+    position_scale_ = kscale > 0.0 ? std::sqrt(kscale) : 1.0;
+  }
+  auto scale_of = [&](Eigen::Index i) { return i < n_ ? position_scale_ : 1.0; };
+  scaled_log_norm_ = -std::numeric_limits<double>::infinity();
+  for (Eigen::Index i = 0; i < N; ++i) {
+    double row = generator_(i, i);
+    for (Eigen::Index j = 0; j < N; ++j)
+      if (j != i)
+        row += 0.5 * std::abs(scale_of(i) * generator_(i, j) / scale_of(j) +
+                              scale_of(j) * generator_(j, i) / scale_of(i));
+    scaled_log_norm_ = std::max(scaled_log_norm_, row);
+  }
 
   if (options.method == Method::exponential) {
-    // Only the spectral radius is needed (it sets the event search's step).
-    Eigen::EigenSolver<Eigen::MatrixXd> values(generator_, false);
-    spectral_radius_ = values.info() == Eigen::Success
-                           ? values.eigenvalues().cwiseAbs().maxCoeff()
-                           : generator_.cwiseAbs().rowwise().sum().maxCoeff();  // ∞-norm bounds |λ|
+    // Only the spectral radius is needed (it sets the event search's step). Beyond N = 64 a
+    // dense non-symmetric eigenvalue solve costs minutes (N = 2003: > 300 s on a loaded 2-core
+    // machine), so there it is bounded in O(N²): Â is block triangular (mechanical block A,
+    // forcing rotation Ω), so ρ(Â) = max(ρ(A), Ω), and ρ(A) ≤ ‖D A D⁻¹‖∞ for the scaling D above.
+    if (N <= 64) {
+      Eigen::EigenSolver<Eigen::MatrixXd> values(generator_, false);
+      spectral_radius_ = values.info() == Eigen::Success
+                             ? values.eigenvalues().cwiseAbs().maxCoeff()
+                             : generator_.cwiseAbs().rowwise().sum().maxCoeff();  // ∞-norm bounds |λ|
+    } else {
+      double rows = position_scale_;  // the x rows of D A D⁻¹: s on the diagonal of the I block
+      for (Eigen::Index i = n_; i < 2 * n_; ++i)
+        rows = std::max(rows, generator_.row(i).head(n_).cwiseAbs().sum() / position_scale_ +
+                                  generator_.row(i).segment(n_, n_).cwiseAbs().sum());
+      spectral_radius_ = std::max(rows, std::abs(omega_));
+    }
     return;
   }
   Eigen::EigenSolver<Eigen::MatrixXd> eig(generator_, true);
@@ -171,22 +197,35 @@ Functionals::Functionals(const LinearFlow& flow, Eigen::MatrixXd rows) : flow_(&
 
 Segment::Segment(const Functionals& functionals, double t0,
                  const Eigen::Ref<const Eigen::VectorXd>& z0)
-    : functionals_(&functionals),
-      t0_(t0),
-      z0_(z0),
-      cached_tau_(std::numeric_limits<double>::quiet_NaN()) {
+    : functionals_(&functionals), t0_(t0), cached_tau_(std::numeric_limits<double>::quiet_NaN()) {
+  reset(t0, z0);
+}
+
+void Segment::reset(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0) {
+  const Functionals& functionals = *functionals_;
+  t0_ = t0;
+  z0_ = z0;  // same size: no allocation
+  cached_tau_ = std::numeric_limits<double>::quiet_NaN();
+  for (double& tau : cache_tau_) tau = std::numeric_limits<double>::quiet_NaN();
+  cache_next_ = 0;
   const LinearFlow& flow = functionals.flow();
   if (flow.method() == LinearFlow::Method::spectral) {
-    modal_ = flow.inverse_eigenvectors() * z0_.cast<std::complex<double>>();
+    const Eigen::Index N = flow.size();
+    modal_.resize(N);
+    modal_.noalias() = flow.inverse_eigenvectors() * z0_.cast<std::complex<double>>();
     const auto& reps = flow.representatives();
     const auto K = static_cast<Eigen::Index>(reps.size());
     const Eigen::Index rows = functionals.count();
     lambda_.resize(K);
+    modulus_.resize(K);
     coefficients_.resize(rows, K);
     curvature_.resize(rows, K);
+    cache_e_.resize(K, cache_slots);
+    cache_growth_.resize(K, cache_slots);
     for (Eigen::Index r = 0; r < K; ++r) {
       const Eigen::Index k = reps[static_cast<std::size_t>(r)];
       lambda_(r) = flow.eigenvalues()(k);
+      modulus_(r) = std::abs(lambda_(r));
       const double w = flow.weights()[static_cast<std::size_t>(r)];
       for (Eigen::Index i = 0; i < rows; ++i) {
         coefficients_(i, r) = w * functionals.modal_rows()(i, k) * modal_(k);
@@ -204,22 +243,41 @@ const Eigen::VectorXd& Segment::exponential_state(double tau) const {
   return cached_z_;
 }
 
-const Eigen::VectorXcd& Segment::exponentials(double tau) const {
-  if (!(tau == cached_tau_)) {
-    cached_e_.resize(lambda_.size());
-    for (Eigen::Index r = 0; r < lambda_.size(); ++r) cached_e_(r) = std::exp(lambda_(r) * tau);
-    cached_tau_ = tau;
+const std::complex<double>* Segment::exponentials(double tau) const {
+  for (int c = 0; c < cache_slots; ++c)
+    if (cache_tau_[c] == tau) return &cache_e_(0, c);
+  const int c = cache_next_;
+  cache_next_ = (cache_next_ + 1) % cache_slots;
+  cache_tau_[c] = tau;
+  // e^{λτ} = e^{Re λ τ} (cos Im λ τ + i sin Im λ τ), with the real (damped modes without
+  // oscillation, the constant) and the purely imaginary (the forcing) cases taking one call.
+  for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
+    const double re = lambda_(r).real() * tau, im = lambda_(r).imag() * tau;
+    const double growth = re == 0.0 ? 1.0 : std::exp(re);
+    cache_growth_(r, c) = growth;
+    if (im == 0.0) {
+      cache_e_(r, c) = {growth, 0.0};
+    } else {
+      const double cs = std::cos(im), sn = std::sin(im);
+      cache_e_(r, c) = {growth * cs, growth * sn};
+    }
   }
-  return cached_e_;
+  return &cache_e_(0, c);
+}
+
+const double* Segment::cached_growth(double tau) const {
+  for (int c = 0; c < cache_slots; ++c)
+    if (cache_tau_[c] == tau) return &cache_growth_(0, c);
+  return nullptr;
 }
 
 double Segment::value(Eigen::Index i, double tau, int derivative) const {
   const LinearFlow& flow = functionals_->flow();
   if (flow.method() == LinearFlow::Method::spectral) {
-    const Eigen::VectorXcd& e = exponentials(tau);
+    const std::complex<double>* e = exponentials(tau);
     double sum = 0.0;
     for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
-      std::complex<double> term = coefficients_(i, r) * e(r);
+      std::complex<double> term = coefficients_(i, r) * e[r];
       for (int d = 0; d < derivative; ++d) term *= lambda_(r);
       sum += term.real();
     }
@@ -231,10 +289,10 @@ double Segment::value(Eigen::Index i, double tau, int derivative) const {
 std::pair<double, double> Segment::value_and_slope(Eigen::Index i, double tau) const {
   const LinearFlow& flow = functionals_->flow();
   if (flow.method() == LinearFlow::Method::spectral) {
-    const Eigen::VectorXcd& e = exponentials(tau);
+    const std::complex<double>* e = exponentials(tau);
     double h = 0.0, dh = 0.0;
     for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
-      const std::complex<double> term = coefficients_(i, r) * e(r);
+      const std::complex<double> term = coefficients_(i, r) * e[r];
       h += term.real();
       dh += (term * lambda_(r)).real();
     }
@@ -247,25 +305,66 @@ std::pair<double, double> Segment::value_and_slope(Eigen::Index i, double tau) c
 double Segment::second_derivative_bound(Eigen::Index i, double a, double b) const {
   const LinearFlow& flow = functionals_->flow();
   if (flow.method() == LinearFlow::Method::spectral) {
+    // max over [a, b] of e^{Re λ τ} is at a (Re λ < 0) or b (Re λ > 0); the values at the
+    // interval ends are usually in the exponentials' cache already (the search evaluated h there).
+    const double* ga = cached_growth(a);
+    const double* gb = cached_growth(b);
     double bound = 0.0;
     for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
       const double re = lambda_(r).real();
-      const double growth = re == 0.0 ? 1.0 : std::exp(std::max(re * a, re * b));
+      double growth = 1.0;
+      if (re < 0.0) growth = ga ? ga[r] : std::exp(re * a);
+      else if (re > 0.0) growth = gb ? gb[r] : std::exp(re * b);
       bound += curvature_(i, r) * growth;
     }
     return bound * (1.0 + 1e-12);
   }
-  const double mu = flow.log_norm();
-  return functionals_->rows(2).row(i).norm() * exponential_state(a).norm() *
-         std::exp(std::max(0.0, mu * (b - a))) * (1.0 + 1e-12);
+  // Two rigorous bounds, in the 2-norm and in the scaled norm ‖D·‖ (flow.hpp); the scaled one
+  // stays finite for stiff systems, whose 2-norm log norm ~ ‖M⁻¹K‖ overflows e^{μ (b - a)}.
+  const Eigen::VectorXd& z = exponential_state(a);
+  const auto& row = functionals_->rows(2).row(i);
+  const Eigen::Index n = flow.dof();
+  const double s = flow.position_scale();
+  auto bound = [&](double row_norm, double z_norm, double mu) {  // 0 · ∞ is 0 here
+    return row_norm == 0.0 || z_norm == 0.0 ? 0.0
+                                            : row_norm * z_norm * std::exp(std::max(0.0, mu * (b - a)));
+  };
+  const double plain = bound(row.norm(), z.norm(), flow.log_norm());
+  const double scaled = bound(
+      std::sqrt(row.head(n).squaredNorm() / (s * s) + row.tail(row.size() - n).squaredNorm()),
+      std::sqrt(s * s * z.head(n).squaredNorm() + z.tail(z.size() - n).squaredNorm()),
+      flow.scaled_log_norm());
+  return std::fmin(plain, scaled) * (1.0 + 1e-12);
+}
+
+double Segment::third_derivative_bound(Eigen::Index i, double a, double b) const {
+  const LinearFlow& flow = functionals_->flow();
+  if (flow.method() != LinearFlow::Method::spectral) return std::numeric_limits<double>::infinity();
+  const double* ga = cached_growth(a);
+  const double* gb = cached_growth(b);
+  double bound = 0.0;
+  for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
+    const double re = lambda_(r).real();
+    double growth = 1.0;
+    if (re < 0.0) growth = ga ? ga[r] : std::exp(re * a);
+    else if (re > 0.0) growth = gb ? gb[r] : std::exp(re * b);
+    bound += curvature_(i, r) * modulus_(r) * growth;
+  }
+  return bound * (1.0 + 1e-12);
 }
 
 void Segment::state(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
   const LinearFlow& flow = functionals_->flow();
   if (flow.method() == LinearFlow::Method::spectral) {
-    Eigen::VectorXcd c = modal_;
-    for (Eigen::Index k = 0; k < c.size(); ++k) c(k) *= std::exp(flow.eigenvalues()(k) * tau);
-    out = (flow.eigenvectors() * c).real();
+    // Σₖ V(:, k) (V⁻¹z0)ₖ e^{λₖτ}, written out so that nothing is allocated.
+    scratch_.resize(modal_.size());
+    for (Eigen::Index k = 0; k < modal_.size(); ++k) scratch_(k) = modal_(k) * std::exp(flow.eigenvalues()(k) * tau);
+    const Eigen::MatrixXcd& V = flow.eigenvectors();
+    for (Eigen::Index i = 0; i < out.size(); ++i) {
+      double sum = 0.0;
+      for (Eigen::Index k = 0; k < V.cols(); ++k) sum += (V(i, k) * scratch_(k)).real();
+      out(i) = sum;
+    }
   } else {
     out = exponential_state(tau);
   }

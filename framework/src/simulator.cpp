@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 namespace vibro {
 namespace {
@@ -175,9 +177,17 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
   ContactSet stuck;
   EventRate rate(options_.max_events, window);
   const Eigen::LLT<Eigen::MatrixXd> mass_llt(sys.mass());
-  auto delassus_diagonal = [&](int j) {  // w_jᵀ M⁻¹ w_j, without building a contact set
-    return scene.normals().col(j).dot(mass_llt.solve(scene.normals().col(j)));
-  };
+  // Per stop, once per run: M⁻¹ w_j, G_jj = w_jᵀ M⁻¹ w_j, and for the second-order chatter rule
+  // α_j = -w_jᵀ M⁻¹ C M⁻¹ w_j / G_jj and the direction M⁻¹ K M⁻¹ w_j / G_jj of its state kick.
+  const Eigen::MatrixXd minv_normals = mass_llt.solve(scene.normals());
+  Eigen::VectorXd delassus_diag(stops), chatter_alpha(stops);
+  Eigen::MatrixXd chatter_kick(n, stops);
+  for (int j = 0; j < stops; ++j) {
+    delassus_diag(j) = scene.normals().col(j).dot(minv_normals.col(j));
+    chatter_alpha(j) = -minv_normals.col(j).dot(sys.damping() * minv_normals.col(j)) / delassus_diag(j);
+    chatter_kick.col(j) = mass_llt.solve(sys.stiffness() * minv_normals.col(j)) / delassus_diag(j);
+  }
+  auto delassus_diagonal = [&](int j) { return delassus_diag(j); };  // w_jᵀ M⁻¹ w_j
   auto emit = [&](const Event& e) {
     for (Observer* o : observers) o->event(e);
   };
@@ -193,6 +203,15 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     for (Observer* o : observers) o->end(t);
     return summary;
   };
+
+  struct ChatterLimit {
+    int stop;
+    double t;
+  };
+  std::vector<ChatterLimit> chatter_limits;
+  chatter_limits.reserve(static_cast<std::size_t>(stops));
+  Eigen::VectorXd reduced_state, triggers, zr, z_full(2 * n + 3);
+  std::vector<std::pair<const Functionals*, std::unique_ptr<Segment>>> segments;
 
   // Handles an event at time t: impacts on `impacting`, releases of `releasing`; `resting`
   // are further stops touching with zero normal speed (at the start of a run).
@@ -258,6 +277,52 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     }
     Eigen::VectorXd forces;
     ContactSet next = settle(t, x, v, candidates, &forces);
+    auto force_of = [&](int j) {
+      for (std::size_t a = 0; a < candidates.size(); ++a)
+        if (candidates[a] == j) return forces(static_cast<Eigen::Index>(a));
+      return 0.0;
+    };
+    // Chatter limits (ChatterRule in simulator.hpp), computed before the residual normal
+    // velocity is removed below (the second-order rule's kick has a normal part the stop takes).
+    chatter_limits.clear();
+    for (int j : chatter) {
+      if (!contains(next, j)) continue;
+      const double r = scene.stops()[static_cast<std::size_t>(j)].restitution;
+      const double G = delassus_diagonal(j);
+      const double A = G * force_of(j);
+      const double w0 = r * g_before(j);
+      double t_limit = t;
+      if (A > 0.0) {
+        // Budd & Dux (1994): rebounds r^k w0 under a constant approach acceleration A accumulate
+        // after T0 = Σ 2 r^k w0 / A = 2 w0 / (A (1 - r)).
+        const double T0 = 2.0 * w0 / (A * (1.0 - r));
+        t_limit = t + T0;
+        if (options_.chatter_rule == ChatterRule::second_order) {
+          // Next order (simulator.hpp, ChatterRule). Expansion: with A_k = A + A'(t_k - t),
+          // t_k - t = (2 w0 / A)(1 - r^k)/(1 - r) and w_k = r^k w0 (1 + κ w0 (1 - r^k)/(1 - r)),
+          // κ = (2/3)(A'/A² + α/A) (from u_{k+1} = w_k (1 + κ w_k)), the sum of the flights
+          // τ_k = 2 w_k / A_k + (-(4/3) A'/A³ + (2/3) α/A²) w_k² is, to O(w0²),
+          //   T = T0 + w0² / (1 - r)² · (-(4/3) A'/A³ + (2/3) α/A²) = T0 + T0² (α/6 - A'/(3A)),
+          // using Σ r^k (1 - r^k) = r / ((1 - r)(1 - r²)) and Σ r^{2k} = 1 / (1 - r²).
+          // A' = G λ_j' along the sticking flow of `next` from the post-impact state (exact).
+          const ContactMode& held = modes_.get(next);
+          const ContactMode::Reduced& red = held.reduced();
+          reduced_state.resize(red.flow->size());
+          held.reduce(t, x, v, reduced_state);
+          const auto a_idx = std::lower_bound(next.begin(), next.end(), j) - next.begin();
+          const double dforce = -red.watch->rows(1).row(red.gap_rows + a_idx).dot(reduced_state);
+          const double A_dot = G * dforce;
+          const double T = T0 + T0 * T0 * (chatter_alpha(j) / 6.0 - A_dot / (3.0 * A));
+          if (std::abs(T - T0) <= 0.5 * T0) t_limit = t + T;
+          // The bounces' mean displacement: ∫ δg dt = -(2/3) Σ w_k³ / A² over the tail, felt
+          // through K as the momentum -K M⁻¹ w_j ∫δg dt / G (∫ δg' dt = 0, so C adds nothing).
+          const double r3 = r * r * r;
+          const double displacement_integral = -(2.0 / 3.0) * w0 * w0 * w0 / (A * A * (1.0 - r3));
+          v -= chatter_kick.col(j) * displacement_integral;
+        }
+      }
+      chatter_limits.push_back({j, t_limit});
+    }
     // Remove the residual normal velocity of the held stops (rounding, or < v_contact).
     if (!next.empty()) {
       const ContactMode& mode = modes_.get(next);
@@ -266,20 +331,14 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
       for (std::size_t a = 0; a < next.size(); ++a) gn(static_cast<Eigen::Index>(a)) = g(next[a]);
       v -= mode.mass_inverse_normals() * mode.delassus().llt().solve(gn);
     }
-    auto force_of = [&](int j) {
-      for (std::size_t a = 0; a < candidates.size(); ++a)
-        if (candidates[a] == j) return forces(static_cast<Eigen::Index>(a));
-      return 0.0;
-    };
     for (int j : next) {
       if (contains(stuck, j)) continue;
       if (contains(chatter, j)) {
-        // Budd & Dux (1994): bounces of speed r^k u under a constant approach acceleration a
-        // accumulate at t + 2 r u / (a (1 - r)).
-        const double r = scene.stops()[static_cast<std::size_t>(j)].restitution;
-        const double a = delassus_diagonal(j) * force_of(j);
+        double t_limit = t;
+        for (const ChatterLimit& c : chatter_limits)
+          if (c.stop == j) t_limit = c.t;
         const double u = g_before(j);
-        const double t_limit = a > 0.0 ? t + 2.0 * r * u / (a * (1.0 - r)) : t;
+        const double r = scene.stops()[static_cast<std::size_t>(j)].restitution;
         emit({t_limit, j, EventKind::chatter_limit, r * u, 0.0, force_of(j)});
         ++summary.chatters;
       } else {
@@ -312,9 +371,21 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     while (true) {
       const ContactMode& mode = modes_.get(stuck);
       const ContactMode::Reduced& red = mode.reduced();
-      const Segment segment(*red.watch, t, mode.reduce(t, x, v));
+      // One Segment per contact mode, reused: re-targeting it allocates nothing.
+      Segment* slot = nullptr;
+      for (auto& [functionals, seg] : segments)
+        if (functionals == red.watch.get()) slot = seg.get();
+      reduced_state.resize(red.flow->size());
+      mode.reduce(t, x, v, reduced_state);
+      if (!slot) {
+        segments.emplace_back(red.watch.get(), std::make_unique<Segment>(*red.watch, t, reduced_state));
+        slot = segments.back().second.get();
+      } else {
+        slot->reset(t, reduced_state);
+      }
+      const Segment& segment = *slot;
       const Eigen::Index rows = red.watch->count();
-      Eigen::VectorXd triggers(rows);
+      triggers.resize(rows);
       for (Eigen::Index i = 0; i < rows; ++i) {
         triggers(i) = i < red.gap_rows ? eps_gap : eps_force;
         // A guard that starts inside its tolerance band while moving away (just after an impact
@@ -340,11 +411,11 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
         const SegmentView view(mode, segment, t, t_next, eps_force);
         for (Observer* o : observers) o->segment(view);
       }
-      Eigen::VectorXd zr(red.flow->size());
+      zr.resize(red.flow->size());
       segment.state(tau, zr);
-      const Eigen::VectorXd z = red.to_full * zr;
-      x = z.head(n);
-      v = z.segment(n, n);
+      z_full.noalias() = red.to_full * zr;
+      x = z_full.head(n);
+      v = z_full.segment(n, n);
       t = t_next;
       if (!x.allFinite() || !v.allFinite())
         return finish(RunStatus::numerical_failure,

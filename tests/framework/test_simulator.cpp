@@ -948,6 +948,7 @@ std::pair<double, double> chatter_convergence() {
   for (double h : {1e-9, 1e-10}) {
     SimulatorOptions options;
     options.chatter_height = h;
+    options.chatter_rule = vibro::ChatterRule::first_order;  // the Budd–Dux rule's O(Δ²) is tested here
     const Run run = simulate(scene, 0.0, VectorXd::Zero(2), VectorXd::Zero(2), t_end, options);
     check_run(run, t_end);
     const ReferenceComparison c = compare_events(run.audit.events, ref.events);

@@ -52,6 +52,9 @@ std::string resolved(const vibro::io::Scene& s) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Under `mpirun -np K` (a build with MPI) every process runs this; rank 0 alone prints.
+  const vibro::io::ProcessGroup processes(argc, argv);
+  const bool speaks = processes.rank() == 0;
   CLI::App app{"vibro — exact simulation of vibro-impact systems.\n"
                "Examples:\n"
                "  vibro run experiments/wagg2004/fig2_sticking_orbit.yaml -o fig2.h5\n"
@@ -94,19 +97,20 @@ int main(int argc, char** argv) {
       }
       vibro::io::RunRequest request{output, threads, resume, isatty(STDERR_FILENO) == 1};
       const vibro::io::RunReport report = vibro::io::run_scene(doc, scene, request);
-      std::fprintf(stderr, "%s\n", report.summary.c_str());
+      if (speaks) std::fprintf(stderr, "%s\n", report.summary.c_str());
       return report.exit_code;
     }
+    if (!speaks) return 0;
     if (check->parsed()) std::fputs(resolved(scene).c_str(), stdout);
     if (info->parsed()) std::fputs(vibro::cli::describe_scene(scene).c_str(), stdout);
   } catch (const vibro::io::SceneError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    if (speaks) std::fprintf(stderr, "error: %s\n", e.what());
     return 2;
   } catch (const vibro::InvalidInput& e) {
-    std::fprintf(stderr, "error: %s: %s\n", scene_path.c_str(), e.what());
+    if (speaks) std::fprintf(stderr, "error: %s: %s\n", scene_path.c_str(), e.what());
     return 2;
   } catch (const vibro::io::ResultError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "error: %s\n", e.what());  // only rank 0 writes files
     return 3;
   }
   return 0;

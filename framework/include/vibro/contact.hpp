@@ -86,6 +86,9 @@ class ContactMode {
   /// coordinates are implied, so rounding drift off the constraint is projected away).
   Eigen::VectorXd reduce(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
                          const Eigen::Ref<const Eigen::VectorXd>& v) const;
+  /// The same into `out` (size reduced().flow->size()), without allocating.
+  void reduce(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
+              const Eigen::Ref<const Eigen::VectorXd>& v, Eigen::Ref<Eigen::VectorXd> out) const;
 
  private:
   void build_reduced() const;

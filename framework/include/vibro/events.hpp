@@ -39,7 +39,9 @@ struct CrossingSearch {
 class CrossingFinder {
  public:
   /// `triggers[i]` is ε for row i; `resolution` the smallest interval length.
-  CrossingFinder(const Segment& segment, const Eigen::VectorXd& triggers, double resolution);
+  /// `triggers` is referenced, not copied: it must outlive the finder.
+  CrossingFinder(const Segment& segment, const Eigen::Ref<const Eigen::VectorXd>& triggers,
+                 double resolution);
 
   /// Earliest crossing over all rows in [a, b]; nullopt if none. Throws std::runtime_error if
   /// the subdivision budget runs out (a guard hugging zero over a long interval).
@@ -57,7 +59,7 @@ class CrossingFinder {
   double from_last_below(Eigen::Index row, double above) const;
 
   const Segment* segment_;
-  Eigen::VectorXd triggers_;
+  Eigen::Ref<const Eigen::VectorXd> triggers_;
   double last_below_ = 0.0;
   double search_start_ = 0.0;  // latest τ seen with h ≤ 0 in the current left-to-right search
   double resolution_;

@@ -112,10 +112,18 @@ class LinearFlow {
   const std::vector<Eigen::Index>& representatives() const { return representatives_; }
   const std::vector<double>& weights() const { return weights_; }
 
-  /// Largest |λ| of Â (fastest rate of the system, including Ω). Always available.
+  /// Largest |λ| of Â (fastest rate of the system, including Ω). Always available; for the
+  /// exponential method with N > 64 an O(N²) upper bound, max(‖D A D⁻¹‖∞, Ω) (flow.cpp).
   double spectral_radius() const { return spectral_radius_; }
   /// Logarithmic 2-norm μ(Â) = λmax((Â + Âᵀ)/2): ‖exp(Âτ)‖₂ ≤ exp(μ τ) for τ ≥ 0.
   double log_norm() const { return log_norm_; }
+  /// The same in the scaled norm ‖D z‖₂, D = diag(s I, I, 1, 1, 1), s = position_scale()
+  /// = √‖M⁻¹K‖∞ (1 if K = 0): an upper bound (Gershgorin) of λmax of the symmetric part of
+  /// D Â D⁻¹, so ‖D exp(Âτ) D⁻¹‖₂ ≤ exp(μ_D τ). For a stiff system μ(Â) ~ ‖M⁻¹K‖/2 (1e8 for a
+  /// link of stiffness 1e8) while μ_D ~ √‖M⁻¹K‖, the fastest rate: the exponential method's
+  /// curvature bound uses it (see Segment) so that it stays finite over an interval of 1/ρ.
+  double scaled_log_norm() const { return scaled_log_norm_; }
+  double position_scale() const { return position_scale_; }
 
  private:
   Eigen::Index n_;
@@ -124,6 +132,7 @@ class LinearFlow {
   double condition_;
   double spectral_radius_ = 0.0;
   double log_norm_ = 0.0;
+  double scaled_log_norm_ = 0.0, position_scale_ = 1.0;
   Eigen::MatrixXd generator_;
   Eigen::VectorXcd lambda_;
   Eigen::MatrixXcd vectors_, inverse_;
@@ -138,7 +147,8 @@ class LinearFlow {
 ///  * spectral: αᵢₖ = (ℓᵢᵀ V)ₖ (V⁻¹ z0)ₖ, then ℓᵢᵀ Âᵈ z(τ) = Re Σₖ αᵢₖ λₖᵈ e^{λₖτ}: O(N) per value;
 ///    |second derivative| on [a, b] ≤ Σₖ |αᵢₖ| |λₖ|² max(e^{Re λₖ a}, e^{Re λₖ b}).
 ///  * exponential: z(τ) by the Padé exponential (cached for the last τ), values by dot products;
-///    the bound is ‖ℓᵢᵀ Â²‖ ‖z(a)‖ e^{μ (b - a)} with μ the logarithmic norm.
+///    the bound is ‖ℓᵢᵀ Â²‖ ‖z(a)‖ e^{μ (b - a)} with μ the logarithmic norm, or the same in the
+///    scaled norm, ‖ℓᵢᵀ Â² D⁻¹‖ ‖D z(a)‖ e^{μ_D (b - a)}, whichever is smaller.
 class Functionals {
  public:
   /// Rows of `rows` are the ℓᵢᵀ (each of length flow.size()).
@@ -160,8 +170,13 @@ class Segment {
  public:
   Segment(const Functionals& functionals, double t0, const Eigen::Ref<const Eigen::VectorXd>& z0);
 
+  /// Re-targets the segment to a new start (same functionals): no allocation when the
+  /// functionals' sizes are those of the last call (the event loop reuses one Segment per mode).
+  void reset(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0);
+
   double t0() const { return t0_; }
   const Eigen::VectorXd& initial_state() const { return z0_; }
+  const Functionals& functionals() const { return *functionals_; }
 
   /// dᵈ/dτᵈ ℓᵢᵀ z(τ), d ∈ {0, 1, 2, 3}.
   double value(Eigen::Index i, double tau, int derivative = 0) const;
@@ -169,26 +184,42 @@ class Segment {
   std::pair<double, double> value_and_slope(Eigen::Index i, double tau) const;
   /// An upper bound of |d²/dτ² ℓᵢᵀ z(τ)| over τ ∈ [a, b] (a ≤ b).
   double second_derivative_bound(Eigen::Index i, double a, double b) const;
+  /// An upper bound of |d³/dτ³ ℓᵢᵀ z(τ)| over [a, b] (spectral: Σₖ |αᵢₖ| |λₖ|³ max(e^{Re λₖ a},
+  /// e^{Re λₖ b})); +∞ for the exponential method (no such bound is kept there).
+  double third_derivative_bound(Eigen::Index i, double a, double b) const;
   /// Full augmented state at τ.
   void state(double tau, Eigen::Ref<Eigen::VectorXd> out) const;
 
  private:
   const Eigen::VectorXd& exponential_state(double tau) const;
+  /// e^{λₖ τ} of the representatives (spectral method), from a small cache of recent τ: the
+  /// event search evaluates every row at the same few points (interval ends, trial roots), so
+  /// one set of exponentials serves all rows and both derivatives.
+  const std::complex<double>* exponentials(double tau) const;
+  /// e^{Re λₖ τ} if τ is in the cache, else nullptr.
+  const double* cached_growth(double tau) const;
 
   const Functionals* functionals_;
   double t0_;
   Eigen::VectorXd z0_;
-  const Eigen::VectorXcd& exponentials(double tau) const;
 
   Eigen::VectorXcd modal_;        // V⁻¹ z0 (spectral)
   // Spectral: per representative eigenvalue λₖ (see LinearFlow::representatives), the weighted
   // coefficients weight·αᵢₖ and their moduli times |λₖ|² (for the second-derivative bound).
   Eigen::VectorXcd lambda_;
+  Eigen::VectorXd modulus_;  // |λₖ|
   Eigen::MatrixXcd coefficients_;
   Eigen::MatrixXd curvature_;
   mutable double cached_tau_;
   mutable Eigen::VectorXd cached_z_;   // exponential method: z(cached_tau_)
-  mutable Eigen::VectorXcd cached_e_;  // spectral method: e^{λₖ cached_tau_}
+  // Spectral method: e^{λₖ τ} (column c) and e^{Re λₖ τ} for the τ in cache_tau_[c], replaced
+  // round-robin.
+  static constexpr int cache_slots = 4;
+  mutable double cache_tau_[cache_slots];
+  mutable int cache_next_ = 0;
+  mutable Eigen::MatrixXcd cache_e_;
+  mutable Eigen::MatrixXd cache_growth_;
+  mutable Eigen::VectorXcd scratch_;  // state(): modal coordinates at τ
 };
 
 }  // namespace vibro

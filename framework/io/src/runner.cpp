@@ -7,16 +7,33 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
+#ifdef VIBRO_WITH_MPI
+#define OMPI_SKIP_MPICXX 1  // the C interface only: MPI's C++ bindings are deprecated and
+#define MPICH_SKIP_MPICXX 1  // would need the C++ MPI library at link time
+#include <mpi.h>
+#endif
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <csignal>
-#include <filesystem>
+#include <cstdint>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <deque>
+#include <exception>
+#include <filesystem>
 #include <map>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
+#include <thread>
+#include <tuple>
+#include <type_traits>
+#include <utility>
 
 namespace vibro::io {
 namespace {
@@ -126,154 +143,751 @@ RunReport run_simulation(const Scene& scene, const RunRequest& request) {
   return report;
 }
 
-RunReport run_sweep(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
-  // The grid, in walking order.
+// ---------------------------------------------------------------------------------------------
+// Sweeps. The same pieces serve one process (OpenMP threads) and several (MPI ranks, each with
+// its threads): a plan every process builds alike, units of work ("chains") handed out one at a
+// time, and one writer on rank 0 that puts finished points in grid order.
+
+/// The grid, its validated scenes and its units of work, identical on every process.
+struct SweepPlan {
+  std::vector<std::vector<double>> grid;  ///< parameter values, in walking order
+  std::vector<Scene> scenes;              ///< one per grid point
+  std::vector<std::string> names;         ///< the swept paths
+  std::size_t total = 0;
+  bool follow = false;
+  /// Chains of points that must run in order: with `follow`, a whole row; else one point each.
+  std::size_t chain_length = 1;
+  std::size_t chains = 0;
+};
+
+SweepPlan plan_sweep(const SceneDocument& doc, const Scene& scene) {
+  SweepPlan plan;
   const auto& axes = scene.run.axes;
-  std::vector<std::vector<double>> grid;
   if (axes.size() == 1) {
-    for (double a : axes[0].values) grid.push_back({a});
+    for (double a : axes[0].values) plan.grid.push_back({a});
   } else {
     for (double a : axes[0].values)
-      for (double b : axes[1].values) grid.push_back({a, b});
+      for (double b : axes[1].values) plan.grid.push_back({a, b});
   }
-  if (scene.run.reverse) std::reverse(grid.begin(), grid.end());
-  const std::size_t total = grid.size();
-  const std::size_t row_length = axes.size() == 1 ? total : axes[1].values.size();
+  if (scene.run.reverse) std::reverse(plan.grid.begin(), plan.grid.end());
+  plan.total = plan.grid.size();
+  const std::size_t row_length = axes.size() == 1 ? plan.total : axes[1].values.size();
 
   // Build and validate every point's scene first: bad input never starts a file.
-  std::vector<Scene> scenes;
-  scenes.reserve(total);
-  for (std::size_t p = 0; p < total; ++p) {
+  plan.scenes.reserve(plan.total);
+  for (std::size_t p = 0; p < plan.total; ++p) {
     SceneDocument point = doc;
-    for (std::size_t a = 0; a < axes.size(); ++a) point.set(axes[a].path, grid[p][a]);
+    for (std::size_t a = 0; a < axes.size(); ++a) point.set(axes[a].path, plan.grid[p][a]);
     try {
-      scenes.push_back(point.build());
+      plan.scenes.push_back(point.build_point());  // build() checks the whole grid: once, in main
     } catch (const SceneError& e) {
       std::string where;
-      for (std::size_t a = 0; a < axes.size(); ++a) where += fmt::format("{}{} = {:.12g}", a ? ", " : "", axes[a].path, grid[p][a]);
+      for (std::size_t a = 0; a < axes.size(); ++a) where += fmt::format("{}{} = {:.12g}", a ? ", " : "", axes[a].path, plan.grid[p][a]);
       throw SceneError(e.file(), e.line(), e.column(), e.path(), e.problem() + " (at sweep point " + std::to_string(p) + ": " + where + ")");
     }
   }
+  for (const auto& a : axes) plan.names.push_back(a.path);
+  plan.follow = scene.run.follow;
+  plan.chain_length = plan.follow ? row_length : 1;
+  plan.chains = (plan.total + plan.chain_length - 1) / plan.chain_length;
+  return plan;
+}
 
-  std::vector<std::string> names;
-  for (const auto& a : axes) names.push_back(a.path);
-#ifdef _OPENMP
-  const int threads = request.threads > 0 ? request.threads : omp_get_max_threads();
-#else
-  const int threads = 1;
-#endif
+/// Where the sweep (re)starts: the first point not in the file and, for a followed row cut by an
+/// interruption, the state its next point starts from.
+struct SweepStart {
+  std::size_t first = 0;
+  std::optional<StartState> resumed;
+};
+
+/// Opens (or resumes) the result file; throws before creating anything if a stale .partial
+/// is in the way.
+ResultFile open_sweep_file(const SweepPlan& plan, const Scene& scene, const RunRequest& request,
+                           int threads, SweepStart& start) {
   if (!request.resume && std::filesystem::exists(ResultFile::partial_path(request.output)))
     throw SceneError(scene.file, 0, 0, "",
                      "an interrupted sweep exists in " + ResultFile::partial_path(request.output) +
                          ": finish it with --resume, or delete it to start again");
   ResultFile file = request.resume ? ResultFile::open_partial(request.output, scene)
                                    : ResultFile::create(request.output, scene, current_meta(threads));
-  file.begin_sweep(names, total);
-  const std::size_t first = file.completed_points();
-
-  // Chains of points that must run in order: with `follow`, a whole row; else one point each.
-  const bool follow = scene.run.follow;
-  const std::size_t chain_length = follow ? row_length : 1;
-  const std::size_t chains = (total + chain_length - 1) / chain_length;
-  std::optional<StartState> resumed;
-  if (follow && first > 0 && first % chain_length != 0) {
+  file.begin_sweep(plan.names, plan.total);
+  start.first = file.completed_points();
+  start.resumed.reset();
+  if (plan.follow && start.first > 0 && start.first % plan.chain_length != 0) {
     StartState s{scene.t0, {}, {}};
-    if (file.last_state(s.t, s.x, s.v)) resumed = s;
+    if (file.last_state(s.t, s.x, s.v)) start.resumed = s;
+  }
+  return file;
+}
+
+/// One point; a point that cannot start (its initial state violates a stop) is recorded as a
+/// numerical failure with the reason, like any point that stops early.
+Recording run_point(const Scene& sc, const StartState& start) {
+  try {
+    return simulate(sc, start);
+  } catch (const InvalidInput& e) {
+    Recording rec = Recording::for_scene(sc, start.t);
+    rec.summary.status = RunStatus::numerical_failure;
+    rec.summary.message = std::string("cannot start this point: ") + e.what();
+    rec.summary.t = start.t;
+    rec.summary.x = start.x;
+    rec.summary.v = start.v;
+    return rec;
+  }
+}
+
+/// Runs chain `c` from `from.first` on, in order, handing every finished point to
+/// deliver(index, Recording&&). Stops before the next point once interrupted.
+template <class Deliver>
+void run_chain(const SweepPlan& plan, const SweepStart& from, std::size_t c, Deliver& deliver) {
+  const std::size_t begin = c * plan.chain_length;
+  const std::size_t end = std::min(plan.total, begin + plan.chain_length);
+  std::optional<StartState> carried;
+  for (std::size_t p = std::max(begin, from.first); p < end; ++p) {
+    if (g_interrupted.load()) break;
+    const Scene& sc = plan.scenes[p];
+    StartState start{sc.t0, sc.x0, sc.v0};
+    if (plan.follow && carried) start = {sc.t0, carried->x, carried->v};
+    if (plan.follow && !carried && p == from.first && from.resumed) start = {sc.t0, from.resumed->x, from.resumed->v};
+    Recording rec = run_point(sc, start);
+    if (plan.follow) carried = StartState{sc.t0, rec.summary.x, rec.summary.v};
+    deliver(p, std::move(rec));
+  }
+}
+
+/// Runs chains on `threads` OpenMP threads while take() gives them (dynamic: sticking-heavy
+/// points cost more, so each thread takes the next chain when it is free).
+template <class Take, class Deliver>
+void run_chains(int threads, const SweepPlan& plan, const SweepStart& from, Take& take, Deliver& deliver) {
+  (void)threads;  // without OpenMP: one thread
+#ifdef _OPENMP
+#pragma omp parallel num_threads(threads)
+#endif
+  {
+    while (const std::optional<std::size_t> c = take()) run_chain(plan, from, *c, deliver);
+  }
+}
+
+/// Hands out the chains in grid order, one per call, from any thread.
+class ChainDispenser {
+ public:
+  ChainDispenser(std::size_t first_chain, std::size_t chains) : next_(first_chain), chains_(chains) {}
+  /// The next chain, or none once all are handed out or the sweep is interrupted.
+  std::optional<std::size_t> operator()() {
+    if (g_interrupted.load()) return std::nullopt;
+    const std::size_t c = next_.fetch_add(1);
+    if (c >= chains_) return std::nullopt;
+    return c;
   }
 
-  std::mutex lock;
-  std::map<std::size_t, Recording> done;  // finished, not yet written
-  std::size_t next_to_write = first;
-  long stopped_early = 0;
-  RunSummary totals;
-  double cpu_seconds = 0.0;
-  Progress progress(request.progress, total, first);
-  std::optional<ResultError> write_error;
-  const auto wall_start = std::chrono::steady_clock::now();
-  InterruptGuard guard;
+ private:
+  std::atomic<std::size_t> next_;
+  std::size_t chains_;
+};
 
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (long c = 0; c < static_cast<long>(chains); ++c) {
-    const std::size_t begin = static_cast<std::size_t>(c) * chain_length;
-    const std::size_t end = std::min(total, begin + chain_length);
-    if (end <= first) continue;
-    std::optional<StartState> carried;
-    for (std::size_t p = begin; p < end; ++p) {
-      if (g_interrupted.load()) break;
-      const Scene& sc = scenes[p];
-      if (p < first) continue;
-      StartState start{sc.t0, sc.x0, sc.v0};
-      if (follow && carried) start = {sc.t0, carried->x, carried->v};
-      if (follow && !carried && p == first && resumed) start = {sc.t0, resumed->x, resumed->v};
-      Recording rec;
+/// Takes finished points from any thread and writes them in grid order (points that finish
+/// early wait in memory for their turn). The only user of the file while the sweep runs.
+class SweepWriter {
+ public:
+  SweepWriter(ResultFile& file, const SweepPlan& plan, std::size_t first, const RunRequest& request)
+      : file_(file), plan_(plan), request_(request), first_(first), next_to_write_(first),
+        progress_(request.progress, plan.total, first) {}
+
+  void operator()(std::size_t p, Recording&& rec) {
+    std::lock_guard<std::mutex> hold(lock_);
+    cpu_seconds_ += rec.wall_seconds;
+    done_.emplace(p, std::move(rec));
+    while (!write_error_ && done_.count(next_to_write_)) {
+      auto node = done_.extract(next_to_write_);
+      const Recording& r = node.mapped();
       try {
-        rec = simulate(sc, start);
-      } catch (const InvalidInput& e) {
-        rec = Recording::for_scene(sc, start.t);
-        rec.summary.status = RunStatus::numerical_failure;
-        rec.summary.message = std::string("cannot start this point: ") + e.what();
-        rec.summary.t = start.t;
-        rec.summary.x = start.x;
-        rec.summary.v = start.v;
+        file_.append_point(next_to_write_, plan_.grid[next_to_write_], r);
+      } catch (const ResultError& e) {
+        write_error_ = e;
+        g_interrupted.store(true);
+        break;
       }
-      if (follow) carried = StartState{sc.t0, rec.summary.x, rec.summary.v};
-      std::lock_guard<std::mutex> hold(lock);
-      cpu_seconds += rec.wall_seconds;
-      done.emplace(p, std::move(rec));
-      while (!write_error && done.count(next_to_write)) {
-        auto node = done.extract(next_to_write);
-        const Recording& r = node.mapped();
-        try {
-          file.append_point(next_to_write, grid[next_to_write], r);
-        } catch (const ResultError& e) {
-          write_error = e;
-          g_interrupted.store(true);
-          break;
-        }
-        if (r.summary.status != RunStatus::completed) ++stopped_early;
-        totals.impacts += r.summary.impacts;
-        totals.sticks += r.summary.sticks;
-        totals.releases += r.summary.releases;
-        totals.chatters += r.summary.chatters;
-        ++next_to_write;
-        progress.update(next_to_write);
-        if (request.interrupt_after > 0 && next_to_write >= request.interrupt_after) g_interrupted.store(true);
-      }
+      if (r.summary.status != RunStatus::completed) ++stopped_early_;
+      totals_.impacts += r.summary.impacts;
+      totals_.sticks += r.summary.sticks;
+      totals_.releases += r.summary.releases;
+      totals_.chatters += r.summary.chatters;
+      ++next_to_write_;
+      progress_.update(next_to_write_);
+      if (request_.interrupt_after > 0 && next_to_write_ >= request_.interrupt_after) g_interrupted.store(true);
     }
   }
-  if (write_error) throw *write_error;
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-  RunReport report;
-  if (next_to_write < total) {
-    report.exit_code = 130;
+
+  /// After the last point: throws a write error, else finishes the file (all points written) or
+  /// keeps the .partial (interrupted), and says so. `on` says where the points ran.
+  RunReport report(const Scene& scene, int threads, double wall, const std::string& on) {
+    if (write_error_) throw *write_error_;
+    RunReport report;
+    const std::size_t total = plan_.total;
+    if (next_to_write_ < total) {
+      report.exit_code = 130;
+      report.summary = fmt::format(
+          "Interrupted: {} of {} sweep points are kept in {}; run the same command with --resume to "
+          "finish the rest.",
+          next_to_write_, total, ResultFile::partial_path(request_.output));
+      return report;  // the partial file is kept by ResultFile's destructor
+    }
+    RunMeta meta = current_meta(threads);
+    meta.wall_seconds = wall;
+    file_.finish(meta);
+    report.exit_code = stopped_early_ > 0 ? 1 : 0;
     report.summary = fmt::format(
-        "Interrupted: {} of {} sweep points are kept in {}; run the same command with --resume to "
-        "finish the rest.",
-        next_to_write, total, ResultFile::partial_path(request.output));
-    return report;  // the partial file is kept by ResultFile's destructor
+        "Swept {} over {} points ({} computed now{}) on {} in {:.2f} s wall ({:.2f} s CPU in "
+        "simulations): {} impacts, {} sticks, {} releases, {} chatter limits; {} points stopped early{}. "
+        "Results in {}.",
+        scene.file, total, total - first_, first_ ? fmt::format(", {} resumed", first_) : "", on, wall,
+        cpu_seconds_, totals_.impacts, totals_.sticks, totals_.releases, totals_.chatters, stopped_early_,
+        stopped_early_ ? " (see /sweep/status and /sweep/message)" : "", request_.output);
+    return report;
   }
-  RunMeta meta = current_meta(threads);
-  meta.wall_seconds = wall;
-  file.finish(meta);
-  report.exit_code = stopped_early > 0 ? 1 : 0;
-  report.summary = fmt::format(
-      "Swept {} over {} points ({} computed now{}) on {} threads in {:.2f} s wall ({:.2f} s CPU in "
-      "simulations): {} impacts, {} sticks, {} releases, {} chatter limits; {} points stopped early{}. "
-      "Results in {}.",
-      scene.file, total, total - first, first ? fmt::format(", {} resumed", first) : "", threads, wall,
-      cpu_seconds, totals.impacts, totals.sticks, totals.releases, totals.chatters, stopped_early,
-      stopped_early ? " (see /sweep/status and /sweep/message)" : "", request.output);
-  return report;
+
+ private:
+  ResultFile& file_;
+  const SweepPlan& plan_;
+  const RunRequest& request_;
+  std::size_t first_;
+  std::mutex lock_;
+  std::map<std::size_t, Recording> done_;  // finished, not yet written
+  std::size_t next_to_write_;
+  long stopped_early_ = 0;
+  RunSummary totals_;
+  double cpu_seconds_ = 0.0;
+  Progress progress_;
+  std::optional<ResultError> write_error_;
+};
+
+int thread_count(const RunRequest& request) {
+#ifdef _OPENMP
+  return request.threads > 0 ? request.threads : omp_get_max_threads();
+#else
+  (void)request;
+  return 1;
+#endif
 }
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+/// Rank and size of MPI_COMM_WORLD if MPI is running, else 0 and 1.
+std::pair<int, int> world() {
+#ifdef VIBRO_WITH_MPI
+  int initialized = 0, finalized = 0;
+  MPI_Initialized(&initialized);
+  MPI_Finalized(&finalized);
+  if (initialized && !finalized) {
+    int rank = 0, size = 1;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    return {rank, size};
+  }
+#endif
+  return {0, 1};
+}
+
+#ifdef VIBRO_WITH_MPI
+RunReport run_sweep_mpi(const SweepPlan& plan, const Scene& scene, const RunRequest& request, int threads,
+                        int rank, int size);
+#endif
+
+RunReport run_sweep(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
+  const SweepPlan plan = plan_sweep(doc, scene);
+  const int threads = thread_count(request);
+#ifdef VIBRO_WITH_MPI
+  if (const auto [rank, size] = world(); size > 1) return run_sweep_mpi(plan, scene, request, threads, rank, size);
+#endif
+  SweepStart from;
+  ResultFile file = open_sweep_file(plan, scene, request, threads, from);
+  SweepWriter writer(file, plan, from.first, request);
+  ChainDispenser dispenser(from.first / plan.chain_length, plan.chains);
+  const auto wall_start = std::chrono::steady_clock::now();
+  InterruptGuard guard;
+  run_chains(threads, plan, from, dispenser, writer);
+  return writer.report(scene, threads, seconds_since(wall_start), fmt::format("{} threads", threads));
+}
+
+#ifdef VIBRO_WITH_MPI
+// ---------------------------------------------------------------------------------------------
+// Sweeps across MPI processes. Rank 0 owns the file and the dispenser; every rank runs chains on
+// its OpenMP threads, started from a helper std::thread, while its main thread (the only one
+// that calls MPI: MPI_THREAD_FUNNELED) carries the messages:
+//   worker → 0  request      a thread is free: give it a chain
+//   0 → worker  assign       the chain's index, or -1: no more (done or interrupted)
+//   worker → 0  result       [point, bytes] then the encoded Recording in pieces of ≤ 1 GiB
+//   worker → 0  bye          all its threads are done and all its results sent
+//   0 → worker  stop         rank 0 is interrupted (signal, --interrupt-after, a write error):
+//                            finish the point under way and take no more
+//   0 → worker  done         every worker said bye: return
+// Rank 0 ends when its own threads are done and every worker said bye. The main threads poll
+// (MPI_Iprobe, then sleep 20 µs … 1 ms): a blocking receive would spin a core that the
+// simulations need.
+
+namespace tag {
+constexpr int request = 1, assign = 2, result = 3, result_data = 4, bye = 5, stop = 6, done = 7;
+}
+constexpr std::size_t max_piece = std::size_t{1} << 30;
+
+/// Bytes of a Recording (only what the result file uses: the observers' public records, the
+/// summary and the recording's span). Keep in step with Recording and recorded_tables().
+class Encoder {
+ public:
+  template <class T>
+  void put(const T& value) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    append(&value, sizeof value);
+  }
+  template <class T>
+  void put(const std::vector<T>& values) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    put<std::uint64_t>(values.size());
+    append(values.data(), values.size() * sizeof(T));
+  }
+  void put(const std::string& text) {
+    put<std::uint64_t>(text.size());
+    append(text.data(), text.size());
+  }
+  template <class Scalar>
+  void put(const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& v) {
+    put<std::uint64_t>(static_cast<std::uint64_t>(v.size()));
+    append(v.data(), static_cast<std::size_t>(v.size()) * sizeof(Scalar));
+  }
+  template <class Scalar>
+  void put(const std::vector<Eigen::Matrix<Scalar, Eigen::Dynamic, 1>>& vs) {
+    put<std::uint64_t>(vs.size());
+    for (const auto& v : vs) put(v);
+  }
+  std::vector<char> bytes;
+
+ private:
+  void append(const void* data, std::size_t n) {
+    const char* c = static_cast<const char*>(data);
+    bytes.insert(bytes.end(), c, c + n);
+  }
+};
+
+class Decoder {
+ public:
+  explicit Decoder(const std::vector<char>& bytes) : bytes_(bytes) {}
+  template <class T>
+  void get(T& value) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    take(&value, sizeof value);
+  }
+  template <class T>
+  void get(std::vector<T>& values) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    values.resize(count(sizeof(T)));
+    take(values.data(), values.size() * sizeof(T));
+  }
+  void get(std::string& text) {
+    text.resize(count(1));
+    take(text.data(), text.size());
+  }
+  template <class Scalar>
+  void get(Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& v) {
+    v.resize(static_cast<Eigen::Index>(count(sizeof(Scalar))));
+    take(v.data(), static_cast<std::size_t>(v.size()) * sizeof(Scalar));
+  }
+  template <class Scalar>
+  void get(std::vector<Eigen::Matrix<Scalar, Eigen::Dynamic, 1>>& vs) {
+    vs.resize(count(sizeof(std::uint64_t)));
+    for (auto& v : vs) get(v);
+  }
+  bool at_end() const { return at_ == bytes_.size(); }
+
+ private:
+  std::size_t count(std::size_t item_size) {
+    std::uint64_t n = 0;
+    get(n);
+    if (item_size > 0 && n > (bytes_.size() - at_) / item_size)
+      throw std::logic_error("runner: a received recording is truncated");
+    return static_cast<std::size_t>(n);
+  }
+  void take(void* data, std::size_t n) {
+    if (n > bytes_.size() - at_) throw std::logic_error("runner: a received recording is truncated");
+    if (n > 0) std::memcpy(data, bytes_.data() + at_, n);
+    at_ += n;
+  }
+  const std::vector<char>& bytes_;
+  std::size_t at_ = 0;
+};
+
+template <class Coder, class Summary>
+void code_summary(Coder& c, Summary& s) {
+  c.put_or_get(s.status);
+  c.put_or_get(s.message);
+  c.put_or_get(s.t);
+  c.put_or_get(s.x);
+  c.put_or_get(s.v);
+  c.put_or_get(s.stuck);
+  for (auto* n : {&s.impacts, &s.sticks, &s.releases, &s.chatters, &s.segments}) c.put_or_get(*n);
+  c.put_or_get(s.contact_sets_built);
+  c.put_or_get(s.sticking_flows_built);
+  for (auto* d : {&s.length_scale, &s.velocity_scale, &s.force_scale, &s.time_scale}) c.put_or_get(*d);
+}
+
+struct Writing {
+  Encoder e;
+  template <class T>
+  void put_or_get(const T& v) { e.put(v); }
+};
+struct Reading {
+  Decoder d;
+  template <class T>
+  void put_or_get(T& v) { d.get(v); }
+};
+
+std::vector<char> encode(const Recording& rec) {
+  Writing w;
+  Encoder& e = w.e;
+  e.put(static_cast<std::uint8_t>((rec.events ? 1 : 0) | (rec.contacts ? 2 : 0) | (rec.samples ? 4 : 0) |
+                                  (rec.poincare ? 8 : 0) | (rec.statistics ? 16 : 0)));
+  if (rec.events) e.put(rec.events->events);
+  if (rec.contacts) e.put(rec.contacts->intervals);
+  if (rec.samples) {
+    e.put(rec.samples->t);
+    e.put(rec.samples->x);
+    e.put(rec.samples->v);
+  }
+  if (rec.poincare) {
+    e.put(rec.poincare->t);
+    e.put(rec.poincare->x);
+    e.put(rec.poincare->v);
+  }
+  if (rec.statistics) {
+    e.put(rec.statistics->sticking_fraction);
+    e.put(rec.statistics->impacts);
+  }
+  code_summary(w, rec.summary);
+  e.put(rec.wall_seconds);
+  e.put(rec.t_start);
+  e.put(rec.t_end);
+  e.put(static_cast<std::uint64_t>(rec.periods));
+  return std::move(e.bytes);
+}
+
+Recording decode(const std::vector<char>& bytes) {
+  Reading r{Decoder(bytes)};
+  Decoder& d = r.d;
+  Recording rec;
+  std::uint8_t present = 0;
+  d.get(present);
+  if (present & 1) d.get(rec.events.emplace().events);
+  if (present & 2) d.get(rec.contacts.emplace().intervals);
+  if (present & 4) {
+    Samples& samples = rec.samples.emplace(std::vector<double>{});
+    d.get(samples.t);
+    d.get(samples.x);
+    d.get(samples.v);
+  }
+  if (present & 8) {
+    Poincare& poincare = rec.poincare.emplace();
+    d.get(poincare.t);
+    d.get(poincare.x);
+    d.get(poincare.v);
+  }
+  if (present & 16) {
+    PeriodStatistics& statistics = rec.statistics.emplace();
+    d.get(statistics.sticking_fraction);
+    d.get(statistics.impacts);
+  }
+  code_summary(r, rec.summary);
+  d.get(rec.wall_seconds);
+  d.get(rec.t_start);
+  d.get(rec.t_end);
+  std::uint64_t periods = 0;
+  d.get(periods);
+  rec.periods = static_cast<std::size_t>(periods);
+  if (!d.at_end()) throw std::logic_error("runner: a received recording has trailing bytes");
+  return rec;
+}
+
+/// Sleeps between polls: short right after a message, longer (up to 1 ms) while nothing comes.
+class Backoff {
+ public:
+  void wait() {
+    std::this_thread::sleep_for(delay_);
+    delay_ = std::min(delay_ * 2, std::chrono::microseconds(1000));
+  }
+  void reset() { delay_ = std::chrono::microseconds(20); }
+
+ private:
+  std::chrono::microseconds delay_{20};
+};
+
+/// Joins a thread on every way out of a scope.
+class Joining {
+ public:
+  explicit Joining(std::thread& t) : t_(t) {}
+  ~Joining() {
+    if (t_.joinable()) t_.join();
+  }
+  Joining(const Joining&) = delete;
+  Joining& operator=(const Joining&) = delete;
+
+ private:
+  std::thread& t_;
+};
+
+/// The start of the sweep, from rank 0 to all: 0 or the exit code of rank 0's failure to open
+/// the file, the first point to compute and (a followed row cut by an interruption) its state.
+int share_start(int failure, SweepStart& from, Eigen::Index dof) {
+  long long head[3] = {failure, static_cast<long long>(from.first), from.resumed ? 1 : 0};
+  MPI_Bcast(head, 3, MPI_LONG_LONG, 0, MPI_COMM_WORLD);
+  if (head[0] != 0) return static_cast<int>(head[0]);
+  from.first = static_cast<std::size_t>(head[1]);
+  if (head[2] != 0) {
+    std::vector<double> state(static_cast<std::size_t>(1 + 2 * dof));
+    if (from.resumed) {
+      state[0] = from.resumed->t;
+      std::copy(from.resumed->x.data(), from.resumed->x.data() + dof, state.begin() + 1);
+      std::copy(from.resumed->v.data(), from.resumed->v.data() + dof, state.begin() + 1 + dof);
+    }
+    MPI_Bcast(state.data(), static_cast<int>(state.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    from.resumed = StartState{state[0], Eigen::Map<Eigen::VectorXd>(state.data() + 1, dof),
+                              Eigen::Map<Eigen::VectorXd>(state.data() + 1 + dof, dof)};
+  }
+  return 0;
+}
+
+void send_bytes(const std::vector<char>& bytes, int tag_of_pieces) {
+  for (std::size_t at = 0; at < bytes.size(); at += max_piece) {
+    const std::size_t n = std::min(max_piece, bytes.size() - at);
+    MPI_Send(bytes.data() + at, static_cast<int>(n), MPI_BYTE, 0, tag_of_pieces, MPI_COMM_WORLD);
+  }
+}
+
+std::vector<char> receive_bytes(int source, std::size_t size, int tag_of_pieces) {
+  std::vector<char> bytes(size);
+  for (std::size_t at = 0; at < size; at += max_piece) {
+    const std::size_t n = std::min(max_piece, size - at);
+    MPI_Recv(bytes.data() + at, static_cast<int>(n), MPI_BYTE, source, tag_of_pieces, MPI_COMM_WORLD,
+             MPI_STATUS_IGNORE);
+  }
+  return bytes;
+}
+
+RunReport run_rank0(const SweepPlan& plan, const Scene& scene, const RunRequest& request, int threads,
+                    int size, int all_threads) {
+  SweepStart from;
+  std::optional<ResultFile> file;
+  std::exception_ptr failure;
+  int code = 0;
+  try {
+    file.emplace(open_sweep_file(plan, scene, request, all_threads, from));
+  } catch (const SceneError&) {
+    failure = std::current_exception();
+    code = 2;
+  } catch (const ResultError&) {
+    failure = std::current_exception();
+    code = 3;
+  } catch (...) {
+    failure = std::current_exception();
+    code = 1;
+  }
+  share_start(code, from, scene.system.dof());
+  if (failure) std::rethrow_exception(failure);
+
+  SweepWriter writer(*file, plan, from.first, request);
+  ChainDispenser dispenser(from.first / plan.chain_length, plan.chains);
+  const auto wall_start = std::chrono::steady_clock::now();
+  InterruptGuard guard;
+  std::atomic<bool> computed{false};
+  std::thread compute([&] {
+    run_chains(threads, plan, from, dispenser, writer);
+    computed.store(true);
+  });
+  Joining joining(compute);
+  try {
+    int byes = 0;
+    bool stop_sent = false;
+    Backoff idle;
+    while (!(computed.load() && byes == size - 1)) {
+      if (g_interrupted.load() && !stop_sent) {
+        for (int r = 1; r < size; ++r) MPI_Send(nullptr, 0, MPI_BYTE, r, tag::stop, MPI_COMM_WORLD);
+        stop_sent = true;
+      }
+      int flag = 0;
+      MPI_Status status;
+      MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &status);
+      if (!flag) {
+        idle.wait();
+        continue;
+      }
+      idle.reset();
+      const int source = status.MPI_SOURCE;
+      if (status.MPI_TAG == tag::request) {
+        MPI_Recv(nullptr, 0, MPI_BYTE, source, tag::request, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        const std::optional<std::size_t> c = dispenser();
+        const long long chain = c ? static_cast<long long>(*c) : -1;
+        MPI_Send(&chain, 1, MPI_LONG_LONG, source, tag::assign, MPI_COMM_WORLD);
+      } else if (status.MPI_TAG == tag::result) {
+        unsigned long long head[2];
+        MPI_Recv(head, 2, MPI_UNSIGNED_LONG_LONG, source, tag::result, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        const std::size_t point = static_cast<std::size_t>(head[0]);
+        if (point >= plan.total) throw std::logic_error("runner: rank " + std::to_string(source) + " sent point " + std::to_string(point));
+        writer(point, decode(receive_bytes(source, static_cast<std::size_t>(head[1]), tag::result_data)));
+      } else if (status.MPI_TAG == tag::bye) {
+        MPI_Recv(nullptr, 0, MPI_BYTE, source, tag::bye, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        ++byes;
+      } else {
+        throw std::logic_error("runner: unexpected MPI message, tag " + std::to_string(status.MPI_TAG));
+      }
+    }
+    for (int r = 1; r < size; ++r) MPI_Send(nullptr, 0, MPI_BYTE, r, tag::done, MPI_COMM_WORLD);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: MPI sweep: %s\n", e.what());
+    MPI_Abort(MPI_COMM_WORLD, 3);  // the other ranks would wait for rank 0 for ever
+  }
+  compute.join();
+  return writer.report(scene, all_threads, seconds_since(wall_start),
+                       fmt::format("{} processes ({} threads in all)", size, all_threads));
+}
+
+RunReport run_worker(const SweepPlan& plan, const Scene& scene, int threads) {
+  SweepStart from;
+  if (share_start(0, from, scene.system.dof()) != 0) return {};  // rank 0 reports its failure
+
+  struct Message {
+    int tag;
+    std::size_t point;
+    std::vector<char> bytes;
+  };
+  std::mutex lock;
+  std::condition_variable assigned_cv;
+  std::deque<Message> outbox;
+  std::deque<long long> assigned;
+  auto take = [&]() -> std::optional<std::size_t> {
+    if (g_interrupted.load()) return std::nullopt;
+    std::unique_lock<std::mutex> hold(lock);
+    outbox.push_back({tag::request, 0, {}});
+    assigned_cv.wait(hold, [&] { return !assigned.empty(); });
+    const long long chain = assigned.front();
+    assigned.pop_front();
+    if (chain < 0) return std::nullopt;
+    return static_cast<std::size_t>(chain);
+  };
+  auto deliver = [&](std::size_t p, Recording&& rec) {
+    std::vector<char> bytes = encode(rec);
+    std::lock_guard<std::mutex> hold(lock);
+    outbox.push_back({tag::result, p, std::move(bytes)});
+  };
+
+  InterruptGuard guard;
+  std::atomic<bool> computed{false};
+  std::thread compute([&] {
+    run_chains(threads, plan, from, take, deliver);
+    computed.store(true);
+  });
+  Joining joining(compute);
+  Backoff idle;
+  bool bye_sent = false;
+  for (;;) {
+    const bool finished = computed.load();  // before taking the outbox: then it holds everything
+    std::deque<Message> sending;
+    {
+      std::lock_guard<std::mutex> hold(lock);
+      sending.swap(outbox);
+    }
+    for (const Message& m : sending) {
+      if (m.tag == tag::request) {
+        MPI_Send(nullptr, 0, MPI_BYTE, 0, tag::request, MPI_COMM_WORLD);
+      } else {
+        const unsigned long long head[2] = {m.point, m.bytes.size()};
+        MPI_Send(head, 2, MPI_UNSIGNED_LONG_LONG, 0, tag::result, MPI_COMM_WORLD);
+        send_bytes(m.bytes, tag::result_data);
+      }
+    }
+    if (finished && sending.empty() && !bye_sent) {
+      MPI_Send(nullptr, 0, MPI_BYTE, 0, tag::bye, MPI_COMM_WORLD);
+      bye_sent = true;
+    }
+    bool received = false, done = false;
+    for (;;) {
+      int flag = 0;
+      MPI_Status status;
+      MPI_Iprobe(0, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &status);
+      if (!flag) break;
+      received = true;
+      if (status.MPI_TAG == tag::assign) {
+        long long chain = -1;
+        MPI_Recv(&chain, 1, MPI_LONG_LONG, 0, tag::assign, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        {
+          std::lock_guard<std::mutex> hold(lock);
+          assigned.push_back(chain);
+        }
+        assigned_cv.notify_all();
+      } else {
+        MPI_Recv(nullptr, 0, MPI_BYTE, 0, status.MPI_TAG, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        if (status.MPI_TAG == tag::stop) g_interrupted.store(true);
+        if (status.MPI_TAG == tag::done) done = true;
+      }
+    }
+    if (done) break;
+    if (sending.empty() && !received) {
+      idle.wait();
+    } else {
+      idle.reset();
+    }
+  }
+  compute.join();
+  return {};
+}
+
+RunReport run_sweep_mpi(const SweepPlan& plan, const Scene& scene, const RunRequest& request, int threads,
+                        int rank, int size) {
+  int all_threads = 0;
+  MPI_Reduce(&threads, &all_threads, 1, MPI_INT, MPI_SUM, 0, MPI_COMM_WORLD);
+  if (rank == 0) return run_rank0(plan, scene, request, threads, size, all_threads);
+  return run_worker(plan, scene, threads);
+}
+#endif  // VIBRO_WITH_MPI
 
 }  // namespace
 
 RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
+  // Under MPI only sweeps are split across the processes; any other run is rank 0's alone.
+  if (scene.run.kind != RunSpec::Kind::sweep && world().first != 0) return {};
   if (scene.run.kind == RunSpec::Kind::sweep) return run_sweep(doc, scene, request);
   if (scene.run.kind == RunSpec::Kind::locate && !request.resume) return run_locate(doc, scene, request);
   if (request.resume)
     throw SceneError(scene.file, 1, 1, "run.kind", "--resume continues an interrupted sweep; this scene is not a sweep");
   return run_simulation(scene, request);
+}
+
+}  // namespace vibro::io
+
+namespace vibro::io {
+
+ProcessGroup::ProcessGroup(int& argc, char**& argv) {
+#ifdef VIBRO_WITH_MPI
+  const bool launched = std::getenv("OMPI_COMM_WORLD_SIZE") != nullptr || std::getenv("PMI_SIZE") != nullptr ||
+                        std::getenv("PMIX_RANK") != nullptr;
+  int initialized = 0;
+  MPI_Initialized(&initialized);
+  if (launched && !initialized) {
+    int provided = 0;
+    MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
+    started_ = true;
+  }
+  std::tie(rank_, size_) = world();
+#else
+  (void)argc;
+  (void)argv;
+#endif
+}
+
+ProcessGroup::~ProcessGroup() {
+#ifdef VIBRO_WITH_MPI
+  int finalized = 0;
+  MPI_Finalized(&finalized);
+  if (started_ && !finalized) MPI_Finalize();
+#endif
 }
 
 }  // namespace vibro::io

@@ -14,6 +14,17 @@
 /// 1-D followed sweep are therefore sequential, and a 2-D followed sweep follows along its second
 /// parameter with its rows in parallel. Ctrl-C (SIGINT) or SIGTERM stops taking new points,
 /// writes the finished ones and leaves OUT.partial for `--resume`.
+///
+/// MPI (a build that found MPI, started by `mpirun -np K`): the same sweep is split across K
+/// processes, each running its points on its own OpenMP threads. Every process builds and
+/// validates every point; rank 0 alone touches the file. It hands out units of work on request
+/// (one point, or one followed row, at a time: dynamic load balancing), computes points itself
+/// on its threads meanwhile, receives the other ranks' recordings and writes them in grid order
+/// through the same code as a one-process run, so the file's data are bit for bit the same.
+/// A 1-D followed sweep is one unit (it runs on one thread of one process); a 2-D followed sweep
+/// is split by rows. Interruption, `--resume`, validation before writing and `.partial` +
+/// rename are as above. Only /meta's `threads` (the sum over the processes), `wall_time` and
+/// `date` differ from a one-process run, as they do between any two runs.
 #include "vibro/io/scene.hpp"
 
 #include <string>
@@ -36,7 +47,31 @@ struct RunReport {
 };
 
 /// `doc` is the (already --set) scene document, `scene` its build(). Throws SceneError for bad
-/// input found while preparing sweep points (before any file is created).
+/// input found while preparing sweep points (before any file is created). Under MPI every
+/// process calls it with the same arguments; the ranks other than 0 write nothing and return
+/// exit code 0 and an empty summary (rank 0's report is the run's).
 RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunRequest& request);
+
+/// The processes of this run. In a build with MPI, MPI is started (MPI_THREAD_FUNNELED) only
+/// when the process was launched by an MPI launcher, which sets OMPI_COMM_WORLD_SIZE (Open MPI)
+/// or PMI_SIZE / PMIX_RANK (MPICH, PMIx launchers); a plain `vibro run` never starts MPI. Make
+/// one in main() before anything else; the destructor ends MPI. Without MPI: rank 0 of 1.
+///     int main(int argc, char** argv) {
+///       const vibro::io::ProcessGroup processes(argc, argv);
+///       ...  // run_scene(...) on every process; print only if processes.rank() == 0
+///     }
+class ProcessGroup {
+ public:
+  ProcessGroup(int& argc, char**& argv);
+  ~ProcessGroup();
+  ProcessGroup(const ProcessGroup&) = delete;
+  ProcessGroup& operator=(const ProcessGroup&) = delete;
+  int rank() const { return rank_; }
+  int size() const { return size_; }
+
+ private:
+  int rank_ = 0, size_ = 1;
+  bool started_ = false;  ///< this object started MPI and ends it
+};
 
 }  // namespace vibro::io
