@@ -55,25 +55,30 @@ class Continuation {
 
   /// The periodic orbit at p, starting from `from`'s final state (at the same forcing phase).
   ScanPoint from(const ScanPoint& previous, double p) {
-    const double t = same_phase(previous.orbit.t_start, omega(previous), omega_of(p));
-    return at(p, t, previous.orbit.x, previous.orbit.v, options_.orbit.min_periods);
+    const ImpactSystem system = family_(p);  // built once: a family may parse a scene per call
+    const double t = same_phase(previous.orbit.t_start, omega(previous),
+                                system.system().forcing().frequency);
+    return solve(p, system, t, previous.orbit.x, previous.orbit.v, options_.orbit.min_periods);
   }
 
   ScanPoint at(double p, double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                long min_periods) {
+    return solve(p, family_(p), t0, x0, v0, min_periods);
+  }
+
+  long computed = 0;
+
+ private:
+  ScanPoint solve(double p, const ImpactSystem& system, double t0, const Eigen::VectorXd& x0,
+                  const Eigen::VectorXd& v0, long min_periods) {
     OrbitOptions o = options_.orbit;
     o.min_periods = min_periods;
     o.max_periods = std::max(o.max_periods, min_periods + o.max_period + 1);
     ++computed;
-    return {p, find_periodic_orbit(family_(p), o, t0, x0, v0)};
+    return {p, find_periodic_orbit(system, o, t0, x0, v0)};
   }
 
-  std::size_t stops(double p) const { return family_(p).stops().size(); }
-  long computed = 0;
-
- private:
   double omega(const ScanPoint& s) const { return 2.0 * std::numbers::pi / s.orbit.period; }
-  double omega_of(double p) const { return family_(p).system().forcing().frequency; }
 
   const SystemFamily& family_;
   const ScanOptions& options_;
