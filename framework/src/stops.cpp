@@ -1,6 +1,9 @@
 #include "vibro/stops.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 #include <sstream>
 
 namespace vibro {
@@ -74,11 +77,9 @@ double Stop::s_sin() const {
   return kind == Kind::lower ? -v : v;
 }
 
-ImpactSystem::ImpactSystem(LinearSystem system, std::vector<Stop> stops)
-    : system_(std::move(system)), stops_(std::move(stops)) {
-  const Eigen::Index n = system_.dof();
-  for (std::size_t j = 0; j < stops_.size(); ++j) {
-    Stop& s = stops_[j];
+std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, double frequency) {
+  for (std::size_t j = 0; j < stops.size(); ++j) {
+    Stop& s = stops[j];
     if (s.name.empty()) {
       s.name = std::string(kind_name(s.kind)) + " x" + std::to_string(s.mass);
       if (s.kind == Stop::Kind::between) s.name += "-x" + std::to_string(s.other);
@@ -104,34 +105,90 @@ ImpactSystem::ImpactSystem(LinearSystem system, std::vector<Stop> stops)
       throw InvalidInput(who + ": amplitude is " + number_text(s.amplitude) + ": must be finite and ≥ 0");
     if (!std::isfinite(s.phase))
       throw InvalidInput(who + ": phase is " + number_text(s.phase) + ": must be finite");
-    if (s.amplitude > 0.0 && system_.forcing().frequency == 0.0)
+    if (s.amplitude > 0.0 && frequency == 0.0)
       throw InvalidInput(who + ": a moving stop needs a forcing frequency > 0 (it moves at Ω)");
   }
+
+  // Duplicates (same normal, same side) and contradictions (opposite normals leaving no room).
+  // A normal has one or two nonzero entries ±1; as sorted (index, sign) pairs it is a key, and
+  // only stops with equal or opposite keys can conflict. The pairs are checked in the order
+  // (j, k), j < k, that a check of all pairs would take, so the first conflict reported is the
+  // same.
+  using Key = std::array<long long, 4>;  // (index, sign, index, sign); (-1, 0) when unused
+  auto key_of = [](const Stop& s, int flip) {
+    const int sign = (s.kind == Stop::Kind::lower ? -1 : 1) * flip;
+    Key key{static_cast<long long>(s.mass), sign, -1, 0};
+    if (s.kind == Stop::Kind::between) {
+      key[2] = static_cast<long long>(s.other);
+      key[3] = -sign;
+      if (key[2] < key[0]) key = {key[2], key[3], key[0], key[1]};
+    }
+    return key;
+  };
+  std::map<Key, std::vector<std::size_t>> by_key;
+  for (std::size_t j = 0; j < stops.size(); ++j) by_key[key_of(stops[j], 1)].push_back(j);
+  for (std::size_t j = 0; j < stops.size(); ++j) {
+    std::vector<std::size_t> later;
+    for (int flip : {1, -1}) {
+      const auto it = by_key.find(key_of(stops[j], flip));
+      if (it == by_key.end()) continue;
+      for (std::size_t k : it->second)
+        if (k > j) later.push_back(k);
+    }
+    std::sort(later.begin(), later.end());
+    for (std::size_t k : later) {
+      const Stop& a = stops[j];
+      const Stop& b = stops[k];
+      if (key_of(a, 1) == key_of(b, 1))
+        throw InvalidInput(label(b, k) + ": duplicates " + label(a, j) +
+                           " (same coordinate, same side); keep one stop per side");
+      // g_j = w x - s_j ≤ 0 and g_k = -w x - s_k ≤ 0 need -s_k ≤ w x ≤ s_j at all times.
+      const double room = a.s0() + b.s0() - a.amplitude - b.amplitude;
+      if (!(room > 0.0))
+        throw InvalidInput(label(a, j) + " and " + label(b, k) +
+                           " leave no room between them (clearance " + number_text(a.s0() + b.s0()) +
+                           ", stop amplitudes " + number_text(a.amplitude) + " + " + number_text(b.amplitude) +
+                           "): the clearance must stay positive");
+    }
+  }
+  return stops;
+}
+
+double stop_gap(const Stop& s, double frequency, double t, const Eigen::Ref<const Eigen::VectorXd>& x) {
+  double wx = 0.0;
+  switch (s.kind) {
+    case Stop::Kind::upper: wx = x(s.mass); break;
+    case Stop::Kind::lower: wx = -x(s.mass); break;
+    case Stop::Kind::between: wx = x(s.mass) - x(s.other); break;
+  }
+  return wx - (s.s0() + s.s_cos() * std::cos(frequency * t) + s.s_sin() * std::sin(frequency * t));
+}
+
+double stops_length_scale(const std::vector<Stop>& stops, double extra) {
+  double L = std::abs(extra);
+  for (const Stop& s : stops) L = std::max({L, std::abs(s.position), s.amplitude});
+  return std::max(L, 1e-300);
+}
+
+void check_admissible(const std::vector<Stop>& stops, double frequency, double t,
+                      const Eigen::Ref<const Eigen::VectorXd>& x, double tolerance) {
+  for (std::size_t j = 0; j < stops.size(); ++j) {
+    const double g = stop_gap(stops[j], frequency, t, x);
+    if (g > tolerance)
+      throw InvalidInput("initial state violates " + label(stops[j], j) + " by " + number_text(g) +
+                         " at t = " + number_text(t) + " (x" + std::to_string(stops[j].mass) + " = " +
+                         number_text(x(stops[j].mass)) + ", stop position " +
+                         number_text(stops[j].position) + ")");
+  }
+}
+
+ImpactSystem::ImpactSystem(LinearSystem system, std::vector<Stop> stops)
+    : system_(std::move(system)),
+      stops_(validated_stops(std::move(stops), system_.dof(), system_.forcing().frequency)) {
+  const Eigen::Index n = system_.dof();
   normals_.resize(n, static_cast<Eigen::Index>(stops_.size()));
   for (std::size_t j = 0; j < stops_.size(); ++j)
     normals_.col(static_cast<Eigen::Index>(j)) = stops_[j].normal(n);
-
-  // Duplicates (same normal, same side) and contradictions (opposite normals leaving no room).
-  for (std::size_t j = 0; j < stops_.size(); ++j) {
-    for (std::size_t k = j + 1; k < stops_.size(); ++k) {
-      const auto wj = normals_.col(static_cast<Eigen::Index>(j));
-      const auto wk = normals_.col(static_cast<Eigen::Index>(k));
-      const Stop& a = stops_[j];
-      const Stop& b = stops_[k];
-      if ((wj - wk).cwiseAbs().maxCoeff() == 0.0)
-        throw InvalidInput(label(b, k) + ": duplicates " + label(a, j) +
-                           " (same coordinate, same side); keep one stop per side");
-      if ((wj + wk).cwiseAbs().maxCoeff() == 0.0) {
-        // g_j = w x - s_j ≤ 0 and g_k = -w x - s_k ≤ 0 need -s_k ≤ w x ≤ s_j at all times.
-        const double room = a.s0() + b.s0() - a.amplitude - b.amplitude;
-        if (!(room > 0.0))
-          throw InvalidInput(label(a, j) + " and " + label(b, k) +
-                             " leave no room between them (clearance " + number_text(a.s0() + b.s0()) +
-                             ", stop amplitudes " + number_text(a.amplitude) + " + " + number_text(b.amplitude) +
-                             "): the clearance must stay positive");
-      }
-    }
-  }
 }
 
 Eigen::VectorXd ImpactSystem::gaps(double t, const Eigen::Ref<const Eigen::VectorXd>& x) const {
@@ -154,21 +211,11 @@ Eigen::VectorXd ImpactSystem::gap_rates(double t, const Eigen::Ref<const Eigen::
   return g;
 }
 
-double ImpactSystem::length_scale(double extra) const {
-  double L = std::abs(extra);
-  for (const Stop& s : stops_) L = std::max({L, std::abs(s.position), s.amplitude});
-  return std::max(L, 1e-300);
-}
+double ImpactSystem::length_scale(double extra) const { return stops_length_scale(stops_, extra); }
 
 void ImpactSystem::check_admissible(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
                                     double tolerance) const {
-  const Eigen::VectorXd g = gaps(t, x);
-  for (std::size_t j = 0; j < stops_.size(); ++j)
-    if (g(static_cast<Eigen::Index>(j)) > tolerance)
-      throw InvalidInput("initial state violates " + label(stops_[j], j) + " by " +
-                         number_text(g(static_cast<Eigen::Index>(j))) + " at t = " + number_text(t) +
-                         " (x" + std::to_string(stops_[j].mass) + " = " + number_text(x(stops_[j].mass)) +
-                         ", stop position " + number_text(stops_[j].position) + ")");
+  vibro::check_admissible(stops_, system_.forcing().frequency, t, x, tolerance);
 }
 
 }  // namespace vibro

@@ -47,10 +47,18 @@ def check_scene(f, dof, stops):
     scene = f["scene"]
     for name in ("yaml", "file", "frequency", "period", "periods"):
         check(name in scene.attrs, f"/scene: attribute {name} missing")
-    n = scene["mass"].shape[0]
-    check(dof is None or n == dof, f"/scene/mass: {n} DOF, expected {dof}")
-    for name in ("mass", "damping", "stiffness"):
-        check(scene[name].shape == (n, n), f"/scene/{name}: shape {scene[name].shape}")
+    engine = text(f["meta"].attrs.get("engine", "dense"))
+    if engine == "modal":  # the chain in banded form (docs/results.md)
+        n = scene["mass_diagonal"].shape[0]
+        check(dof is None or n == dof, f"/scene/mass_diagonal: {n} DOF, expected {dof}")
+        check(scene["stiffness_diagonal"].shape == (n,), "/scene/stiffness_diagonal: shape")
+        check(scene["stiffness_off_diagonal"].shape == (n - 1,), "/scene/stiffness_off_diagonal: shape")
+        check(scene["rayleigh"].shape == (2,), "/scene/rayleigh: shape")
+    else:
+        n = scene["mass"].shape[0]
+        check(dof is None or n == dof, f"/scene/mass: {n} DOF, expected {dof}")
+        for name in ("mass", "damping", "stiffness"):
+            check(scene[name].shape == (n, n), f"/scene/{name}: shape {scene[name].shape}")
     for name in ("forcing_constant", "forcing_cosine", "forcing_sine", "x0", "v0"):
         check(scene[name].shape == (n,), f"/scene/{name}: shape {scene[name].shape}")
     m = scene["stop_kind"].shape[0]

@@ -40,14 +40,16 @@ Scene make_scene(double frequency, RecordSpec record, RunSpec run) {
   return Scene{.file = "<test>",
                .yaml_text = kYaml,
                .name = "wagg2004 by hand",
-               .system = LinearSystem(M, C, K, f),
+               .dense = LinearSystem(M, C, K, f),
+               .chain = std::nullopt,
                .stops = std::move(stops),
                .t0 = 0.0,
                .x0 = Eigen::Vector2d(0.0, 0.05),
                .v0 = Eigen::Vector2d::Zero(),
                .solver = {},
                .record = std::move(record),
-               .run = std::move(run)};
+               .run = std::move(run),
+               .engine_reason = "a test scene made in code"};
 }
 
 RecordSpec record_everything() {
@@ -263,9 +265,9 @@ TEST_CASE("A simulation's recording comes back bit for bit", "[results]") {
     CHECK(r.attribute_string("/scene", "yaml") == kYaml);
     CHECK(r.attribute_string("/scene", "file") == "<test>");
     CHECK(r.attribute_number("/scene", "frequency") == 0.255);
-    CHECK(r.read_matrix("/scene/stiffness") == scene.system.stiffness());
-    CHECK(r.read_matrix("/scene/damping") == scene.system.damping());
-    CHECK(r.read_matrix("/scene/mass") == scene.system.mass());
+    CHECK(r.read_matrix("/scene/stiffness") == scene.system().stiffness());
+    CHECK(r.read_matrix("/scene/damping") == scene.system().damping());
+    CHECK(r.read_matrix("/scene/mass") == scene.system().mass());
     CHECK(r.read("/scene/forcing_cosine") == std::vector<double>{0.5, 0.0});
     CHECK(r.read_integers("/scene/stop_kind") == std::vector<std::int64_t>{1, 0});
     CHECK(r.read("/scene/stop_position") == std::vector<double>{-0.3, 0.1});

@@ -107,16 +107,16 @@ TEST_CASE("the fig. 2 scene is the system of Wagg (2004), section 3", "[scene]")
 
   CHECK(s.file == kFig2);
   CHECK(s.name == "wagg2004-fig2");
-  REQUIRE(s.system.dof() == 2);
+  REQUIRE(s.system().dof() == 2);
 
   // m1 = m2 = 1, k1 = k2 = 1 (k1 the left-wall spring, k2 the link), c1 = c2 = 0.1.
   const Eigen::Matrix2d E = (Eigen::Matrix2d() << 2.0, -1.0, -1.0, 1.0).finished();
-  CHECK(s.system.mass() == Eigen::MatrixXd(Eigen::Matrix2d::Identity()));
-  CHECK(s.system.stiffness() == Eigen::MatrixXd(1.0 * E));
-  CHECK(s.system.damping() == Eigen::MatrixXd(0.1 * E));
+  CHECK(s.system().mass() == Eigen::MatrixXd(Eigen::Matrix2d::Identity()));
+  CHECK(s.system().stiffness() == Eigen::MatrixXd(1.0 * E));
+  CHECK(s.system().damping() == Eigen::MatrixXd(0.1 * E));
 
   // f(t) = (A1, A2) cos Ωt with A1 = 0.5, A2 = 0, Ω = 0.255.
-  const vibro::HarmonicForcing& f = s.system.forcing();
+  const vibro::HarmonicForcing& f = s.system().forcing();
   CHECK(f.frequency == 0.255);
   CHECK(f.cosine == Eigen::VectorXd(Eigen::Vector2d(0.5, 0.0)));
   CHECK(f.sine == Eigen::VectorXd(Eigen::Vector2d::Zero()));
@@ -158,9 +158,9 @@ TEST_CASE("the fig. 2 scene is the system of Wagg (2004), section 3", "[scene]")
 
   // The same system as the C++ builder of the paper's parameters.
   const vibro::ImpactSystem paper = vibro::models::wagg2004();
-  CHECK(s.system.mass() == paper.system().mass());
-  CHECK(s.system.damping() == paper.system().damping());
-  CHECK(s.system.stiffness() == paper.system().stiffness());
+  CHECK(s.system().mass() == paper.system().mass());
+  CHECK(s.system().damping() == paper.system().damping());
+  CHECK(s.system().stiffness() == paper.system().stiffness());
   CHECK(s.impact_system().normals() == paper.normals());
   for (std::size_t j = 0; j < 2; ++j) {
     CHECK(s.stops[j].s0() == paper.stops()[j].s0());
@@ -204,14 +204,14 @@ TEST_CASE("set and get change exactly the value a path names", "[scene]") {
   CHECK(doc.get("forcing.cosine[0]") == 0.45);
 
   const Scene s = doc.build();
-  CHECK(s.system.forcing().frequency == 0.26);
-  CHECK(s.system.forcing().cosine(0) == 0.45);
+  CHECK(s.system().forcing().frequency == 0.26);
+  CHECK(s.system().forcing().cosine(0) == 0.45);
   CHECK(s.stops[1].position == 0.12);
   CHECK(s.stops[0].restitution == 0.6);
   CHECK(s.stops[1].restitution == 0.7);  // untouched
-  CHECK(s.system.mass()(1, 1) == 2.0);
-  CHECK(s.system.mass()(0, 0) == 1.0);
-  CHECK(s.system.damping()(0, 0) == 0.2);
+  CHECK(s.system().mass()(1, 1) == 2.0);
+  CHECK(s.system().mass()(0, 0) == 1.0);
+  CHECK(s.system().damping()(0, 0) == 0.2);
 }
 
 TEST_CASE("set, get and set_assignment reject bad paths and values", "[scene]") {
@@ -291,8 +291,8 @@ TEST_CASE("a copied document is independent of the original", "[scene]") {
   CHECK(original.get("forcing.frequency") == 0.255);
   CHECK(original.get("stops[0].position") == -0.3);
   CHECK(copy.get("forcing.frequency") == 0.26);
-  CHECK(original.build().system.forcing().frequency == 0.255);
-  CHECK(copy.build().system.forcing().frequency == 0.26);
+  CHECK(original.build().system().forcing().frequency == 0.255);
+  CHECK(copy.build().system().forcing().frequency == 0.26);
 
   SceneDocument assigned = SceneDocument::parse("model: {chain: {masses: [1]}}\n");
   assigned = copy;
@@ -385,13 +385,13 @@ TEST_CASE("the expectation lines of the malformed suite parse", "[scene]") {
 
 TEST_CASE("the three-mass chain example loads as described", "[scene]") {
   const Scene s = SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/examples/three_mass_chain.yaml").build();
-  REQUIRE(s.system.dof() == 3);
+  REQUIRE(s.system().dof() == 3);
   Eigen::Matrix3d K;
   K << 2, -1, 0, -1, 2, -1, 0, -1, 1;
-  CHECK(s.system.stiffness() == Eigen::MatrixXd(K));
-  CHECK(s.system.damping() == Eigen::MatrixXd(0.05 * K));
-  CHECK(s.system.forcing().frequency == 0.5);
-  CHECK(s.system.forcing().cosine == Eigen::VectorXd(Eigen::Vector3d(0.2, 0.0, 0.0)));  // mass 0 only
+  CHECK(s.system().stiffness() == Eigen::MatrixXd(K));
+  CHECK(s.system().damping() == Eigen::MatrixXd(0.05 * K));
+  CHECK(s.system().forcing().frequency == 0.5);
+  CHECK(s.system().forcing().cosine == Eigen::VectorXd(Eigen::Vector3d(0.2, 0.0, 0.0)));  // mass 0 only
   REQUIRE(s.stops.size() == 2);
   CHECK(s.stops[0].kind == Stop::Kind::between);
   CHECK(s.stops[0].mass == 1);
@@ -407,9 +407,9 @@ TEST_CASE("the three-mass sweep example sweeps Ω over 41 points, following", "[
   const Scene s = SceneDocument::load(path).build();
   const Scene chain =
       SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/examples/three_mass_chain.yaml").build();
-  CHECK(s.system.mass() == chain.system.mass());
-  CHECK(s.system.stiffness() == chain.system.stiffness());
-  CHECK(s.system.damping() == chain.system.damping());
+  CHECK(s.system().mass() == chain.system().mass());
+  CHECK(s.system().stiffness() == chain.system().stiffness());
+  CHECK(s.system().damping() == chain.system().damping());
   CHECK(s.stops.size() == chain.stops.size());
   CHECK(s.run.kind == vibro::io::RunSpec::Kind::sweep);
   CHECK(s.run.follow);
@@ -427,6 +427,6 @@ TEST_CASE("the three-mass sweep example sweeps Ω over 41 points, following", "[
   SceneDocument doc = SceneDocument::load(path);
   for (const double w : {axis.values.front(), axis.values[20], axis.values.back()}) {
     doc.set(axis.path, w);
-    CHECK(doc.build().system.forcing().frequency == w);
+    CHECK(doc.build().system().forcing().frequency == w);
   }
 }

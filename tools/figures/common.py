@@ -116,7 +116,15 @@ def read_scene(f):
     s = f["scene"]
     a = s.attrs
     kinds = list(s["stop_kind"].attrs["names"])
-    return Scene(M=s["mass"][()], C=s["damping"][()], K=s["stiffness"][()],
+    if "mass" in s:
+        M, C, K = s["mass"][()], s["damping"][()], s["stiffness"][()]
+    else:  # modal engine: the chain in banded form (docs/results.md); dense here, for figures
+        M = np.diag(s["mass_diagonal"][()])
+        off = s["stiffness_off_diagonal"][()]
+        K = np.diag(s["stiffness_diagonal"][()]) + np.diag(off, 1) + np.diag(off, -1)
+        alpha, beta = s["rayleigh"][()]
+        C = alpha * M + beta * K
+    return Scene(M=M, C=C, K=K,
                  F0=s["forcing_constant"][()], Fc=s["forcing_cosine"][()], Fs=s["forcing_sine"][()],
                  omega=float(a["frequency"]), period=float(a["period"]),
                  stop_kind=[kinds[k] for k in s["stop_kind"][()]], stop_mass=s["stop_mass"][()],

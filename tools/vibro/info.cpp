@@ -34,13 +34,61 @@ std::string set_text(const ContactSet& s) {
   return out + "}";
 }
 
+std::string stops_text(const io::Scene& scene) {
+  std::string out = "\nStops (g = w·x - s(t) ≤ 0):\n";
+  for (std::size_t j = 0; j < scene.stops.size(); ++j) {
+    const Stop& s = scene.stops[j];
+    const char* kind = s.kind == Stop::Kind::upper ? "upper" : s.kind == Stop::Kind::lower ? "lower" : "between";
+    out += fmt::format("  [{}] {:<20} {:<7} mass {}{}  at {:.6g}  r = {:.6g}{}\n", j, s.name, kind, s.mass,
+                       s.kind == Stop::Kind::between ? fmt::format(" - mass {}", s.other) : "", s.position,
+                       s.restitution,
+                       s.amplitude > 0 ? fmt::format("  moving ±{:.6g} phase {:.6g}", s.amplitude, s.phase) : "");
+  }
+  return out;
+}
+
+/// A scene for the modal engine: its chain's natural frequencies from the tridiagonal
+/// A = M^{-1/2} K M^{-1/2} (eigenvalues only: O(n²) time, O(n) memory; no mode shapes, no dense
+/// matrices, no contact sets — those are the dense engine's).
+std::string describe_modal(const io::Scene& scene) {
+  const BandedChain& chain = *scene.chain;
+  const Eigen::Index n = chain.dof();
+  const Eigen::VectorXd inv_sqrt_m = chain.mass.cwiseSqrt().cwiseInverse();
+  const Eigen::VectorXd diag = chain.stiffness_diagonal.cwiseProduct(inv_sqrt_m.cwiseAbs2());
+  Eigen::VectorXd off(std::max<Eigen::Index>(n - 1, 0));
+  for (Eigen::Index i = 0; i + 1 < n; ++i) off(i) = chain.stiffness_off(i) * inv_sqrt_m(i) * inv_sqrt_m(i + 1);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig;
+  eig.computeFromTridiagonal(diag, off, Eigen::EigenvaluesOnly);
+  std::string out = fmt::format(
+      "\nChain in banded form: M diagonal, K tridiagonal, C = αM + βK with α = {:.6g}, β = {:.6g}\n",
+      chain.rayleigh_mass, chain.rayleigh_stiffness);
+  out += "Natural frequencies (undamped, rad per unit time) and modal damping ratios ζ = (α/ω + βω)/2";
+  const Eigen::Index shown = 8;
+  out += n > 2 * shown ? fmt::format(" (the {} lowest and {} highest of {}):\n", shown, shown, n) : ":\n";
+  for (Eigen::Index j = 0; j < n; ++j) {
+    if (n > 2 * shown && j == shown) out += "  …\n";
+    if (n > 2 * shown && j >= shown && j < n - shown) continue;
+    const double w = std::sqrt(std::max(0.0, eig.eigenvalues()(j)));
+    out += fmt::format("  mode {}: ω = {:.12g}   ζ = {:.6g}\n", j, w,
+                       w > 0 ? (chain.rayleigh_mass / w + chain.rayleigh_stiffness * w) / 2 : 0.0);
+  }
+  const HarmonicForcing& f = scene.forcing();
+  Eigen::Index driven = 0;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (f.constant(i) != 0.0 || f.cosine(i) != 0.0 || f.sine(i) != 0.0) ++driven;
+  out += fmt::format("Forcing: Ω = {:.12g}, on {} of the {} masses\n", f.frequency, driven, n);
+  return out + stops_text(scene);
+}
+
 }  // namespace
 
 std::string describe_scene(const io::Scene& scene) {
-  const LinearSystem& sys = scene.system;
-  const Eigen::Index n = sys.dof();
   std::string out = fmt::format("Scene {}{}: {} degrees of freedom, {} stops\n", scene.file,
-                                scene.name.empty() ? "" : " (" + scene.name + ")", n, scene.stops.size());
+                                scene.name.empty() ? "" : " (" + scene.name + ")", scene.dof(), scene.stops.size());
+  out += fmt::format("Engine: {} ({})\n", to_string(scene.engine), scene.engine_reason);
+  if (scene.engine == io::Engine::modal) return out + describe_modal(scene);
+  const LinearSystem& sys = scene.system();
+  const Eigen::Index n = sys.dof();
 
   // Undamped modes K φ = ω² M φ, mass-normalised; modal damping φᵀCφ = 2 ζ ω where C is
   // proportional (ΦᵀCΦ diagonal), else the damping ratios of the complex eigenvalues.
@@ -61,15 +109,7 @@ std::string describe_scene(const io::Scene& scene) {
                      vector_text(sys.forcing().constant), vector_text(sys.forcing().cosine),
                      vector_text(sys.forcing().sine));
 
-  out += "\nStops (g = w·x - s(t) ≤ 0):\n";
-  for (std::size_t j = 0; j < scene.stops.size(); ++j) {
-    const Stop& s = scene.stops[j];
-    const char* kind = s.kind == Stop::Kind::upper ? "upper" : s.kind == Stop::Kind::lower ? "lower" : "between";
-    out += fmt::format("  [{}] {:<20} {:<7} mass {}{}  at {:.6g}  r = {:.6g}{}\n", j, s.name, kind, s.mass,
-                       s.kind == Stop::Kind::between ? fmt::format(" - mass {}", s.other) : "", s.position,
-                       s.restitution,
-                       s.amplitude > 0 ? fmt::format("  moving ±{:.6g} phase {:.6g}", s.amplitude, s.phase) : "");
-  }
+  out += stops_text(scene);
 
   const ImpactSystem impact = scene.impact_system();
   ContactModes modes(impact);

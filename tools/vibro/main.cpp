@@ -25,8 +25,9 @@ namespace {
 
 std::string resolved(const vibro::io::Scene& s) {
   std::string out = fmt::format("scene {} is valid\n", s.file);
-  out += fmt::format("  degrees of freedom: {}, stops: {}\n", s.system.dof(), s.stops.size());
-  out += fmt::format("  forcing frequency: {:.12g} (period {:.12g})\n", s.system.forcing().frequency, s.period());
+  out += fmt::format("  degrees of freedom: {}, stops: {}\n", s.dof(), s.stops.size());
+  out += fmt::format("  engine: {} ({})\n", to_string(s.engine), s.engine_reason);
+  out += fmt::format("  forcing frequency: {:.12g} (period {:.12g})\n", s.forcing().frequency, s.period());
   out += fmt::format("  initial: t = {:.12g}\n", s.t0);
   const auto& o = s.solver;
   out += fmt::format("  solver: trigger {:g}, simultaneity {:g}, chatter_height {:g}, chatter_velocity {:g}, "

@@ -51,6 +51,21 @@ struct Stop {
   double s_sin() const;
 };
 
+/// The checks of ImpactSystem's constructor, without a LinearSystem and without the n × m matrix
+/// of normals: O(m log m) for m stops on n degrees of freedom, forcing frequency Ω. Gives unnamed
+/// stops their default names ("upper x3", "between x3-x4") and returns them; throws InvalidInput
+/// with the same messages as ImpactSystem (for long chains, whose dense system is never built).
+std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, double frequency);
+
+/// g_j(x, t) = w_jᵀ x - s_j(t) of one stop, O(1).
+double stop_gap(const Stop& stop, double frequency, double t,
+                const Eigen::Ref<const Eigen::VectorXd>& x);
+
+/// ImpactSystem::length_scale and ImpactSystem::check_admissible for validated stops, O(m).
+double stops_length_scale(const std::vector<Stop>& stops, double extra = 0.0);
+void check_admissible(const std::vector<Stop>& stops, double frequency, double t,
+                      const Eigen::Ref<const Eigen::VectorXd>& x, double tolerance);
+
 /// A LinearSystem with its stops, validated together.
 class ImpactSystem {
  public:

@@ -148,7 +148,7 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
   options.first_transient = static_cast<long>(std::ceil(scene.run.transient_periods));
   options.tolerance = spec.tolerance;
   options.jump = spec.jump;
-  const std::size_t n = static_cast<std::size_t>(scene.system.dof());
+  const std::size_t n = static_cast<std::size_t>(scene.dof());
   const std::size_t m = scene.stops.size();
 
   ResultFile file = ResultFile::create(request.output, scene, current_meta(request.threads));

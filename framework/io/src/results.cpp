@@ -64,7 +64,7 @@ Recording Recording::for_scene(const Scene& scene, double t_start) {
   rec.t_end = t_start + periods * scene.period();
   rec.periods = static_cast<std::size_t>(std::max(0.0, std::ceil(periods - 1e-9)));
 
-  const bool forced = scene.system.forcing().frequency > 0.0;
+  const bool forced = scene.forcing().frequency > 0.0;
   if (spec.statistics && !forced)
     throw InvalidInput("record.statistics: per-period statistics need a forcing frequency > 0");
   if (spec.poincare && !forced)
@@ -830,18 +830,29 @@ void require_finite(const std::string& file, const std::string& dataset, const C
 }
 
 /// The resolved scene as datasets of /scene.
+/// A scene run by the modal engine gives its chain in banded form (O(n)): its dense matrices are
+/// never built (at n = 10 000 each would take 800 MB).
 std::vector<Column> scene_columns(const Scene& scene) {
-  const ImpactSystem system = scene.impact_system();  // stop names defaulted as in messages
-  const LinearSystem& s = system.system();
   std::vector<Column> c;
-  c.push_back(matrix_column("mass", s.mass()));
-  c.push_back(matrix_column("damping", s.damping()));
-  c.push_back(matrix_column("stiffness", s.stiffness()));
-  c.push_back(vector_column("forcing_constant", s.forcing().constant));
-  c.push_back(vector_column("forcing_cosine", s.forcing().cosine));
-  c.push_back(vector_column("forcing_sine", s.forcing().sine));
+  if (scene.engine == Engine::modal && scene.chain) {
+    const BandedChain& chain = *scene.chain;
+    c.push_back(vector_column("mass_diagonal", chain.mass));
+    c.push_back(vector_column("stiffness_diagonal", chain.stiffness_diagonal));
+    c.push_back(vector_column("stiffness_off_diagonal", chain.stiffness_off));
+    c.push_back(vector_column("rayleigh", Eigen::Vector2d(chain.rayleigh_mass, chain.rayleigh_stiffness)));
+  } else {
+    const LinearSystem& s = scene.system();
+    c.push_back(matrix_column("mass", s.mass()));
+    c.push_back(matrix_column("damping", s.damping()));
+    c.push_back(matrix_column("stiffness", s.stiffness()));
+  }
+  const HarmonicForcing& f = scene.forcing();
+  c.push_back(vector_column("forcing_constant", f.constant));
+  c.push_back(vector_column("forcing_cosine", f.cosine));
+  c.push_back(vector_column("forcing_sine", f.sine));
 
-  const std::vector<Stop>& stops = system.stops();
+  // Stop names defaulted as in messages (a Scene made in code may leave them empty).
+  const std::vector<Stop> stops = validated_stops(scene.stops, scene.dof(), f.frequency);
   const hsize_t m = stops.size();
   std::vector<std::int32_t> kind;
   std::vector<std::int64_t> mass, other;
@@ -876,7 +887,7 @@ std::vector<Column> scene_columns(const Scene& scene) {
 
 /// Numeric attributes of /scene (the resolved run settings).
 std::vector<std::pair<std::string, double>> scene_numbers(const Scene& scene) {
-  return {{"frequency", scene.system.forcing().frequency},
+  return {{"frequency", scene.forcing().frequency},
           {"t0", scene.t0},
           {"transient_periods", scene.run.transient_periods},
           {"periods", scene.run.periods},
@@ -936,8 +947,9 @@ std::vector<std::int64_t> counts(const RunSummary& s) {
 
 std::vector<std::string> stop_names(const Scene& scene) {
   std::vector<std::string> names;
-  const ImpactSystem system = scene.impact_system();  // names defaulted as in messages
-  for (const Stop& stop : system.stops()) names.push_back(stop.name);
+  // Names defaulted as in messages; O(m log m), no dense system.
+  for (const Stop& stop : validated_stops(scene.stops, scene.dof(), scene.forcing().frequency))
+    names.push_back(stop.name);
   return names;
 }
 
@@ -976,6 +988,11 @@ void require_same_scene(const Store& old, const Scene& scene) {
   for (const auto& [name, value] : tolerances(scene.solver))
     if (old.reals_attribute("/meta", name) != std::vector<double>{value})
       throw ResultError(old.name() + ": /meta attribute " + name + ": differs" + hint);
+  const std::vector<std::string> attributes = old.attribute_names("/meta");
+  if (std::find(attributes.begin(), attributes.end(), "engine") != attributes.end() &&
+      old.text_attribute("/meta", "engine") != to_string(scene.engine))
+    throw ResultError(old.name() + ": /meta attribute engine: " + old.text_attribute("/meta", "engine") +
+                      ", this scene runs with the " + to_string(scene.engine) + " engine" + hint);
 }
 
 /// Copies the scalar and string-array attributes of `object` (what /meta holds).
@@ -1160,7 +1177,7 @@ struct ResultFile::Impl {
         store(file_name, mode),
         record(scene.record),
         sweep_run(scene.run.kind == RunSpec::Kind::sweep),
-        dof(scene.system.dof()),
+        dof(scene.dof()),
         stops(stop_names(scene)) {}
 
   void write_scene(const Scene& scene) const {
@@ -1193,6 +1210,8 @@ struct ResultFile::Impl {
       else
         store.set_real("/meta", name, value);
     store.set_text("/meta", "flow_method", flow_method_name(scene.solver.flow.method));
+    store.set_text("/meta", "engine", to_string(scene.engine));
+    store.set_text("/meta", "engine_choice", to_string(scene.engine_choice));
     store.set_text("/meta", "status", "running");
     store.set_text("/meta", "message", "");
     store.set_integer("/meta", "resumed", 0);

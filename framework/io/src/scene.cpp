@@ -264,9 +264,42 @@ SceneError::SceneError(std::string file, int line, int column, std::string path,
       problem_(std::move(problem)) {}
 
 double Scene::period() const {
-  const double w = system.forcing().frequency;
+  const double w = forcing().frequency;
   return w > 0.0 ? 2.0 * std::numbers::pi / w : 1.0;
 }
+
+const char* to_string(Engine engine) { return engine == Engine::modal ? "modal" : "dense"; }
+
+const char* to_string(EngineChoice choice) {
+  switch (choice) {
+    case EngineChoice::automatic: return "auto";
+    case EngineChoice::dense: return "dense";
+    case EngineChoice::modal: return "modal";
+  }
+  return "?";
+}
+
+LazySystem::LazySystem(LinearSystem system)
+    : dof_(system.dof()), forcing_(system.forcing()), cache_(std::make_shared<Cache>()) {
+  cache_->system.emplace(std::move(system));
+  std::call_once(cache_->once, [] {});  // built: get() has nothing to do
+}
+
+LazySystem::LazySystem(Eigen::Index dof, HarmonicForcing forcing, std::function<LinearSystem()> build)
+    : dof_(dof), forcing_(std::move(forcing)), cache_(std::make_shared<Cache>()) {
+  cache_->build = std::move(build);
+}
+
+const LinearSystem& LazySystem::get() const {
+  if (!cache_) throw std::logic_error("Scene: no system (a default-constructed LazySystem)");
+  std::call_once(cache_->once, [this] {
+    cache_->system.emplace(cache_->build());
+    cache_->build = nullptr;  // the chain's data it captured are no longer needed
+  });
+  return *cache_->system;
+}
+
+bool LazySystem::built() const { return cache_ && cache_->system.has_value(); }
 
 struct SceneDocument::Impl {
   std::string file, text;
@@ -400,6 +433,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     r.fail(model, "model", "give either model.chain or model.matrices, not both");
   Eigen::MatrixXd M, C, K;
   long n = 0;
+  std::optional<models::Chain> chain_links;  // model.chain, assembled only on demand
   if (const YAML::Node chain = model["chain"]) {
     r.expect_map(chain, "model.chain", {"masses", "springs", "dampers", "left_wall", "right_wall"});
     if (!chain["masses"]) r.fail(chain, "model.chain.masses", "missing: one mass per degree of freedom");
@@ -432,10 +466,19 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     };
     wall("left_wall", c.left_spring, c.left_damper);
     wall("right_wall", c.right_spring, c.right_damper);
-    const LinearSystem chain_system = models::build_chain(c);
-    M = chain_system.mass();
-    C = chain_system.damping();
-    K = chain_system.stiffness();
+    // What LinearSystem would refuse in the assembled matrices, checked on the links in O(n):
+    // every diagonal entry (a sum of two links and a wall) must be finite.
+    for (long i = 0; i < n; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      double k = (i == 0 ? c.left_spring : 0.0) + (i == n - 1 ? c.right_spring : 0.0);
+      double d = (i == 0 ? c.left_damper : 0.0) + (i == n - 1 ? c.right_damper : 0.0);
+      if (i > 0) k += c.springs[u - 1], d += c.dampers.empty() ? 0.0 : c.dampers[u - 1];
+      if (i < n - 1) k += c.springs[u], d += c.dampers.empty() ? 0.0 : c.dampers[u];
+      if (!std::isfinite(k) || !std::isfinite(d))
+        r.fail(chain, "model.chain", "the links of mass " + std::to_string(i) +
+                                         " add up to an infinite stiffness or damping (values too large)");
+    }
+    chain_links = std::move(c);
   } else if (const YAML::Node mats = model["matrices"]) {
     r.expect_map(mats, "model.matrices", {"mass", "damping", "stiffness"});
     if (!mats["mass"]) r.fail(mats, "model.matrices.mass", "missing: the mass matrix");
@@ -456,9 +499,27 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     if (fn["cosine"]) f.cosine = to_vector(r.numbers(fn["cosine"], "forcing.cosine", n, "one amplitude per mass"));
     if (fn["sine"]) f.sine = to_vector(r.numbers(fn["sine"], "forcing.sine", n, "one amplitude per mass"));
   }
-  std::optional<LinearSystem> system;
-  try {
-    system.emplace(M, C, K, f);
+  LazySystem dense;
+  std::optional<BandedChain> banded;
+  std::string not_banded;  // why a chain is not in banded form (its damping is not proportional)
+  if (chain_links) {
+    models::Chain& c = *chain_links;
+    auto list = [](const Eigen::VectorXd& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
+    c.force_constant = list(f.constant);
+    c.force_cosine = list(f.cosine);
+    c.force_sine = list(f.sine);
+    c.frequency = f.frequency;
+    try {
+      banded = BandedChain::from_links(c.masses, c.springs, c.dampers, c.left_spring, c.left_damper,
+                                       c.right_spring, c.right_damper, f);
+      banded->validate();
+    } catch (const InvalidInput& e) {
+      banded.reset();
+      not_banded = e.what();
+    }
+    dense = LazySystem(n, f, [c] { return models::build_chain(c); });
+  } else try {
+    dense = LazySystem(LinearSystem(M, C, K, f));
   } catch (const InvalidInput& e) {
     // Point at the matrix or forcing entry the message names.
     const std::string msg = e.what();
@@ -519,9 +580,8 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       stops.push_back(stop);
     }
   }
-  std::optional<ImpactSystem> impact;
   try {
-    impact.emplace(*system, stops);
+    stops = validated_stops(std::move(stops), n, f.frequency);  // O(m log m), no n × m normals
   } catch (const InvalidInput& e) {
     // The message starts with the stop ("stops[j] (name): ..."); point at that stop and do not
     // repeat its label.
@@ -550,7 +610,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     if (in["v"]) v0 = to_vector(r.numbers(in["v"], "initial.v", n, "one velocity per mass"));
   }
   try {
-    impact->check_admissible(t0, x0, 1e-12 * impact->length_scale(x0.cwiseAbs().maxCoeff()));
+    check_admissible(stops, f.frequency, t0, x0, 1e-12 * stops_length_scale(stops, x0.cwiseAbs().maxCoeff()));
   } catch (const InvalidInput& e) {
     const YAML::Node in = root["initial"];
     if (in && in["x"]) r.fail(in["x"], "initial.x", e.what());
@@ -571,9 +631,10 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
 
   // --- solver ---
   SimulatorOptions opt;
+  EngineChoice engine_choice = EngineChoice::automatic;
   if (const YAML::Node sv = root["solver"]) {
     r.expect_map(sv, "solver", {"trigger", "simultaneity", "chatter_height", "chatter_velocity", "contact_velocity",
-                                "max_events", "event_window", "length_scale", "flow_method", "max_condition"});
+                                "max_events", "event_window", "length_scale", "flow_method", "max_condition", "engine"});
     if (sv["trigger"]) opt.trigger = r.number_in(sv["trigger"], "solver.trigger", 1e-16, 1e-4, "a relative tolerance in [1e-16, 1e-4]");
     if (sv["simultaneity"]) opt.simultaneity = r.number_in(sv["simultaneity"], "solver.simultaneity", 0, 1e-2, "a relative time in [0, 1e-2]");
     if (sv["chatter_height"]) opt.chatter_height = r.number_in(sv["chatter_height"], "solver.chatter_height", 0, 1e-1, "a relative height in [0, 0.1]");
@@ -587,6 +648,10 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       opt.flow.method = m == "spectral" ? FlowMethod::spectral : m == "exponential" ? FlowMethod::exponential : FlowMethod::automatic;
     }
     if (sv["max_condition"]) opt.flow.max_condition = r.number_in(sv["max_condition"], "solver.max_condition", 1, 1e16, "a condition number in [1, 1e16]");
+    if (sv["engine"]) {
+      const std::string e = r.choice(sv["engine"], "solver.engine", {"auto", "dense", "modal"});
+      engine_choice = e == "dense" ? EngineChoice::dense : e == "modal" ? EngineChoice::modal : EngineChoice::automatic;
+    }
   }
 
   // --- record ---
@@ -648,17 +713,26 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     }
     return axis;
   };
-  // Every value must make a valid scene: find out now, at the value, not mid-run.
+  // Every value must make a valid scene: find out now, at the value, not mid-run. Each value's
+  // engine is kept to check, once this scene's is resolved, that the whole grid runs on one.
+  struct PointEngine {
+    YAML::Node at;
+    std::string path, what;
+    Engine engine;
+  };
+  std::vector<PointEngine> point_engines;
   auto check_values = [&](const SweepAxis& axis, const YAML::Node& p, const std::string& path) {
     for (std::size_t i = 0; i < axis.values.size(); ++i) {
       SceneDocument point(*this);
       point.set(axis.path, axis.values[i]);
+      const bool listed = static_cast<bool>(p["values"]);
+      const YAML::Node at = listed ? p["values"][i] : p[p["linspace"] ? "linspace" : "logspace"];
+      const std::string where = listed ? path + ".values[" + std::to_string(i) + "]" : path;
       try {
-        (void)point.build_checked(false);
+        const Scene built = point.build_checked(false);
+        point_engines.push_back({at, where, axis.path + " = " + number_text(axis.values[i]), built.engine});
       } catch (const SceneError& e) {
-        const bool listed = static_cast<bool>(p["values"]);
-        const YAML::Node at = listed ? p["values"][i] : p[p["linspace"] ? "linspace" : "logspace"];
-        r.fail(at, listed ? path + ".values[" + std::to_string(i) + "]" : path,
+        r.fail(at, where,
                axis.path + " = " + number_text(axis.values[i]) + " makes the scene invalid: " + e.problem() +
                    " (" + e.path() + ")");
       }
@@ -669,6 +743,8 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     if (rn["kind"]) {
       const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate"});
       run.kind = kind == "sweep" ? RunSpec::Kind::sweep : kind == "locate" ? RunSpec::Kind::locate : RunSpec::Kind::simulate;
+      if (run.kind == RunSpec::Kind::locate && engine_choice == EngineChoice::modal)
+        r.fail(rn["kind"], "run.kind", "run.kind: locate runs only with the dense engine; this scene sets solver.engine: modal");
     }
     if (rn["transient_periods"]) run.transient_periods = r.number_in(rn["transient_periods"], "run.transient_periods", 0, 1e9, "a number of periods ≥ 0");
     if (rn["periods"]) run.periods = r.number_in(rn["periods"], "run.periods", 1e-12, 1e9, "a number of periods > 0");
@@ -707,9 +783,70 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     }
   }
 
-  return Scene{impl_->file, impl_->text,
-               root["name"] ? r.text(root["name"], "name") : std::string(),
-               std::move(*system), impact->stops(), t0, x0, v0, opt, rec, run};
+  // --- engine (docs/scenes.md, solver.engine) ---
+  // The modal engine also needs a stiffness matrix without rigid-body modes (ChainModes refuses
+  // them): every mass tied to a wall through springs > 0. Checked on the links in O(n).
+  std::string floating;  // a group of masses no spring ties to a wall, if any
+  if (chain_links) {
+    const models::Chain& c = *chain_links;
+    long first = 0;
+    bool walled = c.left_spring > 0.0;
+    for (long i = 0; i < n; ++i) {
+      const bool last = i == n - 1 || !(c.springs[static_cast<std::size_t>(i)] > 0.0);
+      if (i == n - 1) walled = walled || c.right_spring > 0.0;
+      if (!last) continue;
+      if (!walled && floating.empty())
+        floating = first == i ? "mass " + std::to_string(i) : "masses " + std::to_string(first) + "…" + std::to_string(i);
+      first = i + 1;
+      walled = false;
+    }
+  }
+  Engine engine = Engine::dense;
+  std::string reason;
+  const YAML::Node engine_node = root["solver"] ? root["solver"]["engine"] : YAML::Node();
+  const bool locating = run.kind == RunSpec::Kind::locate;
+  if (engine_choice == EngineChoice::modal) {
+    auto refuse = [&](const std::string& why) {
+      r.fail(engine_node, "solver.engine", "the modal engine cannot run this scene: " + why +
+                                               " (use solver.engine: dense or auto)");
+    };
+    if (!chain_links) refuse("it needs model.chain (M diagonal, K tridiagonal), this scene gives model.matrices");
+    if (!banded) refuse(not_banded);
+    if (!floating.empty()) refuse(floating + " tied to no wall by springs: a rigid-body mode (give the chain a wall spring)");
+    engine = Engine::modal;
+    reason = "solver.engine: modal";
+  } else if (engine_choice == EngineChoice::dense) {
+    reason = "solver.engine: dense";
+  } else if (!chain_links) {
+    reason = "auto: model.matrices (the modal engine needs model.chain)";
+  } else if (!banded) {
+    reason = "auto: the chain's damping is not proportional (" + not_banded + ")";
+  } else if (!floating.empty()) {
+    reason = "auto: " + floating + " tied to no wall (a rigid-body mode; the modal engine needs none)";
+  } else if (n < kModalAutomaticMinimumDof) {
+    reason = "auto: " + std::to_string(n) + " masses (< " + std::to_string(kModalAutomaticMinimumDof) +
+             ": the dense engine is cheap and handles sticking)";
+  } else if (locating) {
+    reason = "auto: run.kind: locate runs only with the dense engine";
+  } else {
+    engine = Engine::modal;
+    reason = "auto: a proportionally damped chain of " + std::to_string(n) + " masses (≥ " +
+             std::to_string(kModalAutomaticMinimumDof) + ")";
+  }
+
+  for (const PointEngine& p : point_engines)
+    if (p.engine != engine)
+      r.fail(p.at, p.path, p.what + " runs with the " + to_string(p.engine) + " engine, the base scene with the " +
+                               to_string(engine) + " engine (" + reason + "): one run uses one engine; " +
+                               "set solver.engine to dense or modal");
+
+  Scene scene{impl_->file, impl_->text,
+              root["name"] ? r.text(root["name"], "name") : std::string(),
+              std::move(dense), std::move(banded), std::move(stops), t0, x0, v0, opt, rec, run};
+  scene.engine_choice = engine_choice;
+  scene.engine = engine;
+  scene.engine_reason = reason;
+  return scene;
 }
 
 }  // namespace vibro::io

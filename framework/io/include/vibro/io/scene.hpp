@@ -17,10 +17,20 @@
 ///     vibro::io::SceneDocument doc = vibro::io::SceneDocument::load("experiments/x.yaml");
 ///     doc.set("forcing.frequency", 0.26);          // --set
 ///     vibro::io::Scene scene = doc.build();         // validated; throws SceneError
-///     vibro::ImpactSystem system = scene.impact_system();
+///     vibro::ImpactSystem system = scene.impact_system();   // dense engine
+///     if (scene.engine == vibro::io::Engine::modal) vibro::ChainModes modes(*scene.chain);
+///
+/// Long chains. A `model.chain` scene keeps its chain in banded form (Scene::chain, O(n)) and
+/// builds the dense n × n system only when something asks for it (Scene::system(), cached):
+/// a scene that resolves to the modal engine (solver.engine, docs/scenes.md) is loaded, checked
+/// and run without any n × n matrix. Its stops and initial state are checked in O(n + m log m).
+#include "vibro/modal.hpp"
 #include "vibro/simulator.hpp"
 
+#include <functional>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -80,23 +90,73 @@ struct RunSpec {
   bool reverse = false;  ///< walk the grid from its last point to its first
 };
 
+/// The engine that runs a scene: the dense Simulator (any M, C, K) or the modal chain engine
+/// (vibro/modal.hpp: M diagonal, K tridiagonal, C = αM + βK; O(n) per event).
+enum class Engine { dense, modal };
+/// What `solver.engine` asks for; `automatic` resolves as docs/scenes.md says (Scene::engine).
+enum class EngineChoice { automatic, dense, modal };
+const char* to_string(Engine engine);
+const char* to_string(EngineChoice choice);
+
+/// The dense system of a scene, built on first use and cached; copies share the cache, and the
+/// first use is thread-safe. Built from a LinearSystem (already there) or from a function
+/// (a chain's assembly: n × n matrices and their O(n³) checks, paid only if the dense engine or
+/// a dense-only tool needs them). dof() and forcing() never build it.
+class LazySystem {
+ public:
+  LazySystem() = default;
+  LazySystem(LinearSystem system);  // NOLINT(google-explicit-constructor): a built system is one
+  LazySystem(Eigen::Index dof, HarmonicForcing forcing, std::function<LinearSystem()> build);
+
+  /// The system; the first call builds it (may throw InvalidInput from its validation).
+  const LinearSystem& get() const;
+  bool built() const;
+  Eigen::Index dof() const { return dof_; }
+  const HarmonicForcing& forcing() const { return forcing_; }
+
+ private:
+  struct Cache {
+    std::once_flag once;
+    std::function<LinearSystem()> build;
+    std::optional<LinearSystem> system;
+  };
+  Eigen::Index dof_ = 0;
+  HarmonicForcing forcing_;
+  std::shared_ptr<Cache> cache_;
+};
+
 /// The resolved, validated scene.
 struct Scene {
   std::string file;       ///< path it was read from ("<string>" if none)
   std::string yaml_text;  ///< the file's text, verbatim
   std::string name;       ///< optional `name:`
-  LinearSystem system;
-  std::vector<Stop> stops;
+  LazySystem dense;       ///< M, C, K (n × n), built on first use: see system()
+  /// `model.chain` whose damping is proportional (BandedChain::from_links accepted it), in
+  /// banded form (O(n)); empty for `model.matrices` and for chains with other damping.
+  std::optional<BandedChain> chain;
+  std::vector<Stop> stops;  ///< validated, unnamed stops named ("upper x3")
   double t0 = 0.0;
   Eigen::VectorXd x0, v0;
   SimulatorOptions solver;
   RecordSpec record;
   RunSpec run;
+  EngineChoice engine_choice = EngineChoice::automatic;  ///< solver.engine as given
+  Engine engine = Engine::dense;                         ///< as resolved
+  std::string engine_reason;  ///< why it resolved so (for `vibro check` and `vibro info`)
 
-  ImpactSystem impact_system() const { return ImpactSystem(system, stops); }
+  /// The dense system: built (O(n²) memory, O(n³) checks) and cached on the first call.
+  const LinearSystem& system() const { return dense.get(); }
+  Eigen::Index dof() const { return dense.dof(); }
+  const HarmonicForcing& forcing() const { return dense.forcing(); }
+  /// The dense ImpactSystem (builds system()).
+  ImpactSystem impact_system() const { return ImpactSystem(system(), stops); }
   /// Forcing period 2π/Ω, or 1 when Ω = 0 (periods then count time units).
   double period() const;
 };
+
+/// The smallest chain that `solver.engine: automatic` runs with the modal engine: below it the
+/// dense engine's O(n³) set-up is cheap and it handles every contact regime (sticking included).
+inline constexpr Eigen::Index kModalAutomaticMinimumDof = 64;
 
 /// The YAML tree of a scene with the source positions of its nodes; editable by path.
 class SceneDocument {

@@ -1,0 +1,265 @@
+// solver.engine (docs/scenes.md): how `auto` resolves, that a modal scene never builds its dense
+// n × n system, and that `vibro run` gives the same events and samples with either engine.
+#include "vibro/io/result_file.hpp"
+#include "vibro/io/runner.hpp"
+#include "vibro/io/scene.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <string>
+#include <vector>
+
+using namespace vibro;
+using namespace vibro::io;
+
+namespace {
+
+std::string list(long n, const std::string& value) {
+  std::string out = "[";
+  for (long i = 0; i < n; ++i) out += (i ? ", " : "") + value;
+  return out + "]";
+}
+
+struct ChainText {
+  long n = 70;
+  std::string damper = "0.02";       ///< every link's damper (springs are 1)
+  std::string wall = "{spring: 1, damper: 0.02}";
+  std::string engine;                ///< solver.engine, or none
+  std::string run = "{kind: simulate, transient_periods: 0, periods: 6}";
+  std::string record = "{events: true, samples: {per_period: 16}}";
+};
+
+/// A uniform chain driven at mass 0, with the four stops of experiments/chains (restitution 0.95).
+std::string chain_scene(const ChainText& c) {
+  std::string cosine = "[0.6" + std::string(c.n > 1 ? ", " : "") + (c.n > 1 ? list(c.n - 1, "0").substr(1) : "]");
+  std::string s = "name: engine-test\nmodel:\n  chain:\n";
+  s += "    masses: " + list(c.n, "1") + "\n";
+  s += "    springs: " + list(c.n - 1, "1") + "\n";
+  s += "    dampers: " + list(c.n - 1, c.damper) + "\n";
+  if (!c.wall.empty()) s += "    left_wall: " + c.wall + "\n";
+  s += "forcing:\n  frequency: 0.8\n  cosine: " + cosine + "\n";
+  s += "stops:\n"
+       "  - {mass: 1, side: upper, position: 0.35, restitution: 0.95}\n"
+       "  - {mass: 2, side: lower, position: -0.3, restitution: 0.95}\n"
+       "  - {between: [3, 4], gap: 0.25, restitution: 0.95}\n"
+       "  - {mass: 5, side: upper, position: 0.25, restitution: 0.95}\n";
+  if (!c.engine.empty()) s += "solver: {engine: " + c.engine + "}\n";
+  s += "record: " + c.record + "\nrun: " + c.run + "\n";
+  return s;
+}
+
+Scene build(const ChainText& c) { return SceneDocument::parse(chain_scene(c), "engine.yaml").build(); }
+
+std::string temp_path(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("vibro_test_engine_" + name)).string();
+}
+
+}  // namespace
+
+TEST_CASE("solver.engine auto picks the modal engine for long proportionally damped chains", "[engine]") {
+  ChainText c;
+  c.n = kModalAutomaticMinimumDof;
+  const Scene at_threshold = build(c);
+  CHECK(at_threshold.engine == Engine::modal);
+  CHECK(at_threshold.engine_choice == EngineChoice::automatic);
+  REQUIRE(at_threshold.chain);
+  CHECK(at_threshold.chain->dof() == c.n);
+  CHECK(at_threshold.chain->rayleigh_stiffness == Approx(0.02).epsilon(1e-14));
+  CHECK_THAT(at_threshold.engine_reason, Catch::Contains("proportionally damped chain of 64 masses"));
+
+  c.n = kModalAutomaticMinimumDof - 1;
+  const Scene short_chain = build(c);
+  CHECK(short_chain.engine == Engine::dense);
+  CHECK(short_chain.chain);  // banded form kept, the engine is still dense
+  CHECK_THAT(short_chain.engine_reason, Catch::Contains("63 masses"));
+
+  c.n = 100;
+  c.damper = "0.03";  // the wall's damper stays 0.02: C ≠ βK
+  const Scene non_proportional = build(c);
+  CHECK(non_proportional.engine == Engine::dense);
+  CHECK_FALSE(non_proportional.chain);
+  CHECK_THAT(non_proportional.engine_reason, Catch::Contains("not proportional"));
+
+  c.damper = "0.02";
+  c.wall = "";  // no wall: a rigid-body mode, which the modal engine refuses
+  const Scene floating = build(c);
+  CHECK(floating.engine == Engine::dense);
+  CHECK_THAT(floating.engine_reason, Catch::Contains("masses 0…99 tied to no wall"));
+
+  c.wall = "{spring: 1, damper: 0.02}";
+  c.engine = "dense";
+  CHECK(build(c).engine == Engine::dense);
+  c.engine = "modal";
+  c.n = 8;  // explicit: any n
+  CHECK(build(c).engine == Engine::modal);
+
+  c.engine = "auto";
+  c.n = 100;
+  c.run = "{kind: locate, locate: {path: forcing.frequency, linspace: [0.79, 0.81, 2]}}";
+  const Scene locating = build(c);
+  CHECK(locating.engine == Engine::dense);
+  CHECK_THAT(locating.engine_reason, Catch::Contains("locate"));
+
+  const Scene matrices = SceneDocument::parse("model: {matrices: {mass: [[1]], stiffness: [[1]]}}\n"
+                                              "solver: {engine: auto}\n").build();
+  CHECK(matrices.engine == Engine::dense);
+  CHECK_FALSE(matrices.chain);
+}
+
+TEST_CASE("a bad solver.engine names the key, the place and why", "[engine]") {
+  ChainText c;
+  c.engine = "banded";
+  try {
+    (void)build(c);
+    FAIL("no SceneError");
+  } catch (const SceneError& e) {
+    CHECK(e.path() == "solver.engine");
+    CHECK(e.line() == 16);
+    CHECK(e.column() == 18);
+    CHECK_THAT(e.problem(), Catch::Contains("expected one of auto, dense, modal, found 'banded'"));
+  }
+  c.engine = "modal";
+  c.damper = "0.03";
+  try {
+    (void)build(c);
+    FAIL("no SceneError");
+  } catch (const SceneError& e) {
+    CHECK(e.path() == "solver.engine");
+    CHECK_THAT(e.problem(), Catch::Contains("the modal engine cannot run this scene") &&
+                                Catch::Contains("not proportional"));
+  }
+}
+
+TEST_CASE("a sweep whose values change the automatic engine is refused at the value", "[engine]") {
+  ChainText c;
+  c.n = 100;
+  c.run = "{kind: sweep, sweep: {parameters: [{path: 'model.chain.dampers[7]', values: [0.02, 0.05]}]}}";
+  try {
+    (void)build(c);
+    FAIL("no SceneError");
+  } catch (const SceneError& e) {
+    CHECK(e.path() == "run.sweep.parameters[0].values[1]");
+    CHECK_THAT(e.problem(), Catch::Contains("runs with the dense engine, the base scene with the modal engine"));
+  }
+  c.engine = "dense";
+  CHECK(build(c).engine == Engine::dense);  // explicit: every point is dense
+}
+
+TEST_CASE("a modal scene is loaded, checked and written without its dense matrices", "[engine]") {
+  // 10 000 masses, a stop on every tenth: dense, M, C, K would take 3 × 800 MB.
+  const SceneDocument doc = SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/chains/chain_10000_every10.yaml");
+  const Scene scene = doc.build();
+  CHECK(scene.engine == Engine::modal);
+  CHECK(scene.dof() == 10000);
+  CHECK(scene.stops.size() == 1000);
+  CHECK(scene.stops[999].name == "lower x9990");  // named without the dense ImpactSystem
+  CHECK_FALSE(scene.dense.built());
+  // Stops checked in O(m log m): a duplicate among 1000 is still found.
+  SceneDocument dup = doc;
+  dup.set("stops[500].mass", 20);  // stops[500] (upper x5000) becomes a twin of stops[2], upper x20
+  try {
+    (void)dup.build();
+    FAIL("no SceneError");
+  } catch (const SceneError& e) {
+    CHECK(e.path() == "stops[500]");
+    CHECK_THAT(e.problem(), Catch::Contains("duplicates stops[2] (upper x20)"));
+  }
+}
+
+TEST_CASE("the modal and dense engines give the same run of a 70-mass chain", "[engine]") {
+  // 70 masses, restitution 0.95, six periods: impacts only (no sticking, no chatter), so both
+  // engines compute the same exact piecewise-linear motion, each from its own closed form.
+  ChainText c;
+  c.engine = "modal";
+  const std::string modal_text = chain_scene(c);
+  c.engine = "dense";
+  const std::string dense_text = chain_scene(c);
+  const SceneDocument modal_doc = SceneDocument::parse(modal_text, "modal.yaml");
+  const SceneDocument dense_doc = SceneDocument::parse(dense_text, "dense.yaml");
+  const Scene modal = modal_doc.build(), dense = dense_doc.build();
+  REQUIRE(modal.engine == Engine::modal);
+  REQUIRE(dense.engine == Engine::dense);
+
+  const std::string out_modal = temp_path("modal.h5"), out_dense = temp_path("dense.h5");
+  REQUIRE(run_scene(modal_doc, modal, {out_modal, 1, false, false}).exit_code == 0);
+  REQUIRE(run_scene(dense_doc, dense, {out_dense, 1, false, false}).exit_code == 0);
+  CHECK_FALSE(modal.dense.built());  // the modal run never assembled M, C, K
+
+  const ResultReader a(out_modal), b(out_dense);
+  CHECK(a.attribute_string("/meta", "engine") == "modal");
+  CHECK(b.attribute_string("/meta", "engine") == "dense");
+  CHECK(a.attribute_string("/meta", "status") == "completed");
+  CHECK(b.attribute_string("/meta", "status") == "completed");
+  CHECK(a.exists("/scene/mass_diagonal"));
+  CHECK_FALSE(a.exists("/scene/mass"));
+  CHECK(b.exists("/scene/mass"));
+
+  // Same events: count, stops, kinds exactly; times to 1e-9 T. Both engines locate each impact
+  // to a few ulps of t in their own arithmetic (events.hpp, modal.hpp); the two flows (dense
+  // eigen-/exponential, modal closed form) differ by rounding of order 1e-13 relative per
+  // segment, which a few dozen impacts amplify (restitution 0.95, nearby grazing) to well below
+  // 1e-9 T. A wrong event (missed, spurious, other stop) moves times by O(T) or changes counts.
+  const double T = 2 * std::numbers::pi / 0.8;
+  const std::vector<double> ta = a.read("/events/t"), tb = b.read("/events/t");
+  REQUIRE(ta.size() == tb.size());
+  REQUIRE(ta.size() >= 10);  // the run has impacts to compare (22 in six periods)
+  CHECK(a.read("/events/stop") == b.read("/events/stop"));
+  CHECK(a.read("/events/kind") == b.read("/events/kind"));
+  for (std::size_t i = 0; i < ta.size(); ++i) CHECK(std::abs(ta[i] - tb[i]) <= 1e-9 * T);
+  const std::vector<double> kinds = a.read("/events/kind");
+  CHECK(std::all_of(kinds.begin(), kinds.end(), [](double k) { return k == 0.0; }));  // impacts only
+
+  // Same samples to 1e-9 of the length scale L (the largest stop offset, 0.35 here), for the
+  // reason above: both are exact solutions, differing by rounding amplified through the impacts.
+  const Eigen::MatrixXd xa = a.read_matrix("/samples/x"), xb = b.read_matrix("/samples/x");
+  REQUIRE(xa.rows() == xb.rows());
+  REQUIRE(xa.cols() == 70);
+  CHECK((xa - xb).cwiseAbs().maxCoeff() <= 1e-9 * 0.35);
+  std::filesystem::remove(out_modal);
+  std::filesystem::remove(out_dense);
+}
+
+TEST_CASE("a sweep runs with the modal engine", "[engine]") {
+  ChainText c;
+  c.engine = "modal";
+  c.run = "{kind: sweep, periods: 1, sweep: {parameters: [{path: forcing.frequency, values: [0.78, 0.8]}]}}";
+  c.record = "{events: true, samples: {per_period: 4}}";
+  const SceneDocument doc = SceneDocument::parse(chain_scene(c), "modal-sweep.yaml");
+  const Scene scene = doc.build();
+  c.engine = "dense";
+  const SceneDocument dense_doc = SceneDocument::parse(chain_scene(c), "dense-sweep.yaml");
+  const std::string out = temp_path("sweep_modal.h5"), out_dense = temp_path("sweep_dense.h5");
+  REQUIRE(run_scene(doc, scene, {out, 2, false, false}).exit_code == 0);
+  REQUIRE(run_scene(dense_doc, dense_doc.build(), {out_dense, 2, false, false}).exit_code == 0);
+  const ResultReader a(out), b(out_dense);
+  CHECK(a.attribute_string("/meta", "engine") == "modal");
+  CHECK(a.read("/sweep/status") == std::vector<double>{0.0, 0.0});
+  CHECK(a.read("/events/point") == b.read("/events/point"));
+  const std::vector<double> ta = a.read("/events/t"), tb = b.read("/events/t");
+  REQUIRE(ta.size() == tb.size());
+  const double T = 2 * std::numbers::pi / 0.78;  // the longer period: 1e-9 T as above
+  for (std::size_t i = 0; i < ta.size(); ++i) CHECK(std::abs(ta[i] - tb[i]) <= 1e-9 * T);
+  const Eigen::MatrixXd xa = a.read_matrix("/samples/x"), xb = b.read_matrix("/samples/x");
+  REQUIRE(xa.size() == xb.size());
+  CHECK((xa - xb).cwiseAbs().maxCoeff() <= 1e-9 * 0.35);
+  std::filesystem::remove(out);
+  std::filesystem::remove(out_dense);
+}
+
+TEST_CASE("run.kind locate with solver.engine modal is refused at run.kind", "[engine]") {
+  ChainText c;
+  c.engine = "modal";
+  c.run = "{kind: locate, locate: {path: forcing.frequency, linspace: [0.79, 0.81, 2]}}";
+  try {
+    (void)build(c);
+    FAIL("no SceneError");
+  } catch (const SceneError& e) {
+    CHECK(e.path() == "run.kind");
+    CHECK_THAT(e.problem(), Catch::Contains("locate runs only with the dense engine") &&
+                                Catch::Contains("solver.engine: modal"));
+  }
+}
