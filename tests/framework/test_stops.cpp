@@ -318,3 +318,35 @@ TEST_CASE("stops: check_admissible names the violated stop and the violation", "
   CHECK(std::abs(number_after(msg, " by ") - 0.15) <= 1e-15);
   CHECK(std::abs(number_after(msg, "at t = ") - std::numbers::pi / omega) <= 1e-15);
 }
+
+TEST_CASE("stops: validated_stops checks as ImpactSystem does, without the n × m normals",
+          "[stops]") {
+  // Two conflicts: stops[1] and [2] are opposite stops on x1 - x2 with no room between them, and
+  // stops[3] duplicates stops[0]. All pairs (j, k), j < k, checked in order meet (0, 3) first.
+  const std::vector<Stop> stops{Stop::upper(0, 0.1, 0.5), Stop::between(1, 2, 0.2, 0.5),
+                                Stop::between(2, 1, -0.3, 0.5), Stop::upper(0, 0.5, 0.5)};
+  for (const std::size_t n : {3, 100000}) {  // the key-based check costs nothing per mass
+    INFO("n = " << n);
+    const auto e = static_cast<Eigen::Index>(n);
+    CHECK_THROWS_WITH(vibro::validated_stops(stops, e, 1.0),
+                      Contains("stops[3] (upper x0): duplicates stops[0] (upper x0)"));
+    std::vector<Stop> rest(stops.begin(), stops.begin() + 3);
+    CHECK_THROWS_WITH(vibro::validated_stops(rest, e, 1.0),
+                      Contains("stops[1] (between x1-x2) and stops[2] (between x2-x1) leave no room"));
+    rest[2].position = -0.1;  // clearance 0.2 - 0.1 > 0
+    const std::vector<Stop> ok = vibro::validated_stops(rest, e, 1.0);
+    CHECK(ok[2].name == "between x2-x1");
+  }
+  // The same messages as the dense ImpactSystem, which uses it.
+  CHECK_THROWS_WITH(ImpactSystem(three_dof(1.0), stops),
+                    Contains("stops[3] (upper x0): duplicates stops[0] (upper x0)"));
+  // And the O(1)-per-stop gap agrees with the dense gaps() for every kind, moving ones included
+  // (the same sums in another order: values ≤ 0.5, so 1e-15 is a few ulps).
+  std::vector<Stop> kinds{Stop::upper(0, 0.4, 0.5).moving(0.1, 0.3), Stop::lower(1, -0.2, 0.5),
+                          Stop::between(2, 0, 0.3, 0.5).moving(0.05, -1.0)};
+  const ImpactSystem dense(three_dof(1.3), kinds);
+  const Eigen::Vector3d x(0.1, -0.05, 0.2);
+  const Eigen::VectorXd g = dense.gaps(0.7, x);
+  for (std::size_t j = 0; j < kinds.size(); ++j)
+    CHECK(vibro::stop_gap(dense.stops()[j], 1.3, 0.7, x) == Approx(g(static_cast<Eigen::Index>(j))).margin(1e-15));
+}

@@ -5,6 +5,12 @@
 /// simulate: the transient periods are simulated without recording, then the recorded periods
 /// with the observers the scene asks for; one file.
 ///
+/// Engines: a scene runs on the engine it resolves to (Scene::engine, `solver.engine` in
+/// docs/scenes.md) — the dense Simulator, or the modal chain engine on the chain's modes, set up
+/// once per simulation or sweep point. Everything else here (transient then recorded run, the
+/// observers, the file, threads and processes) is the same for both; /meta records which ran.
+/// run.kind: locate is dense-only (the scene loader refuses it with solver.engine: modal).
+///
 /// sweep: the grid of the swept paths (a 2-D grid varies its second parameter fastest; `reverse`
 /// walks it backwards). Every point's scene is built and validated before anything is
 /// simulated or written, so bad input never leaves a half-written file. Points run in parallel
