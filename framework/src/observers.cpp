@@ -19,29 +19,29 @@ const char* to_string(EventKind kind) {
   return "?";
 }
 
-void SegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const {
+void DenseSegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const {
   const auto& red = mode_->reduced();
   Eigen::VectorXd zr(red.flow->size());
-  segment_->state(t - t_begin_, zr);
+  segment_->state(t - t_begin(), zr);
   const Eigen::VectorXd z = red.to_full * zr;
   const Eigen::Index n = x.size();
   x = z.head(n);
   v = z.segment(n, n);
 }
 
-double SegmentView::force(Eigen::Index a, double t) const {
+double DenseSegmentView::force(Eigen::Index a, double t) const {
   const auto& red = mode_->reduced();
-  return -segment_->value(red.gap_rows + a, t - t_begin_);
+  return -segment_->value(red.gap_rows + a, t - t_begin());
 }
 
-Minimum SegmentView::force_minimum(Eigen::Index a) const {
+Minimum DenseSegmentView::force_minimum(Eigen::Index a) const {
   // The watch row is -λ: minimise λ = -row.
   const Eigen::Index row = mode_->reduced().gap_rows + a;
-  const Minimum m = minimize_row(*segment_, row, 0.0, t_end_ - t_begin_, force_tolerance_, -1.0);
-  return {m.value, t_begin_ + m.tau};
+  const Minimum m = minimize_row(*segment_, row, 0.0, t_end() - t_begin(), force_tolerance_, -1.0);
+  return {m.value, t_begin() + m.tau};
 }
 
-std::vector<Minimum> SegmentView::force_local_minima(Eigen::Index a) const {
+std::vector<Minimum> DenseSegmentView::force_local_minima(Eigen::Index a) const {
   const auto& red = mode_->reduced();
   const Eigen::Index row = red.gap_rows + a;
   // Guards λ' and -λ' (the watch row is -λ): an interior minimum is λ' crossing 0 upwards, a
@@ -52,10 +52,10 @@ std::vector<Minimum> SegmentView::force_local_minima(Eigen::Index a) const {
   rows.row(1) = red.watch->rows(1).row(row);
   const Functionals slope(*red.flow, rows);
   const Segment seg(slope, segment_->t0(), segment_->initial_state());
-  const double span = t_end_ - t_begin_;
+  const double span = t_end() - t_begin();
   const double inf = std::numeric_limits<double>::infinity();
   const double eps = std::max(1e-13 * std::abs(seg.value(0, 0.0)), force_tolerance_ * 1e-3 * red.flow->spectral_radius());
-  const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(t_end_));
+  const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(t_end()));
   const double step = 1.0 / std::max(red.flow->spectral_radius(), 1e-300);
   std::vector<Minimum> out;
   bool seek_min = seg.value(0, 0.0) <= 0.0;
@@ -71,7 +71,7 @@ std::vector<Minimum> SegmentView::force_local_minima(Eigen::Index a) const {
       s = e;
     }
     if (!hit || hit->tau >= span) break;
-    if (seek_min && hit->tau > 0.0) out.push_back({force(a, t_begin_ + hit->tau), t_begin_ + hit->tau});
+    if (seek_min && hit->tau > 0.0) out.push_back({force(a, t_begin() + hit->tau), t_begin() + hit->tau});
     from = std::max(hit->tau, from) + resolution;
     seek_min = !seek_min;
   }
@@ -80,10 +80,10 @@ std::vector<Minimum> SegmentView::force_local_minima(Eigen::Index a) const {
 
 // --- ContactLog ------------------------------------------------------------------------------
 
-void ContactLog::begin(const ImpactSystem& scene, double) {
-  open_.assign(scene.stop_count(), -1);
-  has_interior_.assign(scene.stop_count(), false);
-  last_end_force_.assign(scene.stop_count(), 0.0);
+void ContactLog::begin(const RunContext& run, double) {
+  open_.assign(run.stops, -1);
+  has_interior_.assign(run.stops, false);
+  last_end_force_.assign(run.stops, 0.0);
 }
 
 void ContactLog::event(const Event& e) {
@@ -110,7 +110,7 @@ void ContactLog::event(const Event& e) {
 }
 
 void ContactLog::segment(const SegmentView& view) {
-  const ContactSet& active = view.mode().active();
+  const ContactSet& active = view.active();
   for (std::size_t a = 0; a < active.size(); ++a) {
     const auto j = static_cast<std::size_t>(active[a]);
     const long slot = open_[j];
@@ -176,8 +176,8 @@ void Samples::segment(const SegmentView& view) {
     record_state(view, times_[next_], t, x, v);
 }
 
-void Poincare::begin(const ImpactSystem& scene, double t0) {
-  const double omega = scene.system().forcing().frequency;
+void Poincare::begin(const RunContext& run, double t0) {
+  const double omega = run.frequency;
   if (!(omega > 0.0)) throw InvalidInput("poincare: needs a forcing frequency > 0");
   period_ = 2.0 * std::numbers::pi / omega;
   next_k_ = static_cast<long>(std::ceil((t0 - phase_time_) / period_ - 1e-12));
@@ -193,12 +193,12 @@ void Poincare::segment(const SegmentView& view) {
 
 // --- PeriodStatistics ----------------------------------------------------------------------------
 
-void PeriodStatistics::begin(const ImpactSystem& scene, double t0) {
-  const double omega = scene.system().forcing().frequency;
+void PeriodStatistics::begin(const RunContext& run, double t0) {
+  const double omega = run.frequency;
   if (!(omega > 0.0)) throw InvalidInput("statistics: per-period statistics need a forcing frequency > 0");
   period_ = 2.0 * std::numbers::pi / omega;
   t0_ = t0;
-  stops_ = scene.stop_count();
+  stops_ = run.stops;
   sticks_from_.assign(stops_, -std::numeric_limits<double>::infinity());
 }
 
@@ -210,7 +210,7 @@ void PeriodStatistics::ensure(long k) {
 }
 
 void PeriodStatistics::segment(const SegmentView& view) {
-  for (int j : view.mode().active()) {
+  for (int j : view.active()) {
     // A stop caught by the chatter rule is held from the impact that triggered it, but it sticks
     // only from the bounces' accumulation point on (the chatter-limit event's time), as in
     // ContactLog: count from there.

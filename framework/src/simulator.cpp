@@ -1,5 +1,7 @@
 #include "vibro/simulator.hpp"
 
+#include "event_rate.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -35,26 +37,6 @@ void require_positive(double value, const char* field, bool allow_zero = false) 
                        (allow_zero ? "≥ 0" : "> 0"));
 }
 
-/// Ring buffer of recent event times for the Zeno guard (allocated once per run).
-class EventRate {
- public:
-  EventRate(long capacity, double window)
-      : times_(static_cast<std::size_t>(capacity) + 1), window_(window) {}
-  /// Records an event at t; true if more than `capacity` events fall within the window.
-  bool exceeded(double t) {
-    times_[head_] = t;
-    head_ = (head_ + 1) % times_.size();
-    count_ = std::min(count_ + 1, times_.size());
-    if (count_ < times_.size()) return false;
-    return t - times_[head_] < window_;  // the oldest of capacity+1 events is within the window
-  }
-
- private:
-  std::vector<double> times_;
-  std::size_t head_ = 0, count_ = 0;
-  double window_;
-};
-
 }  // namespace
 
 const char* to_string(RunStatus s) {
@@ -62,6 +44,7 @@ const char* to_string(RunStatus s) {
     case RunStatus::completed: return "completed";
     case RunStatus::event_cap: return "event cap reached";
     case RunStatus::numerical_failure: return "numerical failure";
+    case RunStatus::unsupported: return "not supported by this engine";
   }
   return "?";
 }
@@ -170,12 +153,13 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
   summary.velocity_scale = sc.V;
   summary.force_scale = sc.F;
   summary.time_scale = sc.T;
-  for (Observer* o : observers) o->begin(scene, t0);
+  const RunContext context{n, scene.stop_count(), sys.forcing().frequency};
+  for (Observer* o : observers) o->begin(context, t0);
 
   double t = t0;
   Eigen::VectorXd x = x0, v = v0;
   ContactSet stuck;
-  EventRate rate(options_.max_events, window);
+  detail::EventRate rate(options_.max_events, window);
   const Eigen::LLT<Eigen::MatrixXd> mass_llt(sys.mass());
   // Per stop, once per run: M⁻¹ w_j, G_jj = w_jᵀ M⁻¹ w_j, and for the second-order chatter rule
   // α_j = -w_jᵀ M⁻¹ C M⁻¹ w_j / G_jj and the direction M⁻¹ K M⁻¹ w_j / G_jj of its state kick.
@@ -408,7 +392,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
       const double t_next = hit ? t + tau : t_end;
       ++summary.segments;
       if (!observers.empty()) {
-        const SegmentView view(mode, segment, t, t_next, eps_force);
+        const DenseSegmentView view(mode, segment, t, t_next, eps_force);
         for (Observer* o : observers) o->segment(view);
       }
       zr.resize(red.flow->size());

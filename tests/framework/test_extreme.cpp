@@ -185,7 +185,7 @@ class Audit : public Observer {
       }
     }
     pending_.clear();
-    previous_free_ = view.mode().active().empty();
+    previous_free_ = view.active().empty();
     energy_previous_ = e1;
     energy_end = e1;
     energy_max = std::max({energy_max, e0, e1});

@@ -181,7 +181,7 @@ class Audit : public Observer {
     rate_ = std::max(eig.eigenvalues().cwiseAbs().maxCoeff(), sys.forcing().frequency);
   }
 
-  void begin(const ImpactSystem&, double t0) override { t0_ = t0; }
+  void begin(const vibro::RunContext&, double t0) override { t0_ = t0; }
 
   void event(const Event& e) override {
     events.push_back(e);
@@ -194,7 +194,7 @@ class Audit : public Observer {
     SegmentRecord rec;
     rec.t_begin = view.t_begin();
     rec.t_end = view.t_end();
-    rec.active = view.mode().active();
+    rec.active = view.active();
     rec.x_begin.resize(n);
     rec.v_begin.resize(n);
     rec.x_end.resize(n);

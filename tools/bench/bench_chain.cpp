@@ -116,7 +116,7 @@ Row measure(int n, const std::string& config, vibro::TridiagonalSolver solver, l
   return {n, config, stops.size(), setup, stop_rows, transforms, per_event,
           s.impacts > 0 ? static_cast<double>(s.evaluations) / static_cast<double>(s.impacts) : 0.0,
           peak_mib(), s.impacts, s.t, std::string(vibro::to_string(s.status)) +
-                                          (s.status == vibro::ModalRunStatus::completed ? "" : ": " + s.message)};
+                                          (s.status == vibro::RunStatus::completed ? "" : ": " + s.message)};
 }
 
 double fitted_slope(const std::vector<Row>& rows, const std::string& config) {

@@ -47,20 +47,48 @@
 /// solve_lcp. Impacting gaps are then placed exactly at zero by moving x along M⁻¹w_j (again a
 /// rank-1 modal update), as in the dense engine.
 ///
-/// **What this engine does not do (yet): sticking.** A stop that would hold (post-impact normal
-/// speed ≤ contact_velocity·V with the free gap acceleration pushing into it, r = 0, or a chatter
-/// sequence whose next bounce would rise less than chatter_height·L) needs the constrained
-/// dynamics (contact force λ(t) through the modal receptance, a rank-k secular problem). Instead
-/// of stepping through it or approximating it silently, the run ends there with status
-/// `sticking` or `chatter` and a message giving the time, the stop and, for chatter, the
-/// Budd–Dux accumulation time. Likewise a Zeno run ends with `event_cap`. Use the dense
-/// Simulator for such runs (feasible up to N of a few hundred).
+/// **Sticking: contact sets as reduced chains.** While stops hold, a stop on one mass prescribes
+/// it (x_i = ±s_j(t)) and a stop between neighbours i, i+1 joins them (x_i - x_{i+1} = s_j(t)).
+/// The masses left free form groups of neighbours moving as one: x = T y + o(t), T_{l,r} = 1 for
+/// mass l in group r, o(t) harmonic (the held stops' motion). The reduced system
+///     TᵀMT y'' + TᵀCT y' + TᵀKT y = Tᵀ(f - M o'' - C o' - K o)
+/// is again a chain: TᵀMT diagonal (group masses), TᵀKT tridiagonal (a prescribed mass cuts
+/// the chain, its springs become walls), TᵀCT = α TᵀMT + β TᵀKT (proportionality survives any
+/// such constraint) and a harmonic right-hand side. So each contact set gets its own ChainModes
+/// from the same tridiagonal solver, O(n_r²) time and memory, n_r ≤ N the free groups; it is
+/// built on the set's first visit (ModalContactMode) and cached (ModalSimulatorOptions::
+/// mode_cache_bytes bounds the cache; the least recently used set is dropped first). A stop
+/// between masses that are not neighbours, or two held stops fixing one group (redundant
+/// forces), would break the tridiagonal form: the run then ends with RunStatus::unsupported
+/// and says which stops (the dense Simulator handles those).
 ///
-/// Output: observers get segment views (exact state at any t inside, O(N²) for a full state,
-/// O(N) for one gap) and events (vibro::Event, so EventLog works unchanged). SegmentView of
-/// observers.hpp is bound to the dense ContactMode and cannot be built here without O(N²)-sized
-/// dense data per contact set, hence ModalObserver; plain vibro::Observer objects receive the
-/// events (and end()) only.
+/// This is the "rank-k modification of the free modes" by a different route, and why: the
+/// constrained modes are the roots of the secular equation Σ_k (φ_kᵀw)²/(ω_k² - μ) = 0, but
+/// turning a state into them (and back) is a dense Cauchy-matrix product either way, O(N n_r)
+/// per transition without a fast multipole method, while a reduced tridiagonal solve costs the
+/// same O(n_r²) as N secular roots and stays exact for groups of joined masses and any number
+/// of held stops (the secular route needs a nested rank-1 update per held stop).
+///
+/// **Contact forces in O(n_r).** With the residual ρ_l = m_l x_l'' + (C x')_l + (K x)_l - f_l of
+/// mass l, the held stops of a group G satisfy W_G λ_G = -ρ_G (W_G the normals restricted to G,
+/// full column rank), so -λ_G = W_G⁺ ρ_G. Each ρ_l involves masses l-1, l, l+1 only, and in the
+/// homogeneous modal state u of the reduced chain, with u'' = -2σ∘u' - ω²∘u,
+///     ρ_l = P_l·u + D_l·u' + harmonic,  P_l = -m_l φ_l∘ω² + Σ_l' K_ll' φ_l',  D_l = β P_l
+/// (2σ = α + βω²). A release guard -λ_j is therefore a guard like a gap, plus a u' term whose
+/// second derivative is bounded through |u'''| ≤ (2σ(2σ + ω) + ω²)√(2E) (ModalGuards).
+///
+/// **Events.** A single impact in free flight after which the stop leaves (no chatter, no rest)
+/// is the O(N) rank-1 update above. Every other event (an impact while stops hold, a release,
+/// several simultaneous impacts, a stop coming to rest, chatter caught by the chatter rule) is
+/// resolved in physical coordinates with the dense engine's rules (simulator.cpp: the
+/// generalised Newton law over held and impacting stops, the acceleration LCP, the first- or
+/// second-order chatter rule), each O(N) there with diagonal M and tridiagonal K, plus two
+/// basis changes, O(N n_r) (ModalRunSummary::general_events counts these events). Between
+/// events the motion in any contact set is the exact modal flow. A Zeno run ends with
+/// `event_cap`.
+///
+/// Output: the observers of observers.hpp, through ModalSegmentView (a full state O(N n_r), one
+/// gap or force O(n_r); force minima by the same certified search as events).
 ///
 /// Usage:
 ///     auto chain = vibro::BandedChain::from_links(masses, springs, dampers, 1.0, 0.01, 0.0, 0.0,
@@ -68,13 +96,15 @@
 ///     vibro::ChainModes modes(std::move(chain));                  // O(N²) with LAPACK
 ///     vibro::ModalChainSimulator sim(modes, {vibro::Stop::upper(0, 0.5, 0.8)});
 ///     vibro::EventLog log;
-///     auto summary = sim.run(0.0, x0, v0, 100.0, {}, {&log});
+///     auto summary = sim.run(0.0, x0, v0, 100.0, {&log});
 #include "vibro/observers.hpp"
+#include "vibro/simulator.hpp"  // RunSummary, ChatterRule
 #include "vibro/stops.hpp"
 #include "vibro/system.hpp"
 
 #include <Eigen/Dense>
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -167,14 +197,19 @@ class ChainModes {
 };
 
 struct ModalSimulatorOptions {
-  double trigger = 1e-13;          ///< as SimulatorOptions (fraction of L)
+  double trigger = 1e-13;          ///< as SimulatorOptions (fraction of L for gaps, of F for forces)
   double simultaneity = 1e-12;     ///< fraction of T
-  double chatter_height = 1e-9;    ///< fraction of L: a bounce lower than this ends the run (chatter)
+  double chatter_height = 1e-9;    ///< fraction of L, as SimulatorOptions
   double chatter_velocity = 0.0;   ///< fraction of V
-  double contact_velocity = 1e-11; ///< fraction of V: slower post-impact speeds would stick
+  double contact_velocity = 1e-11; ///< fraction of V: slower post-impact speeds count as resting
+  ChatterRule chatter_rule = ChatterRule::second_order;
   long max_events = 100000;        ///< within event_window (0: T): more ends the run (event_cap)
   double event_window = 0.0;
   double length_scale = 0.0;       ///< 0 = automatic (as the dense Simulator)
+  /// Sticking subsystems kept at once, in bytes (each holds its reduced chain's n_r² modes):
+  /// beyond it the least recently used one is dropped and rebuilt if visited again
+  /// (ModalRunSummary::modes_rebuilt counts that). The free chain's modes are not counted.
+  double mode_cache_bytes = 4.0 * 1024.0 * 1024.0 * 1024.0;
   /// End the run (status completed, message saying so) after this many impacts; 0 = no limit.
   /// For benchmarks that want a fixed amount of work.
   long stop_after_impacts = 0;
@@ -182,119 +217,115 @@ struct ModalSimulatorOptions {
   void validate() const;
 };
 
-enum class ModalRunStatus { completed, event_cap, chatter, sticking, numerical_failure };
-const char* to_string(ModalRunStatus s);
+/// A run's summary (as the dense Simulator's, simulator.hpp) and the modal engine's work.
+struct ModalRunSummary : RunSummary {
+  long evaluations = 0;              ///< evaluations of all modes at one time (the O(n) unit)
+  long general_events = 0;           ///< events resolved in physical coordinates (O(N²), see header)
+  std::size_t modes_rebuilt = 0;     ///< sticking subsystems rebuilt after the cache dropped them
+  double mode_build_seconds = 0.0;   ///< spent building sticking subsystems (tridiagonal solves)
+  double mode_build_max_seconds = 0.0;  ///< the slowest single build
+};
 
-struct ModalRunSummary {
-  ModalRunStatus status = ModalRunStatus::completed;
-  std::string message;
-  double t = 0.0;
-  Eigen::VectorXd x, v;  ///< state reached (O(n²) to form, once per run)
-  long impacts = 0, segments = 0;
-  long evaluations = 0;  ///< evaluations of all modes at one time (the O(N) unit of work)
-  std::size_t contact_sets_built = 0;  ///< distinct sets of simultaneously impacting stops
-  double length_scale = 0.0, velocity_scale = 0.0, time_scale = 0.0;
+/// Guard functions of the homogeneous modal state (u, u') of one set of modes:
+///     value_i(t) = P_i·u + D_i·u' + h0_i + hc_i cos Ωt + hs_i sin Ωt,
+/// where D has rows only for the last D.rows() guards (the contact forces; gaps have D = 0). An
+/// event is a guard rising above its trigger ε.
+struct ModalGuards {
+  Eigen::MatrixXd P, D, abs_P, abs_D;
+  Eigen::VectorXd h0, hc, hs;
+  Eigen::VectorXd curvature;  ///< Ω² √(hc² + hs²), the harmonic part's bound on |value''|
+  Eigen::Index rows() const { return P.rows(); }
+  /// Fills abs_P, abs_D and curvature from the rest.
+  void finish(double frequency);
+};
+
+/// One contact set's motion in modal form: the free chain (empty set) or the reduced chain of
+/// the masses left free by the stuck stops, with every guard of that set written in its modes.
+/// Built by ModalChainSimulator on first visit (see the header comment); read-only afterwards.
+struct ModalContactMode {
+  ContactSet stuck;                     ///< sorted stop indices held
+  std::unique_ptr<ChainModes> owned;    ///< the reduced chain's modes (null for the free set)
+  const ChainModes* modes = nullptr;    ///< where the state lives; null when no mass is free
+  /// Per mass l: its reduced coordinate r (x_l = y_r + o_l(t)), or -1 if prescribed (x_l = o_l(t)).
+  std::vector<Eigen::Index> coordinate;
+  std::vector<Eigen::Index> first, last;  ///< per reduced coordinate: its masses first..last
+  Eigen::VectorXd o0, oc, os;            ///< o_l(t) = o0 + oc cos Ωt + os sin Ωt (empty: all 0)
+  /// Guards of the set (gaps of the stops not held, then -λ_j of the held stops; see the header).
+  ModalGuards guards;
+  std::vector<int> watched;             ///< stop of each row
+  Eigen::Index gap_rows = 0;
+  double build_seconds = 0.0;
+  std::size_t bytes = 0;
+
+  Eigen::Index size() const { return modes ? modes->dof() : 0; }
 };
 
 class ModalChainSimulator;
 
-/// Exact motion between two events, seen by observers.
-class ModalSegmentView {
+/// The modal engine's segment for observers (observers.hpp): every observer of the dense engine
+/// works unchanged. A full state costs O(N n_r) (the modes' basis change), a force O(n_r).
+class ModalSegmentView final : public SegmentView {
  public:
-  ModalSegmentView(const ModalChainSimulator& sim, double t_begin, double t_end)
-      : sim_(&sim), t_begin_(t_begin), t_end_(t_end) {}
-  double t_begin() const { return t_begin_; }
-  double t_end() const { return t_end_; }
-  Eigen::Index dof() const;
-  /// Full state at t ∈ [t_begin, t_end]: O(n²).
-  void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const;
-  /// Gap g_j at t: O(n).
-  double gap(int stop, double t) const;
+  ModalSegmentView(const ModalChainSimulator& sim, const ModalContactMode& mode, double t_begin,
+                   double t_end)
+      : SegmentView(t_begin, t_end), sim_(&sim), mode_(&mode) {}
+  Eigen::Index dof() const override;
+  const ContactSet& active() const override { return mode_->stuck; }
+  void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const override;
+  double force(Eigen::Index a, double t) const override;
+  Minimum force_minimum(Eigen::Index a) const override;
+  std::vector<Minimum> force_local_minima(Eigen::Index a) const override;
 
  private:
   const ModalChainSimulator* sim_;
-  double t_begin_, t_end_;
+  const ModalContactMode* mode_;
 };
 
-class ModalObserver {
- public:
-  virtual ~ModalObserver() = default;
-  virtual void begin(const ModalChainSimulator& /*sim*/, double /*t0*/) {}
-  virtual void segment(const ModalSegmentView& /*view*/) {}
-  virtual void event(const Event& /*event*/) {}
-  virtual void end(double /*t_end*/) {}
-};
-
-/// Exact states at requested times (ascending).
-class ModalSamples : public ModalObserver {
- public:
-  explicit ModalSamples(std::vector<double> times) : times_(std::move(times)) {}
-  void segment(const ModalSegmentView& view) override;
-  std::vector<double> t;
-  std::vector<Eigen::VectorXd> x, v;
-
- private:
-  std::vector<double> times_;
-  std::size_t next_ = 0;
-};
-
-/// Free flight and impacts of a proportionally damped chain with stops, in modal coordinates.
-/// Stops are validated here (mass indices, r ∈ [0, 1], finite values, moving stops need Ω > 0);
-/// the scratch data of a run is allocated once in the constructor. Not thread-safe: one
-/// simulator per thread (they may share one const ChainModes).
+/// Free flight, impacts, chatter and sticking of a proportionally damped chain with stops, in
+/// modal coordinates. Stops are validated here (mass indices, r ∈ [0, 1], finite values, moving
+/// stops need Ω > 0). Not thread-safe: one simulator per thread (they may share one const
+/// ChainModes).
 class ModalChainSimulator {
  public:
   ModalChainSimulator(const ChainModes& modes, std::vector<Stop> stops,
                       ModalSimulatorOptions options = {});
+  ~ModalChainSimulator();
+  ModalChainSimulator(const ModalChainSimulator&) = delete;
+  ModalChainSimulator& operator=(const ModalChainSimulator&) = delete;
 
   /// Throws InvalidInput for wrong sizes, non-finite values or x0 violating a stop by more than
-  /// the trigger tolerance. Other trouble ends the run with a status and a message.
+  /// the trigger tolerance. Other trouble ends the run with a status and a message; a contact set
+  /// the engine cannot reduce (see the header) ends it with RunStatus::unsupported.
   ModalRunSummary run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
-                      double t_end, const std::vector<ModalObserver*>& observers = {},
-                      const std::vector<Observer*>& event_observers = {});
+                      double t_end, const std::vector<Observer*>& observers = {});
 
   const ChainModes& modes() const { return *modes_; }
   const std::vector<Stop>& stops() const { return stops_; }
-  /// Seconds spent building the stop rows Φᵀw_j (O(N) per stop), in the constructor.
+  /// Seconds spent building the free chain's stop rows Φᵀw_j (O(N) per stop), in the constructor.
   double stop_setup_seconds() const { return stop_setup_seconds_; }
+  /// Sticking subsystems currently held in the cache.
+  std::size_t cached_modes() const;
 
   // For ModalSegmentView: the current segment's start and homogeneous modal state.
   double segment_start() const { return seg_t0_; }
   const Eigen::VectorXd& segment_u() const { return u0_; }
   const Eigen::VectorXd& segment_ud() const { return ud0_; }
-  /// Gap j at absolute time t from the homogeneous modal state (u) at that time. O(n).
-  double gap_from(int stop, double t, const Eigen::Ref<const Eigen::VectorXd>& u) const;
+  double force_scale() const { return force_scale_; }
+
+  class Search;  // the certified crossing search (modal_simulator.cpp)
 
  private:
-  struct Point {
-    double tau = 0.0;
-    Eigen::VectorXd h, d, bound;  // per stop: value, slope, |h''| bound valid on [tau, ∞)
-  };
-  void evaluate(double tau, Point& p, int only = -1);
-  bool certified(int j, const Point& a, const Point& b) const;
-  double refine_root(int j, double lo, double hi);
-  bool search(int ia, int ib, int free, double* tau_hit, int* stop_hit);
-  void harmonic(int j, double t, double* value, double* slope) const;
+  struct Cache;
+  const ModalContactMode* mode_for(const ContactSet& set, std::string* why_not,
+                                   ModalRunSummary& summary);
 
   const ChainModes* modes_;
   std::vector<Stop> stops_;
   ModalSimulatorOptions options_;
   double stop_setup_seconds_ = 0.0;
-  // Per stop: row Φᵀw_j (as row j of phi_), its absolute values, w_jᵀM⁻¹w_j, and the stop's
-  // entries (mass i with weight +1/-1, optionally the other mass k).
-  Eigen::MatrixXd phi_, abs_phi_;
-  Eigen::VectorXd h_const_, h_cos_, h_sin_;  // g_j = Φᵀw_j·u + h_const + h_cos cos Ωt + h_sin sin Ωt
-  Eigen::VectorXd curvature_;                // Ω² √(h_cos² + h_sin²)
-
-  // Run scratch (allocated once).
-  double seg_t0_ = 0.0;
-  Eigen::VectorXd u0_, ud0_, u_, ud_, bnd_;
-  Eigen::MatrixXd modal_block_;  // n × 3: u, ud, bound at the last evaluation
-  std::vector<Point> stack_;
-  Eigen::VectorXd trig_, last_below_;
-  std::vector<bool> leaving_;  // per stop: on its surface and moving away at the segment start
-  double resolution_ = 0.0;
-  long evaluations_ = 0;
+  std::unique_ptr<Cache> cache_;
+  double seg_t0_ = 0.0, force_scale_ = 1.0;
+  Eigen::VectorXd u0_, ud0_;
 };
 
 }  // namespace vibro

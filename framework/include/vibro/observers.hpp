@@ -34,42 +34,74 @@ struct Event {
   double force = 0.0;     ///< contact force λ_j after the event (0 when free)
 };
 
-/// Exact motion in one contact mode over [t_begin, t_end].
+/// What an observer is told when a run begins: enough to size its tables and find the forcing
+/// period, without the model itself (so an engine that never forms dense matrices, such as the
+/// modal chain engine of modal.hpp, can serve the same observers).
+struct RunContext {
+  Eigen::Index dof = 0;      ///< degrees of freedom n
+  std::size_t stops = 0;     ///< number of stops
+  double frequency = 0.0;    ///< forcing frequency Ω (0: unforced)
+};
+
+/// Exact motion in one contact mode over [t_begin, t_end], as an engine exposes it to observers.
+/// Each engine implements it from its own exact flow: DenseSegmentView (the general engine,
+/// simulator.hpp) and the modal engine's view (modal.hpp). States and forces inside a segment
+/// are computed, never interpolated.
 class SegmentView {
  public:
-  SegmentView(const ContactMode& mode, const Segment& segment, double t_begin, double t_end,
-              double force_tolerance)
-      : mode_(&mode), segment_(&segment), t_begin_(t_begin), t_end_(t_end),
-        force_tolerance_(force_tolerance) {}
-
-  const ContactMode& mode() const { return *mode_; }
+  virtual ~SegmentView() = default;
   double t_begin() const { return t_begin_; }
   double t_end() const { return t_end_; }
-  Eigen::Index dof() const { return mode_->reduced().to_full.rows() / 2 - 1; }
-
+  virtual Eigen::Index dof() const = 0;
+  /// The stops held throughout the segment (sorted); force(a, t) refers to active()[a].
+  virtual const ContactSet& active() const = 0;
   /// Full state at t ∈ [t_begin, t_end] from the exact flow.
-  void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const;
-  /// Contact force λ of the a-th stop of mode().active() at t.
-  double force(Eigen::Index a, double t) const;
+  virtual void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const = 0;
+  /// Contact force λ of the a-th stop of active() at t.
+  virtual double force(Eigen::Index a, double t) const = 0;
   /// Certified minimum of that force over the segment (value, time).
-  Minimum force_minimum(Eigen::Index a) const;
+  virtual Minimum force_minimum(Eigen::Index a) const = 0;
   /// Interior local minima of that force (λ' = 0 with λ' rising through zero), in time order:
   /// found as the crossings of the guard λ' with the same certified search as events
   /// (events.hpp), so none is missed. These are what detects rising: the orbit becomes tangent to
   /// the boundary ∂S (λ = 0) where the least interior minimum touches zero.
-  std::vector<Minimum> force_local_minima(Eigen::Index a) const;
+  virtual std::vector<Minimum> force_local_minima(Eigen::Index a) const = 0;
+
+ protected:
+  SegmentView(double t_begin, double t_end) : t_begin_(t_begin), t_end_(t_end) {}
+  SegmentView(const SegmentView&) = default;
+  SegmentView& operator=(const SegmentView&) = default;
+
+ private:
+  double t_begin_, t_end_;
+};
+
+/// The general engine's segment: one ContactMode's exact flow (contact.hpp, events.hpp).
+class DenseSegmentView final : public SegmentView {
+ public:
+  DenseSegmentView(const ContactMode& mode, const Segment& segment, double t_begin, double t_end,
+                   double force_tolerance)
+      : SegmentView(t_begin, t_end), mode_(&mode), segment_(&segment),
+        force_tolerance_(force_tolerance) {}
+
+  const ContactMode& mode() const { return *mode_; }
+  Eigen::Index dof() const override { return mode_->reduced().to_full.rows() / 2 - 1; }
+  const ContactSet& active() const override { return mode_->active(); }
+  void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const override;
+  double force(Eigen::Index a, double t) const override;
+  Minimum force_minimum(Eigen::Index a) const override;
+  std::vector<Minimum> force_local_minima(Eigen::Index a) const override;
 
  private:
   const ContactMode* mode_;
   const Segment* segment_;
-  double t_begin_, t_end_;
   double force_tolerance_;
 };
 
 class Observer {
  public:
   virtual ~Observer() = default;
-  virtual void begin(const ImpactSystem& /*scene*/, double /*t0*/) {}
+  virtual void begin(const RunContext& /*run*/, double /*t0*/) {}
   virtual void segment(const SegmentView& /*view*/) {}
   virtual void event(const Event& /*event*/) {}
   virtual void end(double /*t_end*/) {}
@@ -97,7 +129,7 @@ struct ContactInterval {
 
 class ContactLog : public Observer {
  public:
-  void begin(const ImpactSystem& scene, double t0) override;
+  void begin(const RunContext& run, double t0) override;
   void segment(const SegmentView& view) override;
   void event(const Event& e) override;
   void end(double t_end) override;
@@ -126,7 +158,7 @@ class Samples : public Observer {
 class Poincare : public Observer {
  public:
   explicit Poincare(double phase_time = 0.0) : phase_time_(phase_time) {}
-  void begin(const ImpactSystem& scene, double t0) override;
+  void begin(const RunContext& run, double t0) override;
   void segment(const SegmentView& view) override;
   std::vector<double> t;
   std::vector<Eigen::VectorXd> x, v;
@@ -141,7 +173,7 @@ class Poincare : public Observer {
 /// limit (the accumulation point of its bounces), as in ContactLog.
 class PeriodStatistics : public Observer {
  public:
-  void begin(const ImpactSystem& scene, double t0) override;
+  void begin(const RunContext& run, double t0) override;
   void segment(const SegmentView& view) override;
   void event(const Event& e) override;
   std::vector<Eigen::VectorXd> sticking_fraction;  ///< one vector (per stop) per period

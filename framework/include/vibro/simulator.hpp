@@ -95,7 +95,9 @@ struct SimulatorOptions {
   void validate() const;
 };
 
-enum class RunStatus { completed, event_cap, numerical_failure };
+/// unsupported: the engine cannot represent what the run reached (the modal chain engine of
+/// modal.hpp, e.g. sticking on a stop between non-neighbouring masses); the message says what.
+enum class RunStatus { completed, event_cap, numerical_failure, unsupported };
 const char* to_string(RunStatus s);
 
 struct RunSummary {

@@ -1,0 +1,1283 @@
+// The modal chain engine's event loop: free flight, impacts, chatter and sticking in modal
+// coordinates (modal.hpp). ChainModes and BandedChain are in modal.cpp.
+#include "vibro/modal.hpp"
+
+#include "vibro/contact.hpp"  // solve_lcp
+
+#include "event_rate.hpp"
+
+#include <Eigen/QR>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <set>
+#include <stdexcept>
+
+namespace vibro {
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+/// The nonzero entries of a stop's normal w: (mass, weight) pairs.
+struct Normal {
+  Eigen::Index i = 0, k = -1;
+  double wi = 1.0, wk = 0.0;
+};
+
+Normal normal_of(const Stop& s) {
+  switch (s.kind) {
+    case Stop::Kind::upper: return {s.mass, -1, 1.0, 0.0};
+    case Stop::Kind::lower: return {s.mass, -1, -1.0, 0.0};
+    case Stop::Kind::between: return {s.mass, s.other, 1.0, -1.0};
+  }
+  return {};
+}
+
+/// w_aᵀ M⁻¹ w_b for diagonal M.
+double delassus_entry(const Normal& a, const Normal& b, const Eigen::VectorXd& mass) {
+  double sum = 0.0;
+  auto add = [&](Eigen::Index ia, double wa) {
+    if (ia < 0) return;
+    if (ia == b.i) sum += wa * b.wi / mass(ia);
+    if (b.k >= 0 && ia == b.k) sum += wa * b.wk / mass(ia);
+  };
+  add(a.i, a.wi);
+  add(a.k, a.wk);
+  return sum;
+}
+
+/// Upper bound of h over [a, b] from the end values and slopes and B ≥ |h''| (events.hpp).
+double upper_bound(double ha, double da, double hb, double db, double B, double L) {
+  const double chord = std::max(ha, hb) + B * L * L / 8.0;
+  const double from_a = std::max(ha, ha + da * L + 0.5 * B * L * L);
+  const double from_b = std::max(hb, hb - db * L + 0.5 * B * L * L);
+  return std::min({chord, from_a, from_b});
+}
+
+/// c0 + cc cos Ωt + cs sin Ωt.
+struct Harmonic {
+  double c0 = 0.0, cc = 0.0, cs = 0.0;
+  Harmonic derivative(double W) const { return {0.0, W * cs, -W * cc}; }
+  Harmonic& operator+=(const Harmonic& o) {
+    c0 += o.c0;
+    cc += o.cc;
+    cs += o.cs;
+    return *this;
+  }
+  friend Harmonic operator*(double a, const Harmonic& h) { return {a * h.c0, a * h.cc, a * h.cs}; }
+};
+
+Harmonic stop_motion(const Stop& s) { return {s.s0(), s.s_cos(), s.s_sin()}; }
+
+double value_at(const Harmonic& h, double W, double t) {
+  return h.c0 + h.cc * std::cos(W * t) + h.cs * std::sin(W * t);
+}
+
+bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
+
+ContactSet merge(const ContactSet& a, const ContactSet& b) {
+  ContactSet out;
+  std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
+  return out;
+}
+
+std::string stop_text(const std::vector<Stop>& stops, int j) {
+  return "stops[" + std::to_string(j) + "] (" + stops[static_cast<std::size_t>(j)].name + ")";
+}
+
+/// out = K x for the chain's tridiagonal K. O(n).
+void stiffness_times(const BandedChain& ch, const Eigen::VectorXd& x, Eigen::VectorXd& out) {
+  const Eigen::Index n = ch.dof();
+  out = ch.stiffness_diagonal.cwiseProduct(x);
+  for (Eigen::Index i = 0; i + 1 < n; ++i) {
+    out(i) += ch.stiffness_off(i) * x(i + 1);
+    out(i + 1) += ch.stiffness_off(i) * x(i);
+  }
+}
+
+/// K_{l,l'} of the tridiagonal K (0 off the band).
+double stiffness_entry(const BandedChain& ch, Eigen::Index l, Eigen::Index lp) {
+  if (l == lp) return ch.stiffness_diagonal(l);
+  if (std::abs(l - lp) == 1) return ch.stiffness_off(std::min(l, lp));
+  return 0.0;
+}
+
+/// Builds the modal form of contact set `set` (modal.hpp, ModalContactMode), or returns null and
+/// says why in `why_not` when the set is one the modal engine cannot reduce.
+std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::vector<Stop>& stops,
+                                             const ContactSet& set, std::string* why_not) {
+  const auto start = std::chrono::steady_clock::now();
+  auto mode = std::make_unique<ModalContactMode>();
+  mode->stuck = set;
+  const BandedChain& ch = free.chain();
+  const Eigen::Index n = free.dof();
+  const double W = free.frequency();
+  const double alpha = ch.rayleigh_mass, beta = ch.rayleigh_stiffness;
+  mode->coordinate.assign(static_cast<std::size_t>(n), -1);
+  mode->o0 = Eigen::VectorXd::Zero(n);
+  mode->oc = Eigen::VectorXd::Zero(n);
+  mode->os = Eigen::VectorXd::Zero(n);
+  // Groups of masses joined by held stops between neighbours: (first, last, fixing stop or -1).
+  struct Group {
+    Eigen::Index lo, hi;
+    int fixer;
+  };
+  std::vector<Group> groups;
+  std::vector<int> tie(static_cast<std::size_t>(n), -1), fixer(static_cast<std::size_t>(n), -1);
+  if (set.empty()) {
+    mode->modes = &free;
+    for (Eigen::Index l = 0; l < n; ++l) {
+      mode->coordinate[static_cast<std::size_t>(l)] = l;
+      mode->first.push_back(l);
+      mode->last.push_back(l);
+    }
+  } else {
+    for (int j : set) {
+      const Stop& s = stops[static_cast<std::size_t>(j)];
+      if (s.kind == Stop::Kind::between) {
+        if (std::abs(s.mass - s.other) != 1) {
+          *why_not = stop_text(stops, j) + " would hold masses " + std::to_string(s.mass) + " and " +
+                     std::to_string(s.other) +
+                     ", which are not neighbours: the modal engine reduces a chain only by fixing "
+                     "masses or joining neighbours (use the dense engine)";
+          return nullptr;
+        }
+        auto& slot = tie[static_cast<std::size_t>(std::min(s.mass, s.other))];
+        if (slot >= 0) {
+          *why_not = stop_text(stops, slot) + " and " + stop_text(stops, j) +
+                     " would both hold the same two masses (redundant contact forces)";
+          return nullptr;
+        }
+        slot = j;
+      } else {
+        auto& slot = fixer[static_cast<std::size_t>(s.mass)];
+        if (slot >= 0) {
+          *why_not = stop_text(stops, slot) + " and " + stop_text(stops, j) +
+                     " would both hold mass " + std::to_string(s.mass);
+          return nullptr;
+        }
+        slot = j;
+      }
+    }
+    Eigen::Index lo = 0;
+    for (Eigen::Index l = 0; l < n; ++l) {
+      if (l + 1 < n && tie[static_cast<std::size_t>(l)] >= 0) continue;
+      int fixing = -1;
+      for (Eigen::Index i = lo; i <= l; ++i) {
+        const int f = fixer[static_cast<std::size_t>(i)];
+        if (f < 0) continue;
+        if (fixing >= 0) {
+          *why_not = stop_text(stops, fixing) + " and " + stop_text(stops, f) + " would both hold masses " +
+                     std::to_string(lo) + "…" + std::to_string(l) +
+                     ", joined by held stops between them (redundant contact forces)";
+          return nullptr;
+        }
+        fixing = f;
+      }
+      groups.push_back({lo, l, fixing});
+      lo = l + 1;
+    }
+    // Offsets: x_l = y_r + o_l(t) in a free group (o = 0 at its first mass), x_l = o_l(t) in a
+    // fixed one (o = s(t)/w at the held mass), propagated along the held stops between neighbours.
+    auto set_o = [&](Eigen::Index l, const Harmonic& h) {
+      mode->o0(l) = h.c0;
+      mode->oc(l) = h.cc;
+      mode->os(l) = h.cs;
+    };
+    auto get_o = [&](Eigen::Index l) { return Harmonic{mode->o0(l), mode->oc(l), mode->os(l)}; };
+    for (const Group& g : groups) {
+      Eigen::Index anchor = g.lo;
+      if (g.fixer >= 0) {
+        const Stop& s = stops[static_cast<std::size_t>(g.fixer)];
+        anchor = s.mass;
+        set_o(anchor, (s.kind == Stop::Kind::upper ? 1.0 : -1.0) * stop_motion(s));
+      }
+      for (Eigen::Index l = anchor; l < g.hi; ++l) {  // x_mass - x_other = s
+        const Stop& s = stops[static_cast<std::size_t>(tie[static_cast<std::size_t>(l)])];
+        Harmonic next = get_o(l);
+        next += (s.mass == l ? -1.0 : 1.0) * stop_motion(s);
+        set_o(l + 1, next);
+      }
+      for (Eigen::Index l = anchor - 1; l >= g.lo; --l) {
+        const Stop& s = stops[static_cast<std::size_t>(tie[static_cast<std::size_t>(l)])];
+        Harmonic next = get_o(l + 1);
+        next += (s.mass == l ? 1.0 : -1.0) * stop_motion(s);
+        set_o(l, next);
+      }
+      if (g.fixer < 0) {
+        const auto r = static_cast<Eigen::Index>(mode->first.size());
+        mode->first.push_back(g.lo);
+        mode->last.push_back(g.hi);
+        for (Eigen::Index l = g.lo; l <= g.hi; ++l) mode->coordinate[static_cast<std::size_t>(l)] = r;
+      }
+    }
+    const auto nr = static_cast<Eigen::Index>(mode->first.size());
+    if (nr > 0) {
+      // Reduced chain: x = T y + o(t) with T_{l,r} = 1 for l in group r, so TᵀMT, TᵀKT are the
+      // group sums (tridiagonal again), TᵀCT = α TᵀMT + β TᵀKT (still proportional) and the
+      // forcing is Tᵀ(f - M o'' - C o' - K o), harmonic.
+      const HarmonicForcing& f = ch.forcing;
+      Eigen::VectorXd Ko0, Koc, Kos;
+      stiffness_times(ch, mode->o0, Ko0);
+      stiffness_times(ch, mode->oc, Koc);
+      stiffness_times(ch, mode->os, Kos);
+      const Eigen::ArrayXd m = ch.mass.array();
+      const Eigen::VectorXd F0 = f.constant - Ko0;
+      const Eigen::VectorXd Fc = (f.cosine.array() + W * W * m * mode->oc.array() -
+                                  W * (alpha * m * mode->os.array() + beta * Kos.array()) - Koc.array())
+                                     .matrix();
+      const Eigen::VectorXd Fs = (f.sine.array() + W * W * m * mode->os.array() +
+                                  W * (alpha * m * mode->oc.array() + beta * Koc.array()) - Kos.array())
+                                     .matrix();
+      BandedChain red;
+      red.mass = Eigen::VectorXd::Zero(nr);
+      red.stiffness_diagonal = Eigen::VectorXd::Zero(nr);
+      red.stiffness_off = Eigen::VectorXd::Zero(nr - 1);
+      red.rayleigh_mass = alpha;
+      red.rayleigh_stiffness = beta;
+      red.forcing = HarmonicForcing::zero(nr, W);
+      for (Eigen::Index r = 0; r < nr; ++r) {
+        const Eigen::Index a = mode->first[static_cast<std::size_t>(r)], b = mode->last[static_cast<std::size_t>(r)];
+        for (Eigen::Index l = a; l <= b; ++l) {
+          red.mass(r) += ch.mass(l);
+          red.stiffness_diagonal(r) += ch.stiffness_diagonal(l) + (l < b ? 2.0 * ch.stiffness_off(l) : 0.0);
+          red.forcing.constant(r) += F0(l);
+          red.forcing.cosine(r) += Fc(l);
+          red.forcing.sine(r) += Fs(l);
+        }
+        if (r + 1 < nr && b + 1 == mode->first[static_cast<std::size_t>(r + 1)])
+          red.stiffness_off(r) = ch.stiffness_off(b);
+      }
+      try {
+        mode->owned = std::make_unique<ChainModes>(std::move(red), free.solver());
+      } catch (const InvalidInput& e) {
+        *why_not = "the subsystem with the held stops cannot be put in modal form: " + std::string(e.what());
+        return nullptr;
+      }
+      mode->modes = mode->owned.get();
+    }
+  }
+
+  // Per mass: its row φ_l (x_l = φ_l·q + o_l) and its harmonic part X_l = φ_l·p(t) + o_l(t),
+  // formed only for the masses a guard needs.
+  const ChainModes* md = mode->modes;
+  const Eigen::Index nr = mode->size();
+  std::map<Eigen::Index, std::pair<Eigen::VectorXd, Harmonic>> rows;
+  auto mass_row = [&](Eigen::Index l) -> const std::pair<Eigen::VectorXd, Harmonic>& {
+    auto it = rows.find(l);
+    if (it != rows.end()) return it->second;
+    std::pair<Eigen::VectorXd, Harmonic> entry{Eigen::VectorXd::Zero(nr),
+                                               {mode->o0(l), mode->oc(l), mode->os(l)}};
+    const Eigen::Index r = mode->coordinate[static_cast<std::size_t>(l)];
+    if (r >= 0) {
+      entry.first = md->phi_row(r);
+      entry.second += Harmonic{entry.first.dot(md->particular_constant()),
+                               entry.first.dot(md->particular_cosine()),
+                               entry.first.dot(md->particular_sine())};
+    }
+    return rows.emplace(l, std::move(entry)).first->second;
+  };
+
+  const auto m = static_cast<Eigen::Index>(stops.size());
+  const auto held = static_cast<Eigen::Index>(set.size());
+  ModalGuards& g = mode->guards;
+  g.P = Eigen::MatrixXd::Zero(m, nr);
+  g.D = Eigen::MatrixXd::Zero(held, nr);
+  g.h0 = Eigen::VectorXd::Zero(m);
+  g.hc = Eigen::VectorXd::Zero(m);
+  g.hs = Eigen::VectorXd::Zero(m);
+  auto set_harmonic = [&](Eigen::Index row, const Harmonic& h) {
+    g.h0(row) = h.c0;
+    g.hc(row) = h.cc;
+    g.hs(row) = h.cs;
+  };
+  // Gaps of the stops not held: g_j = w_jᵀ x - s_j(t).
+  for (int j = 0; j < static_cast<int>(m); ++j) {
+    if (contains(set, j)) continue;
+    const auto row = static_cast<Eigen::Index>(mode->watched.size());
+    mode->watched.push_back(j);
+    const Stop& s = stops[static_cast<std::size_t>(j)];
+    const Normal w = normal_of(s);
+    Harmonic h = -1.0 * stop_motion(s);
+    for (const auto& [l, weight] : {std::pair{w.i, w.wi}, std::pair{w.k, w.wk}}) {
+      if (l < 0) continue;
+      const auto& [phi, X] = mass_row(l);
+      g.P.row(row) += weight * phi.transpose();
+      h += weight * X;
+    }
+    set_harmonic(row, h);
+  }
+  mode->gap_rows = static_cast<Eigen::Index>(mode->watched.size());
+  mode->watched.insert(mode->watched.end(), set.begin(), set.end());
+  // Contact forces of the held stops, group by group. With the residual of mass l
+  //     ρ_l = m_l x_l'' + (C x')_l + (K x)_l - f_l(t) = -Σ_j W_lj λ_j   (M x'' + C x' + K x = f - W λ),
+  // the held stops S_G of group G satisfy W_G λ_G = -ρ_G, |G| equations for |S_G| unknowns, of
+  // full column rank and consistent (a free group's rows sum to its reduced equation, 0), so the
+  // guard -λ_G = W_G⁺ ρ_G. In the homogeneous modal state x_l = φ_l·u + X_l(t) and
+  // u'' = -2σ∘u' - ω²∘u give ρ_l = P_l·u + D_l·u' + harmonic, with
+  //     P_l = -m_l φ_l∘ω² + Σ_l' K_ll' φ_l',   D_l = m_l (α - 2σ)∘φ_l + β Σ_l' K_ll' φ_l' = β P_l
+  // (2σ = α + βω²): a force guard's D row is β times its P row.
+  if (held > 0) {
+    const Eigen::VectorXd w2 = md ? md->omega_squared() : Eigen::VectorXd(0);
+    for (const Group& grp : groups) {
+      std::vector<int> members;
+      if (grp.fixer >= 0) members.push_back(grp.fixer);
+      for (Eigen::Index l = grp.lo; l < grp.hi; ++l) members.push_back(tie[static_cast<std::size_t>(l)]);
+      if (members.empty()) continue;
+      const Eigen::Index size = grp.hi - grp.lo + 1;
+      Eigen::MatrixXd Wg = Eigen::MatrixXd::Zero(size, static_cast<Eigen::Index>(members.size()));
+      for (std::size_t c = 0; c < members.size(); ++c) {
+        const Normal w = normal_of(stops[static_cast<std::size_t>(members[c])]);
+        Wg(w.i - grp.lo, static_cast<Eigen::Index>(c)) += w.wi;
+        if (w.k >= 0) Wg(w.k - grp.lo, static_cast<Eigen::Index>(c)) += w.wk;
+      }
+      const Eigen::MatrixXd pinv = Wg.completeOrthogonalDecomposition().pseudoInverse();
+      Eigen::MatrixXd Pg = Eigen::MatrixXd::Zero(size, nr);
+      std::vector<Harmonic> hg(static_cast<std::size_t>(size));
+      for (Eigen::Index l = grp.lo; l <= grp.hi; ++l) {
+        const Eigen::Index a = l - grp.lo;
+        const auto [phi, X] = mass_row(l);
+        if (nr > 0) Pg.row(a) = -ch.mass(l) * phi.cwiseProduct(w2).transpose();
+        Harmonic h = ch.mass(l) * X.derivative(W).derivative(W);
+        h += (alpha * ch.mass(l)) * X.derivative(W);
+        for (Eigen::Index lp = std::max<Eigen::Index>(l - 1, 0); lp <= std::min(l + 1, n - 1); ++lp) {
+          const double k = stiffness_entry(ch, l, lp);
+          const auto& [phi_p, X_p] = mass_row(lp);
+          if (nr > 0) Pg.row(a) += k * phi_p.transpose();
+          h += k * X_p;
+          h += (beta * k) * X_p.derivative(W);
+        }
+        h += Harmonic{-ch.forcing.constant(l), -ch.forcing.cosine(l), -ch.forcing.sine(l)};
+        hg[static_cast<std::size_t>(a)] = h;
+      }
+      for (std::size_t c = 0; c < members.size(); ++c) {
+        const auto a_idx = std::lower_bound(set.begin(), set.end(), members[c]) - set.begin();
+        const Eigen::Index row = mode->gap_rows + a_idx;
+        Harmonic h;
+        for (Eigen::Index a = 0; a < size; ++a) {
+          const double p = pinv(static_cast<Eigen::Index>(c), a);
+          if (p == 0.0) continue;
+          if (nr > 0) g.P.row(row) += p * Pg.row(a);
+          h += p * hg[static_cast<std::size_t>(a)];
+        }
+        set_harmonic(row, h);
+        g.D.row(a_idx) = beta * g.P.row(row);
+      }
+    }
+  }
+  g.finish(W);
+  mode->build_seconds = seconds_since(start);
+  mode->bytes = sizeof(double) * static_cast<std::size_t>(
+                                      (mode->owned ? nr * nr + 12 * nr : 0) + 2 * (m + held) * nr + 4 * n);
+  return mode;
+}
+
+/// Full physical state from a mode's homogeneous modal state at t. O(n·n_r).
+void to_physical(const ModalContactMode& mode, double W, double t, const Eigen::VectorXd& u,
+                 const Eigen::VectorXd& ud, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) {
+  const Eigen::Index n = static_cast<Eigen::Index>(mode.coordinate.size());
+  Eigen::VectorXd y(mode.size()), yd(mode.size());
+  if (mode.modes) mode.modes->to_physical(t, u, ud, y, yd);
+  const double c = std::cos(W * t), s = std::sin(W * t);
+  for (Eigen::Index l = 0; l < n; ++l) {
+    const Eigen::Index r = mode.coordinate[static_cast<std::size_t>(l)];
+    x(l) = mode.o0(l) + mode.oc(l) * c + mode.os(l) * s + (r >= 0 ? y(r) : 0.0);
+    v(l) = W * (mode.os(l) * c - mode.oc(l) * s) + (r >= 0 ? yd(r) : 0.0);
+  }
+}
+
+/// A mode's homogeneous modal state from the full state at t: each reduced coordinate is the
+/// mass-weighted mean of its masses (less their offsets), the M-orthogonal projection onto the
+/// constraints, so rounding drift off them is projected away. O(n·n_r).
+void to_modal(const ModalContactMode& mode, const Eigen::VectorXd& mass, double W, double t,
+              const Eigen::VectorXd& x, const Eigen::VectorXd& v, Eigen::VectorXd& u, Eigen::VectorXd& ud) {
+  const Eigen::Index nr = mode.size();
+  u.resize(nr);
+  ud.resize(nr);
+  if (nr == 0) return;
+  const double c = std::cos(W * t), s = std::sin(W * t);
+  Eigen::VectorXd y(nr), yd(nr);
+  for (Eigen::Index r = 0; r < nr; ++r) {
+    double sy = 0.0, sv = 0.0, sm = 0.0;
+    for (Eigen::Index l = mode.first[static_cast<std::size_t>(r)]; l <= mode.last[static_cast<std::size_t>(r)]; ++l) {
+      sy += mass(l) * (x(l) - (mode.o0(l) + mode.oc(l) * c + mode.os(l) * s));
+      sv += mass(l) * (v(l) - W * (mode.os(l) * c - mode.oc(l) * s));
+      sm += mass(l);
+    }
+    y(r) = sy / sm;
+    yd(r) = sv / sm;
+  }
+  mode.modes->to_modal(t, y, yd, u, ud);
+}
+
+/// Value and slope of guard `row` at t0 + τ from the homogeneous state (u0, ud0) at t0. O(n_r).
+void guard_at(const ModalContactMode& mode, double W, double t0, const Eigen::VectorXd& u0,
+              const Eigen::VectorXd& ud0, double tau, Eigen::Index row, double* value, double* slope) {
+  const ModalGuards& g = mode.guards;
+  const double t = t0 + tau, c = std::cos(W * t), s = std::sin(W * t);
+  *value = g.h0(row) + g.hc(row) * c + g.hs(row) * s;
+  *slope = W * (g.hs(row) * c - g.hc(row) * s);
+  if (!mode.modes) return;
+  const Eigen::Index nr = mode.size();
+  Eigen::VectorXd u(nr), ud(nr);
+  mode.modes->advance(tau, u0, ud0, u, ud);
+  *value += g.P.row(row).dot(u);
+  *slope += g.P.row(row).dot(ud);
+  const Eigen::Index first_d = g.rows() - g.D.rows();
+  if (row >= first_d) {
+    const Eigen::VectorXd udd =
+        -(2.0 * mode.modes->decay().cwiseProduct(ud) + mode.modes->omega_squared().cwiseProduct(u));
+    *value += g.D.row(row - first_d).dot(ud);
+    *slope += g.D.row(row - first_d).dot(udd);
+  }
+}
+
+}  // namespace
+
+void ModalGuards::finish(double frequency) {
+  abs_P = P.cwiseAbs();
+  abs_D = D.cwiseAbs();
+  curvature = (frequency * frequency) * (hc.cwiseAbs2() + hs.cwiseAbs2()).cwiseSqrt();
+}
+
+// ---------------------------------------------------------------------------------------------
+// The certified crossing search of events.hpp on modal guards.
+
+class ModalChainSimulator::Search {
+ public:
+  struct Point {
+    double tau = 0.0;
+    Eigen::VectorXd h, d, bound;  // per row: value, slope, |h''| bound valid on [tau, ∞)
+  };
+
+  Search(double frequency, long* evaluations) : W_(frequency), evaluations_(evaluations) {}
+
+  /// Targets guards `g` of modes `md` (null: no free mass) from the homogeneous state (u0, ud0)
+  /// at absolute time t0. The references must outlive the search's use.
+  void reset(const ChainModes* md, const ModalGuards& g, double t0, const Eigen::VectorXd& u0,
+             const Eigen::VectorXd& ud0, double resolution) {
+    md_ = md;
+    g_ = &g;
+    t0_ = t0;
+    u0_ = &u0;
+    ud0_ = &ud0;
+    resolution_ = resolution;
+    const Eigen::Index nr = md ? md->dof() : 0, rows = g.rows();
+    u_.resize(nr);
+    ud_.resize(nr);
+    udd_.resize(nr);
+    b2_.resize(nr);
+    b3_.resize(nr);
+    if (stack_.size() < 200) stack_.resize(200);
+    for (Point& p : stack_) {
+      p.h.resize(rows);
+      p.d.resize(rows);
+      p.bound.resize(rows);
+    }
+    trig_.resize(rows);
+    last_below_.resize(rows);
+    leaving_.assign(static_cast<std::size_t>(rows), false);
+  }
+
+  /// Evaluates the start and arms every row at base(i) (re-armed above a start inside the band
+  /// while moving away, as in the dense engine).
+  void start(const Eigen::VectorXd& base, double from = 0.0) {
+    Point& P0 = stack_[0];
+    from_ = from;
+    evaluate(from, P0);
+    for (Eigen::Index i = 0; i < g_->rows(); ++i) {
+      trig_(i) = base(i);
+      if (P0.h(i) > 0.0 && P0.d(i) <= 0.0) trig_(i) += P0.h(i);
+      leaving_[static_cast<std::size_t>(i)] = P0.h(i) >= -base(i) && P0.d(i) < 0.0;
+      last_below_(i) = -std::numeric_limits<double>::infinity();
+    }
+  }
+
+  /// First crossing in [from, span] (from as given to start()), walking in steps of `step`;
+  /// false if none.
+  bool first(double span, double step, double* tau, int* row) {
+    if (g_->rows() == 0) return false;
+    for (double a = from_; a < span;) {
+      const double b = std::min(a + step, span);
+      evaluate(b, stack_[1]);
+      if (search(0, 1, 2, tau, row)) return true;
+      std::swap(stack_[0], stack_[1]);
+      a = b;
+    }
+    return false;
+  }
+
+  /// Value, slope and bound of every row (only < 0) or one row at τ.
+  void evaluate(double tau, Point& p, int only = -1) {
+    ++*evaluations_;
+    p.tau = tau;
+    const ModalGuards& g = *g_;
+    const Eigen::Index nd = g.D.rows(), rows = g.rows(), first_d = rows - nd;
+    const bool full = only < 0;
+    const double t = t0_ + tau, c = std::cos(W_ * t), s = std::sin(W_ * t);
+    if (md_) {
+      md_->advance(tau, *u0_, *ud0_, u_, ud_, full ? b2_.data() : nullptr);
+      if (nd > 0) {
+        const Eigen::VectorXd& sg = md_->decay();
+        udd_ = -(2.0 * sg.cwiseProduct(ud_) + md_->omega_squared().cwiseProduct(u_));
+        if (full) {
+          const Eigen::ArrayXd two_s = 2.0 * sg.array(), w = md_->omega().array();
+          b3_ = (b2_.array() * (two_s * (two_s + w) + w * w) / (two_s + w)).matrix();
+        }
+      }
+    }
+    if (full) {
+      if (md_) {
+        p.h.noalias() = g.P * u_;
+        p.d.noalias() = g.P * ud_;
+        p.bound.noalias() = g.abs_P * b2_;
+        if (nd > 0) {
+          p.h.tail(nd).noalias() += g.D * ud_;
+          p.d.tail(nd).noalias() += g.D * udd_;
+          p.bound.tail(nd).noalias() += g.abs_D * b3_;
+        }
+      } else {
+        p.h.setZero();
+        p.d.setZero();
+        p.bound.setZero();
+      }
+      p.bound += g.curvature;
+      p.h += g.h0 + g.hc * c + g.hs * s;
+      p.d += W_ * (g.hs * c - g.hc * s);
+    } else {
+      double h = g.h0(only) + g.hc(only) * c + g.hs(only) * s;
+      double d = W_ * (g.hs(only) * c - g.hc(only) * s);
+      if (md_) {
+        h += g.P.row(only).dot(u_);
+        d += g.P.row(only).dot(ud_);
+        if (only >= first_d) {
+          h += g.D.row(only - first_d).dot(ud_);
+          d += g.D.row(only - first_d).dot(udd_);
+        }
+      }
+      p.h(only) = h;
+      p.d(only) = d;
+    }
+  }
+
+  const Eigen::VectorXd& u() const { return u_; }
+  const Eigen::VectorXd& ud() const { return ud_; }
+  const Eigen::VectorXd& trig() const { return trig_; }
+  Point& point(std::size_t i) { return stack_[i]; }
+
+ private:
+  bool certified(Eigen::Index i, const Point& a, const Point& b) const {
+    return upper_bound(a.h(i), a.d(i), b.h(i), b.d(i), a.bound(i), b.tau - a.tau) <= trig_(i);
+  }
+
+  double refine_root(int i, double lo, double hi) {
+    // Safeguarded Newton on h_i = 0 keeping a bracket h_i(lo) ≤ 0 < h_i(hi) (as the dense engine).
+    Point& p = stack_.back();
+    evaluate(lo, p, i);
+    double h_lo = p.h(i);
+    if (h_lo > 0.0) return lo;
+    double h_hi = std::numeric_limits<double>::infinity();
+    double x = 0.5 * (lo + hi);
+    for (int it = 0; it < 200; ++it) {
+      evaluate(x, p, i);
+      const double h = p.h(i), d = p.d(i);
+      if (h == 0.0) return x;
+      if (h < 0.0) {
+        lo = x;
+        h_lo = h;
+      } else {
+        hi = x;
+        h_hi = h;
+      }
+      const double t_abs = std::abs(t0_) + std::abs(hi);
+      if (hi - lo <= 4.0 * std::numeric_limits<double>::epsilon() * t_abs)
+        return std::abs(h_lo) <= std::abs(h_hi) ? lo : hi;
+      double next = d != 0.0 ? x - h / d : 0.5 * (lo + hi);
+      if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+      if (next == x) return x;
+      x = next;
+    }
+    return x;
+  }
+
+  bool search(int ia, int ib, int free, double* tau_hit, int* row_hit) {
+    if (free + 2 >= static_cast<int>(stack_.size()))
+      throw std::runtime_error("modal crossing search: subdivision depth exceeded");
+    const Point& A = stack_[static_cast<std::size_t>(ia)];
+    const Point& B = stack_[static_cast<std::size_t>(ib)];
+    const auto m = static_cast<int>(trig_.size());
+    // A guard that starts on its surface and leaves it is within rounding of zero at τ = 0: that
+    // point must not bracket a root (the root finder could return the surface just left).
+    for (int j = 0; j < m; ++j)
+      if (A.h(j) <= 0.0 && !(A.tau == from_ && leaving_[static_cast<std::size_t>(j)]))
+        last_below_(j) = std::max(last_below_(j), A.tau);
+    int uncertified = 0, above = -1;
+    for (int j = 0; j < m; ++j)
+      if (!certified(j, A, B)) {
+        ++uncertified;
+        if (B.h(j) > trig_(j) && above < 0) above = j;
+      }
+    if (uncertified == 0) return false;
+    // The root before B, bracketed from the last point seen with h ≤ 0; a guard not ≤ 0 since
+    // the segment began (re-armed above its start) is placed at B.
+    auto root_of = [&](int j) {
+      if (!std::isfinite(last_below_(j))) return B.tau;
+      return refine_root(j, last_below_(j), B.tau);
+    };
+    if (B.tau - A.tau <= resolution_) {
+      bool found = false;
+      for (int j = 0; j < m; ++j)
+        if (B.h(j) > trig_(j)) {
+          const double r = root_of(j);
+          if (!found || r < *tau_hit) {
+            *tau_hit = r;
+            *row_hit = j;
+            found = true;
+          }
+        }
+      return found;
+    }
+    if (uncertified == 1 && above >= 0 && std::isfinite(last_below_(above))) {
+      // Shortcut: the one uncertified guard rises above ε at b; accept its root r if [a, r] is
+      // certified for it (the others are certified on all of [a, b]).
+      const double r = root_of(above);
+      if (r <= A.tau) {
+        *tau_hit = r;
+        *row_hit = above;
+        return true;
+      }
+      Point& R = stack_[static_cast<std::size_t>(free)];
+      evaluate(r, R, above);
+      if (upper_bound(A.h(above), A.d(above), R.h(above), R.d(above), A.bound(above), r - A.tau) <=
+          trig_(above)) {
+        *tau_hit = r;
+        *row_hit = above;
+        return true;
+      }
+    }
+    evaluate(A.tau + 0.5 * (B.tau - A.tau), stack_[static_cast<std::size_t>(free)]);
+    if (search(ia, free, free + 1, tau_hit, row_hit)) return true;
+    return search(free, ib, free + 1, tau_hit, row_hit);
+  }
+
+  double W_;
+  long* evaluations_;
+  const ChainModes* md_ = nullptr;
+  const ModalGuards* g_ = nullptr;
+  double t0_ = 0.0, resolution_ = 0.0, from_ = 0.0;
+  const Eigen::VectorXd *u0_ = nullptr, *ud0_ = nullptr;
+  Eigen::VectorXd u_, ud_, udd_, b2_, b3_;
+  std::vector<Point> stack_;
+  Eigen::VectorXd trig_, last_below_;
+  std::vector<bool> leaving_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Options, cache, construction
+
+void ModalSimulatorOptions::validate() const {
+  // The fields shared with the dense engine follow its rules (one place states them).
+  SimulatorOptions shared;
+  shared.trigger = trigger;
+  shared.simultaneity = simultaneity;
+  shared.chatter_height = chatter_height;
+  shared.chatter_velocity = chatter_velocity;
+  shared.contact_velocity = contact_velocity;
+  shared.max_events = max_events;
+  shared.event_window = event_window;
+  shared.length_scale = length_scale;
+  shared.validate();
+  if (!std::isfinite(mode_cache_bytes) || mode_cache_bytes < 0.0)
+    throw InvalidInput("solver.mode_cache_bytes = " + number_text(mode_cache_bytes) + ": must be a finite number ≥ 0");
+  if (stop_after_impacts < 0)
+    throw InvalidInput("stop_after_impacts = " + std::to_string(stop_after_impacts) + ": must be ≥ 0");
+}
+
+struct ModalChainSimulator::Cache {
+  struct Entry {
+    std::unique_ptr<ModalContactMode> mode;
+    long last_use = 0;
+  };
+  std::map<ContactSet, Entry> modes;
+  std::map<ContactSet, std::string> unsupported;
+  std::set<ContactSet> ever_built;
+  long clock = 0;
+  std::size_t bytes = 0;
+};
+
+ModalChainSimulator::ModalChainSimulator(const ChainModes& modes, std::vector<Stop> stops,
+                                         ModalSimulatorOptions options)
+    : modes_(&modes), stops_(std::move(stops)), options_(options), cache_(std::make_unique<Cache>()) {
+  options_.validate();
+  const auto start = std::chrono::steady_clock::now();
+  const Eigen::Index n = modes.dof();
+  const double W = modes.frequency();
+  for (std::size_t j = 0; j < stops_.size(); ++j) {
+    Stop& s = stops_[j];
+    const std::string label = "stops[" + std::to_string(j) + "]";
+    if (s.mass < 0 || s.mass >= n)
+      throw InvalidInput(label + ": mass " + std::to_string(s.mass) + " is not in [0, " +
+                         std::to_string(n - 1) + "]");
+    if (s.kind == Stop::Kind::between && (s.other < 0 || s.other >= n || s.other == s.mass))
+      throw InvalidInput(label + ": other mass " + std::to_string(s.other) +
+                         " must be in [0, " + std::to_string(n - 1) + "] and differ from mass");
+    if (!std::isfinite(s.position) || !std::isfinite(s.amplitude) || !std::isfinite(s.phase) ||
+        s.amplitude < 0.0)
+      throw InvalidInput(label + ": position, amplitude and phase must be finite, amplitude ≥ 0");
+    if (!(s.restitution >= 0.0 && s.restitution <= 1.0))
+      throw InvalidInput(label + ": restitution = " + number_text(s.restitution) + ": must be in [0, 1]");
+    if (s.amplitude > 0.0 && !(W > 0.0))
+      throw InvalidInput(label + ": a moving stop needs forcing.frequency > 0");
+    if (s.name.empty()) {
+      s.name = s.kind == Stop::Kind::upper ? "upper" : (s.kind == Stop::Kind::lower ? "lower" : "between");
+      s.name += " x" + std::to_string(s.mass);
+      if (s.kind == Stop::Kind::between) s.name += "-x" + std::to_string(s.other);
+    }
+  }
+  std::string why;
+  cache_->modes[ContactSet{}].mode = build_mode(modes, stops_, {}, &why);
+  stop_setup_seconds_ = seconds_since(start);
+}
+
+ModalChainSimulator::~ModalChainSimulator() = default;
+
+std::size_t ModalChainSimulator::cached_modes() const { return cache_->modes.size() - 1; }
+
+const ModalContactMode* ModalChainSimulator::mode_for(const ContactSet& set, std::string* why_not,
+                                                       ModalRunSummary& summary) {
+  Cache& c = *cache_;
+  ++c.clock;
+  if (auto it = c.modes.find(set); it != c.modes.end()) {
+    it->second.last_use = c.clock;
+    return it->second.mode.get();
+  }
+  if (auto it = c.unsupported.find(set); it != c.unsupported.end()) {
+    *why_not = it->second;
+    return nullptr;
+  }
+  auto mode = build_mode(*modes_, stops_, set, why_not);
+  if (!mode) {
+    c.unsupported[set] = *why_not;
+    return nullptr;
+  }
+  summary.mode_build_seconds += mode->build_seconds;
+  summary.mode_build_max_seconds = std::max(summary.mode_build_max_seconds, mode->build_seconds);
+  if (!c.ever_built.insert(set).second) ++summary.modes_rebuilt;
+  c.bytes += mode->bytes;
+  const ModalContactMode* out = mode.get();
+  c.modes[set] = {std::move(mode), c.clock};
+  // Drop the least recently used subsystems beyond the budget (never the free set or this one).
+  while (static_cast<double>(c.bytes) > options_.mode_cache_bytes) {
+    auto victim = c.modes.end();
+    for (auto it = c.modes.begin(); it != c.modes.end(); ++it)
+      if (!it->first.empty() && it->first != set &&
+          (victim == c.modes.end() || it->second.last_use < victim->second.last_use))
+        victim = it;
+    if (victim == c.modes.end()) break;
+    c.bytes -= victim->second.mode->bytes;
+    c.modes.erase(victim);
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The run
+
+ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
+                                         const Eigen::VectorXd& v0, double t_end,
+                                         const std::vector<Observer*>& observers) {
+  const ChainModes& md = *modes_;
+  const BandedChain& ch = md.chain();
+  const Eigen::Index n = md.dof();
+  const int m = static_cast<int>(stops_.size());
+  if (x0.size() != n || v0.size() != n)
+    throw InvalidInput("initial state: x has " + std::to_string(x0.size()) + " and v has " +
+                       std::to_string(v0.size()) + " entries, expected " + std::to_string(n));
+  if (!x0.allFinite() || !v0.allFinite()) throw InvalidInput("initial state: not finite");
+  if (!std::isfinite(t0) || !std::isfinite(t_end) || t_end < t0)
+    throw InvalidInput("time span: [" + number_text(t0) + ", " + number_text(t_end) +
+                       "] must be finite with t_end ≥ t0");
+
+  // Scales, as Simulator::scales.
+  const double W = md.frequency();
+  double omega = W > 0.0 ? W : md.omega().maxCoeff();
+  if (!(omega > 0.0)) omega = 1.0;
+  const double kmax = std::max(ch.stiffness_diagonal.cwiseAbs().maxCoeff(),
+                               n > 1 ? ch.stiffness_off.cwiseAbs().maxCoeff() : 0.0);
+  const double stiff = std::max(kmax, ch.mass.maxCoeff() * omega * omega);
+  const double fmax = ch.forcing.constant.cwiseAbs().maxCoeff() +
+                      ch.forcing.cosine.cwiseAbs().maxCoeff() + ch.forcing.sine.cwiseAbs().maxCoeff();
+  double L = options_.length_scale;
+  if (L == 0.0) {
+    L = x0.cwiseAbs().maxCoeff();
+    for (const Stop& s : stops_) L = std::max({L, std::abs(s.position), s.amplitude});
+    L = std::max({L, 1e-300, v0.cwiseAbs().maxCoeff() / omega, fmax / stiff});
+  }
+  const double V = L * omega, T = 2.0 * std::numbers::pi / omega, F = std::max(stiff * L, fmax);
+  const double eps_gap = options_.trigger * L, eps_force = options_.trigger * F;
+  const double v_chatter = options_.chatter_velocity * V;
+  const double h_chatter = options_.chatter_height * L;
+  const double v_contact = options_.contact_velocity * V;
+  const double dt_simultaneous = options_.simultaneity * T;
+  const double window = options_.event_window > 0.0 ? options_.event_window : T;
+  const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end), T);
+  force_scale_ = F;
+
+  // Sparse stop algebra in physical coordinates (O(1) per stop, O(n) per acceleration).
+  std::vector<Normal> normal(static_cast<std::size_t>(m));
+  Eigen::VectorXd G_diag(m);
+  for (int j = 0; j < m; ++j) {
+    normal[static_cast<std::size_t>(j)] = normal_of(stops_[static_cast<std::size_t>(j)]);
+    G_diag(j) = delassus_entry(normal[static_cast<std::size_t>(j)], normal[static_cast<std::size_t>(j)], ch.mass);
+  }
+  auto w_dot = [&](int j, const Eigen::VectorXd& z) {
+    const Normal& w = normal[static_cast<std::size_t>(j)];
+    return w.wi * z(w.i) + (w.k >= 0 ? w.wk * z(w.k) : 0.0);
+  };
+  auto add_minv_w = [&](int j, double scale, Eigen::VectorXd& z) {  // z += scale M⁻¹ w_j
+    const Normal& w = normal[static_cast<std::size_t>(j)];
+    z(w.i) += scale * w.wi / ch.mass(w.i);
+    if (w.k >= 0) z(w.k) += scale * w.wk / ch.mass(w.k);
+  };
+  auto motion = [&](int j) { return stop_motion(stops_[static_cast<std::size_t>(j)]); };
+  auto gap = [&](int j, double t, const Eigen::VectorXd& x) { return w_dot(j, x) - value_at(motion(j), W, t); };
+  auto gap_rate = [&](int j, double t, const Eigen::VectorXd& v) {
+    return w_dot(j, v) - value_at(motion(j).derivative(W), W, t);
+  };
+  Eigen::VectorXd kx, kv;
+  auto free_acceleration = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
+    stiffness_times(ch, x, kx);
+    stiffness_times(ch, v, kv);
+    const HarmonicForcing& f = ch.forcing;
+    const double c = std::cos(W * t), s = std::sin(W * t);
+    Eigen::VectorXd a = f.constant + f.cosine * c + f.sine * s - kx - ch.rayleigh_stiffness * kv;
+    a = a.cwiseQuotient(ch.mass) - ch.rayleigh_mass * v;
+    return a;
+  };
+  auto delassus = [&](const ContactSet& set) {
+    const auto k = static_cast<Eigen::Index>(set.size());
+    Eigen::MatrixXd G(k, k);
+    for (Eigen::Index a = 0; a < k; ++a)
+      for (Eigen::Index b = 0; b < k; ++b)
+        G(a, b) = delassus_entry(normal[static_cast<std::size_t>(set[static_cast<std::size_t>(a)])],
+                                 normal[static_cast<std::size_t>(set[static_cast<std::size_t>(b)])], ch.mass);
+    return G;
+  };
+  // Acceleration LCP (contact.hpp): which candidates hold at (t, x, v), and their forces.
+  auto settle = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                    const ContactSet& candidates, Eigen::VectorXd* forces) {
+    if (candidates.empty()) {
+      if (forces) forces->resize(0);
+      return ContactSet{};
+    }
+    const Eigen::VectorXd acc = free_acceleration(t, x, v);
+    const auto k = static_cast<Eigen::Index>(candidates.size());
+    Eigen::VectorXd q(k);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      const int j = candidates[static_cast<std::size_t>(a)];
+      q(a) = w_dot(j, acc) - value_at(motion(j).derivative(W).derivative(W), W, t);
+    }
+    const Eigen::VectorXd lambda = solve_lcp(delassus(candidates), q);
+    ContactSet held;
+    for (Eigen::Index a = 0; a < k; ++a)
+      if (lambda(a) > 0.0) held.push_back(candidates[static_cast<std::size_t>(a)]);
+    if (forces) *forces = lambda;
+    return held;
+  };
+
+  ModalRunSummary summary;
+  summary.length_scale = L;
+  summary.velocity_scale = V;
+  summary.force_scale = F;
+  summary.time_scale = T;
+  for (int j = 0; j < m; ++j) {
+    const double g = gap(j, t0, x0);
+    if (g > eps_gap)
+      throw InvalidInput("initial state violates " + stop_text(stops_, j) + " by " + number_text(g) +
+                         " at t = " + number_text(t0));
+  }
+  long evaluations = 0;
+  Search search(W, &evaluations);
+  const RunContext context{n, stops_.size(), W};
+  for (Observer* o : observers) o->begin(context, t0);
+
+  double t = t0;
+  Eigen::VectorXd x = x0, v = v0;
+  ContactSet stuck;
+  const ModalContactMode* mode = cache_->modes.at(ContactSet{}).mode.get();
+  std::set<ContactSet> sets_seen;  // impact and contact sets visited (contact_sets_built)
+  detail::EventRate rate(options_.max_events, window);
+  std::string why_not;
+
+  auto emit = [&](const Event& e) {
+    for (Observer* o : observers) o->event(e);
+  };
+  // Ends the run; the state reached is the mode's, or (x, v) after an event that could not be
+  // carried into a mode (physical = true).
+  auto finish = [&](RunStatus status, std::string message, bool physical = false) {
+    summary.status = status;
+    summary.message = std::move(message);
+    summary.t = t;
+    summary.x.resize(n);
+    summary.v.resize(n);
+    if (physical) {
+      summary.x = x;
+      summary.v = v;
+    } else {
+      to_physical(*mode, W, t, u0_, ud0_, summary.x, summary.v);
+    }
+    summary.stuck = stuck;
+    summary.evaluations = evaluations;
+    summary.contact_sets_built = sets_seen.size();
+    summary.sticking_flows_built = cache_->ever_built.size();
+    for (Observer* o : observers) o->end(t);
+    return summary;
+  };
+  // Enters the mode of `stuck` from the physical state (x, v) at t. False if unsupported.
+  auto enter = [&]() {
+    const ModalContactMode* next = mode_for(stuck, &why_not, summary);
+    if (!next) return false;
+    mode = next;
+    sets_seen.insert(stuck);
+    to_modal(*mode, ch.mass, W, t, x, v, u0_, ud0_);
+    seg_t0_ = t;
+    return true;
+  };
+
+  struct ChatterLimit {
+    int stop;
+    double t;
+  };
+  std::vector<ChatterLimit> chatter_limits;
+  // An event at t resolved in physical coordinates (x, v), as the dense engine's (simulator.cpp):
+  // impacts on `impacting` (generalised Newton law over the held and impacting stops), releases
+  // of `releasing`, `resting` stops touching with zero normal speed; then the acceleration LCP
+  // decides which stops hold. Returns false (why_not set) if the next set cannot be reduced.
+  auto handle = [&](const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting) {
+    ++summary.general_events;
+    ContactSet candidates;
+    std::set_difference(stuck.begin(), stuck.end(), releasing.begin(), releasing.end(),
+                        std::back_inserter(candidates));
+    candidates = merge(candidates, resting);
+    ContactSet chatter;
+    Eigen::VectorXd g_before = Eigen::VectorXd::Zero(m);
+    if (!impacting.empty()) {
+      for (int j = 0; j < m; ++j) g_before(j) = gap_rate(j, t, v);
+      ContactSet slow;
+      for (int j : impacting) {
+        const double r = stops_[static_cast<std::size_t>(j)].restitution;
+        if (r > 0.0 && r < 1.0) slow.push_back(j);
+      }
+      if (!slow.empty()) {
+        Eigen::VectorXd hold_force;
+        const ContactSet test = merge(candidates, slow);
+        const ContactSet held = settle(t, x, v, test, &hold_force);
+        for (int j : slow) {
+          if (!contains(held, j)) continue;
+          const auto a_idx = std::lower_bound(test.begin(), test.end(), j) - test.begin();
+          const double accel = G_diag(j) * hold_force(a_idx);
+          const double r = stops_[static_cast<std::size_t>(j)].restitution;
+          const double u = g_before(j);
+          const double rise = (r * u) * (r * u) / (2.0 * accel);
+          if (u <= v_chatter || rise <= h_chatter) chatter.push_back(j);
+        }
+      }
+      const ContactSet all = merge(stuck, impacting);
+      sets_seen.insert(all);
+      const Eigen::MatrixXd G = delassus(all);
+      const auto k = static_cast<Eigen::Index>(all.size());
+      Eigen::VectorXd q(k);
+      for (Eigen::Index a = 0; a < k; ++a) {
+        const int j = all[static_cast<std::size_t>(a)];
+        const bool rest = contains(stuck, j) || contains(chatter, j);
+        const double r = rest ? 0.0 : stops_[static_cast<std::size_t>(j)].restitution;
+        q(a) = (1.0 + r) * g_before(j);
+      }
+      const Eigen::VectorXd impulse = solve_lcp(G, q);
+      for (Eigen::Index a = 0; a < k; ++a) add_minv_w(all[static_cast<std::size_t>(a)], -impulse(a), v);
+      for (Eigen::Index a = 0; a < k; ++a) {  // impacting gaps exactly to zero (as the dense engine)
+        const int j = all[static_cast<std::size_t>(a)];
+        const double g = gap(j, t, x);
+        if (g > 0.0) add_minv_w(j, -g / G(a, a), x);
+      }
+      for (int j : impacting) {
+        emit({t, j, EventKind::impact, g_before(j), gap_rate(j, t, v), 0.0});
+        ++summary.impacts;
+      }
+      for (int j : all)
+        if (gap_rate(j, t, v) >= -v_contact && !contains(candidates, j)) candidates.push_back(j);
+      std::sort(candidates.begin(), candidates.end());
+    }
+    Eigen::VectorXd forces;
+    const ContactSet next = settle(t, x, v, candidates, &forces);
+    auto force_of = [&](int j) {
+      for (std::size_t a = 0; a < candidates.size(); ++a)
+        if (candidates[a] == j) return forces(static_cast<Eigen::Index>(a));
+      return 0.0;
+    };
+    const ModalContactMode* held_mode = next.empty() ? cache_->modes.at(ContactSet{}).mode.get() : mode_for(next, &why_not, summary);
+    if (!held_mode) return false;
+    // Chatter limits (ChatterRule, simulator.hpp), before the residual normal velocity is removed.
+    chatter_limits.clear();
+    for (int j : chatter) {
+      if (!contains(next, j)) continue;
+      const double r = stops_[static_cast<std::size_t>(j)].restitution;
+      const double Gj = G_diag(j);
+      const double A = Gj * force_of(j);
+      const double w0 = r * g_before(j);
+      double t_limit = t;
+      if (A > 0.0) {
+        const double T0 = 2.0 * w0 / (A * (1.0 - r));  // Budd & Dux (1994)
+        t_limit = t + T0;
+        if (options_.chatter_rule == ChatterRule::second_order) {
+          // As simulator.cpp: T = T0 + T0² (α_j/6 - A'/(3A)), A' = G λ_j' along the held flow,
+          // α_j = -w_jᵀM⁻¹CM⁻¹w_j / G_jj, and the momentum kick -K M⁻¹ w_j ∫δg dt / G_jj.
+          Eigen::VectorXd u, ud;
+          to_modal(*held_mode, ch.mass, W, t, x, v, u, ud);
+          const auto a_idx = std::lower_bound(next.begin(), next.end(), j) - next.begin();
+          double h_value, h_slope;
+          guard_at(*held_mode, W, t, u, ud, 0.0, held_mode->gap_rows + a_idx, &h_value, &h_slope);
+          const double dforce = -h_slope;
+          const double A_dot = Gj * dforce;
+          Eigen::VectorXd z = Eigen::VectorXd::Zero(n), kz;
+          add_minv_w(j, 1.0, z);
+          stiffness_times(ch, z, kz);
+          const double alpha_j = -(ch.rayleigh_mass * Gj + ch.rayleigh_stiffness * z.dot(kz)) / Gj;
+          const double Tn = T0 + T0 * T0 * (alpha_j / 6.0 - A_dot / (3.0 * A));
+          if (std::abs(Tn - T0) <= 0.5 * T0) t_limit = t + Tn;
+          const double r3 = r * r * r;
+          const double displacement_integral = -(2.0 / 3.0) * w0 * w0 * w0 / (A * A * (1.0 - r3));
+          v -= (kz.cwiseQuotient(ch.mass) / Gj) * displacement_integral;
+        }
+      }
+      chatter_limits.push_back({j, t_limit});
+    }
+    if (!next.empty()) {  // remove the residual normal velocity of the held stops
+      const auto k = static_cast<Eigen::Index>(next.size());
+      Eigen::VectorXd gn(k);
+      for (Eigen::Index a = 0; a < k; ++a) gn(a) = gap_rate(next[static_cast<std::size_t>(a)], t, v);
+      const Eigen::VectorXd mult = delassus(next).llt().solve(gn);
+      for (Eigen::Index a = 0; a < k; ++a) add_minv_w(next[static_cast<std::size_t>(a)], -mult(a), v);
+    }
+    for (int j : next) {
+      if (contains(stuck, j)) continue;
+      if (contains(chatter, j)) {
+        double t_limit = t;
+        for (const ChatterLimit& c : chatter_limits)
+          if (c.stop == j) t_limit = c.t;
+        const double r = stops_[static_cast<std::size_t>(j)].restitution;
+        emit({t_limit, j, EventKind::chatter_limit, r * g_before(j), 0.0, force_of(j)});
+        ++summary.chatters;
+      } else {
+        emit({t, j, EventKind::stick, g_before(j), 0.0, force_of(j)});
+      }
+      ++summary.sticks;
+    }
+    for (int j : stuck) {
+      if (contains(next, j)) continue;
+      emit({t, j, EventKind::release, 0.0, gap_rate(j, t, v), 0.0});
+      ++summary.releases;
+    }
+    stuck = next;
+    return true;
+  };
+
+  seg_t0_ = t0;
+  to_modal(*mode, ch.mass, W, t, x, v, u0_, ud0_);
+  try {
+    {  // Stops touched at t0 (within ε) that are approached or resting.
+      ContactSet impacting, resting;
+      for (int j = 0; j < m; ++j) {
+        if (gap(j, t, x) < -eps_gap) continue;
+        const double gd = gap_rate(j, t, v);
+        if (gd > v_contact) impacting.push_back(j);
+        else if (gd >= -v_contact) resting.push_back(j);
+      }
+      if (!impacting.empty() || !resting.empty()) {
+        if (!handle(impacting, {}, resting) || !enter())
+          return finish(RunStatus::unsupported, why_not, true);
+      }
+    }
+    Eigen::VectorXd base;
+    while (true) {
+      const ModalGuards& guards = mode->guards;
+      const Eigen::Index rows = guards.rows();
+      base.resize(rows);
+      for (Eigen::Index i = 0; i < rows; ++i) base(i) = i < mode->gap_rows ? eps_gap : eps_force;
+      search.reset(mode->modes, guards, t, u0_, ud0_, resolution);
+      search.start(base);
+      const double top = std::max(W, mode->modes ? mode->modes->omega().maxCoeff() : 0.0);
+      const double span = t_end - t;
+      const double step = top > 0.0 ? 1.0 / top : std::max(span, 1e-300);
+      double tau_hit = span;
+      int row_hit = -1;
+      const bool hit = span > 0.0 && search.first(span, step, &tau_hit, &row_hit);
+      const double tau = hit ? tau_hit : span;
+      const double t_next = hit ? t + tau : t_end;
+      ++summary.segments;
+      if (!observers.empty()) {
+        const ModalSegmentView view(*this, *mode, t, t_next);
+        for (Observer* o : observers) o->segment(view);
+      }
+      Search::Point& P = search.point(0);
+      search.evaluate(tau, P);
+      u0_ = search.u();
+      ud0_ = search.ud();
+      t = t_next;
+      seg_t0_ = t;
+      if (!u0_.allFinite() || !ud0_.allFinite())
+        return finish(RunStatus::numerical_failure, "non-finite modal state at t = " + number_text(t));
+      if (!hit) break;
+      ContactSet impacting, releasing;
+      for (Eigen::Index i = 0; i < rows; ++i) {
+        const double trig = search.trig()(i);
+        const bool fired = i == row_hit || (P.d(i) > 0.0 && P.h(i) >= -std::max(trig, P.d(i) * dt_simultaneous));
+        if (!fired) continue;
+        (i < mode->gap_rows ? impacting : releasing).push_back(mode->watched[static_cast<std::size_t>(i)]);
+      }
+      std::sort(impacting.begin(), impacting.end());
+      std::sort(releasing.begin(), releasing.end());
+      // Fast path, O(n): one impact in free flight that leaves the stop (no chatter, no rest):
+      // the impulse is a rank-1 update of the modal velocities (modal.hpp).
+      bool fast = false;
+      if (stuck.empty() && releasing.empty() && impacting.size() == 1) {
+        const int j = impacting.front();
+        const auto row = static_cast<Eigen::Index>(std::find(mode->watched.begin(), mode->watched.end(), j) -
+                                                   mode->watched.begin());
+        const double r = stops_[static_cast<std::size_t>(j)].restitution;
+        const double before = P.d(row);  // the gap's slope is its normal rate
+        const double after = before > 0.0 ? -r * before : before;
+        bool slow = false;
+        if (r > 0.0 && r < 1.0) {
+          // Free gap acceleration (the acceleration LCP of one stop holds iff it is > 0).
+          const Eigen::VectorXd udd = -(2.0 * md.decay().cwiseProduct(ud0_) + md.omega_squared().cwiseProduct(u0_));
+          const double c = std::cos(W * t), s = std::sin(W * t);
+          const double accel = guards.P.row(row).dot(udd) - W * W * (guards.hc(row) * c + guards.hs(row) * s);
+          slow = accel > 0.0 && (before <= v_chatter || (r * before) * (r * before) / (2.0 * accel) <= h_chatter);
+        }
+        if (!slow && after < -v_contact) {
+          fast = true;
+          sets_seen.insert(impacting);
+          const double impulse = before > 0.0 ? (1.0 + r) * before / G_diag(j) : 0.0;
+          ud0_ -= guards.P.row(row).transpose() * impulse;
+          const double g = guards.P.row(row).dot(u0_) + value_at({guards.h0(row), guards.hc(row), guards.hs(row)}, W, t);
+          if (g > 0.0) u0_ -= guards.P.row(row).transpose() * (g / G_diag(j));
+          const double c = std::cos(W * t), s = std::sin(W * t);
+          const double after_rate = guards.P.row(row).dot(ud0_) + W * (guards.hs(row) * c - guards.hc(row) * s);
+          emit({t, j, EventKind::impact, before, after_rate, 0.0});
+          ++summary.impacts;
+        }
+      }
+      if (!fast) {
+        to_physical(*mode, W, t, u0_, ud0_, x, v);
+        if (!handle(impacting, releasing, {}) || !enter()) return finish(RunStatus::unsupported, why_not, true);
+      }
+      if (options_.stop_after_impacts > 0 && summary.impacts >= options_.stop_after_impacts)
+        return finish(RunStatus::completed,
+                      "stopped after " + std::to_string(summary.impacts) + " impacts as asked (t_end not reached)");
+      if (rate.exceeded(t)) {
+        const int j = !impacting.empty() ? impacting.front() : releasing.front();
+        return finish(RunStatus::event_cap,
+                      "event cap: more than " + std::to_string(options_.max_events) + " events within " +
+                          number_text(window) + " time units, at t = " + number_text(t) + ", " +
+                          stop_text(stops_, j) +
+                          " (Zeno behaviour the chatter rule did not resolve: raise "
+                          "solver.chatter_velocity or solver.max_events)");
+      }
+    }
+  } catch (const std::runtime_error& e) {
+    return finish(RunStatus::numerical_failure, std::string(e.what()) + " (at t = " + number_text(t) + ")");
+  }
+  return finish(RunStatus::completed, "");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Observers
+
+Eigen::Index ModalSegmentView::dof() const { return sim_->modes().dof(); }
+
+void ModalSegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const {
+  const Eigen::Index nr = mode_->size();
+  Eigen::VectorXd u(nr), ud(nr);
+  if (mode_->modes) mode_->modes->advance(t - t_begin(), sim_->segment_u(), sim_->segment_ud(), u, ud);
+  to_physical(*mode_, sim_->modes().frequency(), t, u, ud, x, v);
+}
+
+double ModalSegmentView::force(Eigen::Index a, double t) const {
+  double value, slope;
+  guard_at(*mode_, sim_->modes().frequency(), t_begin(), sim_->segment_u(), sim_->segment_ud(),
+           t - t_begin(), mode_->gap_rows + a, &value, &slope);
+  return -value;
+}
+
+std::vector<Minimum> ModalSegmentView::force_local_minima(Eigen::Index a) const {
+  // Guards λ' and -λ' (the force row is h = -λ = P u + D u' + harmonic; with u'' = -2σu' - ω²u,
+  // h' = (-D∘ω²)·u + (P - 2D∘σ)·u' + harmonic'). An interior minimum is λ' crossing 0 upwards,
+  // a maximum -λ' crossing upwards; the search alternates between them, one armed at a time
+  // (the other's trigger is +∞), as DenseSegmentView::force_local_minima.
+  const ModalGuards& g = mode_->guards;
+  const Eigen::Index row = mode_->gap_rows + a, nr = mode_->size();
+  const double W = sim_->modes().frequency();
+  ModalGuards slope;
+  slope.P.resize(2, nr);
+  slope.D.resize(2, nr);
+  if (nr > 0) {
+    const Eigen::VectorXd& w2 = mode_->modes->omega_squared();
+    const Eigen::VectorXd& sg = mode_->modes->decay();
+    const Eigen::RowVectorXd d_row = g.D.row(a);
+    slope.P.row(0) = d_row.cwiseProduct(w2.transpose());                                   // λ' = -h'
+    slope.D.row(0) = -(g.P.row(row) - 2.0 * d_row.cwiseProduct(sg.transpose()));
+  }
+  slope.P.row(1) = -slope.P.row(0);
+  slope.D.row(1) = -slope.D.row(0);
+  const Harmonic h_slope = Harmonic{g.h0(row), g.hc(row), g.hs(row)}.derivative(W);
+  slope.h0 = Eigen::Vector2d(-h_slope.c0, h_slope.c0);
+  slope.hc = Eigen::Vector2d(-h_slope.cc, h_slope.cc);
+  slope.hs = Eigen::Vector2d(-h_slope.cs, h_slope.cs);
+  slope.finish(W);
+
+  long evaluations = 0;
+  ModalChainSimulator::Search s(W, &evaluations);
+  const double span = t_end() - t_begin();
+  const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(t_end()));
+  s.reset(mode_->modes, slope, t_begin(), sim_->segment_u(), sim_->segment_ud(), resolution);
+  ModalChainSimulator::Search::Point& p0 = s.point(0);
+  s.evaluate(0.0, p0);
+  const double top = std::max(W, mode_->modes ? mode_->modes->omega().maxCoeff() : 0.0);
+  const double eps = std::max(1e-13 * std::abs(p0.h(0)), sim_->force_scale() * 1e-16 * std::max(top, 1e-300));
+  const double step = top > 0.0 ? 1.0 / top : std::max(span, 1e-300);
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<Minimum> out;
+  bool seek_min = p0.h(0) <= 0.0;
+  double from = 0.0;
+  for (int guard = 0; from < span && guard < 10000; ++guard) {
+    Eigen::VectorXd trigger(2);
+    trigger << (seek_min ? eps : inf), (seek_min ? inf : eps);
+    s.start(trigger, from);
+    double tau = span;
+    int which = -1;
+    if (!s.first(span, step, &tau, &which) || tau >= span) break;
+    if (seek_min && tau > 0.0) out.push_back({force(a, t_begin() + tau), t_begin() + tau});
+    from = std::max(tau, from) + resolution;
+    seek_min = !seek_min;
+  }
+  return out;
+}
+
+Minimum ModalSegmentView::force_minimum(Eigen::Index a) const {
+  // The least of the ends and the interior minima (each certified by the search above).
+  Minimum best{force(a, t_begin()), t_begin()};
+  const double end = force(a, t_end());
+  if (end < best.value) best = {end, t_end()};
+  for (const Minimum& m : force_local_minima(a))
+    if (m.value < best.value) best = m;
+  return best;
+}
+
+}  // namespace vibro
