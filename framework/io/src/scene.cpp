@@ -842,10 +842,8 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
 
   Scene scene{impl_->file, impl_->text,
               root["name"] ? r.text(root["name"], "name") : std::string(),
-              std::move(dense), std::move(banded), std::move(stops), t0, x0, v0, opt, rec, run};
-  scene.engine_choice = engine_choice;
-  scene.engine = engine;
-  scene.engine_reason = reason;
+              std::move(dense), std::move(banded), std::move(stops), t0, x0, v0, opt, rec, run,
+              engine_choice, engine, reason};
   return scene;
 }
 
