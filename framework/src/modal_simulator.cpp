@@ -749,6 +749,18 @@ ModalChainSimulator::~ModalChainSimulator() = default;
 
 std::size_t ModalChainSimulator::cached_modes() const { return cache_->modes.size() - 1; }
 
+const ModalContactMode& ModalChainSimulator::contact_mode(const ContactSet& set) {
+  for (std::size_t a = 0; a < set.size(); ++a)
+    if (set[a] < 0 || set[a] >= static_cast<int>(stops_.size()) || (a > 0 && set[a] <= set[a - 1]))
+      throw InvalidInput("contact set: stop indices must be sorted, distinct and in [0, " +
+                         std::to_string(stops_.size()) + ")");
+  ModalRunSummary scratch;
+  std::string why;
+  const ModalContactMode* mode = mode_for(set, &why, scratch);
+  if (!mode) throw InvalidInput("contact set: " + why);
+  return *mode;
+}
+
 const ModalContactMode* ModalChainSimulator::mode_for(const ContactSet& set, std::string* why_not,
                                                        ModalRunSummary& summary) {
   Cache& c = *cache_;
