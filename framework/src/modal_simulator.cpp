@@ -5,11 +5,13 @@
 #include "vibro/contact.hpp"  // solve_lcp
 
 #include "event_rate.hpp"
+#include "event_resolution.hpp"
 
 #include <Eigen/QR>
 
 #include <algorithm>
 #include <chrono>
+#include <functional>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -80,12 +82,6 @@ double value_at(const Harmonic& h, double W, double t) {
 }
 
 bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
-
-ContactSet merge(const ContactSet& a, const ContactSet& b) {
-  ContactSet out;
-  std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
-  return out;
-}
 
 std::string stop_text(const std::vector<Stop>& stops, int j) {
   return "stops[" + std::to_string(j) + "] (" + stops[static_cast<std::size_t>(j)].name + ")";
@@ -438,6 +434,121 @@ void guard_at(const ModalContactMode& mode, double W, double t0, const Eigen::Ve
   }
 }
 
+/// The modal engine's side of event resolution (event_resolution.hpp), in physical coordinates:
+/// sparse normals, diagonal M and tridiagonal K, so O(N) per event; contact sets through the
+/// simulator's cache (`mode_of`, null with a reason when a set cannot be reduced).
+class ChainAlgebra final : public detail::ContactAlgebra {
+ public:
+  using ModeOf = std::function<const ModalContactMode*(const ContactSet&, std::string*)>;
+  ChainAlgebra(const BandedChain& chain, const std::vector<Stop>& stops, ModeOf mode_of)
+      : ch_(chain), stops_(stops), W_(chain.forcing.frequency), mode_of_(std::move(mode_of)) {
+    const auto m = static_cast<Eigen::Index>(stops.size());
+    G_diag_.resize(m);
+    for (Eigen::Index j = 0; j < m; ++j) {
+      normal_.push_back(normal_of(stops[static_cast<std::size_t>(j)]));
+      G_diag_(j) = delassus_entry(normal_.back(), normal_.back(), ch_.mass);
+    }
+  }
+
+  double gap(int j, double t, const Eigen::VectorXd& x) const override {
+    return w_dot(j, x) - value_at(motion(j), W_, t);
+  }
+  double gap_rate(int j, double t, const Eigen::VectorXd& v) const {
+    return w_dot(j, v) - value_at(motion(j).derivative(W_), W_, t);
+  }
+  Eigen::VectorXd gap_rates(double t, const Eigen::VectorXd& v) const override {
+    Eigen::VectorXd out(static_cast<Eigen::Index>(stops_.size()));
+    for (Eigen::Index j = 0; j < out.size(); ++j) out(j) = gap_rate(static_cast<int>(j), t, v);
+    return out;
+  }
+  ContactSet settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                    const ContactSet& candidates, Eigen::VectorXd* forces) override {
+    if (candidates.empty()) {
+      if (forces) forces->resize(0);
+      return {};
+    }
+    // Free acceleration M⁻¹(f - C v - K x), C = αM + βK: O(n).
+    stiffness_times(ch_, x, kx_);
+    stiffness_times(ch_, v, kv_);
+    const HarmonicForcing& f = ch_.forcing;
+    const double c = std::cos(W_ * t), s = std::sin(W_ * t);
+    Eigen::VectorXd acc = f.constant + f.cosine * c + f.sine * s - kx_ - ch_.rayleigh_stiffness * kv_;
+    acc = acc.cwiseQuotient(ch_.mass) - ch_.rayleigh_mass * v;
+    const auto k = static_cast<Eigen::Index>(candidates.size());
+    Eigen::VectorXd q(k);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      const int j = candidates[static_cast<std::size_t>(a)];
+      q(a) = w_dot(j, acc) - value_at(motion(j).derivative(W_).derivative(W_), W_, t);
+    }
+    const Eigen::VectorXd lambda = solve_lcp(delassus(candidates), q);
+    ContactSet held;
+    for (Eigen::Index a = 0; a < k; ++a)
+      if (lambda(a) > 0.0) held.push_back(candidates[static_cast<std::size_t>(a)]);
+    if (forces) *forces = lambda;
+    return held;
+  }
+  Eigen::MatrixXd delassus(const ContactSet& set) override {
+    const auto k = static_cast<Eigen::Index>(set.size());
+    Eigen::MatrixXd G(k, k);
+    for (Eigen::Index a = 0; a < k; ++a)
+      for (Eigen::Index b = 0; b < k; ++b)
+        G(a, b) = delassus_entry(normal_[static_cast<std::size_t>(set[static_cast<std::size_t>(a)])],
+                                 normal_[static_cast<std::size_t>(set[static_cast<std::size_t>(b)])], ch_.mass);
+    return G;
+  }
+  double delassus_diagonal(int j) const override { return G_diag_(j); }
+  void apply_impulse(const ContactSet& set, const Eigen::VectorXd& impulse, Eigen::VectorXd& v) override {
+    for (std::size_t a = 0; a < set.size(); ++a) add_minv_w(set[a], -impulse(static_cast<Eigen::Index>(a)), v);
+  }
+  void shift(const ContactSet& set, Eigen::Index a, double s, Eigen::VectorXd& z) override {
+    add_minv_w(set[static_cast<std::size_t>(a)], -s, z);
+  }
+  bool accept(const ContactSet& held, std::string* why) override { return mode_of_(held, why) != nullptr; }
+  double chatter_alpha(int j) const override {
+    Eigen::VectorXd z = Eigen::VectorXd::Zero(ch_.dof()), kz;
+    add_minv_w(j, 1.0, z);
+    stiffness_times(ch_, z, kz);
+    return -(ch_.rayleigh_mass * G_diag_(j) + ch_.rayleigh_stiffness * z.dot(kz)) / G_diag_(j);
+  }
+  double force_slope(const ContactSet& held, int j, double t, const Eigen::VectorXd& x,
+                     const Eigen::VectorXd& v) override {
+    std::string why;
+    const ModalContactMode* mode = mode_of_(held, &why);
+    if (!mode) throw std::logic_error("force_slope: the held set was not accepted: " + why);
+    Eigen::VectorXd u, ud;
+    to_modal(*mode, ch_.mass, W_, t, x, v, u, ud);
+    const auto a_idx = std::lower_bound(held.begin(), held.end(), j) - held.begin();
+    double value, slope;
+    guard_at(*mode, W_, t, u, ud, 0.0, mode->gap_rows + a_idx, &value, &slope);
+    return -slope;  // the guard is -λ
+  }
+  void chatter_kick(int j, double s, Eigen::VectorXd& v) override {
+    Eigen::VectorXd z = Eigen::VectorXd::Zero(ch_.dof()), kz;
+    add_minv_w(j, 1.0, z);
+    stiffness_times(ch_, z, kz);
+    v -= (kz.cwiseQuotient(ch_.mass) / G_diag_(j)) * s;
+  }
+
+ private:
+  double w_dot(int j, const Eigen::VectorXd& z) const {
+    const Normal& w = normal_[static_cast<std::size_t>(j)];
+    return w.wi * z(w.i) + (w.k >= 0 ? w.wk * z(w.k) : 0.0);
+  }
+  void add_minv_w(int j, double scale, Eigen::VectorXd& z) const {  // z += scale M⁻¹ w_j
+    const Normal& w = normal_[static_cast<std::size_t>(j)];
+    z(w.i) += scale * w.wi / ch_.mass(w.i);
+    if (w.k >= 0) z(w.k) += scale * w.wk / ch_.mass(w.k);
+  }
+  Harmonic motion(int j) const { return stop_motion(stops_[static_cast<std::size_t>(j)]); }
+
+  const BandedChain& ch_;
+  const std::vector<Stop>& stops_;
+  double W_;
+  ModeOf mode_of_;
+  std::vector<Normal> normal_;
+  Eigen::VectorXd G_diag_, kx_, kv_;
+};
+
 }  // namespace
 
 void ModalGuards::finish(double frequency) {
@@ -749,6 +860,18 @@ ModalChainSimulator::~ModalChainSimulator() = default;
 
 std::size_t ModalChainSimulator::cached_modes() const { return cache_->modes.size() - 1; }
 
+const ModalContactMode& ModalChainSimulator::contact_mode(const ContactSet& set) {
+  for (std::size_t a = 0; a < set.size(); ++a)
+    if (set[a] < 0 || set[a] >= static_cast<int>(stops_.size()) || (a > 0 && set[a] <= set[a - 1]))
+      throw InvalidInput("contact set: stop indices must be sorted, distinct and in [0, " +
+                         std::to_string(stops_.size()) + ")");
+  ModalRunSummary scratch;
+  std::string why;
+  const ModalContactMode* mode = mode_for(set, &why, scratch);
+  if (!mode) throw InvalidInput("contact set: " + why);
+  return *mode;
+}
+
 const ModalContactMode* ModalChainSimulator::mode_for(const ContactSet& set, std::string* why_not,
                                                        ModalRunSummary& summary) {
   Cache& c = *cache_;
@@ -829,75 +952,20 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
   const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end), T);
   force_scale_ = F;
 
-  // Sparse stop algebra in physical coordinates (O(1) per stop, O(n) per acceleration).
-  std::vector<Normal> normal(static_cast<std::size_t>(m));
-  Eigen::VectorXd G_diag(m);
-  for (int j = 0; j < m; ++j) {
-    normal[static_cast<std::size_t>(j)] = normal_of(stops_[static_cast<std::size_t>(j)]);
-    G_diag(j) = delassus_entry(normal[static_cast<std::size_t>(j)], normal[static_cast<std::size_t>(j)], ch.mass);
-  }
-  auto w_dot = [&](int j, const Eigen::VectorXd& z) {
-    const Normal& w = normal[static_cast<std::size_t>(j)];
-    return w.wi * z(w.i) + (w.k >= 0 ? w.wk * z(w.k) : 0.0);
-  };
-  auto add_minv_w = [&](int j, double scale, Eigen::VectorXd& z) {  // z += scale M⁻¹ w_j
-    const Normal& w = normal[static_cast<std::size_t>(j)];
-    z(w.i) += scale * w.wi / ch.mass(w.i);
-    if (w.k >= 0) z(w.k) += scale * w.wk / ch.mass(w.k);
-  };
-  auto motion = [&](int j) { return stop_motion(stops_[static_cast<std::size_t>(j)]); };
-  auto gap = [&](int j, double t, const Eigen::VectorXd& x) { return w_dot(j, x) - value_at(motion(j), W, t); };
-  auto gap_rate = [&](int j, double t, const Eigen::VectorXd& v) {
-    return w_dot(j, v) - value_at(motion(j).derivative(W), W, t);
-  };
-  Eigen::VectorXd kx, kv;
-  auto free_acceleration = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
-    stiffness_times(ch, x, kx);
-    stiffness_times(ch, v, kv);
-    const HarmonicForcing& f = ch.forcing;
-    const double c = std::cos(W * t), s = std::sin(W * t);
-    Eigen::VectorXd a = f.constant + f.cosine * c + f.sine * s - kx - ch.rayleigh_stiffness * kv;
-    a = a.cwiseQuotient(ch.mass) - ch.rayleigh_mass * v;
-    return a;
-  };
-  auto delassus = [&](const ContactSet& set) {
-    const auto k = static_cast<Eigen::Index>(set.size());
-    Eigen::MatrixXd G(k, k);
-    for (Eigen::Index a = 0; a < k; ++a)
-      for (Eigen::Index b = 0; b < k; ++b)
-        G(a, b) = delassus_entry(normal[static_cast<std::size_t>(set[static_cast<std::size_t>(a)])],
-                                 normal[static_cast<std::size_t>(set[static_cast<std::size_t>(b)])], ch.mass);
-    return G;
-  };
-  // Acceleration LCP (contact.hpp): which candidates hold at (t, x, v), and their forces.
-  auto settle = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
-                    const ContactSet& candidates, Eigen::VectorXd* forces) {
-    if (candidates.empty()) {
-      if (forces) forces->resize(0);
-      return ContactSet{};
-    }
-    const Eigen::VectorXd acc = free_acceleration(t, x, v);
-    const auto k = static_cast<Eigen::Index>(candidates.size());
-    Eigen::VectorXd q(k);
-    for (Eigen::Index a = 0; a < k; ++a) {
-      const int j = candidates[static_cast<std::size_t>(a)];
-      q(a) = w_dot(j, acc) - value_at(motion(j).derivative(W).derivative(W), W, t);
-    }
-    const Eigen::VectorXd lambda = solve_lcp(delassus(candidates), q);
-    ContactSet held;
-    for (Eigen::Index a = 0; a < k; ++a)
-      if (lambda(a) > 0.0) held.push_back(candidates[static_cast<std::size_t>(a)]);
-    if (forces) *forces = lambda;
-    return held;
-  };
-
   ModalRunSummary summary;
   summary.length_scale = L;
   summary.velocity_scale = V;
   summary.force_scale = F;
   summary.time_scale = T;
+  // Events other than a lone free-flight impact are resolved in physical coordinates by the
+  // rules shared with the dense engine (event_resolution.hpp).
+  std::set<ContactSet> sets_seen;  // impact and contact sets visited (contact_sets_built)
+  ChainAlgebra algebra(ch, stops_, [&](const ContactSet& set, std::string* why) {
+    return set.empty() ? cache_->modes.at(ContactSet{}).mode.get() : mode_for(set, why, summary);
+  });
+  const detail::EventRules rules{v_chatter, h_chatter, v_contact, options_.chatter_rule};
   for (int j = 0; j < m; ++j) {
-    const double g = gap(j, t0, x0);
+    const double g = algebra.gap(j, t0, x0);
     if (g > eps_gap)
       throw InvalidInput("initial state violates " + stop_text(stops_, j) + " by " + number_text(g) +
                          " at t = " + number_text(t0));
@@ -911,7 +979,6 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
   Eigen::VectorXd x = x0, v = v0;
   ContactSet stuck;
   const ModalContactMode* mode = cache_->modes.at(ContactSet{}).mode.get();
-  std::set<ContactSet> sets_seen;  // impact and contact sets visited (contact_sets_built)
   detail::EventRate rate(options_.max_events, window);
   std::string why_not;
 
@@ -950,142 +1017,12 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
     return true;
   };
 
-  struct ChatterLimit {
-    int stop;
-    double t;
-  };
-  std::vector<ChatterLimit> chatter_limits;
-  // An event at t resolved in physical coordinates (x, v), as the dense engine's (simulator.cpp):
-  // impacts on `impacting` (generalised Newton law over the held and impacting stops), releases
-  // of `releasing`, `resting` stops touching with zero normal speed; then the acceleration LCP
-  // decides which stops hold. Returns false (why_not set) if the next set cannot be reduced.
+  const std::function<void(const Event&)> emit_event = emit;
   auto handle = [&](const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting) {
     ++summary.general_events;
-    ContactSet candidates;
-    std::set_difference(stuck.begin(), stuck.end(), releasing.begin(), releasing.end(),
-                        std::back_inserter(candidates));
-    candidates = merge(candidates, resting);
-    ContactSet chatter;
-    Eigen::VectorXd g_before = Eigen::VectorXd::Zero(m);
-    if (!impacting.empty()) {
-      for (int j = 0; j < m; ++j) g_before(j) = gap_rate(j, t, v);
-      ContactSet slow;
-      for (int j : impacting) {
-        const double r = stops_[static_cast<std::size_t>(j)].restitution;
-        if (r > 0.0 && r < 1.0) slow.push_back(j);
-      }
-      if (!slow.empty()) {
-        Eigen::VectorXd hold_force;
-        const ContactSet test = merge(candidates, slow);
-        const ContactSet held = settle(t, x, v, test, &hold_force);
-        for (int j : slow) {
-          if (!contains(held, j)) continue;
-          const auto a_idx = std::lower_bound(test.begin(), test.end(), j) - test.begin();
-          const double accel = G_diag(j) * hold_force(a_idx);
-          const double r = stops_[static_cast<std::size_t>(j)].restitution;
-          const double u = g_before(j);
-          const double rise = (r * u) * (r * u) / (2.0 * accel);
-          if (u <= v_chatter || rise <= h_chatter) chatter.push_back(j);
-        }
-      }
-      const ContactSet all = merge(stuck, impacting);
-      sets_seen.insert(all);
-      const Eigen::MatrixXd G = delassus(all);
-      const auto k = static_cast<Eigen::Index>(all.size());
-      Eigen::VectorXd q(k);
-      for (Eigen::Index a = 0; a < k; ++a) {
-        const int j = all[static_cast<std::size_t>(a)];
-        const bool rest = contains(stuck, j) || contains(chatter, j);
-        const double r = rest ? 0.0 : stops_[static_cast<std::size_t>(j)].restitution;
-        q(a) = (1.0 + r) * g_before(j);
-      }
-      const Eigen::VectorXd impulse = solve_lcp(G, q);
-      for (Eigen::Index a = 0; a < k; ++a) add_minv_w(all[static_cast<std::size_t>(a)], -impulse(a), v);
-      for (Eigen::Index a = 0; a < k; ++a) {  // impacting gaps exactly to zero (as the dense engine)
-        const int j = all[static_cast<std::size_t>(a)];
-        const double g = gap(j, t, x);
-        if (g > 0.0) add_minv_w(j, -g / G(a, a), x);
-      }
-      for (int j : impacting) {
-        emit({t, j, EventKind::impact, g_before(j), gap_rate(j, t, v), 0.0});
-        ++summary.impacts;
-      }
-      for (int j : all)
-        if (gap_rate(j, t, v) >= -v_contact && !contains(candidates, j)) candidates.push_back(j);
-      std::sort(candidates.begin(), candidates.end());
-    }
-    Eigen::VectorXd forces;
-    const ContactSet next = settle(t, x, v, candidates, &forces);
-    auto force_of = [&](int j) {
-      for (std::size_t a = 0; a < candidates.size(); ++a)
-        if (candidates[a] == j) return forces(static_cast<Eigen::Index>(a));
-      return 0.0;
-    };
-    const ModalContactMode* held_mode = next.empty() ? cache_->modes.at(ContactSet{}).mode.get() : mode_for(next, &why_not, summary);
-    if (!held_mode) return false;
-    // Chatter limits (ChatterRule, simulator.hpp), before the residual normal velocity is removed.
-    chatter_limits.clear();
-    for (int j : chatter) {
-      if (!contains(next, j)) continue;
-      const double r = stops_[static_cast<std::size_t>(j)].restitution;
-      const double Gj = G_diag(j);
-      const double A = Gj * force_of(j);
-      const double w0 = r * g_before(j);
-      double t_limit = t;
-      if (A > 0.0) {
-        const double T0 = 2.0 * w0 / (A * (1.0 - r));  // Budd & Dux (1994)
-        t_limit = t + T0;
-        if (options_.chatter_rule == ChatterRule::second_order) {
-          // As simulator.cpp: T = T0 + T0² (α_j/6 - A'/(3A)), A' = G λ_j' along the held flow,
-          // α_j = -w_jᵀM⁻¹CM⁻¹w_j / G_jj, and the momentum kick -K M⁻¹ w_j ∫δg dt / G_jj.
-          Eigen::VectorXd u, ud;
-          to_modal(*held_mode, ch.mass, W, t, x, v, u, ud);
-          const auto a_idx = std::lower_bound(next.begin(), next.end(), j) - next.begin();
-          double h_value, h_slope;
-          guard_at(*held_mode, W, t, u, ud, 0.0, held_mode->gap_rows + a_idx, &h_value, &h_slope);
-          const double dforce = -h_slope;
-          const double A_dot = Gj * dforce;
-          Eigen::VectorXd z = Eigen::VectorXd::Zero(n), kz;
-          add_minv_w(j, 1.0, z);
-          stiffness_times(ch, z, kz);
-          const double alpha_j = -(ch.rayleigh_mass * Gj + ch.rayleigh_stiffness * z.dot(kz)) / Gj;
-          const double Tn = T0 + T0 * T0 * (alpha_j / 6.0 - A_dot / (3.0 * A));
-          if (std::abs(Tn - T0) <= 0.5 * T0) t_limit = t + Tn;
-          const double r3 = r * r * r;
-          const double displacement_integral = -(2.0 / 3.0) * w0 * w0 * w0 / (A * A * (1.0 - r3));
-          v -= (kz.cwiseQuotient(ch.mass) / Gj) * displacement_integral;
-        }
-      }
-      chatter_limits.push_back({j, t_limit});
-    }
-    if (!next.empty()) {  // remove the residual normal velocity of the held stops
-      const auto k = static_cast<Eigen::Index>(next.size());
-      Eigen::VectorXd gn(k);
-      for (Eigen::Index a = 0; a < k; ++a) gn(a) = gap_rate(next[static_cast<std::size_t>(a)], t, v);
-      const Eigen::VectorXd mult = delassus(next).llt().solve(gn);
-      for (Eigen::Index a = 0; a < k; ++a) add_minv_w(next[static_cast<std::size_t>(a)], -mult(a), v);
-    }
-    for (int j : next) {
-      if (contains(stuck, j)) continue;
-      if (contains(chatter, j)) {
-        double t_limit = t;
-        for (const ChatterLimit& c : chatter_limits)
-          if (c.stop == j) t_limit = c.t;
-        const double r = stops_[static_cast<std::size_t>(j)].restitution;
-        emit({t_limit, j, EventKind::chatter_limit, r * g_before(j), 0.0, force_of(j)});
-        ++summary.chatters;
-      } else {
-        emit({t, j, EventKind::stick, g_before(j), 0.0, force_of(j)});
-      }
-      ++summary.sticks;
-    }
-    for (int j : stuck) {
-      if (contains(next, j)) continue;
-      emit({t, j, EventKind::release, 0.0, gap_rate(j, t, v), 0.0});
-      ++summary.releases;
-    }
-    stuck = next;
-    return true;
+    return detail::resolve_event(algebra, stops_, rules, t, x, v, stuck, impacting, releasing, resting,
+                                 emit_event, summary, &why_not,
+                                 [&](const ContactSet& set) { sets_seen.insert(set); });
   };
 
   seg_t0_ = t0;
@@ -1094,8 +1031,8 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
     {  // Stops touched at t0 (within ε) that are approached or resting.
       ContactSet impacting, resting;
       for (int j = 0; j < m; ++j) {
-        if (gap(j, t, x) < -eps_gap) continue;
-        const double gd = gap_rate(j, t, v);
+        if (algebra.gap(j, t, x) < -eps_gap) continue;
+        const double gd = algebra.gap_rate(j, t, v);
         if (gd > v_contact) impacting.push_back(j);
         else if (gd >= -v_contact) resting.push_back(j);
       }
@@ -1164,10 +1101,10 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
         if (!slow && after < -v_contact) {
           fast = true;
           sets_seen.insert(impacting);
-          const double impulse = before > 0.0 ? (1.0 + r) * before / G_diag(j) : 0.0;
+          const double impulse = before > 0.0 ? (1.0 + r) * before / algebra.delassus_diagonal(j) : 0.0;
           ud0_ -= guards.P.row(row).transpose() * impulse;
           const double g = guards.P.row(row).dot(u0_) + value_at({guards.h0(row), guards.hc(row), guards.hs(row)}, W, t);
-          if (g > 0.0) u0_ -= guards.P.row(row).transpose() * (g / G_diag(j));
+          if (g > 0.0) u0_ -= guards.P.row(row).transpose() * (g / algebra.delassus_diagonal(j));
           const double c = std::cos(W * t), s = std::sin(W * t);
           const double after_rate = guards.P.row(row).dot(ud0_) + W * (guards.hs(row) * c - guards.hc(row) * s);
           emit({t, j, EventKind::impact, before, after_rate, 0.0});

@@ -1,6 +1,7 @@
 #include "vibro/simulator.hpp"
 
 #include "event_rate.hpp"
+#include "event_resolution.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -23,19 +24,57 @@ std::string vector_text(const Eigen::VectorXd& v) {
   return s.str();
 }
 
-bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
-
-ContactSet merge(const ContactSet& a, const ContactSet& b) {
-  ContactSet out;
-  std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
-  return out;
-}
-
 void require_positive(double value, const char* field, bool allow_zero = false) {
   if (!std::isfinite(value) || value < 0.0 || (!allow_zero && value == 0.0))
     throw InvalidInput(std::string("solver.") + field + " = " + number_text(value) + ": must be a finite number " +
                        (allow_zero ? "≥ 0" : "> 0"));
 }
+
+/// The dense engine's side of event resolution (event_resolution.hpp): restitution data from the
+/// cached ContactModes, the sticking flow of a held set for the second-order chatter rule.
+class DenseAlgebra final : public detail::ContactAlgebra {
+ public:
+  DenseAlgebra(const Simulator& sim, const ImpactSystem& scene, ContactModes& modes,
+               const Eigen::VectorXd& delassus_diag, const Eigen::VectorXd& chatter_alpha,
+               const Eigen::MatrixXd& chatter_kick, Eigen::VectorXd& reduced_state)
+      : sim_(sim), scene_(scene), modes_(modes), delassus_diag_(delassus_diag),
+        chatter_alpha_(chatter_alpha), chatter_kick_(chatter_kick), reduced_state_(reduced_state) {}
+
+  double gap(int j, double t, const Eigen::VectorXd& x) const override { return scene_.gaps(t, x)(j); }
+  Eigen::VectorXd gap_rates(double t, const Eigen::VectorXd& v) const override { return scene_.gap_rates(t, v); }
+  ContactSet settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                    const ContactSet& candidates, Eigen::VectorXd* forces) override {
+    return sim_.settle(t, x, v, candidates, forces);
+  }
+  Eigen::MatrixXd delassus(const ContactSet& set) override { return modes_.get(set).delassus(); }
+  double delassus_diagonal(int j) const override { return delassus_diag_(j); }
+  void apply_impulse(const ContactSet& set, const Eigen::VectorXd& impulse, Eigen::VectorXd& v) override {
+    v -= modes_.get(set).mass_inverse_normals() * impulse;
+  }
+  void shift(const ContactSet& set, Eigen::Index a, double s, Eigen::VectorXd& z) override {
+    z -= modes_.get(set).mass_inverse_normals().col(a) * s;
+  }
+  bool accept(const ContactSet& /*held*/, std::string* /*why*/) override { return true; }
+  double chatter_alpha(int j) const override { return chatter_alpha_(j); }
+  double force_slope(const ContactSet& held, int j, double t, const Eigen::VectorXd& x,
+                     const Eigen::VectorXd& v) override {
+    const ContactMode& mode = modes_.get(held);
+    const ContactMode::Reduced& red = mode.reduced();
+    reduced_state_.resize(red.flow->size());
+    mode.reduce(t, x, v, reduced_state_);
+    const auto a_idx = std::lower_bound(held.begin(), held.end(), j) - held.begin();
+    return -red.watch->rows(1).row(red.gap_rows + a_idx).dot(reduced_state_);
+  }
+  void chatter_kick(int j, double s, Eigen::VectorXd& v) override { v -= chatter_kick_.col(j) * s; }
+
+ private:
+  const Simulator& sim_;
+  const ImpactSystem& scene_;
+  ContactModes& modes_;
+  const Eigen::VectorXd &delassus_diag_, &chatter_alpha_;
+  const Eigen::MatrixXd& chatter_kick_;
+  Eigen::VectorXd& reduced_state_;
+};
 
 }  // namespace
 
@@ -171,7 +210,6 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     chatter_alpha(j) = -minv_normals.col(j).dot(sys.damping() * minv_normals.col(j)) / delassus_diag(j);
     chatter_kick.col(j) = mass_llt.solve(sys.stiffness() * minv_normals.col(j)) / delassus_diag(j);
   }
-  auto delassus_diagonal = [&](int j) { return delassus_diag(j); };  // w_jᵀ M⁻¹ w_j
   auto emit = [&](const Event& e) {
     for (Observer* o : observers) o->event(e);
   };
@@ -188,155 +226,17 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     return summary;
   };
 
-  struct ChatterLimit {
-    int stop;
-    double t;
-  };
-  std::vector<ChatterLimit> chatter_limits;
-  chatter_limits.reserve(static_cast<std::size_t>(stops));
   Eigen::VectorXd reduced_state, triggers, zr, z_full(2 * n + 3);
   std::vector<std::pair<const Functionals*, std::unique_ptr<Segment>>> segments;
 
-  // Handles an event at time t: impacts on `impacting`, releases of `releasing`; `resting`
-  // are further stops touching with zero normal speed (at the start of a run).
-  auto handle = [&](const ContactSet& impacting, const ContactSet& releasing,
-                    const ContactSet& resting) {
-    ContactSet candidates;
-    std::set_difference(stuck.begin(), stuck.end(), releasing.begin(), releasing.end(),
-                        std::back_inserter(candidates));
-    candidates = merge(candidates, resting);
-    ContactSet chatter;
-    Eigen::VectorXd g_before;
-    if (!impacting.empty()) {
-      g_before = scene.gap_rates(t, v);
-      // Chatter candidates: stops that would hold (acceleration LCP with them stuck) and whose
-      // next bounce would be too small to resolve (or too slow).
-      ContactSet slow;
-      for (int j : impacting) {
-        const double r = scene.stops()[static_cast<std::size_t>(j)].restitution;
-        if (r > 0.0 && r < 1.0) slow.push_back(j);  // r = 0 sticks at once, r = 1 never chatters
-      }
-      if (!slow.empty()) {
-        Eigen::VectorXd hold_force;
-        const ContactSet test = merge(candidates, slow);
-        const ContactSet held = settle(t, x, v, test, &hold_force);
-        for (int j : slow) {
-          if (!contains(held, j)) continue;
-          const auto a_idx = std::lower_bound(test.begin(), test.end(), j) - test.begin();
-          const double accel = delassus_diagonal(j) * hold_force(a_idx);
-          const double r = scene.stops()[static_cast<std::size_t>(j)].restitution;
-          const double u = g_before(j);
-          const double rise = (r * u) * (r * u) / (2.0 * accel);
-          if (u <= v_chatter || rise <= h_chatter) chatter.push_back(j);
-        }
-      }
-      const ContactSet all = merge(stuck, impacting);
-      const ContactMode& mode = modes_.get(all);
-      const auto m = static_cast<Eigen::Index>(all.size());
-      Eigen::VectorXd q(m);
-      for (Eigen::Index a = 0; a < m; ++a) {
-        const int j = all[static_cast<std::size_t>(a)];
-        const bool resting = contains(stuck, j) || contains(chatter, j);
-        const double r = resting ? 0.0 : scene.stops()[static_cast<std::size_t>(j)].restitution;
-        q(a) = (1.0 + r) * g_before(j);
-      }
-      const Eigen::VectorXd impulse = solve_lcp(mode.delassus(), q);
-      v -= mode.mass_inverse_normals() * impulse;
-      // Place each impacting stop's gap exactly at zero: the located root leaves it within
-      // rounding (≤ ε) of the surface, and without this a long run of tiny bounces could let
-      // that rounding accumulate into the stop. The correction moves x along M⁻¹w by ≤ ε.
-      const Eigen::VectorXd g_now = scene.gaps(t, x);
-      for (Eigen::Index a = 0; a < m; ++a) {
-        const int j = all[static_cast<std::size_t>(a)];
-        if (g_now(j) > 0.0) x -= mode.mass_inverse_normals().col(a) * (g_now(j) / mode.delassus()(a, a));
-      }
-      const Eigen::VectorXd g_after = scene.gap_rates(t, v);
-      for (int j : impacting) {
-        emit({t, j, EventKind::impact, g_before(j), g_after(j), 0.0});
-        ++summary.impacts;
-      }
-      for (int j : all)
-        if (g_after(j) >= -v_contact && !contains(candidates, j)) candidates.push_back(j);
-      std::sort(candidates.begin(), candidates.end());
-    }
-    Eigen::VectorXd forces;
-    ContactSet next = settle(t, x, v, candidates, &forces);
-    auto force_of = [&](int j) {
-      for (std::size_t a = 0; a < candidates.size(); ++a)
-        if (candidates[a] == j) return forces(static_cast<Eigen::Index>(a));
-      return 0.0;
-    };
-    // Chatter limits (ChatterRule in simulator.hpp), computed before the residual normal
-    // velocity is removed below (the second-order rule's kick has a normal part the stop takes).
-    chatter_limits.clear();
-    for (int j : chatter) {
-      if (!contains(next, j)) continue;
-      const double r = scene.stops()[static_cast<std::size_t>(j)].restitution;
-      const double G = delassus_diagonal(j);
-      const double A = G * force_of(j);
-      const double w0 = r * g_before(j);
-      double t_limit = t;
-      if (A > 0.0) {
-        // Budd & Dux (1994): rebounds r^k w0 under a constant approach acceleration A accumulate
-        // after T0 = Σ 2 r^k w0 / A = 2 w0 / (A (1 - r)).
-        const double T0 = 2.0 * w0 / (A * (1.0 - r));
-        t_limit = t + T0;
-        if (options_.chatter_rule == ChatterRule::second_order) {
-          // Next order (simulator.hpp, ChatterRule). Expansion: with A_k = A + A'(t_k - t),
-          // t_k - t = (2 w0 / A)(1 - r^k)/(1 - r) and w_k = r^k w0 (1 + κ w0 (1 - r^k)/(1 - r)),
-          // κ = (2/3)(A'/A² + α/A) (from u_{k+1} = w_k (1 + κ w_k)), the sum of the flights
-          // τ_k = 2 w_k / A_k + (-(4/3) A'/A³ + (2/3) α/A²) w_k² is, to O(w0²),
-          //   T = T0 + w0² / (1 - r)² · (-(4/3) A'/A³ + (2/3) α/A²) = T0 + T0² (α/6 - A'/(3A)),
-          // using Σ r^k (1 - r^k) = r / ((1 - r)(1 - r²)) and Σ r^{2k} = 1 / (1 - r²).
-          // A' = G λ_j' along the sticking flow of `next` from the post-impact state (exact).
-          const ContactMode& held = modes_.get(next);
-          const ContactMode::Reduced& red = held.reduced();
-          reduced_state.resize(red.flow->size());
-          held.reduce(t, x, v, reduced_state);
-          const auto a_idx = std::lower_bound(next.begin(), next.end(), j) - next.begin();
-          const double dforce = -red.watch->rows(1).row(red.gap_rows + a_idx).dot(reduced_state);
-          const double A_dot = G * dforce;
-          const double T = T0 + T0 * T0 * (chatter_alpha(j) / 6.0 - A_dot / (3.0 * A));
-          if (std::abs(T - T0) <= 0.5 * T0) t_limit = t + T;
-          // The bounces' mean displacement: ∫ δg dt = -(2/3) Σ w_k³ / A² over the tail, felt
-          // through K as the momentum -K M⁻¹ w_j ∫δg dt / G (∫ δg' dt = 0, so C adds nothing).
-          const double r3 = r * r * r;
-          const double displacement_integral = -(2.0 / 3.0) * w0 * w0 * w0 / (A * A * (1.0 - r3));
-          v -= chatter_kick.col(j) * displacement_integral;
-        }
-      }
-      chatter_limits.push_back({j, t_limit});
-    }
-    // Remove the residual normal velocity of the held stops (rounding, or < v_contact).
-    if (!next.empty()) {
-      const ContactMode& mode = modes_.get(next);
-      const Eigen::VectorXd g = scene.gap_rates(t, v);
-      Eigen::VectorXd gn(static_cast<Eigen::Index>(next.size()));
-      for (std::size_t a = 0; a < next.size(); ++a) gn(static_cast<Eigen::Index>(a)) = g(next[a]);
-      v -= mode.mass_inverse_normals() * mode.delassus().llt().solve(gn);
-    }
-    for (int j : next) {
-      if (contains(stuck, j)) continue;
-      if (contains(chatter, j)) {
-        double t_limit = t;
-        for (const ChatterLimit& c : chatter_limits)
-          if (c.stop == j) t_limit = c.t;
-        const double u = g_before(j);
-        const double r = scene.stops()[static_cast<std::size_t>(j)].restitution;
-        emit({t_limit, j, EventKind::chatter_limit, r * u, 0.0, force_of(j)});
-        ++summary.chatters;
-      } else {
-        emit({t, j, EventKind::stick, g_before.size() ? g_before(j) : 0.0, 0.0, force_of(j)});
-      }
-      ++summary.sticks;
-    }
-    const Eigen::VectorXd g_now = scene.gap_rates(t, v);
-    for (int j : stuck) {
-      if (contains(next, j)) continue;
-      emit({t, j, EventKind::release, 0.0, g_now(j), 0.0});
-      ++summary.releases;
-    }
-    stuck = next;
+  // Events are resolved by the rules shared with the modal engine (event_resolution.hpp).
+  DenseAlgebra algebra(*this, scene, modes_, delassus_diag, chatter_alpha, chatter_kick, reduced_state);
+  const detail::EventRules rules{v_chatter, h_chatter, v_contact, options_.chatter_rule};
+  const std::function<void(const Event&)> emit_event = emit;
+  auto resolve = [&](const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting) {
+    std::string unused;
+    detail::resolve_event(algebra, scene.stops(), rules, t, x, v, stuck, impacting, releasing, resting,
+                          emit_event, summary, &unused);
   };
 
   try {
@@ -349,7 +249,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
         if (gd(j) > v_contact) impacting.push_back(j);
         else if (gd(j) >= -v_contact) resting.push_back(j);
       }
-      handle(impacting, {}, resting);
+      resolve(impacting, {}, resting);
     }
 
     while (true) {
@@ -418,7 +318,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
       }
       std::sort(impacting.begin(), impacting.end());
       std::sort(releasing.begin(), releasing.end());
-      handle(impacting, releasing, {});
+      resolve(impacting, releasing, {});
       if (rate.exceeded(t)) {
         const int j = !impacting.empty() ? impacting.front() : releasing.front();
         return finish(RunStatus::event_cap,

@@ -309,6 +309,21 @@ TEST_CASE("modal engine: chatter, sticking and release agree with the dense Simu
   }
 }
 
+TEST_CASE("modal engine: sticking on a 100-mass chain agrees with the dense Simulator", "[modal]") {
+  // The same comparison at N = 100 (the dense engine needs ~0.1 s per contact set here): stops
+  // near the driven end, one plastic, one chattering; same tolerance and reasons as above.
+  const BandedChain chain = uniform_chain(100, 0.05, 0.8, 0.4);
+  std::set<int> stuck;
+  const Agreement a = compare_sticking(
+      chain, {Stop::upper(0, 0.3, 0.5), Stop::lower(2, -0.15, 0.0), Stop::between(4, 5, 0.05, 0.7)}, 3.0, &stuck);
+  CHECK(stuck.size() >= 2);
+  CHECK(a.event_time <= 1e-8);
+  CHECK(a.event_rate <= 1e-8);
+  CHECK(a.event_force <= 1e-8);
+  CHECK(a.force_min <= 1e-8);
+  CHECK(a.state <= 1e-8);
+}
+
 TEST_CASE("modal engine: a contact set it cannot reduce ends the run as unsupported, never silently", "[modal]") {
   // A plastic stop between masses 0 and 2 (not neighbours) holds under a constant push: joining
   // non-neighbours breaks the chain's tridiagonal form, which the modal engine says.

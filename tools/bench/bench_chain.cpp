@@ -12,10 +12,14 @@
 /// For each N: set-up (the tridiagonal eigenproblem, LAPACK dstemr when available), the stop
 /// rows Φᵀw_j (the modal engine's whole "contact set" data: the Delassus matrix of any set is
 /// then read off the diagonal M), the O(N²) transforms into and out of modal coordinates (once
-/// per run), and a run of `--impacts` impacts: CPU seconds per impact (run time minus the two
-/// transforms), impacts per CPU second, mode evaluations per impact, and the process's peak
-/// resident memory (getrusage ru_maxrss, which never decreases, so N is taken ascending).
-/// Finally the least-squares slope of log(cost per event) against log N over N = 100 … 10 000.
+/// per run), and a run of `--impacts` impacts: CPU seconds per event (impacts, sticks and
+/// releases; run time minus the two transforms), events per CPU second, mode evaluations per
+/// impact, the sticking it met (sticks, events resolved in physical coordinates, contact sets
+/// built and their build time), then the build of contact sets {first stop} and {first two
+/// stops} on a fresh simulator (each a reduced chain's tridiagonal eigenproblem), and the
+/// process's peak resident memory before and after those builds (getrusage ru_maxrss, which
+/// never decreases, so N is taken ascending). Finally the least-squares slope of
+/// log(cost per event) against log N over N = 100 … 10 000.
 ///
 /// Usage:
 ///   bench_chain [--max-n N] [--impacts K] [--quick] [--eigen] [--dense]
@@ -88,6 +92,10 @@ struct Row {
   long impacts;
   double t_reached;
   std::string status;
+  long sticks = 0, general = 0;
+  std::size_t sets = 0;
+  double build_total = 0.0, build_max = 0.0;
+  double set1 = 0.0, set2 = 0.0, memory_sets = 0.0;  // contact-set builds, peak memory after
 };
 
 Row measure(int n, const std::string& config, vibro::TridiagonalSolver solver, long impacts) {
@@ -112,11 +120,24 @@ Row measure(int n, const std::string& config, vibro::TridiagonalSolver solver, l
   t = cpu_seconds();
   const auto s = sim.run(0.0, zero, zero, 1e6, {});
   const double run = cpu_seconds() - t;
-  const double per_event = s.impacts > 0 ? std::max(run - transforms, 0.0) / static_cast<double>(s.impacts) : 0.0;
+  // Contact-set builds (each a reduced chain's tridiagonal eigenproblem, modal.hpp): the first
+  // stop held, then the first two, on a fresh simulator so nothing is cached.
+  const double memory_run = peak_mib();
+  vibro::ModalChainSimulator fresh(modes, stops, options);
+  t = cpu_seconds();
+  fresh.contact_mode({0});
+  const double set1 = cpu_seconds() - t;
+  t = cpu_seconds();
+  if (stops.size() > 1) fresh.contact_mode({0, 1});
+  const double set2 = stops.size() > 1 ? cpu_seconds() - t : 0.0;
+  const long events = s.impacts + s.sticks + s.releases;
+  const double per_event = events > 0 ? std::max(run - transforms, 0.0) / static_cast<double>(events) : 0.0;
   return {n, config, stops.size(), setup, stop_rows, transforms, per_event,
           s.impacts > 0 ? static_cast<double>(s.evaluations) / static_cast<double>(s.impacts) : 0.0,
-          peak_mib(), s.impacts, s.t, std::string(vibro::to_string(s.status)) +
-                                          (s.status == vibro::RunStatus::completed ? "" : ": " + s.message)};
+          memory_run, s.impacts, s.t, std::string(vibro::to_string(s.status)) +
+                                          (s.status == vibro::RunStatus::completed ? "" : ": " + s.message),
+          s.sticks, s.general_events, s.sticking_flows_built, s.mode_build_seconds, s.mode_build_max_seconds,
+          set1, set2, peak_mib()};
 }
 
 double fitted_slope(const std::vector<Row>& rows, const std::string& config) {
@@ -204,22 +225,24 @@ int main(int argc, char** argv) {
               solver == vibro::TridiagonalSolver::eigen ? "Eigen computeFromTridiagonal"
                                                         : (vibro::lapack_available() ? "LAPACK dstemr" : "Eigen"),
               impacts);
-  std::printf("%6s %-13s %6s %10s %11s %11s %12s %11s %9s %8s %9s  %s\n", "N", "stops", "m", "set-up s",
-              "stop rows s", "O(N²) xf s", "CPU s/impact", "impacts/s", "evals/imp", "MiB", "t", "status");
+  std::printf("%6s %-13s %6s %10s %11s %11s %12s %11s %9s %8s %9s %7s %8s %5s %9s %9s %9s %9s %6s  %s\n", "N", "stops", "m",
+              "set-up s", "stop rows s", "O(N²) xf s", "CPU s/event", "events/s", "evals/imp", "MiB", "t",
+              "sticks", "general", "sets", "build s", "max build", "set {0} s", "{0,1} s", "MiB", "status");
   std::vector<Row> rows;
   for (int n : {10, 100, 1000, 10000}) {
     if (n > max_n) break;
     for (const char* config : {"4 stops", "every 10th"}) {
       const Row r = measure(n, config, solver, impacts);
       rows.push_back(r);
-      std::printf("%6d %-13s %6zu %10.3g %11.3g %11.3g %12.3g %11.3g %9.1f %8.0f %9.4g  %s\n", r.n,
-                  r.config.c_str(), r.stops, r.setup, r.stop_rows, r.transforms, r.per_event,
+      std::printf("%6d %-13s %6zu %10.3g %11.3g %11.3g %12.3g %11.3g %9.1f %8.0f %9.4g %7ld %8ld %5zu %9.3g %9.3g %9.3g %9.3g %6.0f  %s\n",
+                  r.n, r.config.c_str(), r.stops, r.setup, r.stop_rows, r.transforms, r.per_event,
                   r.per_event > 0 ? 1.0 / r.per_event : 0.0, r.evals_per_event, r.memory, r.t_reached,
+                  r.sticks, r.general, r.sets, r.build_total, r.build_max, r.set1, r.set2, r.memory_sets,
                   r.status.c_str());
       std::fflush(stdout);
     }
   }
-  std::printf("\nfitted slope of log(CPU s per impact) vs log N, N = 100 … %d: 4 stops %.3f, every 10th %.3f\n",
+  std::printf("\nfitted slope of log(CPU s per event) vs log N, N = 100 … %d: 4 stops %.3f, every 10th %.3f\n",
               max_n, fitted_slope(rows, "4 stops"), fitted_slope(rows, "every 10th"));
   if (dense) dense_limit(std::min(impacts, 100L));
   return 0;

@@ -209,7 +209,7 @@ struct ModalSimulatorOptions {
   /// Sticking subsystems kept at once, in bytes (each holds its reduced chain's n_r² modes):
   /// beyond it the least recently used one is dropped and rebuilt if visited again
   /// (ModalRunSummary::modes_rebuilt counts that). The free chain's modes are not counted.
-  double mode_cache_bytes = 4.0 * 1024.0 * 1024.0 * 1024.0;
+  double mode_cache_bytes = 2.0 * 1024.0 * 1024.0 * 1024.0;
   /// End the run (status completed, message saying so) after this many impacts; 0 = no limit.
   /// For benchmarks that want a fixed amount of work.
   long stop_after_impacts = 0;
@@ -305,6 +305,10 @@ class ModalChainSimulator {
   double stop_setup_seconds() const { return stop_setup_seconds_; }
   /// Sticking subsystems currently held in the cache.
   std::size_t cached_modes() const;
+  /// The modal form of contact set `set` (sorted stop indices), built now if not cached (for
+  /// inspection and benchmarks; runs build what they visit). Throws InvalidInput naming the
+  /// stops if the set cannot be reduced.
+  const ModalContactMode& contact_mode(const ContactSet& set);
 
   // For ModalSegmentView: the current segment's start and homogeneous modal state.
   double segment_start() const { return seg_t0_; }

@@ -126,13 +126,16 @@ class Simulator {
   const ContactModes& modes() const { return modes_; }
   const ImpactSystem& scene() const { return *scene_; }
 
+  /// The acceleration LCP (contact.hpp) at (t, x, v): which of `candidates` (sorted stop
+  /// indices) hold, and the contact forces of all candidates in `forces` (0 for those released).
+  ContactSet settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                    const ContactSet& candidates, Eigen::VectorXd* forces) const;
+
  private:
   struct Scales {
     double L, V, F, T;
   };
   Scales scales(const Eigen::VectorXd& x0, const Eigen::VectorXd& v0) const;
-  ContactSet settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
-                    const ContactSet& candidates, Eigen::VectorXd* forces) const;
 
   const ImpactSystem* scene_;
   SimulatorOptions options_;

@@ -1,0 +1,162 @@
+#include "event_resolution.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+
+namespace vibro::detail {
+namespace {
+
+bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
+
+ContactSet merge(const ContactSet& a, const ContactSet& b) {
+  ContactSet out;
+  std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
+  return out;
+}
+
+Eigen::Index index_in(const ContactSet& s, int j) {
+  return std::lower_bound(s.begin(), s.end(), j) - s.begin();
+}
+
+}  // namespace
+
+bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, const EventRules& rules,
+                   double t, Eigen::VectorXd& x, Eigen::VectorXd& v, ContactSet& stuck,
+                   const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting,
+                   const std::function<void(const Event&)>& emit, RunSummary& summary, std::string* why,
+                   const std::function<void(const ContactSet&)>& impact_set) {
+  auto restitution = [&](int j) { return stops[static_cast<std::size_t>(j)].restitution; };
+  ContactSet candidates;
+  std::set_difference(stuck.begin(), stuck.end(), releasing.begin(), releasing.end(),
+                      std::back_inserter(candidates));
+  candidates = merge(candidates, resting);
+  ContactSet chatter;
+  Eigen::VectorXd g_before;
+  if (!impacting.empty()) {
+    g_before = algebra.gap_rates(t, v);
+    // Chatter candidates: stops that would hold (acceleration LCP with them stuck) and whose
+    // next bounce would be too small to resolve (or too slow).
+    ContactSet slow;
+    for (int j : impacting) {
+      const double r = restitution(j);
+      if (r > 0.0 && r < 1.0) slow.push_back(j);  // r = 0 sticks at once, r = 1 never chatters
+    }
+    if (!slow.empty()) {
+      Eigen::VectorXd hold_force;
+      const ContactSet test = merge(candidates, slow);
+      const ContactSet held = algebra.settle(t, x, v, test, &hold_force);
+      for (int j : slow) {
+        if (!contains(held, j)) continue;
+        const double accel = algebra.delassus_diagonal(j) * hold_force(index_in(test, j));
+        const double r = restitution(j);
+        const double u = g_before(j);
+        const double rise = (r * u) * (r * u) / (2.0 * accel);
+        if (u <= rules.v_chatter || rise <= rules.h_chatter) chatter.push_back(j);
+      }
+    }
+    const ContactSet all = merge(stuck, impacting);
+    if (impact_set) impact_set(all);
+    const Eigen::MatrixXd G = algebra.delassus(all);
+    const auto m = static_cast<Eigen::Index>(all.size());
+    Eigen::VectorXd q(m), g_now(m);
+    for (Eigen::Index a = 0; a < m; ++a) {
+      const int j = all[static_cast<std::size_t>(a)];
+      const bool rest = contains(stuck, j) || contains(chatter, j);
+      q(a) = (1.0 + (rest ? 0.0 : restitution(j))) * g_before(j);
+      g_now(a) = algebra.gap(j, t, x);
+    }
+    const Eigen::VectorXd impulse = solve_lcp(G, q);
+    algebra.apply_impulse(all, impulse, v);
+    // Place each impacting stop's gap exactly at zero: the located root leaves it within
+    // rounding (≤ ε) of the surface, and without this a long run of tiny bounces could let
+    // that rounding accumulate into the stop. The correction moves x along M⁻¹w by ≤ ε.
+    for (Eigen::Index a = 0; a < m; ++a)
+      if (g_now(a) > 0.0) algebra.shift(all, a, g_now(a) / G(a, a), x);
+    const Eigen::VectorXd g_after = algebra.gap_rates(t, v);
+    for (int j : impacting) {
+      emit({t, j, EventKind::impact, g_before(j), g_after(j), 0.0});
+      ++summary.impacts;
+    }
+    for (int j : all)
+      if (g_after(j) >= -rules.v_contact && !contains(candidates, j)) candidates.push_back(j);
+    std::sort(candidates.begin(), candidates.end());
+  }
+  Eigen::VectorXd forces;
+  const ContactSet next = algebra.settle(t, x, v, candidates, &forces);
+  if (!algebra.accept(next, why)) return false;
+  auto force_of = [&](int j) {
+    for (std::size_t a = 0; a < candidates.size(); ++a)
+      if (candidates[a] == j) return forces(static_cast<Eigen::Index>(a));
+    return 0.0;
+  };
+  // Chatter limits (ChatterRule in simulator.hpp), computed before the residual normal
+  // velocity is removed below (the second-order rule's kick has a normal part the stop takes).
+  struct ChatterLimit {
+    int stop;
+    double t;
+  };
+  std::vector<ChatterLimit> chatter_limits;
+  for (int j : chatter) {
+    if (!contains(next, j)) continue;
+    const double r = restitution(j);
+    const double Gjj = algebra.delassus_diagonal(j);
+    const double A = Gjj * force_of(j);
+    const double w0 = r * g_before(j);
+    double t_limit = t;
+    if (A > 0.0) {
+      // Budd & Dux (1994): rebounds r^k w0 under a constant approach acceleration A accumulate
+      // after T0 = Σ 2 r^k w0 / A = 2 w0 / (A (1 - r)).
+      const double T0 = 2.0 * w0 / (A * (1.0 - r));
+      t_limit = t + T0;
+      if (rules.chatter_rule == ChatterRule::second_order) {
+        // Next order (simulator.hpp, ChatterRule). Expansion: with A_k = A + A'(t_k - t),
+        // t_k - t = (2 w0 / A)(1 - r^k)/(1 - r) and w_k = r^k w0 (1 + κ w0 (1 - r^k)/(1 - r)),
+        // κ = (2/3)(A'/A² + α/A) (from u_{k+1} = w_k (1 + κ w_k)), the sum of the flights
+        // τ_k = 2 w_k / A_k + (-(4/3) A'/A³ + (2/3) α/A²) w_k² is, to O(w0²),
+        //   T = T0 + w0² / (1 - r)² · (-(4/3) A'/A³ + (2/3) α/A²) = T0 + T0² (α/6 - A'/(3A)),
+        // using Σ r^k (1 - r^k) = r / ((1 - r)(1 - r²)) and Σ r^{2k} = 1 / (1 - r²).
+        // A' = G λ_j' along the sticking flow of `next` from the post-impact state (exact).
+        const double A_dot = Gjj * algebra.force_slope(next, j, t, x, v);
+        const double T = T0 + T0 * T0 * (algebra.chatter_alpha(j) / 6.0 - A_dot / (3.0 * A));
+        if (std::abs(T - T0) <= 0.5 * T0) t_limit = t + T;
+        // The bounces' mean displacement: ∫ δg dt = -(2/3) Σ w_k³ / A² over the tail, felt
+        // through K as the momentum -K M⁻¹ w_j ∫δg dt / G (∫ δg' dt = 0, so C adds nothing).
+        const double r3 = r * r * r;
+        const double displacement_integral = -(2.0 / 3.0) * w0 * w0 * w0 / (A * A * (1.0 - r3));
+        algebra.chatter_kick(j, displacement_integral, v);
+      }
+    }
+    chatter_limits.push_back({j, t_limit});
+  }
+  // Remove the residual normal velocity of the held stops (rounding, or < v_contact).
+  if (!next.empty()) {
+    const Eigen::VectorXd g = algebra.gap_rates(t, v);
+    Eigen::VectorXd gn(static_cast<Eigen::Index>(next.size()));
+    for (std::size_t a = 0; a < next.size(); ++a) gn(static_cast<Eigen::Index>(a)) = g(next[a]);
+    algebra.apply_impulse(next, algebra.delassus(next).llt().solve(gn), v);
+  }
+  for (int j : next) {
+    if (contains(stuck, j)) continue;
+    if (contains(chatter, j)) {
+      double t_limit = t;
+      for (const ChatterLimit& c : chatter_limits)
+        if (c.stop == j) t_limit = c.t;
+      emit({t_limit, j, EventKind::chatter_limit, restitution(j) * g_before(j), 0.0, force_of(j)});
+      ++summary.chatters;
+    } else {
+      emit({t, j, EventKind::stick, g_before.size() ? g_before(j) : 0.0, 0.0, force_of(j)});
+    }
+    ++summary.sticks;
+  }
+  const Eigen::VectorXd g_now = algebra.gap_rates(t, v);
+  for (int j : stuck) {
+    if (contains(next, j)) continue;
+    emit({t, j, EventKind::release, 0.0, g_now(j), 0.0});
+    ++summary.releases;
+  }
+  stuck = next;
+  return true;
+}
+
+}  // namespace vibro::detail

@@ -1,0 +1,65 @@
+#pragma once
+// Private to vibro_core: how an event is resolved, shared by the dense engine (simulator.cpp)
+// and the modal chain engine (modal_simulator.cpp). The rules are stated once here; each engine
+// supplies the stops' algebra in physical coordinates (ContactAlgebra): the dense engine from
+// its cached ContactModes, the modal engine from the sparse normals, diagonal M and tridiagonal
+// K of a chain (O(N) per event).
+#include "vibro/simulator.hpp"
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace vibro::detail {
+
+/// The stops' algebra at an event, in physical coordinates (x, v). Sets are sorted stop indices.
+class ContactAlgebra {
+ public:
+  virtual ~ContactAlgebra() = default;
+  /// g_j(x, t) and the normal rates g'_j = w_jᵀ v - s_j'(t) of every stop.
+  virtual double gap(int j, double t, const Eigen::VectorXd& x) const = 0;
+  virtual Eigen::VectorXd gap_rates(double t, const Eigen::VectorXd& v) const = 0;
+  /// The acceleration LCP (contact.hpp): which candidates hold at (t, x, v), and all their forces.
+  virtual ContactSet settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                            const ContactSet& candidates, Eigen::VectorXd* forces) = 0;
+  /// G = Wᵀ M⁻¹ W of a set; its diagonal entry of one stop.
+  virtual Eigen::MatrixXd delassus(const ContactSet& set) = 0;
+  virtual double delassus_diagonal(int j) const = 0;
+  /// v -= M⁻¹ W_set Λ.
+  virtual void apply_impulse(const ContactSet& set, const Eigen::VectorXd& impulse, Eigen::VectorXd& v) = 0;
+  /// z -= M⁻¹ w_j s for the a-th stop j of `set`.
+  virtual void shift(const ContactSet& set, Eigen::Index a, double s, Eigen::VectorXd& z) = 0;
+  /// May `held` be the next contact set? False, with the reason, if the engine cannot represent
+  /// it (the modal engine's unsupported sets); the dense engine accepts every set.
+  virtual bool accept(const ContactSet& held, std::string* why) = 0;
+  /// Second-order chatter rule (simulator.hpp, ChatterRule): α_j = -w_jᵀM⁻¹CM⁻¹w_j / G_jj, the
+  /// slope λ_j' of stop j's contact force along the flow with `held` stuck from (t, x, v), and
+  /// the momentum kick v -= M⁻¹ K M⁻¹ w_j s / G_jj.
+  virtual double chatter_alpha(int j) const = 0;
+  virtual double force_slope(const ContactSet& held, int j, double t, const Eigen::VectorXd& x,
+                             const Eigen::VectorXd& v) = 0;
+  virtual void chatter_kick(int j, double s, Eigen::VectorXd& v) = 0;
+};
+
+/// Thresholds of the rules, in absolute units (SimulatorOptions × the run's scales).
+struct EventRules {
+  double v_chatter = 0.0;   ///< approach speeds below this are chatter
+  double h_chatter = 0.0;   ///< bounces rising less than this are chatter
+  double v_contact = 0.0;   ///< post-impact speeds below this are resting
+  ChatterRule chatter_rule = ChatterRule::second_order;
+};
+
+/// Resolves an event at t on the state (x, v): impacts on `impacting` (generalised Newton law
+/// over the held and impacting stops, contact.hpp), releases of `releasing`, and `resting` stops
+/// touching with zero normal speed (at the start of a run); chatter caught by the chatter rule;
+/// then the acceleration LCP decides which stops hold, and `stuck` becomes that set. Emits the
+/// events and counts them in `summary`. Each impact set is passed to `impact_set` (if given).
+/// Returns false, with the reason in `why`, if the algebra does not accept the next set; (x, v)
+/// then hold the post-impact state and `stuck` is unchanged.
+bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, const EventRules& rules,
+                   double t, Eigen::VectorXd& x, Eigen::VectorXd& v, ContactSet& stuck,
+                   const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting,
+                   const std::function<void(const Event&)>& emit, RunSummary& summary, std::string* why,
+                   const std::function<void(const ContactSet&)>& impact_set = {});
+
+}  // namespace vibro::detail
