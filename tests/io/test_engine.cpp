@@ -174,6 +174,7 @@ TEST_CASE("the modal and dense engines give the same run of a 70-mass chain", "[
   // 70 masses, restitution 0.95, six periods: impacts only (no sticking, no chatter), so both
   // engines compute the same exact piecewise-linear motion, each from its own closed form.
   ChainText c;
+  c.record = "{events: true, statistics: true, poincare: true, samples: {per_period: 16}}";
   c.engine = "modal";
   const std::string modal_text = chain_scene(c);
   c.engine = "dense";
@@ -220,6 +221,14 @@ TEST_CASE("the modal and dense engines give the same run of a 70-mass chain", "[
   REQUIRE(xa.rows() == xb.rows());
   REQUIRE(xa.cols() == 70);
   CHECK((xa - xb).cwiseAbs().maxCoeff() <= 1e-9 * 0.35);
+
+  // The other observers see the same motion: impacts per period and stop exactly, Poincaré
+  // points (one per period) to 1e-9 L as the samples.
+  CHECK(a.read("/stats/impacts") == b.read("/stats/impacts"));
+  const Eigen::MatrixXd pa = a.read_matrix("/poincare/x"), pb = b.read_matrix("/poincare/x");
+  REQUIRE(pa.rows() == pb.rows());
+  REQUIRE(pa.rows() >= 6);  // one per period begun (6 periods recorded)
+  CHECK((pa - pb).cwiseAbs().maxCoeff() <= 1e-9 * 0.35);
   std::filesystem::remove(out_modal);
   std::filesystem::remove(out_dense);
 }

@@ -825,7 +825,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     reason = "auto: " + floating + " tied to no wall (a rigid-body mode; the modal engine needs none)";
   } else if (n < kModalAutomaticMinimumDof) {
     reason = "auto: " + std::to_string(n) + " masses (< " + std::to_string(kModalAutomaticMinimumDof) +
-             ": the dense engine is cheap and handles sticking)";
+             ": the dense engine is cheap and handles every contact set)";
   } else if (locating) {
     reason = "auto: run.kind: locate runs only with the dense engine";
   } else {

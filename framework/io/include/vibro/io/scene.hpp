@@ -155,7 +155,7 @@ struct Scene {
 };
 
 /// The smallest chain that `solver.engine: automatic` runs with the modal engine: below it the
-/// dense engine's O(n³) set-up is cheap and it handles every contact regime (sticking included).
+/// dense engine's O(n³) set-up is cheap and it handles every contact set (the modal engine not all).
 inline constexpr Eigen::Index kModalAutomaticMinimumDof = 64;
 
 /// The YAML tree of a scene with the source positions of its nodes; editable by path.
