@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """Writes the long-chain scenes of experiments/chains (issue 7): N = 10, 100, 1000, 10 000
-masses, (i) 4 stops near the driven end and (ii) a stop on every tenth mass. The same chains are
-built in code by tools/bench/bench_chain.cpp. From N = 64 on, `solver.engine: auto` runs them with
-the modal engine (docs/scenes.md), which never builds N x N matrices: at N = 10 000 the scene
-loads in O(N) and only the chain's modes take N^2 doubles (800 MB).
+masses, (i) 4 stops near the driven end, (ii) a stop on every tenth mass and (iii) the 4 stops
+with r = 0 on mass 1 and 0.5 elsewhere, so that stops stick, chatter and release (20 periods,
+contact intervals recorded). The same chains are built in code by tools/bench/bench_chain.cpp.
+From N = 64 on, `solver.engine: auto` runs them with the modal engine (docs/scenes.md), which
+never builds N x N matrices: at N = 10 000 the scene loads in O(N) and the chain's modes take N^2
+doubles (800 MB), plus as much for each contact set that sticks (its reduced chain's modes).
 
 Chain: unit masses and springs, a left wall (spring 1), dampers 0.02 beside every spring
 (Rayleigh damping C = 0.02 K, so the modal engine of framework/include/vibro/modal.hpp applies),
@@ -33,6 +35,14 @@ def scene(n, kind):
             "  - {mass: 5, side: upper, position: 0.25, restitution: 0.95}",
         ]
         what = "4 stops near the driven end"
+    elif kind == "sticking":
+        stops = [
+            "  - {mass: 1, side: upper, position: 0.35, restitution: 0}",
+            "  - {mass: 2, side: lower, position: -0.3, restitution: 0.5}",
+            "  - {between: [3, 4], gap: 0.25, restitution: 0.5}",
+            "  - {mass: 5, side: upper, position: 0.25, restitution: 0.5}",
+        ]
+        what = "the 4 stops, plastic (r = 0) on mass 1 and r = 0.5 elsewhere: chatter, sticking, release"
     else:
         stops = []
         for i in range(0, n, 10):
@@ -54,14 +64,15 @@ def scene(n, kind):
         f"  cosine: {numbers(cosine)}",
         "stops:",
         *stops,
-        "record: {events: true, statistics: true}",
-        "run: {kind: simulate, transient_periods: 0, periods: 5}",
+        "record: {events: true, statistics: true, contacts: true}" if kind == "sticking"
+        else "record: {events: true, statistics: true}",
+        f"run: {{kind: simulate, transient_periods: 0, periods: {20 if kind == 'sticking' else 5}}}",
         "",
     ])
 
 
 if __name__ == "__main__":
     for n in (10, 100, 1000, 10000):
-        for kind in ("4stops", "every10"):
+        for kind in ("4stops", "every10", "sticking"):
             with open(os.path.join(HERE, f"chain_{n}_{kind}.yaml"), "w") as f:
                 f.write(scene(n, kind))
