@@ -106,6 +106,12 @@ TEST_CASE("a simulation's file holds exactly what the library computes", "[runne
   REQUIRE(static_cast<std::size_t>(x.rows()) == samples.x.size());
   for (Eigen::Index i = 0; i < x.rows(); ++i) CHECK(x.row(i).transpose() == samples.x[static_cast<std::size_t>(i)]);
   CHECK(file.attribute_string("/scene", "yaml") == kScene);
+  // Counts are the recorded run's, as the recorded events are (docs/results.md): the transient's
+  // impacts (3 periods of chatter here) are not in them.
+  REQUIRE(transient.impacts > 0);
+  CHECK(file.attribute_number("/meta", "impacts") == static_cast<double>(recorded.impacts));
+  CHECK(file.attribute_number("/meta", "sticks") == static_cast<double>(recorded.sticks));
+  CHECK(file.attribute_string("/meta", "chatter_rule") == "second_order");
   std::filesystem::remove(out);
 }
 

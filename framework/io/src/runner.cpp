@@ -149,12 +149,8 @@ Recording simulate(const Scene& scene, const StartState& start) {
     rec.summary = transient;
     rec.summary.message = "during the transient: " + transient.message;
   } else {
+    // Counts are the recorded run's (docs/results.md), as the recorded events are.
     rec.summary = sim.run(t1, transient.x, transient.v, t1 + scene.run.periods * T, rec.observers());
-    rec.summary.impacts += transient.impacts;
-    rec.summary.sticks += transient.sticks;
-    rec.summary.releases += transient.releases;
-    rec.summary.chatters += transient.chatters;
-    rec.summary.segments += transient.segments;
   }
   rec.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock).count();
   return rec;

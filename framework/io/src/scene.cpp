@@ -634,7 +634,8 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   EngineChoice engine_choice = EngineChoice::automatic;
   if (const YAML::Node sv = root["solver"]) {
     r.expect_map(sv, "solver", {"trigger", "simultaneity", "chatter_height", "chatter_velocity", "contact_velocity",
-                                "max_events", "event_window", "length_scale", "flow_method", "max_condition", "engine"});
+                                "max_events", "event_window", "length_scale", "flow_method", "max_condition", "engine",
+                                "chatter_rule"});
     if (sv["trigger"]) opt.trigger = r.number_in(sv["trigger"], "solver.trigger", 1e-16, 1e-4, "a relative tolerance in [1e-16, 1e-4]");
     if (sv["simultaneity"]) opt.simultaneity = r.number_in(sv["simultaneity"], "solver.simultaneity", 0, 1e-2, "a relative time in [0, 1e-2]");
     if (sv["chatter_height"]) opt.chatter_height = r.number_in(sv["chatter_height"], "solver.chatter_height", 0, 1e-1, "a relative height in [0, 0.1]");
@@ -648,6 +649,10 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       opt.flow.method = m == "spectral" ? FlowMethod::spectral : m == "exponential" ? FlowMethod::exponential : FlowMethod::automatic;
     }
     if (sv["max_condition"]) opt.flow.max_condition = r.number_in(sv["max_condition"], "solver.max_condition", 1, 1e16, "a condition number in [1, 1e16]");
+    if (sv["chatter_rule"]) {
+      const std::string c = r.choice(sv["chatter_rule"], "solver.chatter_rule", {"second_order", "first_order"});
+      opt.chatter_rule = c == "first_order" ? ChatterRule::first_order : ChatterRule::second_order;
+    }
     if (sv["engine"]) {
       const std::string e = r.choice(sv["engine"], "solver.engine", {"auto", "dense", "modal"});
       engine_choice = e == "dense" ? EngineChoice::dense : e == "modal" ? EngineChoice::modal : EngineChoice::automatic;
