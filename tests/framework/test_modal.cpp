@@ -309,6 +309,60 @@ TEST_CASE("modal engine: chatter, sticking and release agree with the dense Simu
   }
 }
 
+TEST_CASE("modal engine: sticking at the chain's ends, under a constant force, and when over-damped", "[modal]") {
+  // Edge cases of the reduction (modal.hpp): a held stop on the first or last mass (one side of
+  // the cut is empty), a group of two masses held by a stop on one and a stop between them, a
+  // run with Ω = 0 (constant force: chatter ends in permanent sticking) and over-damped modes in
+  // the reduced chains. Same comparison and tolerance as above (measured ≤ 1.2e-9, in the first
+  // section with eight chatter limits, each a jump whose rounding the later motion carries).
+  std::set<int> stuck;
+  SECTION("stops on both end masses, walls at both ends") {
+    vibro::HarmonicForcing f = vibro::HarmonicForcing::zero(8, 0.5);
+    f.cosine(0) = 0.8;
+    f.sine(7) = -0.5;
+    const BandedChain chain = BandedChain::from_links(std::vector<double>(8, 1.0), std::vector<double>(7, 1.0),
+                                                      std::vector<double>(7, 0.03), 1.0, 0.03, 2.0, 0.06, f);
+    const Agreement a = compare_sticking(
+        chain, {Stop::upper(0, 0.3, 0.0), Stop::lower(7, -0.2, 0.4), Stop::between(6, 7, 0.05, 0.3)}, 5.0, &stuck);
+    CHECK(stuck.size() >= 2);
+    CHECK(std::max({a.event_time, a.event_rate, a.event_force, a.force_min, a.state}) <= 1e-8);
+  }
+  SECTION("a constant push into a chattering stop: Ω = 0, sticking for good") {
+    vibro::HarmonicForcing f = vibro::HarmonicForcing::zero(5, 0.0);
+    f.constant(2) = 0.4;
+    const BandedChain chain = BandedChain::from_links(std::vector<double>(5, 1.0), std::vector<double>(4, 1.0),
+                                                      std::vector<double>(4, 0.05), 1.0, 0.05, 0.0, 0.0, f);
+    // compare_sticking's period is 2π/Ω; with Ω = 0 run the engines here for 60 time units.
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(5);
+    const vibro::ImpactSystem scene(chain.dense(), {Stop::upper(2, 0.2, 0.6)});
+    vibro::Simulator dense(scene);
+    vibro::EventLog dense_log;
+    const auto ds = dense.run(0.0, zero, zero, 60.0, {&dense_log});
+    const ChainModes modes(chain);
+    ModalChainSimulator modal(modes, {Stop::upper(2, 0.2, 0.6)});
+    vibro::EventLog modal_log;
+    const auto ms = modal.run(0.0, zero, zero, 60.0, {&modal_log});
+    INFO(ms.message);
+    REQUIRE(ds.status == vibro::RunStatus::completed);
+    REQUIRE(ms.status == vibro::RunStatus::completed);
+    REQUIRE(ds.chatters == 1);
+    CHECK(ms.chatters == 1);
+    CHECK(ms.stuck == ds.stuck);
+    REQUIRE(modal_log.events.size() == dense_log.events.size());
+    for (std::size_t e = 0; e < dense_log.events.size(); ++e) {
+      CHECK(modal_log.events[e].kind == dense_log.events[e].kind);
+      CHECK(std::abs(modal_log.events[e].t - dense_log.events[e].t) <= 1e-8 * ms.time_scale);
+    }
+    CHECK(max_relative(ms.x, ds.x) <= 1e-8);
+  }
+  SECTION("over-damped modes (β = 1.5) in the free and the reduced chains") {
+    const BandedChain chain = uniform_chain(6, 1.5, 2.0, 0.6);
+    const Agreement a = compare_sticking(chain, {Stop::upper(0, 0.2, 0.0), Stop::upper(2, 0.1, 0.5)}, 4.0, &stuck);
+    CHECK(stuck.size() >= 1);
+    CHECK(std::max({a.event_time, a.event_rate, a.event_force, a.force_min, a.state}) <= 1e-8);
+  }
+}
+
 TEST_CASE("modal engine: sticking on a 100-mass chain agrees with the dense Simulator", "[modal]") {
   // The same comparison at N = 100 (the dense engine needs ~0.1 s per contact set here): stops
   // near the driven end, one plastic, one chattering; same tolerance and reasons as above.
