@@ -50,37 +50,37 @@ double same_phase(double t, double omega_from, double omega_to) {
 
 class Continuation {
  public:
-  Continuation(const SystemFamily& family, const ScanOptions& options)
+  Continuation(const EngineFamily& family, const ScanOptions& options)
       : family_(family), options_(options) {}
 
   /// The periodic orbit at p, starting from `from`'s final state (at the same forcing phase).
   ScanPoint from(const ScanPoint& previous, double p) {
-    const ImpactSystem system = family_(p);  // built once: a family may parse a scene per call
-    const double t = same_phase(previous.orbit.t_start, omega(previous),
-                                system.system().forcing().frequency);
-    return solve(p, system, t, previous.orbit.x, previous.orbit.v, options_.orbit.min_periods);
+    const std::unique_ptr<Engine> engine = family_(p);  // built once: a family may parse a scene per call
+    const double t = same_phase(previous.orbit.t_start, omega(previous), engine->frequency());
+    return solve(p, *engine, t, previous.orbit.x, previous.orbit.v, options_.orbit.min_periods);
   }
 
   ScanPoint at(double p, double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                long min_periods) {
-    return solve(p, family_(p), t0, x0, v0, min_periods);
+    const std::unique_ptr<Engine> engine = family_(p);
+    return solve(p, *engine, t0, x0, v0, min_periods);
   }
 
   long computed = 0;
 
  private:
-  ScanPoint solve(double p, const ImpactSystem& system, double t0, const Eigen::VectorXd& x0,
+  ScanPoint solve(double p, Engine& engine, double t0, const Eigen::VectorXd& x0,
                   const Eigen::VectorXd& v0, long min_periods) {
     OrbitOptions o = options_.orbit;
     o.min_periods = min_periods;
     o.max_periods = std::max(o.max_periods, min_periods + o.max_period + 1);
     ++computed;
-    return {p, find_periodic_orbit(system, o, t0, x0, v0)};
+    return {p, find_periodic_orbit(engine, o, t0, x0, v0)};
   }
 
   double omega(const ScanPoint& s) const { return 2.0 * std::numbers::pi / s.orbit.period; }
 
-  const SystemFamily& family_;
+  const EngineFamily& family_;
   const ScanOptions& options_;
 };
 
@@ -203,7 +203,31 @@ class Locator {
 
 }  // namespace
 
+EngineFamily dense_family(SystemFamily family, const SimulatorOptions& solver) {
+  return [family = std::move(family), solver](double p) -> std::unique_ptr<Engine> {
+    return std::make_unique<DenseEngine>(family(p), solver);
+  };
+}
+
 std::vector<ScanPoint> scan(const SystemFamily& family, const std::vector<double>& grid, double t0,
+                            const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                            const ScanOptions& options) {
+  return scan(dense_family(family, options.orbit.solver), grid, t0, x0, v0, options);
+}
+
+std::vector<Transition> locate_between(const SystemFamily& family, const ScanPoint& lo,
+                                       const ScanPoint& hi, const ScanOptions& options,
+                                       long* orbits_computed) {
+  return locate_between(dense_family(family, options.orbit.solver), lo, hi, options, orbits_computed);
+}
+
+ScanResult scan_and_locate(const SystemFamily& family, const std::vector<double>& grid, double t0,
+                           const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                           const ScanOptions& options) {
+  return scan_and_locate(dense_family(family, options.orbit.solver), grid, t0, x0, v0, options);
+}
+
+std::vector<ScanPoint> scan(const EngineFamily& family, const std::vector<double>& grid, double t0,
                             const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                             const ScanOptions& options) {
   options.validate();
@@ -218,18 +242,18 @@ std::vector<ScanPoint> scan(const SystemFamily& family, const std::vector<double
   return points;
 }
 
-std::vector<Transition> locate_between(const SystemFamily& family, const ScanPoint& lo,
+std::vector<Transition> locate_between(const EngineFamily& family, const ScanPoint& lo,
                                        const ScanPoint& hi, const ScanOptions& options,
                                        long* orbits_computed) {
   options.validate();
   Continuation c(family, options);
   std::vector<Transition> found;
-  Locator(c, family(lo.p).stops().size(), options, found).explore(lo, hi);
+  Locator(c, family(lo.p)->stop_count(), options, found).explore(lo, hi);
   if (orbits_computed) *orbits_computed += c.computed;
   return found;
 }
 
-ScanResult scan_and_locate(const SystemFamily& family, const std::vector<double>& grid, double t0,
+ScanResult scan_and_locate(const EngineFamily& family, const std::vector<double>& grid, double t0,
                            const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                            const ScanOptions& options) {
   ScanResult result;

@@ -2,6 +2,8 @@
 // coordinates (modal.hpp). ChainModes and BandedChain are in modal.cpp.
 #include "vibro/modal.hpp"
 
+#include "vibro/engine.hpp"  // modal_options
+
 #include "vibro/contact.hpp"  // solve_lcp
 
 #include "event_rate.hpp"
@@ -808,6 +810,20 @@ void ModalSimulatorOptions::validate() const {
     throw InvalidInput("solver.mode_cache_bytes = " + number_text(mode_cache_bytes) + ": must be a finite number ≥ 0");
   if (stop_after_impacts < 0)
     throw InvalidInput("stop_after_impacts = " + std::to_string(stop_after_impacts) + ": must be ≥ 0");
+}
+
+ModalSimulatorOptions modal_options(const SimulatorOptions& o) {
+  ModalSimulatorOptions m;
+  m.trigger = o.trigger;
+  m.simultaneity = o.simultaneity;
+  m.chatter_height = o.chatter_height;
+  m.chatter_velocity = o.chatter_velocity;
+  m.contact_velocity = o.contact_velocity;
+  m.chatter_rule = o.chatter_rule;
+  m.max_events = o.max_events;
+  m.event_window = o.event_window;
+  m.length_scale = o.length_scale;
+  return m;
 }
 
 struct ModalChainSimulator::Cache {

@@ -52,7 +52,7 @@ double distance(const Eigen::VectorXd& xa, const Eigen::VectorXd& va, const Eige
 /// Records the orbit of period kT starting at (t, x, v): the phases that start in (t, t + kT]
 /// (each complete, since the recording runs on to t + 2kT), a phase held through the whole
 /// recording as one phase of length kT, and the impacts in (t, t + kT].
-void record(Simulator& sim, Orbit& orbit) {
+void record(Engine& sim, Orbit& orbit) {
   const double span = orbit.k * orbit.period;
   const double t0 = orbit.t_start;
   ContactLog contacts;
@@ -92,10 +92,15 @@ void record(Simulator& sim, Orbit& orbit) {
 
 Orbit find_periodic_orbit(const ImpactSystem& scene, const OrbitOptions& options, double t0,
                           const Eigen::VectorXd& x0, const Eigen::VectorXd& v0) {
+  DenseEngine engine(scene, options.solver);
+  return find_periodic_orbit(engine, options, t0, x0, v0);
+}
+
+Orbit find_periodic_orbit(Engine& sim, const OrbitOptions& options, double t0,
+                          const Eigen::VectorXd& x0, const Eigen::VectorXd& v0) {
   options.validate();
-  const double omega = scene.system().forcing().frequency;
+  const double omega = sim.frequency();
   if (!(omega > 0.0)) throw InvalidInput("orbit: periodic orbits need a forcing frequency > 0");
-  Simulator sim(scene, options.solver);
   Orbit orbit;
   orbit.period = 2.0 * std::numbers::pi / omega;
   orbit.residual = std::numeric_limits<double>::infinity();

@@ -64,7 +64,7 @@ TEST_CASE("solver.engine auto picks the modal engine for long proportionally dam
   ChainText c;
   c.n = kModalAutomaticMinimumDof;
   const Scene at_threshold = build(c);
-  CHECK(at_threshold.engine == Engine::modal);
+  CHECK(at_threshold.engine == EngineKind::modal);
   CHECK(at_threshold.engine_choice == EngineChoice::automatic);
   REQUIRE(at_threshold.chain);
   CHECK(at_threshold.chain->dof() == c.n);
@@ -73,40 +73,39 @@ TEST_CASE("solver.engine auto picks the modal engine for long proportionally dam
 
   c.n = kModalAutomaticMinimumDof - 1;
   const Scene short_chain = build(c);
-  CHECK(short_chain.engine == Engine::dense);
+  CHECK(short_chain.engine == EngineKind::dense);
   CHECK(short_chain.chain);  // banded form kept, the engine is still dense
   CHECK_THAT(short_chain.engine_reason, Catch::Contains("63 masses"));
 
   c.n = 100;
   c.damper = "0.03";  // the wall's damper stays 0.02: C ≠ βK
   const Scene non_proportional = build(c);
-  CHECK(non_proportional.engine == Engine::dense);
+  CHECK(non_proportional.engine == EngineKind::dense);
   CHECK_FALSE(non_proportional.chain);
   CHECK_THAT(non_proportional.engine_reason, Catch::Contains("not proportional"));
 
   c.damper = "0.02";
   c.wall = "";  // no wall: a rigid-body mode, which the modal engine refuses
   const Scene floating = build(c);
-  CHECK(floating.engine == Engine::dense);
+  CHECK(floating.engine == EngineKind::dense);
   CHECK_THAT(floating.engine_reason, Catch::Contains("masses 0…99 tied to no wall"));
 
   c.wall = "{spring: 1, damper: 0.02}";
   c.engine = "dense";
-  CHECK(build(c).engine == Engine::dense);
+  CHECK(build(c).engine == EngineKind::dense);
   c.engine = "modal";
   c.n = 8;  // explicit: any n
-  CHECK(build(c).engine == Engine::modal);
+  CHECK(build(c).engine == EngineKind::modal);
 
   c.engine = "auto";
   c.n = 100;
   c.run = "{kind: locate, locate: {path: forcing.frequency, linspace: [0.79, 0.81, 2]}}";
-  const Scene locating = build(c);
-  CHECK(locating.engine == Engine::dense);
-  CHECK_THAT(locating.engine_reason, Catch::Contains("locate"));
+  const Scene locating = build(c);  // locate runs on either engine (tests/io/test_locate.cpp)
+  CHECK(locating.engine == EngineKind::modal);
 
   const Scene matrices = SceneDocument::parse("model: {matrices: {mass: [[1]], stiffness: [[1]]}}\n"
                                               "solver: {engine: auto}\n").build();
-  CHECK(matrices.engine == Engine::dense);
+  CHECK(matrices.engine == EngineKind::dense);
   CHECK_FALSE(matrices.chain);
 }
 
@@ -146,14 +145,14 @@ TEST_CASE("a sweep whose values change the automatic engine is refused at the va
     CHECK_THAT(e.problem(), Catch::Contains("runs with the dense engine, the base scene with the modal engine"));
   }
   c.engine = "dense";
-  CHECK(build(c).engine == Engine::dense);  // explicit: every point is dense
+  CHECK(build(c).engine == EngineKind::dense);  // explicit: every point is dense
 }
 
 TEST_CASE("a modal scene is loaded, checked and written without its dense matrices", "[engine]") {
   // 10 000 masses, a stop on every tenth: dense, M, C, K would take 3 × 800 MB.
   const SceneDocument doc = SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/chains/chain_10000_every10.yaml");
   const Scene scene = doc.build();
-  CHECK(scene.engine == Engine::modal);
+  CHECK(scene.engine == EngineKind::modal);
   CHECK(scene.dof() == 10000);
   CHECK(scene.stops.size() == 1000);
   CHECK(scene.stops[999].name == "lower x9990");  // named without the dense ImpactSystem
@@ -182,8 +181,8 @@ TEST_CASE("the modal and dense engines give the same run of a 70-mass chain", "[
   const SceneDocument modal_doc = SceneDocument::parse(modal_text, "modal.yaml");
   const SceneDocument dense_doc = SceneDocument::parse(dense_text, "dense.yaml");
   const Scene modal = modal_doc.build(), dense = dense_doc.build();
-  REQUIRE(modal.engine == Engine::modal);
-  REQUIRE(dense.engine == Engine::dense);
+  REQUIRE(modal.engine == EngineKind::modal);
+  REQUIRE(dense.engine == EngineKind::dense);
 
   const std::string out_modal = temp_path("modal.h5"), out_dense = temp_path("dense.h5");
   REQUIRE(run_scene(modal_doc, modal, {out_modal, 1, false, false}).exit_code == 0);
@@ -261,16 +260,11 @@ TEST_CASE("a sweep runs with the modal engine", "[engine]") {
   std::filesystem::remove(out_dense);
 }
 
-TEST_CASE("run.kind locate with solver.engine modal is refused at run.kind", "[engine]") {
+TEST_CASE("run.kind locate with solver.engine modal builds a modal scene", "[engine]") {
   ChainText c;
   c.engine = "modal";
   c.run = "{kind: locate, locate: {path: forcing.frequency, linspace: [0.79, 0.81, 2]}}";
-  try {
-    (void)build(c);
-    FAIL("no SceneError");
-  } catch (const SceneError& e) {
-    CHECK(e.path() == "run.kind");
-    CHECK_THAT(e.problem(), Catch::Contains("locate runs only with the dense engine") &&
-                                Catch::Contains("solver.engine: modal"));
-  }
+  const Scene scene = build(c);
+  CHECK(scene.engine == EngineKind::modal);
+  CHECK(scene.run.kind == RunSpec::Kind::locate);
 }

@@ -86,7 +86,7 @@ std::string describe_scene(const io::Scene& scene) {
   std::string out = fmt::format("Scene {}{}: {} degrees of freedom, {} stops\n", scene.file,
                                 scene.name.empty() ? "" : " (" + scene.name + ")", scene.dof(), scene.stops.size());
   out += fmt::format("Engine: {} ({})\n", to_string(scene.engine), scene.engine_reason);
-  if (scene.engine == io::Engine::modal) return out + describe_modal(scene);
+  if (scene.engine == io::EngineKind::modal) return out + describe_modal(scene);
   const LinearSystem& sys = scene.system();
   const Eigen::Index n = sys.dof();
 

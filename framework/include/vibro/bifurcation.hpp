@@ -56,6 +56,7 @@
 #include "vibro/orbit.hpp"
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -63,6 +64,10 @@ namespace vibro {
 
 /// The system at parameter value p.
 using SystemFamily = std::function<ImpactSystem(double p)>;
+/// The engine at parameter value p (engine.hpp): any engine, e.g. the modal one for long chains.
+using EngineFamily = std::function<std::unique_ptr<Engine>(double p)>;
+/// A SystemFamily run on the dense engine with `solver`.
+EngineFamily dense_family(SystemFamily family, const SimulatorOptions& solver);
 
 struct ScanOptions {
   OrbitOptions orbit;            ///< per point (continuation points start near their orbit)
@@ -109,6 +114,9 @@ struct ScanResult {
 ScanResult scan_and_locate(const SystemFamily& family, const std::vector<double>& grid, double t0,
                            const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                            const ScanOptions& options);
+ScanResult scan_and_locate(const EngineFamily& family, const std::vector<double>& grid, double t0,
+                           const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                           const ScanOptions& options);
 
 /// The transitions between two neighbouring scan points (Explore of the file comment), in order
 /// of p. Independent for different pairs: callers may run pairs in parallel. Adds the orbits it
@@ -116,9 +124,15 @@ ScanResult scan_and_locate(const SystemFamily& family, const std::vector<double>
 std::vector<Transition> locate_between(const SystemFamily& family, const ScanPoint& lo,
                                        const ScanPoint& hi, const ScanOptions& options,
                                        long* orbits_computed = nullptr);
+std::vector<Transition> locate_between(const EngineFamily& family, const ScanPoint& lo,
+                                       const ScanPoint& hi, const ScanOptions& options,
+                                       long* orbits_computed = nullptr);
 
 /// Only the continuation (no location): the orbits at the grid points.
 std::vector<ScanPoint> scan(const SystemFamily& family, const std::vector<double>& grid, double t0,
+                            const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                            const ScanOptions& options);
+std::vector<ScanPoint> scan(const EngineFamily& family, const std::vector<double>& grid, double t0,
                             const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                             const ScanOptions& options);
 

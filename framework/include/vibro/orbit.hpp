@@ -20,6 +20,7 @@
 /// Usage:
 ///     vibro::Orbit orbit = vibro::find_periodic_orbit(scene, {}, 0.0, x0, v0);
 ///     if (orbit.periodic) for (const vibro::ContactPhase& p : orbit.phases) ...
+#include "vibro/engine.hpp"
 #include "vibro/simulator.hpp"
 
 #include <string>
@@ -83,6 +84,9 @@ struct Orbit {
 /// Runs from (t0, x0, v0) until the motion is periodic (see the file comment), then records it.
 /// Throws InvalidInput for bad options or an inadmissible start; Ω must be > 0.
 Orbit find_periodic_orbit(const ImpactSystem& scene, const OrbitOptions& options, double t0,
+                          const Eigen::VectorXd& x0, const Eigen::VectorXd& v0);
+/// The same on any engine (engine.hpp); options.solver is then the engine's business, unused.
+Orbit find_periodic_orbit(Engine& engine, const OrbitOptions& options, double t0,
                           const Eigen::VectorXd& x0, const Eigen::VectorXd& v0);
 
 }  // namespace vibro

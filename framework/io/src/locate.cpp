@@ -135,10 +135,10 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
   const LocateSpec& spec = scene.run.locate;
   // Grid values were validated at load; a bisection point between two valid values that is not
   // valid itself surfaces as SceneError from here, before anything is written.
-  const SystemFamily family = [&doc, &axis](double value) {
+  const EngineFamily family = [&doc, &axis](double value) {
     SceneDocument point(doc);
     point.set(axis.path, value);
-    return point.build_point().impact_system();
+    return make_engine(point.build_point());  // the scene's engine, dense or modal
   };
   ScanOptions options;
   options.orbit.solver = scene.solver;

@@ -834,7 +834,7 @@ void require_finite(const std::string& file, const std::string& dataset, const C
 /// never built (at n = 10 000 each would take 800 MB).
 std::vector<Column> scene_columns(const Scene& scene) {
   std::vector<Column> c;
-  if (scene.engine == Engine::modal && scene.chain) {
+  if (scene.engine == EngineKind::modal && scene.chain) {
     const BandedChain& chain = *scene.chain;
     c.push_back(vector_column("mass_diagonal", chain.mass));
     c.push_back(vector_column("stiffness_diagonal", chain.stiffness_diagonal));

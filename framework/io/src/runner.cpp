@@ -67,75 +67,13 @@ struct StartState {
   Eigen::VectorXd x, v;
 };
 
-/// One scene's engine, set up once per run (a simulation, or a sweep point): everything else
-/// in this file — transient then recorded run, observers, files, threads, processes — is the
-/// same for both engines.
-class SceneEngine {
- public:
-  virtual ~SceneEngine() = default;
-  virtual RunSummary run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
-                         const std::vector<Observer*>& observers) = 0;
-};
-
-/// The dense Simulator on the scene's ImpactSystem (builds the n × n system).
-class DenseEngine final : public SceneEngine {
- public:
-  explicit DenseEngine(const Scene& scene) : impact_(scene.impact_system()), sim_(impact_, scene.solver) {}
-  RunSummary run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
-                 const std::vector<Observer*>& observers) override {
-    return sim_.run(t0, x0, v0, t1, observers);
-  }
-
- private:
-  ImpactSystem impact_;
-  Simulator sim_;
-};
-
-/// The scene's solver settings for the modal engine: the same tolerances with the same meaning
-/// (flow_method and max_condition are the dense flow's and have no modal counterpart).
-ModalSimulatorOptions modal_options(const SimulatorOptions& o) {
-  ModalSimulatorOptions m;
-  m.trigger = o.trigger;
-  m.simultaneity = o.simultaneity;
-  m.chatter_height = o.chatter_height;
-  m.chatter_velocity = o.chatter_velocity;
-  m.contact_velocity = o.contact_velocity;
-  m.chatter_rule = o.chatter_rule;
-  m.max_events = o.max_events;
-  m.event_window = o.event_window;
-  m.length_scale = o.length_scale;
-  return m;
-}
-
-/// The modal chain engine on the chain's modes (O(n²) set-up and memory, never n × n physical
-/// matrices). ChainModes throws InvalidInput for an undamped resonance (ω_k = Ω, σ_k = 0).
-class ModalEngine final : public SceneEngine {
- public:
-  explicit ModalEngine(const Scene& scene)
-      : modes_(*scene.chain), sim_(modes_, scene.stops, modal_options(scene.solver)) {}
-  RunSummary run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
-                 const std::vector<Observer*>& observers) override {
-    return sim_.run(t0, x0, v0, t1, observers);  // the RunSummary part of the ModalRunSummary
-  }
-
- private:
-  ChainModes modes_;
-  ModalChainSimulator sim_;
-};
-
-std::unique_ptr<SceneEngine> make_engine(const Scene& scene) {
-  if (scene.engine == Engine::modal) {
-    if (!scene.chain) throw std::logic_error("runner: a modal scene without its banded chain");
-    return std::make_unique<ModalEngine>(scene);
-  }
-  return std::make_unique<DenseEngine>(scene);
-}
-
 /// Transient (unrecorded) then recorded periods of one scene from `start`.
 Recording simulate(const Scene& scene, const StartState& start) {
   const auto clock = std::chrono::steady_clock::now();
-  const std::unique_ptr<SceneEngine> engine = make_engine(scene);
-  SceneEngine& sim = *engine;
+  // One engine per run (a simulation, or a sweep point): everything else in this file (transient
+  // then recorded run, observers, files, threads, processes) is the same for both engines.
+  const std::unique_ptr<vibro::Engine> engine = make_engine(scene);
+  vibro::Engine& sim = *engine;
   const double T = scene.period();
   const double t1 = start.t + scene.run.transient_periods * T;
   RunSummary transient;

@@ -268,7 +268,15 @@ double Scene::period() const {
   return w > 0.0 ? 2.0 * std::numbers::pi / w : 1.0;
 }
 
-const char* to_string(Engine engine) { return engine == Engine::modal ? "modal" : "dense"; }
+std::unique_ptr<vibro::Engine> make_engine(const Scene& scene) {
+  if (scene.engine == EngineKind::modal) {
+    if (!scene.chain) throw std::logic_error("make_engine: a modal scene without its banded chain");
+    return std::make_unique<ModalEngine>(*scene.chain, scene.stops, modal_options(scene.solver));
+  }
+  return std::make_unique<DenseEngine>(scene.impact_system(), scene.solver);
+}
+
+const char* to_string(EngineKind engine) { return engine == EngineKind::modal ? "modal" : "dense"; }
 
 const char* to_string(EngineChoice choice) {
   switch (choice) {
@@ -723,7 +731,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   struct PointEngine {
     YAML::Node at;
     std::string path, what;
-    Engine engine;
+    EngineKind engine;
   };
   std::vector<PointEngine> point_engines;
   auto check_values = [&](const SweepAxis& axis, const YAML::Node& p, const std::string& path) {
@@ -748,8 +756,6 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     if (rn["kind"]) {
       const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate"});
       run.kind = kind == "sweep" ? RunSpec::Kind::sweep : kind == "locate" ? RunSpec::Kind::locate : RunSpec::Kind::simulate;
-      if (run.kind == RunSpec::Kind::locate && engine_choice == EngineChoice::modal)
-        r.fail(rn["kind"], "run.kind", "run.kind: locate runs only with the dense engine; this scene sets solver.engine: modal");
     }
     if (rn["transient_periods"]) run.transient_periods = r.number_in(rn["transient_periods"], "run.transient_periods", 0, 1e9, "a number of periods ≥ 0");
     if (rn["periods"]) run.periods = r.number_in(rn["periods"], "run.periods", 1e-12, 1e9, "a number of periods > 0");
@@ -806,10 +812,9 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       walled = false;
     }
   }
-  Engine engine = Engine::dense;
+  EngineKind engine = EngineKind::dense;
   std::string reason;
   const YAML::Node engine_node = root["solver"] ? root["solver"]["engine"] : YAML::Node();
-  const bool locating = run.kind == RunSpec::Kind::locate;
   if (engine_choice == EngineChoice::modal) {
     auto refuse = [&](const std::string& why) {
       r.fail(engine_node, "solver.engine", "the modal engine cannot run this scene: " + why +
@@ -818,7 +823,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     if (!chain_links) refuse("it needs model.chain (M diagonal, K tridiagonal), this scene gives model.matrices");
     if (!banded) refuse(not_banded);
     if (!floating.empty()) refuse(floating + " tied to no wall by springs: a rigid-body mode (give the chain a wall spring)");
-    engine = Engine::modal;
+    engine = EngineKind::modal;
     reason = "solver.engine: modal";
   } else if (engine_choice == EngineChoice::dense) {
     reason = "solver.engine: dense";
@@ -831,10 +836,8 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   } else if (n < kModalAutomaticMinimumDof) {
     reason = "auto: " + std::to_string(n) + " masses (< " + std::to_string(kModalAutomaticMinimumDof) +
              ": the dense engine is cheap and handles every contact set)";
-  } else if (locating) {
-    reason = "auto: run.kind: locate runs only with the dense engine";
   } else {
-    engine = Engine::modal;
+    engine = EngineKind::modal;
     reason = "auto: a proportionally damped chain of " + std::to_string(n) + " masses (≥ " +
              std::to_string(kModalAutomaticMinimumDof) + ")";
   }

@@ -18,12 +18,13 @@
 ///     doc.set("forcing.frequency", 0.26);          // --set
 ///     vibro::io::Scene scene = doc.build();         // validated; throws SceneError
 ///     vibro::ImpactSystem system = scene.impact_system();   // dense engine
-///     if (scene.engine == vibro::io::Engine::modal) vibro::ChainModes modes(*scene.chain);
+///     if (scene.engine == vibro::io::EngineKind::modal) vibro::ChainModes modes(*scene.chain);
 ///
 /// Long chains. A `model.chain` scene keeps its chain in banded form (Scene::chain, O(n)) and
 /// builds the dense n × n system only when something asks for it (Scene::system(), cached):
 /// a scene that resolves to the modal engine (solver.engine, docs/scenes.md) is loaded, checked
 /// and run without any n × n matrix. Its stops and initial state are checked in O(n + m log m).
+#include "vibro/engine.hpp"
 #include "vibro/modal.hpp"
 #include "vibro/simulator.hpp"
 
@@ -92,10 +93,10 @@ struct RunSpec {
 
 /// The engine that runs a scene: the dense Simulator (any M, C, K) or the modal chain engine
 /// (vibro/modal.hpp: M diagonal, K tridiagonal, C = αM + βK; O(n) per event).
-enum class Engine { dense, modal };
+enum class EngineKind { dense, modal };
 /// What `solver.engine` asks for; `automatic` resolves as docs/scenes.md says (Scene::engine).
 enum class EngineChoice { automatic, dense, modal };
-const char* to_string(Engine engine);
+const char* to_string(EngineKind engine);
 const char* to_string(EngineChoice choice);
 
 /// The dense system of a scene, built on first use and cached; copies share the cache, and the
@@ -141,7 +142,7 @@ struct Scene {
   RecordSpec record;
   RunSpec run;
   EngineChoice engine_choice = EngineChoice::automatic;  ///< solver.engine as given
-  Engine engine = Engine::dense;                         ///< as resolved
+  EngineKind engine = EngineKind::dense;                         ///< as resolved
   std::string engine_reason;  ///< why it resolved so (for `vibro check` and `vibro info`)
 
   /// The dense system: built (O(n²) memory, O(n³) checks) and cached on the first call.
@@ -153,6 +154,11 @@ struct Scene {
   /// Forcing period 2π/Ω, or 1 when Ω = 0 (periods then count time units).
   double period() const;
 };
+
+/// The scene's engine (engine.hpp), set up: the dense Simulator on scene.impact_system() or the
+/// modal chain engine on scene.chain, with the scene's solver settings. For runs, orbits and
+/// bifurcation location alike.
+std::unique_ptr<vibro::Engine> make_engine(const Scene& scene);
 
 /// The smallest chain that `solver.engine: automatic` runs with the modal engine: below it the
 /// dense engine's O(n³) set-up is cheap and it handles every contact set (the modal engine not all).
