@@ -2,9 +2,8 @@
 // coordinates (modal.hpp). ChainModes and BandedChain are in modal.cpp.
 #include "vibro/modal.hpp"
 
-#include "vibro/engine.hpp"  // modal_options
-
 #include "vibro/contact.hpp"  // solve_lcp
+#include "vibro/engine.hpp"   // modal_options
 
 #include "event_rate.hpp"
 #include "event_resolution.hpp"
@@ -966,7 +965,7 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
   const double dt_simultaneous = options_.simultaneity * T;
   const double window = options_.event_window > 0.0 ? options_.event_window : T;
   const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end), T);
-  force_scale_ = F;
+  force_tolerance_ = eps_force;
 
   ModalRunSummary summary;
   summary.length_scale = L;
@@ -1203,7 +1202,8 @@ std::vector<Minimum> ModalSegmentView::force_local_minima(Eigen::Index a) const 
   ModalChainSimulator::Search::Point& p0 = s.point(0);
   s.evaluate(0.0, p0);
   const double top = std::max(W, mode_->modes ? mode_->modes->omega().maxCoeff() : 0.0);
-  const double eps = std::max(1e-13 * std::abs(p0.h(0)), sim_->force_scale() * 1e-16 * std::max(top, 1e-300));
+  // As DenseSegmentView: the force trigger ε_F scaled to a slope (× 1e-3 × the fastest rate).
+  const double eps = std::max(1e-13 * std::abs(p0.h(0)), sim_->force_tolerance() * 1e-3 * std::max(top, 1e-300));
   const double step = top > 0.0 ? 1.0 / top : std::max(span, 1e-300);
   const double inf = std::numeric_limits<double>::infinity();
   std::vector<Minimum> out;

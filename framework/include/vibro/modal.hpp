@@ -314,7 +314,8 @@ class ModalChainSimulator {
   double segment_start() const { return seg_t0_; }
   const Eigen::VectorXd& segment_u() const { return u0_; }
   const Eigen::VectorXd& segment_ud() const { return ud0_; }
-  double force_scale() const { return force_scale_; }
+  /// The run's force trigger ε_F = trigger·F (for force minima).
+  double force_tolerance() const { return force_tolerance_; }
 
   class Search;  // the certified crossing search (modal_simulator.cpp)
 
@@ -328,7 +329,7 @@ class ModalChainSimulator {
   ModalSimulatorOptions options_;
   double stop_setup_seconds_ = 0.0;
   std::unique_ptr<Cache> cache_;
-  double seg_t0_ = 0.0, force_scale_ = 1.0;
+  double seg_t0_ = 0.0, force_tolerance_ = 1e-13;
   Eigen::VectorXd u0_, ud0_;
 };
 
