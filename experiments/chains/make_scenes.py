@@ -2,7 +2,8 @@
 """Writes the long-chain scenes of experiments/chains (issue 7): N = 10, 100, 1000, 10 000
 masses, (i) 4 stops near the driven end, (ii) a stop on every tenth mass and (iii) the 4 stops
 with r = 0 on mass 1 and 0.5 elsewhere, so that stops stick, chatter and release (20 periods,
-contact intervals recorded). The same chains are built in code by tools/bench/bench_chain.cpp.
+contact intervals recorded, and 100 exact samples per period up to N = 1000: the figure of
+tools/figures/chain_sticking.py, drawn by experiments/chains/run_chains.sh). The same chains are built in code by tools/bench/bench_chain.cpp.
 From N = 64 on, `solver.engine: auto` runs them with the modal engine (docs/scenes.md), which
 never builds N x N matrices: at N = 10 000 the scene loads in O(N) and the chain's modes take N^2
 doubles (800 MB), plus as much for each contact set that sticks (its reduced chain's modes).
@@ -64,7 +65,8 @@ def scene(n, kind):
         f"  cosine: {numbers(cosine)}",
         "stops:",
         *stops,
-        "record: {events: true, statistics: true, contacts: true}" if kind == "sticking"
+        ("record: {events: true, statistics: true, contacts: true"
+         + (", samples: {per_period: 100}}" if n <= 1000 else "}")) if kind == "sticking"
         else "record: {events: true, statistics: true}",
         f"run: {{kind: simulate, transient_periods: 0, periods: {20 if kind == 'sticking' else 5}}}",
         "",
