@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iterator>
+#include <numbers>
 
 namespace vibro::detail {
 namespace {
@@ -20,6 +21,28 @@ Eigen::Index index_in(const ContactSet& s, int j) {
 }
 
 }  // namespace
+
+RunScales run_scales(const SimulatorOptions& o, double omega, double kmax, double mmax, double fmax,
+                     const std::vector<Stop>& stops, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0) {
+  if (!(omega > 0.0)) omega = 1.0;
+  const double stiff = std::max(kmax, mmax * omega * omega);
+  double L = o.length_scale;
+  if (L == 0.0) {
+    L = stops_length_scale(stops, x0.cwiseAbs().maxCoeff());
+    L = std::max({L, v0.cwiseAbs().maxCoeff() / omega, fmax / stiff});
+  }
+  RunScales s;
+  s.L = L;
+  s.V = L * omega;
+  s.F = std::max(stiff * L, fmax);
+  s.T = 2.0 * std::numbers::pi / omega;
+  s.eps_gap = o.trigger * s.L;
+  s.eps_force = o.trigger * s.F;
+  s.dt_simultaneous = o.simultaneity * s.T;
+  s.window = o.event_window > 0.0 ? o.event_window : s.T;
+  s.rules = {o.chatter_velocity * s.V, o.chatter_height * s.L, o.contact_velocity * s.V, o.chatter_rule};
+  return s;
+}
 
 bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, const EventRules& rules,
                    double t, Eigen::VectorXd& x, Eigen::VectorXd& v, ContactSet& stuck,

@@ -1,5 +1,5 @@
 #pragma once
-// Private to vibro_core: how an event is resolved, shared by the dense engine (simulator.cpp)
+// Private to vibro_core: a run's scales and tolerances, and how an event is resolved, shared by the dense engine (simulator.cpp)
 // and the modal chain engine (modal_simulator.cpp). The rules are stated once here; each engine
 // supplies the stops' algebra in physical coordinates (ContactAlgebra): the dense engine from
 // its cached ContactModes, the modal engine from the sparse normals, diagonal M and tridiagonal
@@ -48,6 +48,23 @@ struct EventRules {
   double v_contact = 0.0;   ///< post-impact speeds below this are resting
   ChatterRule chatter_rule = ChatterRule::second_order;
 };
+
+/// A run's scales and the absolute tolerances they give (SimulatorOptions documents each):
+/// L = the options' length_scale, or the largest of the stops' offsets and amplitudes, |x0|,
+/// |v0|/ω and f/k (k = max(‖K‖, ‖M‖ω²)); V = Lω; F = max(kL, f); T = 2π/ω.
+struct RunScales {
+  double L = 0.0, V = 0.0, F = 0.0, T = 0.0;
+  double eps_gap = 0.0, eps_force = 0.0;  ///< trigger·L, trigger·F
+  double dt_simultaneous = 0.0;           ///< simultaneity·T
+  double window = 0.0;                    ///< the Zeno guard's window (event_window, or T)
+  EventRules rules;
+};
+
+/// The scales of a run at frequency `omega` (the forcing's, or the fastest mode's when unforced;
+/// not > 0 counts as 1) of a system with max |K_ij| = kmax, max |M_ij| = mmax and forcing
+/// amplitudes summing to fmax. Shared by both engines so that their tolerances agree.
+RunScales run_scales(const SimulatorOptions& options, double omega, double kmax, double mmax, double fmax,
+                     const std::vector<Stop>& stops, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0);
 
 /// Resolves an event at t on the state (x, v): impacts on `impacting` (generalised Newton law
 /// over the held and impacting stops, contact.hpp), releases of `releasing`, and `resting` stops

@@ -794,34 +794,16 @@ class ModalChainSimulator::Search {
 // Options, cache, construction
 
 void ModalSimulatorOptions::validate() const {
-  // The fields shared with the dense engine follow its rules (one place states them).
-  SimulatorOptions shared;
-  shared.trigger = trigger;
-  shared.simultaneity = simultaneity;
-  shared.chatter_height = chatter_height;
-  shared.chatter_velocity = chatter_velocity;
-  shared.contact_velocity = contact_velocity;
-  shared.max_events = max_events;
-  shared.event_window = event_window;
-  shared.length_scale = length_scale;
-  shared.validate();
+  SimulatorOptions::validate();  // the shared fields, by the dense engine's rules
   if (!std::isfinite(mode_cache_bytes) || mode_cache_bytes < 0.0)
     throw InvalidInput("solver.mode_cache_bytes = " + number_text(mode_cache_bytes) + ": must be a finite number ≥ 0");
   if (stop_after_impacts < 0)
     throw InvalidInput("stop_after_impacts = " + std::to_string(stop_after_impacts) + ": must be ≥ 0");
 }
 
-ModalSimulatorOptions modal_options(const SimulatorOptions& o) {
+ModalSimulatorOptions modal_options(const SimulatorOptions& options) {
   ModalSimulatorOptions m;
-  m.trigger = o.trigger;
-  m.simultaneity = o.simultaneity;
-  m.chatter_height = o.chatter_height;
-  m.chatter_velocity = o.chatter_velocity;
-  m.contact_velocity = o.contact_velocity;
-  m.chatter_rule = o.chatter_rule;
-  m.max_events = o.max_events;
-  m.event_window = o.event_window;
-  m.length_scale = o.length_scale;
+  static_cast<SimulatorOptions&>(m) = options;
   return m;
 }
 
@@ -942,28 +924,19 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
     throw InvalidInput("time span: [" + number_text(t0) + ", " + number_text(t_end) +
                        "] must be finite with t_end ≥ t0");
 
-  // Scales, as Simulator::scales.
+  // Scales and tolerances by the dense engine's rules (event_resolution.hpp).
   const double W = md.frequency();
-  double omega = W > 0.0 ? W : md.omega().maxCoeff();
-  if (!(omega > 0.0)) omega = 1.0;
-  const double kmax = std::max(ch.stiffness_diagonal.cwiseAbs().maxCoeff(),
-                               n > 1 ? ch.stiffness_off.cwiseAbs().maxCoeff() : 0.0);
-  const double stiff = std::max(kmax, ch.mass.maxCoeff() * omega * omega);
-  const double fmax = ch.forcing.constant.cwiseAbs().maxCoeff() +
-                      ch.forcing.cosine.cwiseAbs().maxCoeff() + ch.forcing.sine.cwiseAbs().maxCoeff();
-  double L = options_.length_scale;
-  if (L == 0.0) {
-    L = x0.cwiseAbs().maxCoeff();
-    for (const Stop& s : stops_) L = std::max({L, std::abs(s.position), s.amplitude});
-    L = std::max({L, 1e-300, v0.cwiseAbs().maxCoeff() / omega, fmax / stiff});
-  }
-  const double V = L * omega, T = 2.0 * std::numbers::pi / omega, F = std::max(stiff * L, fmax);
-  const double eps_gap = options_.trigger * L, eps_force = options_.trigger * F;
-  const double v_chatter = options_.chatter_velocity * V;
-  const double h_chatter = options_.chatter_height * L;
-  const double v_contact = options_.contact_velocity * V;
-  const double dt_simultaneous = options_.simultaneity * T;
-  const double window = options_.event_window > 0.0 ? options_.event_window : T;
+  const detail::RunScales sc = detail::run_scales(
+      options_, W > 0.0 ? W : md.omega().maxCoeff(),
+      std::max(ch.stiffness_diagonal.cwiseAbs().maxCoeff(), n > 1 ? ch.stiffness_off.cwiseAbs().maxCoeff() : 0.0),
+      ch.mass.maxCoeff(),
+      ch.forcing.constant.cwiseAbs().maxCoeff() + ch.forcing.cosine.cwiseAbs().maxCoeff() +
+          ch.forcing.sine.cwiseAbs().maxCoeff(),
+      stops_, x0, v0);
+  const double L = sc.L, V = sc.V, F = sc.F, T = sc.T;
+  const double eps_gap = sc.eps_gap, eps_force = sc.eps_force;
+  const double v_chatter = sc.rules.v_chatter, h_chatter = sc.rules.h_chatter, v_contact = sc.rules.v_contact;
+  const double dt_simultaneous = sc.dt_simultaneous, window = sc.window;
   const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end), T);
   force_tolerance_ = eps_force;
 
@@ -978,7 +951,7 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
   ChainAlgebra algebra(ch, stops_, [&](const ContactSet& set, std::string* why) {
     return set.empty() ? cache_->modes.at(ContactSet{}).mode.get() : mode_for(set, why, summary);
   });
-  const detail::EventRules rules{v_chatter, h_chatter, v_contact, options_.chatter_rule};
+  const detail::EventRules& rules = sc.rules;
   for (int j = 0; j < m; ++j) {
     const double g = algebra.gap(j, t0, x0);
     if (g > eps_gap)

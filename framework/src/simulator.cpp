@@ -108,27 +108,11 @@ Simulator::Simulator(const ImpactSystem& scene, SimulatorOptions options)
   options_.validate();
 }
 
-Simulator::Scales Simulator::scales(const Eigen::VectorXd& x0, const Eigen::VectorXd& v0) const {
+double Simulator::scale_frequency() const {
   const LinearSystem& sys = scene_->system();
-  double omega = sys.forcing().frequency;
-  if (omega == 0.0) {
-    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(sys.stiffness(), sys.mass(),
-                                                                  Eigen::EigenvaluesOnly);
-    omega = std::sqrt(std::max(0.0, eig.eigenvalues().maxCoeff()));
-  }
-  if (!(omega > 0.0)) omega = 1.0;
-  const double kmax = sys.stiffness().cwiseAbs().maxCoeff();
-  const double mmax = sys.mass().cwiseAbs().maxCoeff();
-  const double stiff = std::max(kmax, mmax * omega * omega);
-  const HarmonicForcing& f = sys.forcing();
-  const double fmax = f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() +
-                      f.sine.cwiseAbs().maxCoeff();
-  double L = options_.length_scale;
-  if (L == 0.0) {
-    L = scene_->length_scale(x0.cwiseAbs().maxCoeff());
-    L = std::max({L, v0.cwiseAbs().maxCoeff() / omega, fmax / stiff});
-  }
-  return {L, L * omega, std::max(stiff * L, fmax), 2.0 * std::numbers::pi / omega};
+  if (sys.forcing().frequency != 0.0) return sys.forcing().frequency;
+  Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(sys.stiffness(), sys.mass(), Eigen::EigenvaluesOnly);
+  return std::sqrt(std::max(0.0, eig.eigenvalues().maxCoeff()));
 }
 
 ContactSet Simulator::settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
@@ -177,14 +161,13 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
   if (!std::isfinite(t0) || !std::isfinite(t_end) || t_end < t0)
     throw InvalidInput("time span: [" + number_text(t0) + ", " + number_text(t_end) + "] must be finite with t_end ≥ t0");
 
-  const Scales sc = scales(x0, v0);
-  const double eps_gap = options_.trigger * sc.L;
-  const double eps_force = options_.trigger * sc.F;
-  const double v_chatter = options_.chatter_velocity * sc.V;
-  const double h_chatter = options_.chatter_height * sc.L;
-  const double v_contact = options_.contact_velocity * sc.V;
-  const double dt_simultaneous = options_.simultaneity * sc.T;
-  const double window = options_.event_window > 0.0 ? options_.event_window : sc.T;
+  const HarmonicForcing& f = sys.forcing();
+  const detail::RunScales sc = detail::run_scales(
+      options_, scale_frequency(), sys.stiffness().cwiseAbs().maxCoeff(), sys.mass().cwiseAbs().maxCoeff(),
+      f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff(),
+      scene.stops(), x0, v0);
+  const double eps_gap = sc.eps_gap, eps_force = sc.eps_force, v_contact = sc.rules.v_contact;
+  const double dt_simultaneous = sc.dt_simultaneous, window = sc.window;
   scene.check_admissible(t0, x0, eps_gap);
 
   RunSummary summary;
@@ -231,7 +214,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
 
   // Events are resolved by the rules shared with the modal engine (event_resolution.hpp).
   DenseAlgebra algebra(*this, scene, modes_, delassus_diag, chatter_alpha, chatter_kick, reduced_state);
-  const detail::EventRules rules{v_chatter, h_chatter, v_contact, options_.chatter_rule};
+  const detail::EventRules& rules = sc.rules;
   const std::function<void(const Event&)> emit_event = emit;
   auto resolve = [&](const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting) {
     std::string unused;

@@ -196,16 +196,10 @@ class ChainModes {
   Eigen::VectorXd c0_, cc_, cs_;
 };
 
-struct ModalSimulatorOptions {
-  double trigger = 1e-13;          ///< as SimulatorOptions (fraction of L for gaps, of F for forces)
-  double simultaneity = 1e-12;     ///< fraction of T
-  double chatter_height = 1e-9;    ///< fraction of L, as SimulatorOptions
-  double chatter_velocity = 0.0;   ///< fraction of V
-  double contact_velocity = 1e-11; ///< fraction of V: slower post-impact speeds count as resting
-  ChatterRule chatter_rule = ChatterRule::second_order;
-  long max_events = 100000;        ///< within event_window (0: T): more ends the run (event_cap)
-  double event_window = 0.0;
-  double length_scale = 0.0;       ///< 0 = automatic (as the dense Simulator)
+/// The dense engine's settings (simulator.hpp: trigger, simultaneity, chatter thresholds and
+/// rule, contact_velocity, the Zeno guard, length_scale) with the same meaning and rules; `flow`
+/// is the dense flow's and unused here. Plus what only the modal engine has:
+struct ModalSimulatorOptions : SimulatorOptions {
   /// Sticking subsystems kept at once, in bytes (each holds its reduced chain's n_r² modes):
   /// beyond it the least recently used one is dropped and rebuilt if visited again
   /// (ModalRunSummary::modes_rebuilt counts that). The free chain's modes are not counted.

@@ -132,10 +132,8 @@ class Simulator {
                     const ContactSet& candidates, Eigen::VectorXd* forces) const;
 
  private:
-  struct Scales {
-    double L, V, F, T;
-  };
-  Scales scales(const Eigen::VectorXd& x0, const Eigen::VectorXd& v0) const;
+  /// ω for the run's scales: the forcing frequency, or the fastest mode's when unforced.
+  double scale_frequency() const;
 
   const ImpactSystem* scene_;
   SimulatorOptions options_;
