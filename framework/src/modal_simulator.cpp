@@ -1031,6 +1031,9 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
     }
     Eigen::VectorXd base;
     while (true) {
+      if (options_.interrupt && options_.interrupt->load(std::memory_order_relaxed)) {
+        return finish(RunStatus::interrupted, "interrupted at t = " + number_text(t));
+      }
       const ModalGuards& guards = mode->guards;
       const Eigen::Index rows = guards.rows();
       base.resize(rows);

@@ -84,6 +84,7 @@ const char* to_string(RunStatus s) {
     case RunStatus::event_cap: return "event cap reached";
     case RunStatus::numerical_failure: return "numerical failure";
     case RunStatus::unsupported: return "not supported by this engine";
+    case RunStatus::interrupted: return "interrupted";
   }
   return "?";
 }
@@ -235,7 +236,9 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
       resolve(impacting, {}, resting);
     }
 
+    auto interrupted = [&] { return options_.interrupt && options_.interrupt->load(std::memory_order_relaxed); };
     while (true) {
+      if (interrupted()) return finish(RunStatus::interrupted, "interrupted at t = " + number_text(t));
       const ContactMode& mode = modes_.get(stuck);
       const ContactMode::Reduced& red = mode.reduced();
       // One Segment per contact mode, reused: re-targeting it allocates nothing.
@@ -267,6 +270,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
       const double span = t_end - t;
       std::optional<Crossing> hit;
       for (double a = 0.0; a < span && !hit;) {
+        if (interrupted()) return finish(RunStatus::interrupted, "interrupted at t = " + number_text(t));
         const double b = std::min(a + step, span);
         if (rows > 0) hit = finder.first(a, b);
         a = b;

@@ -10,6 +10,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -452,4 +453,30 @@ TEST_CASE("modal chain refuses non-proportional damping, rigid-body modes and un
   C(0, 0) += 0.01;
   CHECK_THROWS_WITH(BandedChain::from_system(vibro::LinearSystem(d.mass(), C, d.stiffness(), d.forcing())),
                     Contains("not proportional"));
+}
+
+TEST_CASE("modal engine: an interrupt flag ends the run at the next event with status interrupted", "[modal][interrupt]") {
+  const ChainModes modes(uniform_chain(20, 0.01, 0.5, 0.9));
+  std::atomic<bool> flag{false};
+  vibro::ModalSimulatorOptions o;
+  o.interrupt = &flag;
+  ModalChainSimulator sim(modes, {Stop::upper(0, 0.05, 0.8)}, o);
+  struct RaiseAt final : vibro::Observer {
+    std::atomic<bool>* flag = nullptr;
+    int seen = 0;
+    double last_t = 0.0;
+    void event(const vibro::Event& e) override {
+      if (++seen == 5) flag->store(true);
+      last_t = e.t;
+    }
+  } at;
+  at.flag = &flag;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(20);
+  const vibro::ModalRunSummary cut = sim.run(0.0, zero, zero, 500.0, {&at});
+  CHECK(cut.status == vibro::RunStatus::interrupted);
+  CHECK(at.seen == 5);
+  CHECK(cut.t == at.last_t);
+  CHECK(cut.x.allFinite());
+  flag.store(false);
+  CHECK(sim.run(0.0, zero, zero, 500.0).status == vibro::RunStatus::completed);
 }

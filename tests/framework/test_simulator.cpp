@@ -30,6 +30,7 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -1567,6 +1568,56 @@ TEST_CASE(
   CHECK(run.summary.stuck == (ContactSet{0, 1}));
   CHECK(run.summary.sticking_flows_built == 2);
   CHECK(run.summary.contact_sets_built == 2);
+}
+
+namespace {
+
+/// Raises an interrupt flag at the n-th event (as a signal handler would, mid-run).
+class InterruptAt final : public Observer {
+ public:
+  InterruptAt(std::atomic<bool>& flag, int n) : flag_(flag), n_(n) {}
+  void event(const Event& e) override {
+    if (++seen_ == n_) flag_.store(true);
+    last_t = e.t;
+  }
+  int seen() const { return seen_; }
+  double last_t = 0.0;
+
+ private:
+  std::atomic<bool>& flag_;
+  int n_, seen_ = 0;
+};
+
+}  // namespace
+
+TEST_CASE("simulator: an interrupt flag ends the run at the next event with status interrupted",
+          "[simulator][interrupt]") {
+  vibro::models::Wagg2004 p;
+  const ImpactSystem scene = vibro::models::wagg2004(p);
+  std::atomic<bool> flag{false};
+  SimulatorOptions o;
+  o.interrupt = &flag;
+  Simulator sim(scene, o);
+  const double t_end = 50.0 * 2.0 * kPi / p.frequency;
+  // Raised before the run: nothing is simulated.
+  flag.store(true);
+  const RunSummary none = sim.run(0.0, VectorXd::Zero(2), VectorXd::Zero(2), t_end);
+  CHECK(none.status == RunStatus::interrupted);
+  CHECK(none.t == 0.0);
+  CHECK(none.segments == 0);
+  // Raised at the 10th event: the run stops there, at the state that event left, far from t_end.
+  flag.store(false);
+  InterruptAt at(flag, 10);
+  const RunSummary cut = sim.run(0.0, VectorXd::Zero(2), VectorXd::Zero(2), t_end, {&at});
+  CHECK(cut.status == RunStatus::interrupted);
+  CHECK(at.seen() >= 10);
+  CHECK(at.seen() <= 12);  // a resolution emits the events of one instant together
+  CHECK(cut.t == at.last_t);
+  CHECK(cut.t < t_end);
+  CHECK(std::string(vibro::to_string(cut.status)) == "interrupted");
+  // Without a flag the same run completes.
+  Simulator plain(scene);
+  CHECK(plain.run(0.0, VectorXd::Zero(2), VectorXd::Zero(2), t_end).status == RunStatus::completed);
 }
 
 // ---------------------------------------------------------------------------------------------

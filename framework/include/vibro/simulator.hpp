@@ -29,6 +29,7 @@
 #include "vibro/contact.hpp"
 #include "vibro/observers.hpp"
 
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -90,6 +91,10 @@ struct SimulatorOptions {
   /// Length scale L; 0 = automatic.
   double length_scale = 0.0;
   FlowOptions flow;
+  /// Cancellation: when set, both engines read it once per event and once per step of the event
+  /// search, and end the run with RunStatus::interrupted (state and time where they stopped) as
+  /// soon as it is true. For Ctrl-C in sweeps and in Python; the flag must outlive the run.
+  const std::atomic<bool>* interrupt = nullptr;
 
   /// Throws InvalidInput naming the field, the value and the rule.
   void validate() const;
@@ -97,7 +102,8 @@ struct SimulatorOptions {
 
 /// unsupported: the engine cannot represent what the run reached (the modal chain engine of
 /// modal.hpp, e.g. sticking on a stop between non-neighbouring masses); the message says what.
-enum class RunStatus { completed, event_cap, numerical_failure, unsupported };
+/// interrupted: SimulatorOptions::interrupt was raised; the summary holds the state reached.
+enum class RunStatus { completed, event_cap, numerical_failure, unsupported, interrupted };
 const char* to_string(RunStatus s);
 
 struct RunSummary {

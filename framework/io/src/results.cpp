@@ -924,6 +924,7 @@ const char* status_name(RunStatus status) {
     case RunStatus::event_cap: return "event_cap";
     case RunStatus::numerical_failure: return "numerical_failure";
     case RunStatus::unsupported: return "unsupported";
+    case RunStatus::interrupted: return "interrupted";
   }
   return "?";
 }
@@ -1255,7 +1256,8 @@ struct ResultFile::Impl {
     store.create_extendible("/sweep/status", Type::i32, {0}, {256});
     store.set_texts("/sweep/status", "names",
                     {status_name(RunStatus::completed), status_name(RunStatus::event_cap),
-                     status_name(RunStatus::numerical_failure), status_name(RunStatus::unsupported)});
+                     status_name(RunStatus::numerical_failure), status_name(RunStatus::unsupported),
+                     status_name(RunStatus::interrupted)});
     store.create_extendible("/sweep/counts", Type::i64, {0, c}, {256, c});
     store.set_texts("/sweep/counts", "columns", count_names());
     store.create_extendible("/sweep/t_end", Type::f64, {0}, {256});
