@@ -1,5 +1,7 @@
 #include "vibro/contact.hpp"
 
+#include "event_resolution.hpp"
+
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -17,50 +19,103 @@ Eigen::MatrixXd symmetric(const Eigen::MatrixXd& a) { return 0.5 * (a + a.transp
 
 }  // namespace
 
+void LcpWorkspace::reserve(Eigen::Index m) {
+  sub.resize(m, m);
+  factor.resize(m, m);
+  q_sub.resize(m);
+  lambda_sub.resize(m);
+  slack.resize(m);
+  basis.reserve(static_cast<std::size_t>(m));
+  basic.reserve(static_cast<std::size_t>(m));
+}
+
 Eigen::VectorXd solve_lcp(const Eigen::MatrixXd& G, const Eigen::VectorXd& q) {
+  LcpWorkspace work;
+  work.reserve(q.size());
+  Eigen::VectorXd lambda(q.size());
+  solve_lcp(G, q, lambda, work);
+  return lambda;
+}
+
+void solve_lcp(const Eigen::Ref<const Eigen::MatrixXd>& G, const Eigen::Ref<const Eigen::VectorXd>& q,
+               Eigen::Ref<Eigen::VectorXd> lambda, LcpWorkspace& work) {
   // Find a basis B (stops with λ > 0) with λ_B = G_BB⁻¹ q_B ≥ 0 and w = G λ - q ≥ 0 outside B.
   const Eigen::Index m = q.size();
-  std::vector<bool> basic(static_cast<std::size_t>(m), false);
-  Eigen::VectorXd lambda = Eigen::VectorXd::Zero(m);
+  if (work.sub.rows() < m) work.reserve(m);
+  work.basic.assign(static_cast<std::size_t>(m), 0);
+  lambda.setZero();
   // Tolerances relative to the problem's own scale, so the answer does not depend on units.
   const double q_scale = q.cwiseAbs().maxCoeff();
   const double g_scale = G.cwiseAbs().maxCoeff();
   const long limit = (m < 20 ? (1L << m) : (1L << 20)) * std::max<Eigen::Index>(m, 1) + 10;
+  auto slack = work.slack.head(m);
   for (long pivot = 0; pivot < limit; ++pivot) {
-    std::vector<Eigen::Index> idx;
+    work.basis.clear();
     for (Eigen::Index i = 0; i < m; ++i)
-      if (basic[static_cast<std::size_t>(i)]) idx.push_back(i);
+      if (work.basic[static_cast<std::size_t>(i)]) work.basis.push_back(i);
     lambda.setZero();
-    if (!idx.empty()) {
-      const auto k = static_cast<Eigen::Index>(idx.size());
-      Eigen::MatrixXd Gb(k, k);
-      Eigen::VectorXd qb(k);
+    if (!work.basis.empty()) {
+      const auto k = static_cast<Eigen::Index>(work.basis.size());
+      auto Gb = work.sub.topLeftCorner(k, k);
+      auto qb = work.q_sub.head(k);
+      auto lb = work.lambda_sub.head(k);
       for (Eigen::Index a = 0; a < k; ++a) {
-        qb(a) = q(idx[static_cast<std::size_t>(a)]);
+        qb(a) = q(work.basis[static_cast<std::size_t>(a)]);
         for (Eigen::Index b = 0; b < k; ++b)
-          Gb(a, b) = G(idx[static_cast<std::size_t>(a)], idx[static_cast<std::size_t>(b)]);
+          Gb(a, b) = G(work.basis[static_cast<std::size_t>(a)], work.basis[static_cast<std::size_t>(b)]);
       }
-      const Eigen::VectorXd lb = Gb.ldlt().solve(qb);
-      for (Eigen::Index a = 0; a < k; ++a) lambda(idx[static_cast<std::size_t>(a)]) = lb(a);
+      if (!detail::spd_solve(Gb, qb, lb, work.factor.topLeftCorner(k, k)))
+        lb = Eigen::MatrixXd(Gb).ldlt().solve(Eigen::VectorXd(qb));  // semidefinite: pivoted (allocates)
+      for (Eigen::Index a = 0; a < k; ++a) lambda(work.basis[static_cast<std::size_t>(a)]) = lb(a);
     }
-    const Eigen::VectorXd w = G * lambda - q;
+    slack.noalias() = G * lambda;
+    slack -= q;
     const double w_tol = 1e-14 * (q_scale + g_scale * lambda.cwiseAbs().maxCoeff());
     const double l_tol = g_scale > 0.0 ? w_tol / g_scale : 0.0;
     // Least index violating complementarity: a basic λ < 0 or a non-basic w < 0.
     Eigen::Index bad = -1;
     for (Eigen::Index i = 0; i < m && bad < 0; ++i) {
-      const bool b = basic[static_cast<std::size_t>(i)];
-      if ((b && lambda(i) < -l_tol) || (!b && w(i) < -w_tol)) bad = i;
+      const bool b = work.basic[static_cast<std::size_t>(i)];
+      if ((b && lambda(i) < -l_tol) || (!b && slack(i) < -w_tol)) bad = i;
     }
     if (bad < 0) {
       for (Eigen::Index i = 0; i < m; ++i) lambda(i) = std::max(lambda(i), 0.0);
-      return lambda;
+      return;
     }
-    basic[static_cast<std::size_t>(bad)] = !basic[static_cast<std::size_t>(bad)];
+    work.basic[static_cast<std::size_t>(bad)] = !work.basic[static_cast<std::size_t>(bad)];
   }
   throw std::runtime_error("contact LCP: no solution after " + std::to_string(limit) +
                            " pivots (Delassus matrix not positive definite?)");
 }
+
+namespace detail {
+
+bool spd_solve(const Eigen::Ref<const Eigen::MatrixXd>& G, const Eigen::Ref<const Eigen::VectorXd>& b,
+               Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::MatrixXd> scratch) {
+  // G = L D Lᵀ with unit lower L (below the diagonal of `scratch`) and D on its diagonal.
+  const Eigen::Index k = G.rows();
+  const double scale = G.cwiseAbs().maxCoeff();
+  for (Eigen::Index j = 0; j < k; ++j) {
+    double d = G(j, j);
+    for (Eigen::Index l = 0; l < j; ++l) d -= scratch(j, l) * scratch(j, l) * scratch(l, l);
+    if (!(d > 1e-300 * std::max(scale, 1e-300)) || !std::isfinite(d)) return false;
+    scratch(j, j) = d;
+    for (Eigen::Index i = j + 1; i < k; ++i) {
+      double s = G(i, j);
+      for (Eigen::Index l = 0; l < j; ++l) s -= scratch(i, l) * scratch(j, l) * scratch(l, l);
+      scratch(i, j) = s / d;
+    }
+  }
+  x = b;
+  for (Eigen::Index i = 0; i < k; ++i)
+    for (Eigen::Index l = 0; l < i; ++l) x(i) -= scratch(i, l) * x(l);
+  for (Eigen::Index i = 0; i < k; ++i) x(i) /= scratch(i, i);
+  for (Eigen::Index i = k - 1; i >= 0; --i)
+    for (Eigen::Index l = i + 1; l < k; ++l) x(i) -= scratch(l, i) * x(l);
+  return true;
+}
+
+}  // namespace detail
 
 ContactMode::ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptions flow_options)
     : scene_(&scene), active_(std::move(active)), flow_options_(flow_options) {

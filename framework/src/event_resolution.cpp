@@ -10,10 +10,10 @@ namespace {
 
 bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
 
-ContactSet merge(const ContactSet& a, const ContactSet& b) {
-  ContactSet out;
+/// out = a ∪ b (sorted; out's capacity suffices once reserved for every stop).
+void merge_into(const ContactSet& a, const ContactSet& b, ContactSet& out) {
+  out.clear();
   std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
-  return out;
 }
 
 Eigen::Index index_in(const ContactSet& s, int j) {
@@ -44,69 +44,88 @@ RunScales run_scales(const SimulatorOptions& o, double omega, double kmax, doubl
   return s;
 }
 
+void EventWorkspace::reserve(Eigen::Index m) {
+  const auto capacity = static_cast<std::size_t>(m);
+  for (ContactSet* set : {&candidates, &chatter, &slow, &test, &held, &all, &next, &scratch_set})
+    set->reserve(capacity);
+  for (Eigen::VectorXd* vec : {&g_before, &g_after, &g_now, &hold_force, &forces, &q, &impulse, &gn, &rhs})
+    vec->resize(m);
+  G.resize(m, m);
+  factor.resize(m, m);
+  lcp.reserve(m);
+  chatter_limits.reserve(capacity);
+}
+
 bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, const EventRules& rules,
                    double t, Eigen::VectorXd& x, Eigen::VectorXd& v, ContactSet& stuck,
                    const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting,
                    const std::function<void(const Event&)>& emit, RunSummary& summary, std::string* why,
-                   const std::function<void(const ContactSet&)>& impact_set) {
+                   EventWorkspace& w, const std::function<void(const ContactSet&)>& impact_set) {
   auto restitution = [&](int j) { return stops[static_cast<std::size_t>(j)].restitution; };
-  ContactSet candidates;
+  ContactSet& candidates = w.candidates;
+  w.scratch_set.clear();
   std::set_difference(stuck.begin(), stuck.end(), releasing.begin(), releasing.end(),
-                      std::back_inserter(candidates));
-  candidates = merge(candidates, resting);
-  ContactSet chatter;
-  Eigen::VectorXd g_before;
-  if (!impacting.empty()) {
-    g_before = algebra.gap_rates(t, v);
+                      std::back_inserter(w.scratch_set));
+  merge_into(w.scratch_set, resting, candidates);
+  ContactSet& chatter = w.chatter;
+  chatter.clear();
+  const bool impacts = !impacting.empty();
+  if (impacts) {
+    algebra.gap_rates(t, v, w.g_before);
     // Chatter candidates: stops that would hold (acceleration LCP with them stuck) and whose
     // next bounce would be too small to resolve (or too slow).
-    ContactSet slow;
+    ContactSet& slow = w.slow;
+    slow.clear();
     for (int j : impacting) {
       const double r = restitution(j);
       if (r > 0.0 && r < 1.0) slow.push_back(j);  // r = 0 sticks at once, r = 1 never chatters
     }
     if (!slow.empty()) {
-      Eigen::VectorXd hold_force;
-      const ContactSet test = merge(candidates, slow);
-      const ContactSet held = algebra.settle(t, x, v, test, &hold_force);
+      merge_into(candidates, slow, w.test);
+      algebra.settle(t, x, v, w.test, w.held, w.hold_force.head(static_cast<Eigen::Index>(w.test.size())));
       for (int j : slow) {
-        if (!contains(held, j)) continue;
-        const double accel = algebra.delassus_diagonal(j) * hold_force(index_in(test, j));
+        if (!contains(w.held, j)) continue;
+        const double accel = algebra.delassus_diagonal(j) * w.hold_force(index_in(w.test, j));
         const double r = restitution(j);
-        const double u = g_before(j);
+        const double u = w.g_before(j);
         const double rise = (r * u) * (r * u) / (2.0 * accel);
         if (u <= rules.v_chatter || rise <= rules.h_chatter) chatter.push_back(j);
       }
     }
-    const ContactSet all = merge(stuck, impacting);
+    ContactSet& all = w.all;
+    merge_into(stuck, impacting, all);
     if (impact_set) impact_set(all);
-    const Eigen::MatrixXd G = algebra.delassus(all);
     const auto m = static_cast<Eigen::Index>(all.size());
-    Eigen::VectorXd q(m), g_now(m);
+    auto G = w.G.topLeftCorner(m, m);
+    algebra.delassus(all, G);
+    auto q = w.q.head(m);
+    auto g_now = w.g_now.head(m);
     for (Eigen::Index a = 0; a < m; ++a) {
       const int j = all[static_cast<std::size_t>(a)];
       const bool rest = contains(stuck, j) || contains(chatter, j);
-      q(a) = (1.0 + (rest ? 0.0 : restitution(j))) * g_before(j);
+      q(a) = (1.0 + (rest ? 0.0 : restitution(j))) * w.g_before(j);
       g_now(a) = algebra.gap(j, t, x);
     }
-    const Eigen::VectorXd impulse = solve_lcp(G, q);
+    auto impulse = w.impulse.head(m);
+    solve_lcp(G, q, impulse, w.lcp);
     algebra.apply_impulse(all, impulse, v);
     // Place each impacting stop's gap exactly at zero: the located root leaves it within
     // rounding (≤ ε) of the surface, and without this a long run of tiny bounces could let
     // that rounding accumulate into the stop. The correction moves x along M⁻¹w by ≤ ε.
     for (Eigen::Index a = 0; a < m; ++a)
       if (g_now(a) > 0.0) algebra.shift(all, a, g_now(a) / G(a, a), x);
-    const Eigen::VectorXd g_after = algebra.gap_rates(t, v);
+    algebra.gap_rates(t, v, w.g_after);
     for (int j : impacting) {
-      emit({t, j, EventKind::impact, g_before(j), g_after(j), 0.0});
+      emit({t, j, EventKind::impact, w.g_before(j), w.g_after(j), 0.0});
       ++summary.impacts;
     }
     for (int j : all)
-      if (g_after(j) >= -rules.v_contact && !contains(candidates, j)) candidates.push_back(j);
+      if (w.g_after(j) >= -rules.v_contact && !contains(candidates, j)) candidates.push_back(j);
     std::sort(candidates.begin(), candidates.end());
   }
-  Eigen::VectorXd forces;
-  const ContactSet next = algebra.settle(t, x, v, candidates, &forces);
+  ContactSet& next = w.next;
+  auto forces = w.forces.head(static_cast<Eigen::Index>(candidates.size()));
+  algebra.settle(t, x, v, candidates, next, forces);
   if (!algebra.accept(next, why)) return false;
   auto force_of = [&](int j) {
     for (std::size_t a = 0; a < candidates.size(); ++a)
@@ -115,17 +134,13 @@ bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, cons
   };
   // Chatter limits (ChatterRule in simulator.hpp), computed before the residual normal
   // velocity is removed below (the second-order rule's kick has a normal part the stop takes).
-  struct ChatterLimit {
-    int stop;
-    double t;
-  };
-  std::vector<ChatterLimit> chatter_limits;
+  w.chatter_limits.clear();
   for (int j : chatter) {
     if (!contains(next, j)) continue;
     const double r = restitution(j);
     const double Gjj = algebra.delassus_diagonal(j);
     const double A = Gjj * force_of(j);
-    const double w0 = r * g_before(j);
+    const double w0 = r * w.g_before(j);
     double t_limit = t;
     if (A > 0.0) {
       // Budd & Dux (1994): rebounds r^k w0 under a constant approach acceleration A accumulate
@@ -150,35 +165,41 @@ bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, cons
         algebra.chatter_kick(j, displacement_integral, v);
       }
     }
-    chatter_limits.push_back({j, t_limit});
+    w.chatter_limits.push_back({j, t_limit});
   }
   // Remove the residual normal velocity of the held stops (rounding, or < v_contact).
   if (!next.empty()) {
-    const Eigen::VectorXd g = algebra.gap_rates(t, v);
-    Eigen::VectorXd gn(static_cast<Eigen::Index>(next.size()));
-    for (std::size_t a = 0; a < next.size(); ++a) gn(static_cast<Eigen::Index>(a)) = g(next[a]);
-    algebra.apply_impulse(next, algebra.delassus(next).llt().solve(gn), v);
+    const auto k = static_cast<Eigen::Index>(next.size());
+    algebra.gap_rates(t, v, w.rhs);
+    auto gn = w.gn.head(k);
+    for (Eigen::Index a = 0; a < k; ++a) gn(a) = w.rhs(next[static_cast<std::size_t>(a)]);
+    auto G = w.G.topLeftCorner(k, k);
+    algebra.delassus(next, G);
+    auto impulse = w.impulse.head(k);
+    if (!spd_solve(G, gn, impulse, w.factor.topLeftCorner(k, k)))
+      impulse = Eigen::MatrixXd(G).llt().solve(Eigen::VectorXd(gn));  // not reached for independent normals
+    algebra.apply_impulse(next, impulse, v);
   }
   for (int j : next) {
     if (contains(stuck, j)) continue;
     if (contains(chatter, j)) {
       double t_limit = t;
-      for (const ChatterLimit& c : chatter_limits)
+      for (const EventWorkspace::ChatterLimit& c : w.chatter_limits)
         if (c.stop == j) t_limit = c.t;
-      emit({t_limit, j, EventKind::chatter_limit, restitution(j) * g_before(j), 0.0, force_of(j)});
+      emit({t_limit, j, EventKind::chatter_limit, restitution(j) * w.g_before(j), 0.0, force_of(j)});
       ++summary.chatters;
     } else {
-      emit({t, j, EventKind::stick, g_before.size() ? g_before(j) : 0.0, 0.0, force_of(j)});
+      emit({t, j, EventKind::stick, impacts ? w.g_before(j) : 0.0, 0.0, force_of(j)});
     }
     ++summary.sticks;
   }
-  const Eigen::VectorXd g_now = algebra.gap_rates(t, v);
+  algebra.gap_rates(t, v, w.g_now);
   for (int j : stuck) {
     if (contains(next, j)) continue;
-    emit({t, j, EventKind::release, 0.0, g_now(j), 0.0});
+    emit({t, j, EventKind::release, 0.0, w.g_now(j), 0.0});
     ++summary.releases;
   }
-  stuck = next;
+  stuck.assign(next.begin(), next.end());
   return true;
 }
 

@@ -2,8 +2,13 @@
 // Private to vibro_core: a run's scales and tolerances, and how an event is resolved, shared by the dense engine (simulator.cpp)
 // and the modal chain engine (modal_simulator.cpp). The rules are stated once here; each engine
 // supplies the stops' algebra in physical coordinates (ContactAlgebra): the dense engine from
-// its cached ContactModes, the modal engine from the sparse normals, diagonal M and tridiagonal
-// K of a chain (O(N) per event).
+// per-run tables of its normals, the modal engine from the sparse normals, diagonal M and
+// tridiagonal K of a chain (O(N) per event).
+//
+// Nothing here allocates once an EventWorkspace has been sized for the run's stops (reserve):
+// sets are vectors whose capacity is the number of stops, vectors and matrices are sized to it
+// and used through head() / topLeftCorner(), the small symmetric positive definite solves are
+// written out (spd_solve), and the LCP has its own workspace (contact.hpp).
 #include "vibro/simulator.hpp"
 
 #include <functional>
@@ -13,22 +18,25 @@
 namespace vibro::detail {
 
 /// The stops' algebra at an event, in physical coordinates (x, v). Sets are sorted stop indices.
+/// Outputs are written into the caller's storage (sized by the caller), never allocated.
 class ContactAlgebra {
  public:
   virtual ~ContactAlgebra() = default;
-  /// g_j(x, t) and the normal rates g'_j = w_jᵀ v - s_j'(t) of every stop.
+  /// g_j(x, t), and the normal rates g'_j = w_jᵀ v - s_j'(t) of every stop into `out` (size m).
   virtual double gap(int j, double t, const Eigen::VectorXd& x) const = 0;
-  virtual Eigen::VectorXd gap_rates(double t, const Eigen::VectorXd& v) const = 0;
-  /// The acceleration LCP (contact.hpp): which candidates hold at (t, x, v), and all their forces.
-  virtual ContactSet settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
-                            const ContactSet& candidates, Eigen::VectorXd* forces) = 0;
-  /// G = Wᵀ M⁻¹ W of a set; its diagonal entry of one stop.
-  virtual Eigen::MatrixXd delassus(const ContactSet& set) = 0;
+  virtual void gap_rates(double t, const Eigen::VectorXd& v, Eigen::Ref<Eigen::VectorXd> out) const = 0;
+  /// The acceleration LCP (contact.hpp): which candidates hold at (t, x, v) into `held`, and the
+  /// forces of all candidates into `forces` (size candidates.size()).
+  virtual void settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                      const ContactSet& candidates, ContactSet& held, Eigen::Ref<Eigen::VectorXd> forces) = 0;
+  /// G = Wᵀ M⁻¹ W of a set into `G` (k × k); its diagonal entry of one stop.
+  virtual void delassus(const ContactSet& set, Eigen::Ref<Eigen::MatrixXd> G) const = 0;
   virtual double delassus_diagonal(int j) const = 0;
   /// v -= M⁻¹ W_set Λ.
-  virtual void apply_impulse(const ContactSet& set, const Eigen::VectorXd& impulse, Eigen::VectorXd& v) = 0;
+  virtual void apply_impulse(const ContactSet& set, const Eigen::Ref<const Eigen::VectorXd>& impulse,
+                             Eigen::VectorXd& v) const = 0;
   /// z -= M⁻¹ w_j s for the a-th stop j of `set`.
-  virtual void shift(const ContactSet& set, Eigen::Index a, double s, Eigen::VectorXd& z) = 0;
+  virtual void shift(const ContactSet& set, Eigen::Index a, double s, Eigen::VectorXd& z) const = 0;
   /// May `held` be the next contact set? False, with the reason, if the engine cannot represent
   /// it (the modal engine's unsupported sets); the dense engine accepts every set.
   virtual bool accept(const ContactSet& held, std::string* why) = 0;
@@ -66,17 +74,38 @@ struct RunScales {
 RunScales run_scales(const SimulatorOptions& options, double omega, double kmax, double mmax, double fmax,
                      const std::vector<Stop>& stops, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0);
 
+/// x = G⁻¹ b for a small symmetric positive definite G (k × k), by LDLᵀ in `scratch` (≥ k × k):
+/// no allocation. Returns false if a pivot is not positive (x untouched).
+bool spd_solve(const Eigen::Ref<const Eigen::MatrixXd>& G, const Eigen::Ref<const Eigen::VectorXd>& b,
+               Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::MatrixXd> scratch);
+
+/// Everything resolve_event needs besides the algebra, sized once per run for m stops.
+struct EventWorkspace {
+  struct ChatterLimit {
+    int stop;
+    double t;
+  };
+  ContactSet candidates, chatter, slow, test, held, all, next, scratch_set;
+  Eigen::VectorXd g_before, g_after, g_now, hold_force, forces, q, impulse, gn, rhs;
+  Eigen::MatrixXd G, factor;
+  LcpWorkspace lcp;
+  std::vector<ChatterLimit> chatter_limits;
+  /// Sizes everything for m stops (allocates; once per run).
+  void reserve(Eigen::Index m);
+};
+
 /// Resolves an event at t on the state (x, v): impacts on `impacting` (generalised Newton law
 /// over the held and impacting stops, contact.hpp), releases of `releasing`, and `resting` stops
 /// touching with zero normal speed (at the start of a run); chatter caught by the chatter rule;
 /// then the acceleration LCP decides which stops hold, and `stuck` becomes that set. Emits the
 /// events and counts them in `summary`. Each impact set is passed to `impact_set` (if given).
 /// Returns false, with the reason in `why`, if the algebra does not accept the next set; (x, v)
-/// then hold the post-impact state and `stuck` is unchanged.
+/// then hold the post-impact state and `stuck` is unchanged. Allocates nothing once `work` is
+/// reserved (the observers called through `emit` may).
 bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, const EventRules& rules,
                    double t, Eigen::VectorXd& x, Eigen::VectorXd& v, ContactSet& stuck,
                    const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting,
                    const std::function<void(const Event&)>& emit, RunSummary& summary, std::string* why,
-                   const std::function<void(const ContactSet&)>& impact_set = {});
+                   EventWorkspace& work, const std::function<void(const ContactSet&)>& impact_set = {});
 
 }  // namespace vibro::detail

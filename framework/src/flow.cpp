@@ -1,6 +1,7 @@
 #include "vibro/flow.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <Eigen/SVD>
 #include <unsupported/Eigen/MatrixFunctions>
 
@@ -10,6 +11,11 @@
 
 namespace vibro {
 namespace {
+
+/// Closed-form exponential (flow.hpp): largest augmented size for which the Schur clusters are
+/// computed (an O(N³) set-up, minutes beyond a few hundred), and the longest series kept.
+constexpr Eigen::Index kClosedFormMaxSize = 400;
+constexpr int kMaxDegree = 24;
 
 Eigen::MatrixXd build_generator(const LinearSystem& sys) {
   return augmented_generator(sys.mass(), sys.damping(), sys.stiffness(), sys.forcing());
@@ -87,6 +93,7 @@ LinearFlow::LinearFlow(Eigen::MatrixXd generator, Eigen::Index dof, double frequ
                                   generator_.row(i).segment(n_, n_).cwiseAbs().sum());
       spectral_radius_ = std::max(rows, std::abs(omega_));
     }
+    if (options.closed_form && N <= kClosedFormMaxSize) build_schur_clusters(options.max_condition);
     return;
   }
   Eigen::EigenSolver<Eigen::MatrixXd> eig(generator_, true);
@@ -142,12 +149,199 @@ LinearFlow::LinearFlow(Eigen::MatrixXd generator, Eigen::Index dof, double frequ
         weights_.push_back(1.0);
       }
     }
+    build_spectral_terms();
   } else {
     method_ = Method::exponential;
     lambda_.resize(0);
     vectors_.resize(0, 0);
     inverse_.resize(0, 0);
+    if (options.closed_form && N <= kClosedFormMaxSize) build_schur_clusters(options.max_condition);
   }
+}
+
+void LinearFlow::build_spectral_terms() {
+  terms_.clear();
+  for (std::size_t r = 0; r < representatives_.size(); ++r)
+    terms_.push_back({lambda_(representatives_[r]), weights_[r], representatives_[r], 1, 0});
+  horizon_ = std::numeric_limits<double>::infinity();
+}
+
+namespace {
+
+/// Swaps the adjacent diagonal entries k, k+1 of the complex Schur form T (Â = U T Uᴴ) by a
+/// unitary rotation G whose first column is the eigenvector (t_{k,k+1}, t_{k+1,k+1} - t_kk) of
+/// the 2×2 block for t_{k+1,k+1}: T ← Gᴴ T G, U ← U G (Golub & Van Loan, Matrix Computations,
+/// 4th ed., §7.6.2).
+void swap_schur(Eigen::MatrixXcd& T, Eigen::MatrixXcd& U, Eigen::Index k) {
+  using C = std::complex<double>;
+  const Eigen::Index N = T.rows();
+  const C a = T(k, k), b = T(k + 1, k + 1), x = T(k, k + 1);
+  const double r = std::hypot(std::abs(x), std::abs(b - a));
+  if (r == 0.0) return;
+  const C g1 = x / r, g2 = (b - a) / r;
+  for (Eigen::Index j = k; j < N; ++j) {
+    const C u = T(k, j), v = T(k + 1, j);
+    T(k, j) = std::conj(g1) * u + std::conj(g2) * v;
+    T(k + 1, j) = -g2 * u + g1 * v;
+  }
+  for (Eigen::Index i = 0; i <= k + 1; ++i) {
+    const C u = T(i, k), v = T(i, k + 1);
+    T(i, k) = u * g1 + v * g2;
+    T(i, k + 1) = -u * std::conj(g2) + v * std::conj(g1);
+  }
+  for (Eigen::Index i = 0; i < N; ++i) {
+    const C u = U(i, k), v = U(i, k + 1);
+    U(i, k) = u * g1 + v * g2;
+    U(i, k + 1) = -u * std::conj(g2) + v * std::conj(g1);
+  }
+  T(k + 1, k) = 0.0;
+  T(k, k) = b;
+  T(k + 1, k + 1) = a;
+}
+
+/// Solves A X - X B = C for upper triangular A (m × m) and B (k × k) with disjoint spectra,
+/// column by column: (A - b_jj I) X_j = C_j + Σ_{l<j} X_l b_lj (back substitution).
+Eigen::MatrixXcd triangular_sylvester(const Eigen::MatrixXcd& A, const Eigen::MatrixXcd& B,
+                                      const Eigen::MatrixXcd& C) {
+  const Eigen::Index m = A.rows(), k = B.rows();
+  Eigen::MatrixXcd X(m, k);
+  for (Eigen::Index j = 0; j < k; ++j) {
+    Eigen::VectorXcd rhs = C.col(j);
+    for (Eigen::Index l = 0; l < j; ++l) rhs += X.col(l) * B(l, j);
+    for (Eigen::Index i = m - 1; i >= 0; --i) {
+      std::complex<double> sum = rhs(i);
+      for (Eigen::Index l = i + 1; l < m; ++l) sum -= A(i, l) * X(l, j);
+      X(i, j) = sum / (A(i, i) - B(j, j));
+    }
+  }
+  return X;
+}
+
+}  // namespace
+
+bool LinearFlow::build_schur_clusters(double max_condition) {
+  using C = std::complex<double>;
+  const Eigen::Index N = size();
+  const Eigen::MatrixXcd A = generator_.cast<C>();
+  const Eigen::ComplexSchur<Eigen::MatrixXcd> schur(A);
+  if (schur.info() != Eigen::Success) return false;
+  const double scale = std::max(generator_.cwiseAbs().rowwise().sum().maxCoeff(), 1e-300);
+  const double a_max = std::max(generator_.cwiseAbs().maxCoeff(), 1e-300);
+  // Tighter clusters first: a defective eigenvalue of multiplicity m is spread by ~ε^{1/m}
+  // (1.5e-8 for m = 2, 6e-6 for m = 3, 1.2e-4 for m = 4), which the first threshold gathers;
+  // wider ones merge nearly defective groups until the cluster basis is well conditioned.
+  for (const double eta : {1e-4, 1e-3, 1e-2, 1e-1, 1.0}) {
+    Eigen::MatrixXcd T = schur.matrixT(), U = schur.matrixU();
+    // Clusters: connected components of |t_ii - t_jj| ≤ η‖Â‖∞, numbered by first appearance.
+    std::vector<int> cluster(static_cast<std::size_t>(N), -1);
+    int clusters = 0;
+    for (Eigen::Index i = 0; i < N; ++i) {
+      if (cluster[static_cast<std::size_t>(i)] >= 0) continue;
+      std::vector<Eigen::Index> todo{i};
+      cluster[static_cast<std::size_t>(i)] = clusters;
+      while (!todo.empty()) {
+        const Eigen::Index p = todo.back();
+        todo.pop_back();
+        for (Eigen::Index j = 0; j < N; ++j)
+          if (cluster[static_cast<std::size_t>(j)] < 0 && std::abs(T(p, p) - T(j, j)) <= eta * scale) {
+            cluster[static_cast<std::size_t>(j)] = clusters;
+            todo.push_back(j);
+          }
+      }
+      ++clusters;
+    }
+    // Make each cluster contiguous (insertion sort by adjacent swaps).
+    for (Eigen::Index i = 1; i < N; ++i)
+      for (Eigen::Index k = i; k > 0 && cluster[static_cast<std::size_t>(k - 1)] > cluster[static_cast<std::size_t>(k)]; --k) {
+        swap_schur(T, U, k - 1);
+        std::swap(cluster[static_cast<std::size_t>(k - 1)], cluster[static_cast<std::size_t>(k)]);
+      }
+    std::vector<Eigen::Index> offset, sizes;
+    for (Eigen::Index i = 0; i < N; ++i)
+      if (i == 0 || cluster[static_cast<std::size_t>(i)] != cluster[static_cast<std::size_t>(i - 1)]) {
+        offset.push_back(i);
+        sizes.push_back(1);
+      } else {
+        ++sizes.back();
+      }
+    // Decouple the clusters: T = S diag(T_c) S⁻¹ with S unit upper triangular.
+    Eigen::MatrixXcd S = Eigen::MatrixXcd::Identity(N, N), Sinv = Eigen::MatrixXcd::Identity(N, N);
+    bool finite = true;
+    for (std::size_t c = 0; c + 1 < offset.size(); ++c) {
+      const Eigen::Index o = offset[c], m = sizes[c], rest = N - o - m;
+      const Eigen::MatrixXcd X =
+          triangular_sylvester(T.block(o, o, m, m), T.block(o + m, o + m, rest, rest), -T.block(o, o + m, m, rest));
+      if (!X.allFinite()) {
+        finite = false;
+        break;
+      }
+      T.block(o, o + m, m, rest).setZero();
+      S.rightCols(rest) += S.block(0, o, N, m) * X;
+      Sinv.middleRows(o, m) -= X * Sinv.bottomRows(rest);
+    }
+    if (!finite) continue;
+    Eigen::MatrixXcd V = U * S, Vinv = Sinv * U.adjoint();
+    const double cond = V.norm() * Vinv.norm();  // Frobenius: ≥ cond₂
+    if (!(cond <= max_condition)) continue;
+    const double err = (V * T * Vinv - A).cwiseAbs().maxCoeff();
+    if (!(err <= 1e-13 * a_max * std::max(1.0, cond / 100.0))) continue;
+
+    // Per cluster: μ_c, E_c = T_c - μ_c I, and the degree of its series.
+    std::vector<Term> terms;
+    Eigen::MatrixXcd parts = Eigen::MatrixXcd::Zero(N, N);
+    double horizon = std::numeric_limits<double>::infinity();
+    for (std::size_t c = 0; c < offset.size(); ++c) {
+      const Eigen::Index o = offset[c], m = sizes[c];
+      const C mu = T.block(o, o, m, m).diagonal().mean();
+      Eigen::MatrixXcd E = T.block(o, o, m, m);
+      E.diagonal().array() -= mu;
+      parts.block(o, o, m, m) = E;
+      // Norms n_p = ‖E^p‖ (max-abs row sum); the series stops at the first exactly zero power,
+      // else after kMaxDegree terms, with the horizon where the next term falls below 1e-18 of
+      // the largest kept one (for τ ≤ horizon the neglected tail is below rounding).
+      std::vector<double> norms{1.0};
+      Eigen::MatrixXcd power = Eigen::MatrixXcd::Identity(m, m);
+      int degree = -1;
+      for (int p = 1; p <= kMaxDegree + 1; ++p) {
+        power = power * E;
+        const double np = power.cwiseAbs().rowwise().sum().maxCoeff();
+        if (np == 0.0) {
+          degree = p - 1;
+          break;
+        }
+        norms.push_back(np);
+      }
+      if (degree < 0) {
+        degree = kMaxDegree;
+        // Largest τ with n_{P+1} τ^{P+1}/(P+1)! ≤ 1e-18 · max(1, max_p n_p τ^p / p!), in log τ.
+        auto ok = [&](double tau) {
+          double lead = 1.0, term = 1.0;
+          for (int p = 1; p <= kMaxDegree; ++p) {
+            term *= tau / p;
+            lead = std::max(lead, norms[static_cast<std::size_t>(p)] * term);
+          }
+          return norms[static_cast<std::size_t>(kMaxDegree + 1)] * term * tau / (kMaxDegree + 1) <= 1e-18 * lead;
+        };
+        double lo = 0.0, hi = 1.0;
+        while (ok(hi) && hi < 1e300) hi *= 2.0;
+        for (int it = 0; it < 200 && hi - lo > 1e-6 * hi; ++it) {
+          const double mid = 0.5 * (lo + hi);
+          (ok(mid) ? lo : hi) = mid;
+        }
+        horizon = std::min(horizon, lo);
+      }
+      terms.push_back({mu, 1.0, o, m, degree});
+    }
+    if (!(horizon > 0.0)) continue;
+    terms_ = std::move(terms);
+    basis_ = std::move(V);
+    inverse_basis_ = std::move(Vinv);
+    cluster_parts_ = std::move(parts);
+    horizon_ = horizon;
+    cluster_condition_ = cond;
+    return true;
+  }
+  return false;
 }
 
 Eigen::VectorXd LinearFlow::augment(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
@@ -167,13 +361,25 @@ Eigen::MatrixXd LinearFlow::transition_matrix(double tau) const {
 
 void LinearFlow::propagate(const Eigen::Ref<const Eigen::VectorXd>& z, double tau,
                            Eigen::Ref<Eigen::VectorXd> out) const {
-  if (method_ == Method::spectral) {
-    Eigen::VectorXcd c = inverse_ * z.cast<std::complex<double>>();
-    for (Eigen::Index k = 0; k < c.size(); ++k) c(k) *= std::exp(lambda_(k) * tau);
-    out = (vectors_ * c).real();
-  } else {
+  if (!closed_form() || !(std::abs(tau) <= horizon_)) {
     out = transition_matrix(tau) * z;
+    return;
   }
+  // Re Σ_r w_r V_r e^{λ_r τ} Σ_p (τ E_r)^p / p! (V⁻¹ z)_r (flow.hpp).
+  const Eigen::MatrixXcd& V = basis();
+  const Eigen::MatrixXcd& Vinv = inverse_basis();
+  Eigen::VectorXcd w = Eigen::VectorXcd::Zero(size());
+  for (const Term& term : terms_) {
+    const Eigen::Index o = term.column, m = term.size;
+    Eigen::VectorXcd y = Vinv.middleRows(o, m) * z.cast<std::complex<double>>();
+    Eigen::VectorXcd sum = y;
+    for (int p = 1; p <= term.degree; ++p) {
+      y = cluster_parts_.block(o, o, m, m) * y * (tau / p);
+      sum += y;
+    }
+    w.segment(o, m) = term.weight * std::exp(term.lambda * tau) * sum;
+  }
+  out = (V * w).real();
 }
 
 LinearFlow::State LinearFlow::state(double t0, const Eigen::Ref<const Eigen::VectorXd>& x0,
@@ -191,8 +397,21 @@ LinearFlow::State LinearFlow::state(double t0, const Eigen::Ref<const Eigen::Vec
 Functionals::Functionals(const LinearFlow& flow, Eigen::MatrixXd rows) : flow_(&flow) {
   rows_[0] = std::move(rows);
   for (int d = 1; d < 4; ++d) rows_[d] = rows_[d - 1] * flow.generator();
-  if (flow.method() == LinearFlow::Method::spectral)
-    modal_rows_ = rows_[0].cast<std::complex<double>>() * flow.eigenvectors();
+  if (flow.closed_form()) {
+    modal_rows_ = rows_[0].cast<std::complex<double>>() * flow.basis();
+  } else {
+    // Padé path's bounds (flow.hpp): ‖ℓᵢᵀÂᵈ‖₂ and ‖ℓᵢᵀÂᵈD⁻¹‖₂ for d = 2, 3.
+    const Eigen::Index n = flow.dof();
+    const double s = flow.position_scale();
+    row_norms_.resize(count(), 4);
+    for (Eigen::Index i = 0; i < count(); ++i)
+      for (int k = 0; k < 2; ++k) {
+        const auto& row = rows_[2 + k].row(i);
+        row_norms_(i, 2 * k) = row.norm();
+        row_norms_(i, 2 * k + 1) =
+            std::sqrt(row.head(n).squaredNorm() / (s * s) + row.tail(row.size() - n).squaredNorm());
+      }
+  }
 }
 
 Segment::Segment(const Functionals& functionals, double t0,
@@ -202,6 +421,7 @@ Segment::Segment(const Functionals& functionals, double t0,
 }
 
 void Segment::reset(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0) {
+  using C = std::complex<double>;
   const Functionals& functionals = *functionals_;
   t0_ = t0;
   z0_ = z0;  // same size: no allocation
@@ -209,165 +429,379 @@ void Segment::reset(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0) {
   for (double& tau : cache_tau_) tau = std::numeric_limits<double>::quiet_NaN();
   cache_next_ = 0;
   const LinearFlow& flow = functionals.flow();
-  if (flow.method() == LinearFlow::Method::spectral) {
-    const Eigen::Index N = flow.size();
-    modal_.resize(N);
-    modal_.noalias() = flow.inverse_eigenvectors() * z0_.cast<std::complex<double>>();
-    const auto& reps = flow.representatives();
-    const auto K = static_cast<Eigen::Index>(reps.size());
-    const Eigen::Index rows = functionals.count();
-    lambda_.resize(K);
-    modulus_.resize(K);
-    coefficients_.resize(rows, K);
-    curvature_.resize(rows, K);
+  if (!flow.closed_form()) return;
+  const auto& terms = flow.terms();
+  const auto K = static_cast<Eigen::Index>(terms.size());
+  const Eigen::Index rows = functionals.count();
+  const Eigen::MatrixXcd& Vinv = flow.inverse_basis();
+  const Eigen::MatrixXcd& modal_rows = functionals.modal_rows();
+  if (offset_.size() != static_cast<std::size_t>(K)) {
+    // Layout (once per Segment): per term r, degree_r + 1 coefficient columns (powers of τ).
+    offset_.resize(static_cast<std::size_t>(K));
+    width_ = 0;
+    Eigen::Index state_width = 0;
+    polynomial_ = false;
+    for (Eigen::Index r = 0; r < K; ++r) {
+      const auto& term = terms[static_cast<std::size_t>(r)];
+      offset_[static_cast<std::size_t>(r)] = width_;
+      width_ += term.degree + 1;
+      state_width += term.size * (term.degree + 1);
+      polynomial_ = polynomial_ || term.degree > 0;
+    }
+    modal_.resize(flow.size());
+    powers_.resize(state_width, 1);
+    for (int d = 0; d < 4; ++d) coefficients_[d].resize(rows, width_);
+    for (auto& m : moduli_) m.resize(rows, width_);
     cache_e_.resize(K, cache_slots);
     cache_growth_.resize(K, cache_slots);
+    scratch_.resize(flow.size());
+  }
+  magnitude_.setZero(rows);
+  if (!polynomial_) {
+    // Spectral (every term a single eigenvalue): αᵢᵣ = w_r (ℓᵢᵀV)_k (V⁻¹z0)_k, αᵈ = α λᵈ,
+    // the moduli |α| |λ|², |α| |λ|³; complex products written out (no library call per term).
     for (Eigen::Index r = 0; r < K; ++r) {
-      const Eigen::Index k = reps[static_cast<std::size_t>(r)];
-      lambda_(r) = flow.eigenvalues()(k);
-      modulus_(r) = std::abs(lambda_(r));
-      const double w = flow.weights()[static_cast<std::size_t>(r)];
+      const auto& term = terms[static_cast<std::size_t>(r)];
+      const Eigen::Index k = term.column;
+      double yr = 0.0, yi = 0.0;
+      for (Eigen::Index j = 0; j < z0_.size(); ++j) {
+        yr += Vinv(k, j).real() * z0_(j);
+        yi += Vinv(k, j).imag() * z0_(j);
+      }
+      modal_(k) = {yr, yi};
+      yr *= term.weight;
+      yi *= term.weight;
+      powers_(r) = {yr, yi};
+      const double lr = term.lambda.real(), li = term.lambda.imag();
+      const double l2 = lr * lr + li * li, l1 = std::sqrt(l2);
       for (Eigen::Index i = 0; i < rows; ++i) {
-        coefficients_(i, r) = w * functionals.modal_rows()(i, k) * modal_(k);
-        curvature_(i, r) = std::abs(coefficients_(i, r)) * std::norm(lambda_(r));
+        const double mr = modal_rows(i, k).real(), mi = modal_rows(i, k).imag();
+        double ar = mr * yr - mi * yi, ai = mr * yi + mi * yr;
+        const double modulus = std::sqrt(ar * ar + ai * ai);
+        coefficients_[0](i, r) = {ar, ai};
+        for (int d = 1; d < 4; ++d) {
+          const double br = ar * lr - ai * li, bi = ar * li + ai * lr;
+          ar = br;
+          ai = bi;
+          coefficients_[d](i, r) = {ar, ai};
+        }
+        moduli_[0](i, r) = modulus * l2;
+        moduli_[1](i, r) = modulus * l2 * l1;
+        magnitude_(i) += modulus;
       }
     }
+    return;
   }
+  Eigen::Index at = 0;  // position in powers_
+  for (Eigen::Index r = 0; r < K; ++r) {
+    const auto& term = terms[static_cast<std::size_t>(r)];
+    const Eigen::Index o = term.column, m = term.size, w = offset_[static_cast<std::size_t>(r)];
+    for (Eigen::Index j = o; j < o + m; ++j) {
+      C sum = 0.0;
+      for (Eigen::Index k = 0; k < z0_.size(); ++k) sum += Vinv(j, k) * z0_(k);
+      modal_(j) = sum;
+    }
+    // y_p = w_r E_r^p y / p! (the state's coefficients), α_{i,p} = (ℓᵢᵀV)_r y_p.
+    for (Eigen::Index q = 0; q < m; ++q) powers_(at + q) = term.weight * modal_(o + q);
+    for (int p = 0; p <= term.degree; ++p) {
+      const Eigen::Index here = at + p * m;
+      if (p > 0) {
+        const auto& E = flow.cluster_parts();
+        for (Eigen::Index q = 0; q < m; ++q) {
+          C sum = 0.0;
+          for (Eigen::Index l = q; l < m; ++l) sum += E(o + q, o + l) * powers_(here - m + l);
+          powers_(here + q) = sum / static_cast<double>(p);
+        }
+      }
+      for (Eigen::Index i = 0; i < rows; ++i) {
+        C sum = 0.0;
+        for (Eigen::Index q = 0; q < m; ++q) sum += modal_rows(i, o + q) * powers_(here + q);
+        coefficients_[0](i, w + p) = sum;
+      }
+    }
+    // αᵈ⁺¹_p = λ αᵈ_p + (p + 1) αᵈ_{p+1}.
+    for (int d = 1; d < 4; ++d)
+      for (Eigen::Index i = 0; i < rows; ++i)
+        for (int p = 0; p <= term.degree; ++p) {
+          C next = term.lambda * coefficients_[d - 1](i, w + p);
+          if (p < term.degree) next += static_cast<double>(p + 1) * coefficients_[d - 1](i, w + p + 1);
+          coefficients_[d](i, w + p) = next;
+        }
+    at += m * (term.degree + 1);
+  }
+  for (int k = 0; k < 2; ++k)
+    for (Eigen::Index i = 0; i < rows; ++i)
+      for (Eigen::Index c = 0; c < width_; ++c) {
+        const C a = coefficients_[2 + k](i, c);
+        moduli_[k](i, c) = std::sqrt(a.real() * a.real() + a.imag() * a.imag());
+      }
+  for (Eigen::Index i = 0; i < rows; ++i) magnitude_(i) = coefficients_[0].row(i).cwiseAbs().sum();
 }
 
-const Eigen::VectorXd& Segment::exponential_state(double tau) const {
+double Segment::magnitude(Eigen::Index i) const {
+  if (functionals_->flow().closed_form()) return magnitude_(i);
+  return functionals_->rows(0).row(i).norm() * z0_.norm();
+}
+
+const Eigen::VectorXd& Segment::pade_state(double tau) const {
   if (!(tau == cached_tau_)) {
+    ++evaluations_;
     cached_z_ = functionals_->flow().transition_matrix(tau) * z0_;
     cached_tau_ = tau;
   }
   return cached_z_;
 }
 
+void Segment::fill_exponentials(double tau, std::complex<double>* e, double* growth) const {
+  ++evaluations_;
+  // e^{λτ} = e^{Re λ τ} (cos Im λ τ + i sin Im λ τ), with the real (damped modes without
+  // oscillation, the constant) and the purely imaginary (the forcing) cases taking one call.
+  const auto& terms = functionals_->flow().terms();
+  for (std::size_t r = 0; r < terms.size(); ++r) {
+    const double re = terms[r].lambda.real() * tau, im = terms[r].lambda.imag() * tau;
+    const double g = re == 0.0 ? 1.0 : std::exp(re);
+    growth[r] = g;
+    if (im == 0.0) {
+      e[r] = {g, 0.0};
+    } else {
+      const double cs = std::cos(im), sn = std::sin(im);
+      e[r] = {g * cs, g * sn};
+    }
+  }
+}
+
 const std::complex<double>* Segment::exponentials(double tau) const {
   for (int c = 0; c < cache_slots; ++c)
     if (cache_tau_[c] == tau) return &cache_e_(0, c);
+  if (cache_next_ == pinned_) cache_next_ = (cache_next_ + 1) % cache_slots;
   const int c = cache_next_;
   cache_next_ = (cache_next_ + 1) % cache_slots;
   cache_tau_[c] = tau;
-  // e^{λτ} = e^{Re λ τ} (cos Im λ τ + i sin Im λ τ), with the real (damped modes without
-  // oscillation, the constant) and the purely imaginary (the forcing) cases taking one call.
-  for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
-    const double re = lambda_(r).real() * tau, im = lambda_(r).imag() * tau;
-    const double growth = re == 0.0 ? 1.0 : std::exp(re);
-    cache_growth_(r, c) = growth;
-    if (im == 0.0) {
-      cache_e_(r, c) = {growth, 0.0};
-    } else {
-      const double cs = std::cos(im), sn = std::sin(im);
-      cache_e_(r, c) = {growth * cs, growth * sn};
-    }
-  }
+  fill_exponentials(tau, &cache_e_(0, c), &cache_growth_(0, c));
   return &cache_e_(0, c);
 }
 
-const double* Segment::cached_growth(double tau) const {
-  for (int c = 0; c < cache_slots; ++c)
-    if (cache_tau_[c] == tau) return &cache_growth_(0, c);
-  return nullptr;
-}
-
-double Segment::value(Eigen::Index i, double tau, int derivative) const {
-  const LinearFlow& flow = functionals_->flow();
-  if (flow.method() == LinearFlow::Method::spectral) {
-    const std::complex<double>* e = exponentials(tau);
-    double sum = 0.0;
-    for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
-      std::complex<double> term = coefficients_(i, r) * e[r];
-      for (int d = 0; d < derivative; ++d) term *= lambda_(r);
-      sum += term.real();
+double Segment::row_value(Eigen::Index i, int derivative, double tau, const std::complex<double>* e) const {
+  const Eigen::MatrixXcd& a = coefficients_[derivative];
+  const auto K = static_cast<Eigen::Index>(offset_.size());
+  double sum = 0.0;
+  if (!polynomial_) {
+    for (Eigen::Index r = 0; r < K; ++r) {
+      const std::complex<double> c = a(i, r);
+      sum += c.real() * e[r].real() - c.imag() * e[r].imag();
     }
     return sum;
   }
-  return functionals_->rows(derivative).row(i).dot(exponential_state(tau));
+  const auto& terms = functionals_->flow().terms();
+  for (Eigen::Index r = 0; r < K; ++r) {
+    const Eigen::Index w = offset_[static_cast<std::size_t>(r)];
+    std::complex<double> poly = a(i, w + terms[static_cast<std::size_t>(r)].degree);
+    for (int p = terms[static_cast<std::size_t>(r)].degree - 1; p >= 0; --p) poly = poly * tau + a(i, w + p);
+    sum += poly.real() * e[r].real() - poly.imag() * e[r].imag();
+  }
+  return sum;
+}
+
+double Segment::value(Eigen::Index i, double tau, int derivative) const {
+  ++guard_evaluations_;
+  if (functionals_->flow().closed_form()) return row_value(i, derivative, tau, exponentials(tau));
+  return functionals_->rows(derivative).row(i).dot(pade_state(tau));
 }
 
 std::pair<double, double> Segment::value_and_slope(Eigen::Index i, double tau) const {
-  const LinearFlow& flow = functionals_->flow();
-  if (flow.method() == LinearFlow::Method::spectral) {
+  ++guard_evaluations_;
+  if (functionals_->flow().closed_form()) {
     const std::complex<double>* e = exponentials(tau);
-    double h = 0.0, dh = 0.0;
-    for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
-      const std::complex<double> term = coefficients_(i, r) * e[r];
-      h += term.real();
-      dh += (term * lambda_(r)).real();
-    }
-    return {h, dh};
+    return {row_value(i, 0, tau, e), row_value(i, 1, tau, e)};
   }
-  const Eigen::VectorXd& z = exponential_state(tau);
+  const Eigen::VectorXd& z = pade_state(tau);
   return {functionals_->rows(0).row(i).dot(z), functionals_->rows(1).row(i).dot(z)};
 }
 
-double Segment::second_derivative_bound(Eigen::Index i, double a, double b) const {
-  const LinearFlow& flow = functionals_->flow();
-  if (flow.method() == LinearFlow::Method::spectral) {
-    // max over [a, b] of e^{Re λ τ} is at a (Re λ < 0) or b (Re λ > 0); the values at the
-    // interval ends are usually in the exponentials' cache already (the search evaluated h there).
-    const double* ga = cached_growth(a);
-    const double* gb = cached_growth(b);
-    double bound = 0.0;
-    for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
-      const double re = lambda_(r).real();
-      double growth = 1.0;
-      if (re < 0.0) growth = ga ? ga[r] : std::exp(re * a);
-      else if (re > 0.0) growth = gb ? gb[r] : std::exp(re * b);
-      bound += curvature_(i, r) * growth;
-    }
-    return bound * (1.0 + 1e-12);
+void Segment::row_jet(Eigen::Index i, double tau, double* h, double* d, double* c) const {
+  ++guard_evaluations_;
+  if (functionals_->flow().closed_form()) {
+    const std::complex<double>* e = exponentials(tau);
+    *h = row_value(i, 0, tau, e);
+    *d = row_value(i, 1, tau, e);
+    *c = row_value(i, 2, tau, e);
+    return;
   }
-  // Two rigorous bounds, in the 2-norm and in the scaled norm ‖D·‖ (flow.hpp); the scaled one
-  // stays finite for stiff systems, whose 2-norm log norm ~ ‖M⁻¹K‖ overflows e^{μ (b - a)}.
-  const Eigen::VectorXd& z = exponential_state(a);
-  const auto& row = functionals_->rows(2).row(i);
+  const Eigen::VectorXd& z = pade_state(tau);
+  *h = functionals_->rows(0).row(i).dot(z);
+  *d = functionals_->rows(1).row(i).dot(z);
+  *c = functionals_->rows(2).row(i).dot(z);
+}
+
+void Segment::sample(double tau, SegmentSample& out) const {
+  const Eigen::Index rows = functionals_->count();
+  const LinearFlow& flow = functionals_->flow();
+  out.tau = tau;
+  out.h.resize(rows);
+  out.d.resize(rows);
+  out.c.resize(rows);
+  if (flow.closed_form()) {
+    const auto K = static_cast<Eigen::Index>(offset_.size());
+    out.e.resize(K);
+    out.growth.resize(K);
+    bool cached = false;
+    for (int c = 0; c < cache_slots && !cached; ++c)
+      if (cache_tau_[c] == tau) {  // e.g. the root the finder just refined
+        out.e = cache_e_.col(c);
+        out.growth = cache_growth_.col(c);
+        cached = true;
+      }
+    if (!cached) fill_exponentials(tau, out.e.data(), out.growth.data());
+    guard_evaluations_ += rows;
+    if (!polynomial_) {
+      for (Eigen::Index i = 0; i < rows; ++i) {
+        double h = 0.0, d = 0.0, c = 0.0;
+        for (Eigen::Index r = 0; r < K; ++r) {
+          const double er = out.e(r).real(), ei = out.e(r).imag();
+          const std::complex<double> a0 = coefficients_[0](i, r), a1 = coefficients_[1](i, r),
+                                     a2 = coefficients_[2](i, r);
+          h += a0.real() * er - a0.imag() * ei;
+          d += a1.real() * er - a1.imag() * ei;
+          c += a2.real() * er - a2.imag() * ei;
+        }
+        out.h(i) = h;
+        out.d(i) = d;
+        out.c(i) = c;
+      }
+      return;
+    }
+    for (Eigen::Index i = 0; i < rows; ++i) {
+      out.h(i) = row_value(i, 0, tau, out.e.data());
+      out.d(i) = row_value(i, 1, tau, out.e.data());
+      out.c(i) = row_value(i, 2, tau, out.e.data());
+    }
+    return;
+  }
+  const Eigen::VectorXd& z = pade_state(tau);
+  guard_evaluations_ += rows;
+  out.h.noalias() = functionals_->rows(0) * z;
+  out.d.noalias() = functionals_->rows(1) * z;
+  out.c.noalias() = functionals_->rows(2) * z;
   const Eigen::Index n = flow.dof();
   const double s = flow.position_scale();
-  auto bound = [&](double row_norm, double z_norm, double mu) {  // 0 · ∞ is 0 here
-    return row_norm == 0.0 || z_norm == 0.0 ? 0.0
-                                            : row_norm * z_norm * std::exp(std::max(0.0, mu * (b - a)));
+  out.growth.resize(2);
+  out.growth(0) = z.norm();
+  out.growth(1) = std::sqrt(s * s * z.head(n).squaredNorm() + z.tail(z.size() - n).squaredNorm());
+}
+
+double Segment::pade_bound(int derivative, Eigen::Index i, double z_norm, double dz_norm, double length) const {
+  // Two rigorous bounds, in the 2-norm and in the scaled norm ‖D·‖ (flow.hpp); the scaled one
+  // stays finite for stiff systems, whose 2-norm log norm ~ ‖M⁻¹K‖ overflows e^{μ (b - a)}.
+  const LinearFlow& flow = functionals_->flow();
+  const auto& norms = functionals_->row_norms();
+  const int k = derivative - 2;
+  auto bound = [&](double row_norm, double norm, double mu) {  // 0 · ∞ is 0 here
+    return row_norm == 0.0 || norm == 0.0 ? 0.0 : row_norm * norm * std::exp(std::max(0.0, mu * length));
   };
-  const double plain = bound(row.norm(), z.norm(), flow.log_norm());
-  const double scaled = bound(
-      std::sqrt(row.head(n).squaredNorm() / (s * s) + row.tail(row.size() - n).squaredNorm()),
-      std::sqrt(s * s * z.head(n).squaredNorm() + z.tail(z.size() - n).squaredNorm()),
-      flow.scaled_log_norm());
+  const double plain = bound(norms(i, 2 * k), z_norm, flow.log_norm());
+  const double scaled = bound(norms(i, 2 * k + 1), dz_norm, flow.scaled_log_norm());
   return std::fmin(plain, scaled) * (1.0 + 1e-12);
 }
 
-double Segment::third_derivative_bound(Eigen::Index i, double a, double b) const {
-  const LinearFlow& flow = functionals_->flow();
-  if (flow.method() != LinearFlow::Method::spectral) return std::numeric_limits<double>::infinity();
-  const double* ga = cached_growth(a);
-  const double* gb = cached_growth(b);
+double Segment::closed_form_bound(int derivative, Eigen::Index i, double a, double b, const double* ga,
+                                  const double* gb) const {
+  // max over [a, b] of |e^{λτ}| is at one end; of τ^p (τ ≥ 0) at the end farther from 0.
+  const Eigen::MatrixXd& mod = moduli_[derivative - 2];
+  const auto K = static_cast<Eigen::Index>(offset_.size());
   double bound = 0.0;
-  for (Eigen::Index r = 0; r < lambda_.size(); ++r) {
-    const double re = lambda_(r).real();
-    double growth = 1.0;
-    if (re < 0.0) growth = ga ? ga[r] : std::exp(re * a);
-    else if (re > 0.0) growth = gb ? gb[r] : std::exp(re * b);
-    bound += curvature_(i, r) * modulus_(r) * growth;
+  if (!polynomial_) {
+    for (Eigen::Index r = 0; r < K; ++r) bound += mod(i, r) * std::max(ga[r], gb[r]);
+    return bound * (1.0 + 1e-12);
+  }
+  const auto& terms = functionals_->flow().terms();
+  const double t = std::max(std::abs(a), std::abs(b));
+  for (Eigen::Index r = 0; r < K; ++r) {
+    const Eigen::Index w = offset_[static_cast<std::size_t>(r)];
+    double poly = mod(i, w + terms[static_cast<std::size_t>(r)].degree);
+    for (int p = terms[static_cast<std::size_t>(r)].degree - 1; p >= 0; --p) poly = poly * t + mod(i, w + p);
+    bound += poly * std::max(ga[r], gb[r]);
   }
   return bound * (1.0 + 1e-12);
 }
 
-void Segment::state(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
-  const LinearFlow& flow = functionals_->flow();
-  if (flow.method() == LinearFlow::Method::spectral) {
-    // Σₖ V(:, k) (V⁻¹z0)ₖ e^{λₖτ}, written out so that nothing is allocated.
-    scratch_.resize(modal_.size());
-    for (Eigen::Index k = 0; k < modal_.size(); ++k) scratch_(k) = modal_(k) * std::exp(flow.eigenvalues()(k) * tau);
-    const Eigen::MatrixXcd& V = flow.eigenvectors();
-    for (Eigen::Index i = 0; i < out.size(); ++i) {
-      double sum = 0.0;
-      for (Eigen::Index k = 0; k < V.cols(); ++k) sum += (V(i, k) * scratch_(k)).real();
-      out(i) = sum;
-    }
-  } else {
-    out = exponential_state(tau);
+double Segment::derivative_bound(int derivative, Eigen::Index i, const SegmentSample& a,
+                                 const SegmentSample& b) const {
+  if (!functionals_->flow().closed_form())
+    return pade_bound(derivative, i, a.growth(0), a.growth(1), b.tau - a.tau);
+  return closed_form_bound(derivative, i, a.tau, b.tau, a.growth.data(), b.growth.data());
+}
+
+int Segment::cache_slot(double tau) const {
+  exponentials(tau);
+  for (int c = 0; c < cache_slots; ++c)
+    if (cache_tau_[c] == tau) return c;
+  return 0;  // not reached: exponentials() just stored τ
+}
+
+double Segment::bound_between(int derivative, Eigen::Index i, double a, double b) const {
+  if (functionals_->flow().closed_form()) {
+    // Two cache slots; the first is pinned while the second is looked up.
+    const int sa = cache_slot(a);
+    pinned_ = sa;
+    const int sb = cache_slot(b);
+    pinned_ = -1;
+    return closed_form_bound(derivative, i, a, b, &cache_growth_(0, sa), &cache_growth_(0, sb));
   }
+  const Eigen::VectorXd& z = pade_state(a);
+  const LinearFlow& flow = functionals_->flow();
+  const Eigen::Index n = flow.dof();
+  const double s = flow.position_scale();
+  return pade_bound(derivative, i, z.norm(),
+                    std::sqrt(s * s * z.head(n).squaredNorm() + z.tail(z.size() - n).squaredNorm()), b - a);
+}
+
+double Segment::second_derivative_bound(Eigen::Index i, double a, double b) const {
+  return bound_between(2, i, a, b);
+}
+
+double Segment::third_derivative_bound(Eigen::Index i, double a, double b) const {
+  return bound_between(3, i, a, b);
+}
+
+void Segment::closed_form_state(double tau, const std::complex<double>* e, Eigen::Ref<Eigen::VectorXd> out) const {
+  // z(τ) = Re Σ_r V_r e^{λ_r τ} Σ_p τ^p y_{r,p}, written out so that nothing is allocated.
+  const LinearFlow& flow = functionals_->flow();
+  const auto& terms = flow.terms();
+  const Eigen::MatrixXcd& V = flow.basis();
+  Eigen::Index at = 0;
+  for (std::size_t r = 0; r < terms.size(); ++r) {
+    const Eigen::Index o = terms[r].column, m = terms[r].size;
+    const int degree = terms[r].degree;
+    for (Eigen::Index q = 0; q < m; ++q) {
+      std::complex<double> poly = powers_(at + degree * m + q);
+      for (int p = degree - 1; p >= 0; --p) poly = poly * tau + powers_(at + p * m + q);
+      scratch_(o + q) = poly * e[r];
+    }
+    at += m * (degree + 1);
+  }
+  for (Eigen::Index i = 0; i < out.size(); ++i) {
+    double sum = 0.0;
+    for (const auto& term : terms)
+      for (Eigen::Index j = term.column; j < term.column + term.size; ++j)
+        sum += V(i, j).real() * scratch_(j).real() - V(i, j).imag() * scratch_(j).imag();
+    out(i) = sum;
+  }
+}
+
+void Segment::state(const SegmentSample& s, Eigen::Ref<Eigen::VectorXd> out) const {
+  if (!functionals_->flow().closed_form()) {
+    out = pade_state(s.tau);
+    return;
+  }
+  closed_form_state(s.tau, s.e.data(), out);
+}
+
+void Segment::state(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
+  if (!functionals_->flow().closed_form()) {
+    out = pade_state(tau);
+    return;
+  }
+  closed_form_state(tau, exponentials(tau), out);
 }
 
 }  // namespace vibro

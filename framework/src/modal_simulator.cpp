@@ -444,6 +444,9 @@ class ChainAlgebra final : public detail::ContactAlgebra {
   ChainAlgebra(const BandedChain& chain, const std::vector<Stop>& stops, ModeOf mode_of)
       : ch_(chain), stops_(stops), W_(chain.forcing.frequency), mode_of_(std::move(mode_of)) {
     const auto m = static_cast<Eigen::Index>(stops.size());
+    q_.resize(m);
+    G_.resize(m, m);
+    lcp_.reserve(m);
     G_diag_.resize(m);
     for (Eigen::Index j = 0; j < m; ++j) {
       normal_.push_back(normal_of(stops[static_cast<std::size_t>(j)]));
@@ -457,51 +460,46 @@ class ChainAlgebra final : public detail::ContactAlgebra {
   double gap_rate(int j, double t, const Eigen::VectorXd& v) const {
     return w_dot(j, v) - value_at(motion(j).derivative(W_), W_, t);
   }
-  Eigen::VectorXd gap_rates(double t, const Eigen::VectorXd& v) const override {
-    Eigen::VectorXd out(static_cast<Eigen::Index>(stops_.size()));
+  void gap_rates(double t, const Eigen::VectorXd& v, Eigen::Ref<Eigen::VectorXd> out) const override {
     for (Eigen::Index j = 0; j < out.size(); ++j) out(j) = gap_rate(static_cast<int>(j), t, v);
-    return out;
   }
-  ContactSet settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
-                    const ContactSet& candidates, Eigen::VectorXd* forces) override {
-    if (candidates.empty()) {
-      if (forces) forces->resize(0);
-      return {};
-    }
+  void settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, const ContactSet& candidates,
+              ContactSet& held, Eigen::Ref<Eigen::VectorXd> forces) override {
+    held.clear();
+    if (candidates.empty()) return;
     // Free acceleration M⁻¹(f - C v - K x), C = αM + βK: O(n).
     stiffness_times(ch_, x, kx_);
     stiffness_times(ch_, v, kv_);
     const HarmonicForcing& f = ch_.forcing;
     const double c = std::cos(W_ * t), s = std::sin(W_ * t);
-    Eigen::VectorXd acc = f.constant + f.cosine * c + f.sine * s - kx_ - ch_.rayleigh_stiffness * kv_;
-    acc = acc.cwiseQuotient(ch_.mass) - ch_.rayleigh_mass * v;
+    acc_ = f.constant + f.cosine * c + f.sine * s - kx_ - ch_.rayleigh_stiffness * kv_;
+    acc_.array() /= ch_.mass.array();
+    acc_ -= ch_.rayleigh_mass * v;
     const auto k = static_cast<Eigen::Index>(candidates.size());
-    Eigen::VectorXd q(k);
+    auto q = q_.head(k);
     for (Eigen::Index a = 0; a < k; ++a) {
       const int j = candidates[static_cast<std::size_t>(a)];
-      q(a) = w_dot(j, acc) - value_at(motion(j).derivative(W_).derivative(W_), W_, t);
+      q(a) = w_dot(j, acc_) - value_at(motion(j).derivative(W_).derivative(W_), W_, t);
     }
-    const Eigen::VectorXd lambda = solve_lcp(delassus(candidates), q);
-    ContactSet held;
+    auto G = G_.topLeftCorner(k, k);
+    delassus(candidates, G);
+    solve_lcp(G, q, forces, lcp_);
     for (Eigen::Index a = 0; a < k; ++a)
-      if (lambda(a) > 0.0) held.push_back(candidates[static_cast<std::size_t>(a)]);
-    if (forces) *forces = lambda;
-    return held;
+      if (forces(a) > 0.0) held.push_back(candidates[static_cast<std::size_t>(a)]);
   }
-  Eigen::MatrixXd delassus(const ContactSet& set) override {
+  void delassus(const ContactSet& set, Eigen::Ref<Eigen::MatrixXd> G) const override {
     const auto k = static_cast<Eigen::Index>(set.size());
-    Eigen::MatrixXd G(k, k);
     for (Eigen::Index a = 0; a < k; ++a)
       for (Eigen::Index b = 0; b < k; ++b)
         G(a, b) = delassus_entry(normal_[static_cast<std::size_t>(set[static_cast<std::size_t>(a)])],
                                  normal_[static_cast<std::size_t>(set[static_cast<std::size_t>(b)])], ch_.mass);
-    return G;
   }
   double delassus_diagonal(int j) const override { return G_diag_(j); }
-  void apply_impulse(const ContactSet& set, const Eigen::VectorXd& impulse, Eigen::VectorXd& v) override {
+  void apply_impulse(const ContactSet& set, const Eigen::Ref<const Eigen::VectorXd>& impulse,
+                     Eigen::VectorXd& v) const override {
     for (std::size_t a = 0; a < set.size(); ++a) add_minv_w(set[a], -impulse(static_cast<Eigen::Index>(a)), v);
   }
-  void shift(const ContactSet& set, Eigen::Index a, double s, Eigen::VectorXd& z) override {
+  void shift(const ContactSet& set, Eigen::Index a, double s, Eigen::VectorXd& z) const override {
     add_minv_w(set[static_cast<std::size_t>(a)], -s, z);
   }
   bool accept(const ContactSet& held, std::string* why) override { return mode_of_(held, why) != nullptr; }
@@ -547,7 +545,9 @@ class ChainAlgebra final : public detail::ContactAlgebra {
   double W_;
   ModeOf mode_of_;
   std::vector<Normal> normal_;
-  Eigen::VectorXd G_diag_, kx_, kv_;
+  Eigen::VectorXd G_diag_, kx_, kv_, acc_, q_;
+  Eigen::MatrixXd G_;
+  LcpWorkspace lcp_;
 };
 
 }  // namespace
@@ -1006,11 +1006,13 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
   };
 
   const std::function<void(const Event&)> emit_event = emit;
+  const std::function<void(const ContactSet&)> visit = [&](const ContactSet& set) { sets_seen.insert(set); };
+  detail::EventWorkspace work;
+  work.reserve(m);
   auto handle = [&](const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting) {
     ++summary.general_events;
     return detail::resolve_event(algebra, stops_, rules, t, x, v, stuck, impacting, releasing, resting,
-                                 emit_event, summary, &why_not,
-                                 [&](const ContactSet& set) { sets_seen.insert(set); });
+                                 emit_event, summary, &why_not, work, visit);
   };
 
   seg_t0_ = t0;

@@ -30,50 +30,130 @@ void require_positive(double value, const char* field, bool allow_zero = false) 
                        (allow_zero ? "≥ 0" : "> 0"));
 }
 
-/// The dense engine's side of event resolution (event_resolution.hpp): restitution data from the
-/// cached ContactModes, the sticking flow of a held set for the second-order chatter rule.
+/// Per-run tables of the stops (allocated once per run, so that no event allocates): the normals
+/// W and M⁻¹W, the Delassus matrix of all stops G = WᵀM⁻¹W (a set's G is its principal
+/// submatrix), each stop's motion s(t) = s0 + sc cos Ωt + ss sin Ωt, and for the second-order
+/// chatter rule α_j = -w_jᵀ M⁻¹ C M⁻¹ w_j / G_jj and the direction M⁻¹ K M⁻¹ w_j / G_jj of its
+/// state kick.
+struct StopTables {
+  Eigen::MatrixXd normals, minv_normals, delassus, chatter_kick;
+  Eigen::VectorXd s0, sc, ss, chatter_alpha;
+
+  explicit StopTables(const ImpactSystem& scene) {
+    const LinearSystem& sys = scene.system();
+    const auto m = static_cast<Eigen::Index>(scene.stop_count());
+    const Eigen::LLT<Eigen::MatrixXd> mass_llt(sys.mass());
+    normals = scene.normals();
+    minv_normals = mass_llt.solve(normals);
+    const Eigen::MatrixXd g = normals.transpose() * minv_normals;
+    delassus = 0.5 * (g + g.transpose());
+    s0.resize(m);
+    sc.resize(m);
+    ss.resize(m);
+    chatter_alpha.resize(m);
+    chatter_kick.resize(sys.dof(), m);
+    for (Eigen::Index j = 0; j < m; ++j) {
+      const Stop& st = scene.stops()[static_cast<std::size_t>(j)];
+      s0(j) = st.s0();
+      sc(j) = st.s_cos();
+      ss(j) = st.s_sin();
+      chatter_alpha(j) = -minv_normals.col(j).dot(sys.damping() * minv_normals.col(j)) / delassus(j, j);
+      chatter_kick.col(j) = mass_llt.solve(sys.stiffness() * minv_normals.col(j)) / delassus(j, j);
+    }
+  }
+};
+
+/// The dense engine's side of event resolution (event_resolution.hpp), allocation-free: the
+/// stops' tables above, the sticking flow of a held set (cached ContactModes) for the
+/// second-order chatter rule, and scratch sized for the run.
 class DenseAlgebra final : public detail::ContactAlgebra {
  public:
-  DenseAlgebra(const Simulator& sim, const ImpactSystem& scene, ContactModes& modes,
-               const Eigen::VectorXd& delassus_diag, const Eigen::VectorXd& chatter_alpha,
-               const Eigen::MatrixXd& chatter_kick, Eigen::VectorXd& reduced_state)
-      : sim_(sim), scene_(scene), modes_(modes), delassus_diag_(delassus_diag),
-        chatter_alpha_(chatter_alpha), chatter_kick_(chatter_kick), reduced_state_(reduced_state) {}
+  DenseAlgebra(const ImpactSystem& scene, ContactModes& modes, const StopTables& tables)
+      : scene_(scene), modes_(modes), tab_(tables), omega_(scene.system().forcing().frequency) {
+    const Eigen::Index n = scene.dof(), m = static_cast<Eigen::Index>(scene.stop_count());
+    residual_.resize(n);
+    reduced_state_.resize(2 * n + 3);
+    q_.resize(m);
+    G_.resize(m, m);
+    lcp_.reserve(m);
+  }
 
-  double gap(int j, double t, const Eigen::VectorXd& x) const override { return scene_.gaps(t, x)(j); }
-  Eigen::VectorXd gap_rates(double t, const Eigen::VectorXd& v) const override { return scene_.gap_rates(t, v); }
-  ContactSet settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
-                    const ContactSet& candidates, Eigen::VectorXd* forces) override {
-    return sim_.settle(t, x, v, candidates, forces);
+  double gap(int j, double t, const Eigen::VectorXd& x) const override {
+    return tab_.normals.col(j).dot(x) - (tab_.s0(j) + tab_.sc(j) * std::cos(omega_ * t) + tab_.ss(j) * std::sin(omega_ * t));
   }
-  Eigen::MatrixXd delassus(const ContactSet& set) override { return modes_.get(set).delassus(); }
-  double delassus_diagonal(int j) const override { return delassus_diag_(j); }
-  void apply_impulse(const ContactSet& set, const Eigen::VectorXd& impulse, Eigen::VectorXd& v) override {
-    v -= modes_.get(set).mass_inverse_normals() * impulse;
+  void gap_rates(double t, const Eigen::VectorXd& v, Eigen::Ref<Eigen::VectorXd> out) const override {
+    const double c = std::cos(omega_ * t), s = std::sin(omega_ * t);
+    for (Eigen::Index j = 0; j < out.size(); ++j)
+      out(j) = tab_.normals.col(j).dot(v) - omega_ * (-tab_.sc(j) * s + tab_.ss(j) * c);
   }
-  void shift(const ContactSet& set, Eigen::Index a, double s, Eigen::VectorXd& z) override {
-    z -= modes_.get(set).mass_inverse_normals().col(a) * s;
+  /// The acceleration LCP of contact.hpp: q = free gap acceleration Wᵀ M⁻¹ (f - C v - K x) - s''(t).
+  void settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, const ContactSet& candidates,
+              ContactSet& held, Eigen::Ref<Eigen::VectorXd> forces) override {
+    held.clear();
+    if (candidates.empty()) return;
+    const LinearSystem& sys = scene_.system();
+    const HarmonicForcing& f = sys.forcing();
+    const double c = std::cos(omega_ * t), s = std::sin(omega_ * t);
+    residual_.noalias() = -sys.damping() * v;
+    residual_.noalias() -= sys.stiffness() * x;
+    residual_ += f.constant + f.cosine * c + f.sine * s;
+    const auto k = static_cast<Eigen::Index>(candidates.size());
+    auto q = q_.head(k);
+    auto G = G_.topLeftCorner(k, k);
+    delassus(candidates, G);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      const int j = candidates[static_cast<std::size_t>(a)];
+      const double s_dd = -omega_ * omega_ * (tab_.sc(j) * c + tab_.ss(j) * s);
+      q(a) = tab_.minv_normals.col(j).dot(residual_) - s_dd;
+    }
+    solve_lcp(G, q, forces, lcp_);
+    for (Eigen::Index a = 0; a < k; ++a)
+      if (forces(a) > 0.0) held.push_back(candidates[static_cast<std::size_t>(a)]);
+  }
+  void delassus(const ContactSet& set, Eigen::Ref<Eigen::MatrixXd> G) const override {
+    for (std::size_t a = 0; a < set.size(); ++a)
+      for (std::size_t b = 0; b < set.size(); ++b)
+        G(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = tab_.delassus(set[a], set[b]);
+  }
+  double delassus_diagonal(int j) const override { return tab_.delassus(j, j); }
+  void apply_impulse(const ContactSet& set, const Eigen::Ref<const Eigen::VectorXd>& impulse,
+                     Eigen::VectorXd& v) const override {
+    for (std::size_t a = 0; a < set.size(); ++a)
+      v -= tab_.minv_normals.col(set[a]) * impulse(static_cast<Eigen::Index>(a));
+  }
+  void shift(const ContactSet& set, Eigen::Index a, double s, Eigen::VectorXd& z) const override {
+    z -= tab_.minv_normals.col(set[static_cast<std::size_t>(a)]) * s;
   }
   bool accept(const ContactSet& /*held*/, std::string* /*why*/) override { return true; }
-  double chatter_alpha(int j) const override { return chatter_alpha_(j); }
+  double chatter_alpha(int j) const override { return tab_.chatter_alpha(j); }
   double force_slope(const ContactSet& held, int j, double t, const Eigen::VectorXd& x,
                      const Eigen::VectorXd& v) override {
     const ContactMode& mode = modes_.get(held);
     const ContactMode::Reduced& red = mode.reduced();
-    reduced_state_.resize(red.flow->size());
-    mode.reduce(t, x, v, reduced_state_);
+    auto z = reduced_state_.head(red.flow->size());
+    mode.reduce(t, x, v, z);
     const auto a_idx = std::lower_bound(held.begin(), held.end(), j) - held.begin();
-    return -red.watch->rows(1).row(red.gap_rows + a_idx).dot(reduced_state_);
+    return -red.watch->rows(1).row(red.gap_rows + a_idx).dot(z);
   }
-  void chatter_kick(int j, double s, Eigen::VectorXd& v) override { v -= chatter_kick_.col(j) * s; }
+  void chatter_kick(int j, double s, Eigen::VectorXd& v) override { v -= tab_.chatter_kick.col(j) * s; }
 
  private:
-  const Simulator& sim_;
   const ImpactSystem& scene_;
   ContactModes& modes_;
-  const Eigen::VectorXd &delassus_diag_, &chatter_alpha_;
-  const Eigen::MatrixXd& chatter_kick_;
-  Eigen::VectorXd& reduced_state_;
+  const StopTables& tab_;
+  double omega_;
+  Eigen::VectorXd residual_, reduced_state_, q_;
+  Eigen::MatrixXd G_;
+  LcpWorkspace lcp_;
+};
+
+/// What the event loop keeps per contact mode visited, so that returning to a mode allocates
+/// nothing: its segment (re-targeted at each visit), its crossing finder and trigger levels.
+struct ModeSlot {
+  const Functionals* watch = nullptr;
+  std::unique_ptr<Segment> segment;
+  CrossingFinder finder;
+  Eigen::VectorXd triggers;
 };
 
 }  // namespace
@@ -122,28 +202,12 @@ ContactSet Simulator::settle(double t, const Eigen::VectorXd& x, const Eigen::Ve
     if (forces) forces->resize(0);
     return {};
   }
-  const LinearSystem& sys = scene_->system();
-  const double omega = sys.forcing().frequency;
-  const auto m = static_cast<Eigen::Index>(candidates.size());
-  // q = free gap acceleration Wᵀ M⁻¹ (f - C v - K x) - s''(t).
-  const Eigen::VectorXd acc = sys.acceleration(t, x, v);
-  Eigen::VectorXd q(m);
-  Eigen::MatrixXd G(m, m);
-  const Eigen::MatrixXd& W = scene_->normals();
-  const Eigen::LLT<Eigen::MatrixXd> llt(sys.mass());
-  Eigen::MatrixXd Wc(W.rows(), m);
-  for (Eigen::Index a = 0; a < m; ++a) {
-    const int j = candidates[static_cast<std::size_t>(a)];
-    const Stop& st = scene_->stops()[static_cast<std::size_t>(j)];
-    const double s_dd = -omega * omega * (st.s_cos() * std::cos(omega * t) + st.s_sin() * std::sin(omega * t));
-    q(a) = W.col(j).dot(acc) - s_dd;
-    Wc.col(a) = W.col(j);
-  }
-  G = Wc.transpose() * llt.solve(Wc);
-  const Eigen::VectorXd lambda = solve_lcp(G, q);
+  const StopTables tables(*scene_);
+  DenseAlgebra algebra(*scene_, const_cast<ContactModes&>(modes_), tables);  // settle reads no mode
   ContactSet held;
-  for (Eigen::Index a = 0; a < m; ++a)
-    if (lambda(a) > 0.0) held.push_back(candidates[static_cast<std::size_t>(a)]);
+  held.reserve(candidates.size());
+  Eigen::VectorXd lambda(static_cast<Eigen::Index>(candidates.size()));
+  algebra.settle(t, x, v, candidates, held, lambda);
   if (forces) *forces = lambda;
   return held;
 }
@@ -172,6 +236,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
   scene.check_admissible(t0, x0, eps_gap);
 
   RunSummary summary;
+  guard_evaluations_ = 0;
   summary.length_scale = sc.L;
   summary.velocity_scale = sc.V;
   summary.force_scale = sc.F;
@@ -181,19 +246,9 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
 
   double t = t0;
   Eigen::VectorXd x = x0, v = v0;
-  ContactSet stuck;
+  ContactSet stuck, impacting, releasing;
+  for (ContactSet* set : {&stuck, &impacting, &releasing}) set->reserve(static_cast<std::size_t>(stops));
   detail::EventRate rate(options_.max_events, window);
-  const Eigen::LLT<Eigen::MatrixXd> mass_llt(sys.mass());
-  // Per stop, once per run: M⁻¹ w_j, G_jj = w_jᵀ M⁻¹ w_j, and for the second-order chatter rule
-  // α_j = -w_jᵀ M⁻¹ C M⁻¹ w_j / G_jj and the direction M⁻¹ K M⁻¹ w_j / G_jj of its state kick.
-  const Eigen::MatrixXd minv_normals = mass_llt.solve(scene.normals());
-  Eigen::VectorXd delassus_diag(stops), chatter_alpha(stops);
-  Eigen::MatrixXd chatter_kick(n, stops);
-  for (int j = 0; j < stops; ++j) {
-    delassus_diag(j) = scene.normals().col(j).dot(minv_normals.col(j));
-    chatter_alpha(j) = -minv_normals.col(j).dot(sys.damping() * minv_normals.col(j)) / delassus_diag(j);
-    chatter_kick.col(j) = mass_llt.solve(sys.stiffness() * minv_normals.col(j)) / delassus_diag(j);
-  }
   auto emit = [&](const Event& e) {
     for (Observer* o : observers) o->event(e);
   };
@@ -210,24 +265,30 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     return summary;
   };
 
-  Eigen::VectorXd reduced_state, triggers, zr, z_full(2 * n + 3);
-  std::vector<std::pair<const Functionals*, std::unique_ptr<Segment>>> segments;
+  // Scratch sized once: the largest reduced state is the full one (2n + 3).
+  Eigen::VectorXd reduced_state(2 * n + 3), zr(2 * n + 3), z_full(2 * n + 3);
+  std::vector<std::unique_ptr<ModeSlot>> slots;
 
   // Events are resolved by the rules shared with the modal engine (event_resolution.hpp).
-  DenseAlgebra algebra(*this, scene, modes_, delassus_diag, chatter_alpha, chatter_kick, reduced_state);
+  const StopTables tables(scene);
+  DenseAlgebra algebra(scene, modes_, tables);
+  detail::EventWorkspace work;
+  work.reserve(stops);
   const detail::EventRules& rules = sc.rules;
   const std::function<void(const Event&)> emit_event = emit;
-  auto resolve = [&](const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting) {
+  // Impact sets are visited sets too (RunSummary::contact_sets_built): their restitution data.
+  const std::function<void(const ContactSet&)> visit = [this](const ContactSet& set) { modes_.get(set); };
+  auto resolve = [&](const ContactSet& impacts, const ContactSet& releases, const ContactSet& resting) {
     std::string unused;
-    detail::resolve_event(algebra, scene.stops(), rules, t, x, v, stuck, impacting, releasing, resting,
-                          emit_event, summary, &unused);
+    detail::resolve_event(algebra, scene.stops(), rules, t, x, v, stuck, impacts, releases, resting,
+                          emit_event, summary, &unused, work, visit);
   };
 
   try {
     // Initial contacts: stops touched at t0 (within ε) that are approached or resting.
     {
       const Eigen::VectorXd g = scene.gaps(t, x), gd = scene.gap_rates(t, v);
-      ContactSet impacting, resting;
+      ContactSet resting;
       for (int j = 0; j < stops; ++j) {
         if (g(j) < -eps_gap) continue;
         if (gd(j) > v_contact) impacting.push_back(j);
@@ -237,54 +298,62 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     }
 
     auto interrupted = [&] { return options_.interrupt && options_.interrupt->load(std::memory_order_relaxed); };
+    const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end), sc.T);
     while (true) {
       if (interrupted()) return finish(RunStatus::interrupted, "interrupted at t = " + number_text(t));
       const ContactMode& mode = modes_.get(stuck);
       const ContactMode::Reduced& red = mode.reduced();
-      // One Segment per contact mode, reused: re-targeting it allocates nothing.
-      Segment* slot = nullptr;
-      for (auto& [functionals, seg] : segments)
-        if (functionals == red.watch.get()) slot = seg.get();
-      reduced_state.resize(red.flow->size());
-      mode.reduce(t, x, v, reduced_state);
+      // One segment and finder per contact mode, reused: re-targeting them allocates nothing.
+      ModeSlot* slot = nullptr;
+      for (const auto& s : slots)
+        if (s->watch == red.watch.get()) slot = s.get();
+      const Eigen::Index size = red.flow->size();
+      auto z0 = reduced_state.head(size);
+      mode.reduce(t, x, v, z0);
       if (!slot) {
-        segments.emplace_back(red.watch.get(), std::make_unique<Segment>(*red.watch, t, reduced_state));
-        slot = segments.back().second.get();
+        slots.push_back(std::make_unique<ModeSlot>());
+        slot = slots.back().get();
+        slot->watch = red.watch.get();
+        slot->segment = std::make_unique<Segment>(*red.watch, t, z0);
       } else {
-        slot->reset(t, reduced_state);
+        slot->segment->reset(t, z0);
       }
-      const Segment& segment = *slot;
+      const Segment& segment = *slot->segment;
       const Eigen::Index rows = red.watch->count();
-      triggers.resize(rows);
-      for (Eigen::Index i = 0; i < rows; ++i) {
-        triggers(i) = i < red.gap_rows ? eps_gap : eps_force;
-        // A guard that starts inside its tolerance band while moving away (just after an impact
-        // or a release) is only re-armed above where it starts, so rounding cannot re-fire it.
-        const double h0 = segment.value(i, 0.0);
-        if (h0 > 0.0 && segment.value(i, 0.0, 1) <= 0.0) triggers(i) += h0;
-      }
-      const double resolution =
-          8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end), sc.T);
-      CrossingFinder finder(segment, triggers, resolution);
+      Eigen::VectorXd& base = slot->triggers;
+      base.resize(rows);
+      for (Eigen::Index i = 0; i < rows; ++i) base(i) = i < red.gap_rows ? eps_gap : eps_force;
+      // A guard that starts inside its tolerance band while moving away (just after an impact or
+      // a release) is only re-armed above where it starts, so rounding cannot re-fire it.
+      CrossingFinder& finder = slot->finder;
+      finder.retarget(segment, base, resolution, true);
+      const long guards_before = segment.guard_evaluations(), points_before = segment.evaluations();
       const double step = 1.0 / std::max(red.flow->spectral_radius(), 1e-300);
       const double span = t_end - t;
+      // The closed-form exponential of a nearly defective flow holds up to its horizon
+      // (flow.hpp): a longer free flight is continued as a new segment from there.
+      const double reach = std::min(span, red.flow->horizon());
       std::optional<Crossing> hit;
-      for (double a = 0.0; a < span && !hit;) {
+      for (double a = 0.0; a < reach && !hit;) {
         if (interrupted()) return finish(RunStatus::interrupted, "interrupted at t = " + number_text(t));
-        const double b = std::min(a + step, span);
+        const double b = std::min(a + step, reach);
         if (rows > 0) hit = finder.first(a, b);
         a = b;
       }
-      const double tau = hit ? hit->tau : span;
-      const double t_next = hit ? t + tau : t_end;
+      summary.guard_evaluations += segment.guard_evaluations() - guards_before;
+      summary.evaluation_points += segment.evaluations() - points_before;
+      guard_evaluations_ = summary.guard_evaluations;
+      const double tau = hit ? hit->tau : reach;
+      const double t_next = hit ? t + tau : (reach < span ? t + reach : t_end);
       ++summary.segments;
       if (!observers.empty()) {
         const DenseSegmentView view(mode, segment, t, t_next, eps_force);
         for (Observer* o : observers) o->segment(view);
       }
-      zr.resize(red.flow->size());
-      segment.state(tau, zr);
-      z_full.noalias() = red.to_full * zr;
+      auto z = zr.head(size);
+      if (hit) segment.state(finder.crossing_sample(), z);
+      else segment.state(tau, z);
+      z_full.noalias() = red.to_full * z;
       x = z_full.head(n);
       v = z_full.segment(n, n);
       t = t_next;
@@ -292,12 +361,18 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
         return finish(RunStatus::numerical_failure,
                       "non-finite state at t = " + number_text(t) + " in contact set of " +
                           std::to_string(stuck.size()) + " stops");
-      if (!hit) break;
+      if (!hit) {
+        if (reach < span) continue;
+        break;
+      }
 
-      // Which guards fire together (within the simultaneity window).
-      ContactSet impacting, releasing;
+      // Which guards fire together (within the simultaneity window), from the crossing's sample.
+      const SegmentSample& at = finder.crossing_sample();
+      const Eigen::VectorXd& triggers = finder.triggers();
+      impacting.clear();
+      releasing.clear();
       for (Eigen::Index i = 0; i < rows; ++i) {
-        const double h = segment.value(i, tau), hd = segment.value(i, tau, 1);
+        const double h = at.h(i), hd = at.d(i);
         const bool fired = i == hit->row ||
                            (hd > 0.0 && h >= -std::max(triggers(i), hd * dt_simultaneous));
         if (!fired) continue;

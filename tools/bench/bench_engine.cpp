@@ -97,7 +97,40 @@ Sampled sampled_run(const vibro::ImpactSystem& scene, double t_end, int periods,
 struct Timing {
   double median_seconds = 0.0;
   long events = 0;
+  long searches = 0;  // segments: each ends in a located event (or t_end)
+  long guard_evaluations = 0, evaluation_points = 0;
 };
+
+/// Guard evaluations of each search (the work between two located events), read from the
+/// simulator's running count when the segment the search found is reported.
+class WorkProbe final : public vibro::Observer {
+ public:
+  explicit WorkProbe(const vibro::Simulator& sim) : sim_(&sim) {}
+  void segment(const vibro::SegmentView&) override {
+    const long now = sim_->guard_evaluations();
+    per_search.push_back(now - last_);
+    last_ = now;
+  }
+  std::vector<long> per_search;
+
+ private:
+  const vibro::Simulator* sim_;
+  long last_ = 0;
+};
+
+/// Median and mean guard evaluations per search over a whole run.
+std::pair<double, double> search_work(const vibro::ImpactSystem& scene, double t_end, double height) {
+  vibro::Simulator sim(scene, options_for(height));
+  WorkProbe probe(sim);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(scene.dof());
+  sim.run(0.0, zero, zero, t_end, {&probe});
+  std::vector<long> w = probe.per_search;
+  if (w.empty()) return {0.0, 0.0};
+  std::sort(w.begin(), w.end());
+  double sum = 0.0;
+  for (long x : w) sum += static_cast<double>(x);
+  return {static_cast<double>(w[w.size() / 2]), sum / static_cast<double>(w.size())};
+}
 
 Timing timed_runs(const vibro::ImpactSystem& scene, double t_end, double height, int repeat) {
   std::vector<double> seconds;
@@ -109,6 +142,9 @@ Timing timed_runs(const vibro::ImpactSystem& scene, double t_end, double height,
     const vibro::RunSummary s = sim.run(0.0, zero, zero, t_end);
     seconds.push_back(thread_seconds() - start);
     out.events = s.impacts + s.sticks + s.releases;
+    out.searches = s.segments;
+    out.guard_evaluations = s.guard_evaluations;
+    out.evaluation_points = s.evaluation_points;
   }
   std::sort(seconds.begin(), seconds.end());
   out.median_seconds = seconds[seconds.size() / 2];
@@ -196,6 +232,20 @@ void study(const char* name, double omega, const Settings& set) {
     }
     return;
   }
+  // Work of the event loop: CPU per located event (per search) and guard evaluations per
+  // search (median and mean), events (impacts, sticks, releases) per period.
+  std::printf("| chatter_height | µs / period | µs / search | searches / period | events / period | "
+              "guard evaluations / search (median, mean) | evaluation points / search |\n"
+              "|---|---|---|---|---|---|---|\n");
+  for (double h : set.heights) {
+    const Timing t = timed_runs(scene, t_end, h, set.repeat);
+    const auto [median, mean] = search_work(scene, t_end, h);
+    std::printf("| %.0e | %.1f | %.3f | %.1f | %.1f | %.0f, %.1f | %.1f |\n", h, 1e6 * t.median_seconds / set.periods,
+                1e6 * t.median_seconds / static_cast<double>(t.searches),
+                static_cast<double>(t.searches) / set.periods, static_cast<double>(t.events) / set.periods, median,
+                mean, static_cast<double>(t.evaluation_points) / static_cast<double>(t.searches));
+  }
+  std::printf("\n");
   const Sampled tight = sampled_run(scene, t_end, set.periods, 1e-13);
   const Timing tight_time = timed_runs(scene, t_end, 1e-13, std::max(1, set.repeat / 3));
   std::printf("| chatter_height | µs / period | events / s | impacts | chatters | max state error |\n"

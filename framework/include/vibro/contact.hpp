@@ -49,6 +49,20 @@ using ContactSet = std::vector<int>;
 /// complementarity problem", Opsearch 11, 1974). Throws std::runtime_error after 2^m·m pivots.
 Eigen::VectorXd solve_lcp(const Eigen::MatrixXd& G, const Eigen::VectorXd& q);
 
+/// Storage for solve_lcp on up to m stops; after reserve(m) the solve allocates nothing.
+struct LcpWorkspace {
+  Eigen::MatrixXd sub, factor;
+  Eigen::VectorXd q_sub, lambda_sub, slack;
+  std::vector<Eigen::Index> basis;
+  std::vector<char> basic;
+  void reserve(Eigen::Index m);
+};
+
+/// The same LCP (same pivoting, same tolerances) into `lambda` (size q.size()), without
+/// allocating once `work` is reserved for q.size() stops (the event loops' form).
+void solve_lcp(const Eigen::Ref<const Eigen::MatrixXd>& G, const Eigen::Ref<const Eigen::VectorXd>& q,
+               Eigen::Ref<Eigen::VectorXd> lambda, LcpWorkspace& work);
+
 class ContactMode {
  public:
   ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptions flow_options);

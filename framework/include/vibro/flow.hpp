@@ -28,8 +28,27 @@
 ///    about cond(V)·ε, so it is used only where cond(V) ≤ Options::max_condition (default 1e4,
 ///    i.e. error ≲ 2e-12) and the decomposition reproduces Â to 1e-13·max(1, cond(V)/100) relative. Near a defective
 ///    case (critical damping, resonance, rigid-body modes) cond(V) → ∞ and this rule rejects it.
-///  * exponential (always right): exp(Âτ) by scaling and squaring with a [13/13] Padé
-///    approximant (Higham 2005, via Eigen's MatrixFunctions), O(N³) per evaluation.
+///  * exponential (always right), evaluated in one of two ways:
+///     - closed form on the Schur clusters (default where it applies): Â = U T Uᴴ (complex
+///       Schur form), the eigenvalues grouped into clusters of nearly equal values (a defective
+///       eigenvalue comes out of the Schur form as a cluster spread by rounding, ~ε^{1/m}), the
+///       clusters made contiguous by Givens swaps and decoupled by triangular Sylvester
+///       equations (Bavely & Stewart 1979; the block diagonalisation of Golub & Van Loan,
+///       Matrix Computations, §7.6.3): Â = V diag(T_c) V⁻¹ with T_c = μ_c I + E_c, μ_c the
+///       cluster's mean, E_c upper triangular and nearly (or exactly) nilpotent. Then
+///           exp(Âτ) = Σ_c V_c e^{μ_c τ} Σ_{p=0}^{P_c} E_c^p τ^p / p! (V⁻¹)_c,
+///       the polynomial × exponential form of the Jordan structure, evaluated from the computed
+///       T_c itself (never with its diagonal rounded to μ_c, which would perturb Â by ε^{1/m}).
+///       The series stops where E_c^p vanishes (a free mass under a constant force: T is Â,
+///       nilpotent, and the form is x0 + v0 τ + F τ²/2 exactly) or, for a cluster of distinct
+///       but close eigenvalues, after P_c terms chosen so that the next would be below 1e-18 of
+///       the leading ones for every τ ≤ horizon() (the simulator splits a longer free flight
+///       there). Accepted where cond(V) ≤ max_condition and V diag(T_c) V⁻¹ reproduces Â as the
+///       spectral rule asks; so a guard value costs one exponential per cluster and a short
+///       polynomial, O(N) per functional as the spectral method, with no Padé approximant.
+///     - the Padé exponential exp(Âτ) by scaling and squaring with a [13/13] approximant
+///       (Higham 2005, via Eigen's MatrixFunctions), O(N³) per evaluation, where no cluster
+///       decomposition is accepted, or when FlowOptions::closed_form is false.
 /// Method::automatic takes spectral when the rule accepts it and exponential otherwise; an
 /// explicit Method::spectral is refused (InvalidInput) where cond(V) > 1e8.
 ///
@@ -41,6 +60,7 @@
 #include <Eigen/Dense>
 
 #include <complex>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -55,8 +75,12 @@ enum class FlowMethod { automatic, spectral, exponential };
 
 struct FlowOptions {
   FlowMethod method = FlowMethod::automatic;
-  /// Largest accepted condition number of the eigenvector matrix for the spectral method.
+  /// Largest accepted condition number of the eigenvector matrix for the spectral method (and
+  /// of the cluster basis V for the closed-form exponential).
   double max_condition = 1e4;
+  /// The exponential method uses the closed form on the Schur clusters where it is accepted
+  /// (see above); false: always the Padé exponential.
+  bool closed_form = true;
 };
 
 class LinearFlow {
@@ -99,7 +123,7 @@ class LinearFlow {
   State state(double t0, const Eigen::Ref<const Eigen::VectorXd>& x0,
               const Eigen::Ref<const Eigen::VectorXd>& v0, double t) const;
 
-  /// exp(Â τ), always by the exponential method (the reference the spectral path is tested against).
+  /// exp(Â τ), always by the Padé exponential (the reference the other paths are tested against).
   Eigen::MatrixXd transition_matrix(double tau) const;
 
   // Spectral data; empty unless method() == spectral.
@@ -112,6 +136,31 @@ class LinearFlow {
   const std::vector<Eigen::Index>& representatives() const { return representatives_; }
   const std::vector<double>& weights() const { return weights_; }
 
+  /// The exponential-polynomial form both fast paths share: z(τ) = Re Σ_r w_r V_r P_r(τ) e^{λ_r τ}
+  /// (V⁻¹ z)_r, one term r per representative eigenvalue (spectral: a column of V, P_r = 1) or
+  /// per Schur cluster (closed form: m_r columns of V, P_r(τ) = Σ_{p≤degree} E_r^p τ^p / p!).
+  struct Term {
+    std::complex<double> lambda;  ///< λ_r (a cluster's mean eigenvalue μ_c)
+    double weight = 1.0;          ///< 2 for a conjugate pair's representative, else 1
+    Eigen::Index column = 0;      ///< first column of V (and row of V⁻¹) of the term
+    Eigen::Index size = 1;        ///< columns of V in the term (the cluster's size m_c)
+    int degree = 0;               ///< highest power of τ
+  };
+  /// True when the flow is evaluated in the exponential-polynomial form (spectral, or the closed
+  /// form of the exponential method); false for the Padé exponential.
+  bool closed_form() const { return !terms_.empty(); }
+  const std::vector<Term>& terms() const { return terms_; }
+  /// V (N × N) of the form above: the eigenvectors (spectral) or the cluster basis U S.
+  const Eigen::MatrixXcd& basis() const { return method_ == Method::spectral ? vectors_ : basis_; }
+  const Eigen::MatrixXcd& inverse_basis() const { return method_ == Method::spectral ? inverse_ : inverse_basis_; }
+  /// The nilpotent-like parts E_c of the Schur clusters, block diagonal (zero for the spectral method).
+  const Eigen::MatrixXcd& cluster_parts() const { return cluster_parts_; }
+  /// Longest τ over which the closed form stays within its truncation bound (+∞ unless a cluster
+  /// holds distinct eigenvalues); a segment must not be evaluated beyond it.
+  double horizon() const { return horizon_; }
+  /// ‖V‖_F ‖V⁻¹‖_F of the cluster basis of the closed-form exponential (NaN when not in use).
+  double cluster_condition() const { return cluster_condition_; }
+
   /// Largest |λ| of Â (fastest rate of the system, including Ω). Always available; for the
   /// exponential method with N > 64 an O(N²) upper bound, max(‖D A D⁻¹‖∞, Ω) (flow.cpp).
   double spectral_radius() const { return spectral_radius_; }
@@ -120,12 +169,15 @@ class LinearFlow {
   /// The same in the scaled norm ‖D z‖₂, D = diag(s I, I, 1, 1, 1), s = position_scale()
   /// = √‖M⁻¹K‖∞ (1 if K = 0): an upper bound (Gershgorin) of λmax of the symmetric part of
   /// D Â D⁻¹, so ‖D exp(Âτ) D⁻¹‖₂ ≤ exp(μ_D τ). For a stiff system μ(Â) ~ ‖M⁻¹K‖/2 (1e8 for a
-  /// link of stiffness 1e8) while μ_D ~ √‖M⁻¹K‖, the fastest rate: the exponential method's
-  /// curvature bound uses it (see Segment) so that it stays finite over an interval of 1/ρ.
+  /// link of stiffness 1e8) while μ_D ~ √‖M⁻¹K‖, the fastest rate: the Padé path's curvature
+  /// bound uses it (see Segment) so that it stays finite over an interval of 1/ρ.
   double scaled_log_norm() const { return scaled_log_norm_; }
   double position_scale() const { return position_scale_; }
 
  private:
+  void build_spectral_terms();
+  bool build_schur_clusters(double max_condition);
+
   Eigen::Index n_;
   double omega_;
   Method method_;
@@ -133,22 +185,29 @@ class LinearFlow {
   double spectral_radius_ = 0.0;
   double log_norm_ = 0.0;
   double scaled_log_norm_ = 0.0, position_scale_ = 1.0;
+  double horizon_ = std::numeric_limits<double>::infinity();
+  double cluster_condition_ = std::numeric_limits<double>::quiet_NaN();
   Eigen::MatrixXd generator_;
   Eigen::VectorXcd lambda_;
   Eigen::MatrixXcd vectors_, inverse_;
   std::vector<Eigen::Index> representatives_;
   std::vector<double> weights_;
+  std::vector<Term> terms_;
+  Eigen::MatrixXcd basis_, inverse_basis_, cluster_parts_;
 };
 
 /// A piece of trajectory z(t0 + τ) = exp(Âτ) z0 seen through a fixed set of linear functionals
 /// ℓᵢᵀ z (gap functions, contact forces, a chosen coordinate). The event loop needs only these
-/// scalars, their derivatives dᵏ/dτᵏ ℓᵢᵀ z = ℓᵢᵀ Âᵏ z, and bounds on their second derivative over
+/// scalars, their derivatives dᵏ/dτᵏ ℓᵢᵀ z = ℓᵢᵀ Âᵏ z, and bounds on their derivatives over
 /// an interval, so a segment precomputes exactly that:
-///  * spectral: αᵢₖ = (ℓᵢᵀ V)ₖ (V⁻¹ z0)ₖ, then ℓᵢᵀ Âᵈ z(τ) = Re Σₖ αᵢₖ λₖᵈ e^{λₖτ}: O(N) per value;
-///    |second derivative| on [a, b] ≤ Σₖ |αᵢₖ| |λₖ|² max(e^{Re λₖ a}, e^{Re λₖ b}).
-///  * exponential: z(τ) by the Padé exponential (cached for the last τ), values by dot products;
-///    the bound is ‖ℓᵢᵀ Â²‖ ‖z(a)‖ e^{μ (b - a)} with μ the logarithmic norm, or the same in the
-///    scaled norm, ‖ℓᵢᵀ Â² D⁻¹‖ ‖D z(a)‖ e^{μ_D (b - a)}, whichever is smaller.
+///  * exponential-polynomial form (spectral, closed-form exponential): per term r and power p,
+///    αᵢᵣₚ = w_r (ℓᵢᵀ V_r) E_r^p (V⁻¹ z0)_r / p!, so ℓᵢᵀ z(τ) = Re Σᵣ e^{λᵣτ} Σₚ αᵢᵣₚ τ^p and
+///    each derivative is of the same form with αᵈ⁺¹ᵢᵣₚ = λᵣ αᵈᵢᵣₚ + (p + 1) αᵈᵢᵣ₍ₚ₊₁₎: O(N) per
+///    value. On [a, b] ⊂ [0, ∞), |dᵈ/dτᵈ ℓᵢᵀz| ≤ Σᵣ max(e^{Re λᵣ a}, e^{Re λᵣ b}) Σₚ |αᵈᵢᵣₚ| b^p
+///    (spectral: Σₖ |αᵢₖ| |λₖ|ᵈ max(e^{Re λₖ a}, e^{Re λₖ b})).
+///  * Padé: z(τ) by the Padé exponential (cached for the last τ), values by dot products;
+///    the bound is ‖ℓᵢᵀ Âᵈ‖ ‖z(a)‖ e^{μ (b - a)} with μ the logarithmic norm, or the same in the
+///    scaled norm, ‖ℓᵢᵀ Âᵈ D⁻¹‖ ‖D z(a)‖ e^{μ_D (b - a)}, whichever is smaller.
 class Functionals {
  public:
   /// Rows of `rows` are the ℓᵢᵀ (each of length flow.size()).
@@ -157,13 +216,25 @@ class Functionals {
   Eigen::Index count() const { return rows_[0].rows(); }
   /// ℓᵢᵀ Âᵈ for d = 0, 1, 2, 3.
   const Eigen::MatrixXd& rows(int derivative) const { return rows_[derivative]; }
-  /// (ℓᵢᵀ Âᵈ V) for the spectral method.
+  /// ℓᵢᵀ V for the exponential-polynomial form (spectral: the eigenvectors).
   const Eigen::MatrixXcd& modal_rows() const { return modal_rows_; }
+  /// Padé path: the 2-norms of ℓᵢᵀÂᵈ and of ℓᵢᵀÂᵈD⁻¹ (d = 2, 3; see above).
+  const Eigen::MatrixXd& row_norms() const { return row_norms_; }
 
  private:
   const LinearFlow* flow_;
   Eigen::MatrixXd rows_[4];
   Eigen::MatrixXcd modal_rows_;
+  Eigen::MatrixXd row_norms_;  // rows × 4: plain d=2, scaled d=2, plain d=3, scaled d=3
+};
+
+/// Everything the certified event search needs of all rows of a Segment at one τ
+/// (Segment::sample): sized on first use, then filled without allocation.
+struct SegmentSample {
+  double tau = 0.0;
+  Eigen::VectorXd h, d, c;   ///< ℓᵢᵀz(τ) and its first two derivatives in τ, per row
+  Eigen::VectorXcd e;        ///< e^{λᵣτ} per term (exponential-polynomial form)
+  Eigen::VectorXd growth;    ///< |e^{λᵣτ}| per term; Padé path: ‖z(τ)‖₂ and ‖D z(τ)‖₂
 };
 
 class Segment {
@@ -182,44 +253,71 @@ class Segment {
   double value(Eigen::Index i, double tau, int derivative = 0) const;
   /// Value and first derivative together (one evaluation of the exponentials).
   std::pair<double, double> value_and_slope(Eigen::Index i, double tau) const;
-  /// An upper bound of |d²/dτ² ℓᵢᵀ z(τ)| over τ ∈ [a, b] (a ≤ b).
+  /// An upper bound of |d²/dτ² ℓᵢᵀ z(τ)| over τ ∈ [a, b] (0 ≤ a ≤ b).
   double second_derivative_bound(Eigen::Index i, double a, double b) const;
-  /// An upper bound of |d³/dτ³ ℓᵢᵀ z(τ)| over [a, b] (spectral: Σₖ |αᵢₖ| |λₖ|³ max(e^{Re λₖ a},
-  /// e^{Re λₖ b})); +∞ for the exponential method (no such bound is kept there).
+  /// An upper bound of |d³/dτ³ ℓᵢᵀ z(τ)| over [a, b] (0 ≤ a ≤ b).
   double third_derivative_bound(Eigen::Index i, double a, double b) const;
   /// Full augmented state at τ.
   void state(double tau, Eigen::Ref<Eigen::VectorXd> out) const;
 
+  // --- the certified search's interface (events.hpp): all rows at once ---
+  /// Values, slopes and curvatures of every row at τ, with what the bounds need. One
+  /// evaluation of the exponentials; no allocation once `out` has been sized by a first call.
+  void sample(double tau, SegmentSample& out) const;
+  /// Value, slope and curvature of row i at τ (one evaluation of the exponentials).
+  void row_jet(Eigen::Index i, double tau, double* h, double* d, double* c) const;
+  /// An upper bound of |dᵈ/dτᵈ ℓᵢᵀz| over [a.tau, b.tau] (d = 2 or 3) from two samples.
+  double derivative_bound(int derivative, Eigen::Index i, const SegmentSample& a,
+                          const SegmentSample& b) const;
+  /// The magnitude of row i's terms at the start, Σ |αᵢᵣₚ| (Padé: ‖ℓᵢ‖ ‖z0‖): its values carry
+  /// rounding errors of a few ulps of this, which no root can be located below.
+  double magnitude(Eigen::Index i) const;
+  /// Full augmented state at s.tau, from the sample's exponentials.
+  void state(const SegmentSample& s, Eigen::Ref<Eigen::VectorXd> out) const;
+  /// Evaluations of the exponentials since construction (one per sample or uncached τ; one
+  /// matrix exponential on the Padé path): the unit of work of the event search.
+  long evaluations() const { return evaluations_; }
+  /// Guard evaluations since construction: one per row evaluated at one τ (its value, with or
+  /// without its derivatives from the same exponentials); a sample counts every row.
+  long guard_evaluations() const { return guard_evaluations_; }
+
  private:
-  const Eigen::VectorXd& exponential_state(double tau) const;
-  /// e^{λₖ τ} of the representatives (spectral method), from a small cache of recent τ: the
-  /// event search evaluates every row at the same few points (interval ends, trial roots), so
-  /// one set of exponentials serves all rows and both derivatives.
+  const Eigen::VectorXd& pade_state(double tau) const;
+  /// e^{λᵣτ} of the terms, from a small cache of recent τ.
   const std::complex<double>* exponentials(double tau) const;
-  /// e^{Re λₖ τ} if τ is in the cache, else nullptr.
-  const double* cached_growth(double tau) const;
+  void fill_exponentials(double tau, std::complex<double>* e, double* growth) const;
+  /// Σᵣ Re(e_r Σₚ αᵈᵢᵣₚ τ^p) for derivative d.
+  double row_value(Eigen::Index i, int derivative, double tau, const std::complex<double>* e) const;
+  double pade_bound(int derivative, Eigen::Index i, double z_norm, double dz_norm, double length) const;
+  double closed_form_bound(int derivative, Eigen::Index i, double a, double b, const double* ga,
+                           const double* gb) const;
+  double bound_between(int derivative, Eigen::Index i, double a, double b) const;
+  int cache_slot(double tau) const;
+  void closed_form_state(double tau, const std::complex<double>* e, Eigen::Ref<Eigen::VectorXd> out) const;
 
   const Functionals* functionals_;
   double t0_;
   Eigen::VectorXd z0_;
+  bool polynomial_ = false;  // some term has degree > 0 (closed-form exponential)
+  Eigen::Index width_ = 0;   // Σᵣ (degree_r + 1): coefficient columns per row
+  std::vector<Eigen::Index> offset_;  // per term: first coefficient column
 
-  Eigen::VectorXcd modal_;        // V⁻¹ z0 (spectral)
-  // Spectral: per representative eigenvalue λₖ (see LinearFlow::representatives), the weighted
-  // coefficients weight·αᵢₖ and their moduli times |λₖ|² (for the second-derivative bound).
-  Eigen::VectorXcd lambda_;
-  Eigen::VectorXd modulus_;  // |λₖ|
-  Eigen::MatrixXcd coefficients_;
-  Eigen::MatrixXd curvature_;
+  Eigen::VectorXcd modal_;   // V⁻¹ z0
+  // Per derivative d = 0…3: rows × width_ complex coefficients αᵈ; moduli for d = 2, 3.
+  Eigen::MatrixXcd coefficients_[4];
+  Eigen::MatrixXd moduli_[2];
+  Eigen::VectorXd magnitude_;
+  // The state's own coefficients: per term r and power p, w_r E_r^p (V⁻¹ z0)_r / p! (columns).
+  Eigen::MatrixXcd powers_;
+  mutable long evaluations_ = 0, guard_evaluations_ = 0;
   mutable double cached_tau_;
-  mutable Eigen::VectorXd cached_z_;   // exponential method: z(cached_tau_)
-  // Spectral method: e^{λₖ τ} (column c) and e^{Re λₖ τ} for the τ in cache_tau_[c], replaced
-  // round-robin.
+  mutable Eigen::VectorXd cached_z_;   // Padé: z(cached_tau_)
   static constexpr int cache_slots = 4;
   mutable double cache_tau_[cache_slots];
-  mutable int cache_next_ = 0;
+  mutable int cache_next_ = 0, pinned_ = -1;
   mutable Eigen::MatrixXcd cache_e_;
   mutable Eigen::MatrixXd cache_growth_;
-  mutable Eigen::VectorXcd scratch_;  // state(): modal coordinates at τ
+  mutable Eigen::VectorXcd scratch_;  // state(): the terms' vectors at τ
 };
 
 }  // namespace vibro

@@ -113,6 +113,9 @@ struct RunSummary {
   Eigen::VectorXd x, v;  ///< state reached
   ContactSet stuck;      ///< stops held at the end
   long impacts = 0, sticks = 0, releases = 0, chatters = 0, segments = 0;
+  /// Work of the event search (events.hpp): guard evaluations (one guard at one time) and
+  /// evaluation points (one evaluation of the exponentials, shared by all guards at that time).
+  long guard_evaluations = 0, evaluation_points = 0;
   std::size_t contact_sets_built = 0;    ///< restitution data built (distinct sets visited)
   std::size_t sticking_flows_built = 0;  ///< reduced sticking subsystems built
   double length_scale = 0.0, velocity_scale = 0.0, force_scale = 0.0, time_scale = 0.0;
@@ -131,6 +134,9 @@ class Simulator {
 
   const ContactModes& modes() const { return modes_; }
   const ImpactSystem& scene() const { return *scene_; }
+  /// Guard evaluations of the current (or last) run so far, updated after each search, before
+  /// the segment is reported: an observer reads the work of each search from its differences.
+  long guard_evaluations() const { return guard_evaluations_; }
 
   /// The acceleration LCP (contact.hpp) at (t, x, v): which of `candidates` (sorted stop
   /// indices) hold, and the contact forces of all candidates in `forces` (0 for those released).
@@ -144,6 +150,7 @@ class Simulator {
   const ImpactSystem* scene_;
   SimulatorOptions options_;
   ContactModes modes_;
+  long guard_evaluations_ = 0;
 };
 
 }  // namespace vibro

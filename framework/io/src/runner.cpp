@@ -313,7 +313,12 @@ class SweepWriter {
       totals_.chatters += r.summary.chatters;
       ++next_to_write_;
       progress_.update(next_to_write_);
-      if (request_.interrupt_after > 0 && next_to_write_ >= request_.interrupt_after) g_interrupted.store(true);
+      if (request_.interrupt_after > 0 && next_to_write_ >= request_.interrupt_after) {
+        // Write nothing more: points other threads finished meanwhile would otherwise complete
+        // the file before the interruption is seen (a race a faster engine loses more often).
+        g_interrupted.store(true);
+        break;
+      }
     }
   }
 
