@@ -253,6 +253,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     for (Observer* o : observers) o->event(e);
   };
   auto finish = [&](RunStatus status, std::string message) {
+    for (Observer* o : observers) o->end(t);
     summary.status = status;
     summary.message = std::move(message);
     summary.t = t;
@@ -261,7 +262,6 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     summary.stuck = stuck;
     summary.contact_sets_built = modes_.built();
     summary.sticking_flows_built = modes_.reduced_built();
-    for (Observer* o : observers) o->end(t);
     return summary;
   };
 
