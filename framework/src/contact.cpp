@@ -41,6 +41,10 @@ void solve_lcp(const Eigen::Ref<const Eigen::MatrixXd>& G, const Eigen::Ref<cons
                Eigen::Ref<Eigen::VectorXd> lambda, LcpWorkspace& work) {
   // Find a basis B (stops with λ > 0) with λ_B = G_BB⁻¹ q_B ≥ 0 and w = G λ - q ≥ 0 outside B.
   const Eigen::Index m = q.size();
+  if (m == 1) {  // the pivoting below, written out: λ = q/G if q > 0, else 0
+    lambda(0) = q(0) > 0.0 ? std::max(q(0) / G(0, 0), 0.0) : 0.0;
+    return;
+  }
   if (work.sub.rows() < m) work.reserve(m);
   work.basic.assign(static_cast<std::size_t>(m), 0);
   lambda.setZero();
@@ -68,8 +72,11 @@ void solve_lcp(const Eigen::Ref<const Eigen::MatrixXd>& G, const Eigen::Ref<cons
         lb = Eigen::MatrixXd(Gb).ldlt().solve(Eigen::VectorXd(qb));  // semidefinite: pivoted (allocates)
       for (Eigen::Index a = 0; a < k; ++a) lambda(work.basis[static_cast<std::size_t>(a)]) = lb(a);
     }
-    slack.noalias() = G * lambda;
-    slack -= q;
+    for (Eigen::Index i = 0; i < m; ++i) {  // w = G λ - q (small: written out)
+      double sum = -q(i);
+      for (Eigen::Index j = 0; j < m; ++j) sum += G(i, j) * lambda(j);
+      slack(i) = sum;
+    }
     const double w_tol = 1e-14 * (q_scale + g_scale * lambda.cwiseAbs().maxCoeff());
     const double l_tol = g_scale > 0.0 ? w_tol / g_scale : 0.0;
     // Least index violating complementarity: a basic λ < 0 or a non-basic w < 0.
@@ -284,6 +291,14 @@ void ContactMode::reduce(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
   z(2 * nf) = std::cos(omega * t);
   z(2 * nf + 1) = std::sin(omega * t);
   z(2 * nf + 2) = 1.0;
+}
+
+void ContactMode::expand(const Eigen::Ref<const Eigen::VectorXd>& reduced_state, Eigen::Ref<Eigen::VectorXd> full) const {
+  if (active_.empty()) {
+    full = reduced_state;
+    return;
+  }
+  full.noalias() = reduced().to_full * reduced_state;
 }
 
 const ContactMode& ContactModes::get(const ContactSet& set) {

@@ -768,6 +768,22 @@ void Segment::closed_form_state(double tau, const std::complex<double>* e, Eigen
   const LinearFlow& flow = functionals_->flow();
   const auto& terms = flow.terms();
   const Eigen::MatrixXcd& V = flow.basis();
+  if (!polynomial_) {  // spectral: one column of V per term, its coefficient w_r (V⁻¹z0)_k e^{λτ}
+    const auto K = static_cast<Eigen::Index>(terms.size());
+    for (Eigen::Index r = 0; r < K; ++r) {
+      const std::complex<double> y = powers_(r);
+      scratch_(r) = {y.real() * e[r].real() - y.imag() * e[r].imag(), y.real() * e[r].imag() + y.imag() * e[r].real()};
+    }
+    for (Eigen::Index i = 0; i < out.size(); ++i) {
+      double sum = 0.0;
+      for (Eigen::Index r = 0; r < K; ++r) {
+        const std::complex<double> vr = V(i, terms[static_cast<std::size_t>(r)].column);
+        sum += vr.real() * scratch_(r).real() - vr.imag() * scratch_(r).imag();
+      }
+      out(i) = sum;
+    }
+    return;
+  }
   Eigen::Index at = 0;
   for (std::size_t r = 0; r < terms.size(); ++r) {
     const Eigen::Index o = terms[r].column, m = terms[r].size;

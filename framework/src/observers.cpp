@@ -21,9 +21,14 @@ const char* to_string(EventKind kind) {
 
 void DenseSegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const {
   const auto& red = mode_->reduced();
-  Eigen::VectorXd zr(red.flow->size());
+  const Eigen::Index full = red.to_full.rows(), size = red.flow->size();
+  Eigen::VectorXd local;
+  Eigen::VectorXd& buffer = scratch_ ? *scratch_ : local;
+  if (buffer.size() < full + size) buffer.resize(full + size);
+  auto zr = buffer.head(size);
+  auto z = buffer.segment(size, full);
   segment_->state(t - t_begin(), zr);
-  const Eigen::VectorXd z = red.to_full * zr;
+  mode_->expand(zr, z);
   const Eigen::Index n = x.size();
   x = z.head(n);
   v = z.segment(n, n);

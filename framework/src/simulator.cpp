@@ -79,10 +79,11 @@ class DenseAlgebra final : public detail::ContactAlgebra {
   }
 
   double gap(int j, double t, const Eigen::VectorXd& x) const override {
-    return tab_.normals.col(j).dot(x) - (tab_.s0(j) + tab_.sc(j) * std::cos(omega_ * t) + tab_.ss(j) * std::sin(omega_ * t));
+    const auto [c, s] = phase(t);
+    return tab_.normals.col(j).dot(x) - (tab_.s0(j) + tab_.sc(j) * c + tab_.ss(j) * s);
   }
   void gap_rates(double t, const Eigen::VectorXd& v, Eigen::Ref<Eigen::VectorXd> out) const override {
-    const double c = std::cos(omega_ * t), s = std::sin(omega_ * t);
+    const auto [c, s] = phase(t);
     for (Eigen::Index j = 0; j < out.size(); ++j)
       out(j) = tab_.normals.col(j).dot(v) - omega_ * (-tab_.sc(j) * s + tab_.ss(j) * c);
   }
@@ -93,7 +94,7 @@ class DenseAlgebra final : public detail::ContactAlgebra {
     if (candidates.empty()) return;
     const LinearSystem& sys = scene_.system();
     const HarmonicForcing& f = sys.forcing();
-    const double c = std::cos(omega_ * t), s = std::sin(omega_ * t);
+    const auto [c, s] = phase(t);
     residual_.noalias() = -sys.damping() * v;
     residual_.noalias() -= sys.stiffness() * x;
     residual_ += f.constant + f.cosine * c + f.sine * s;
@@ -138,10 +139,21 @@ class DenseAlgebra final : public detail::ContactAlgebra {
   void chatter_kick(int j, double s, Eigen::VectorXd& v) override { v -= tab_.chatter_kick.col(j) * s; }
 
  private:
+  /// (cos Ωt, sin Ωt), kept for the last t (an event asks for them several times).
+  std::pair<double, double> phase(double t) const {
+    if (!(t == phase_t_)) {
+      phase_t_ = t;
+      phase_ = {std::cos(omega_ * t), std::sin(omega_ * t)};
+    }
+    return phase_;
+  }
+
   const ImpactSystem& scene_;
   ContactModes& modes_;
   const StopTables& tab_;
   double omega_;
+  mutable double phase_t_ = std::numeric_limits<double>::quiet_NaN();
+  mutable std::pair<double, double> phase_;
   Eigen::VectorXd residual_, reduced_state_, q_;
   Eigen::MatrixXd G_;
   LcpWorkspace lcp_;
@@ -266,7 +278,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
   };
 
   // Scratch sized once: the largest reduced state is the full one (2n + 3).
-  Eigen::VectorXd reduced_state(2 * n + 3), zr(2 * n + 3), z_full(2 * n + 3);
+  Eigen::VectorXd reduced_state(2 * n + 3), zr(2 * n + 3), z_full(2 * n + 3), view_scratch(4 * n + 6);
   std::vector<std::unique_ptr<ModeSlot>> slots;
 
   // Events are resolved by the rules shared with the modal engine (event_resolution.hpp).
@@ -347,13 +359,13 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
       const double t_next = hit ? t + tau : (reach < span ? t + reach : t_end);
       ++summary.segments;
       if (!observers.empty()) {
-        const DenseSegmentView view(mode, segment, t, t_next, eps_force);
+        const DenseSegmentView view(mode, segment, t, t_next, eps_force, &view_scratch);
         for (Observer* o : observers) o->segment(view);
       }
       auto z = zr.head(size);
       if (hit) segment.state(finder.crossing_sample(), z);
       else segment.state(tau, z);
-      z_full.noalias() = red.to_full * z;
+      mode.expand(z, z_full);
       x = z_full.head(n);
       v = z_full.segment(n, n);
       t = t_next;

@@ -103,6 +103,9 @@ class ContactMode {
   /// The same into `out` (size reduced().flow->size()), without allocating.
   void reduce(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
               const Eigen::Ref<const Eigen::VectorXd>& v, Eigen::Ref<Eigen::VectorXd> out) const;
+  /// The full augmented state T·z_r from a reduced one (the empty set's T is the identity),
+  /// without allocating; `full` has size 2n + 3 and may not alias `reduced_state`.
+  void expand(const Eigen::Ref<const Eigen::VectorXd>& reduced_state, Eigen::Ref<Eigen::VectorXd> full) const;
 
  private:
   void build_reduced() const;

@@ -79,10 +79,12 @@ class SegmentView {
 /// The general engine's segment: one ContactMode's exact flow (contact.hpp, events.hpp).
 class DenseSegmentView final : public SegmentView {
  public:
+  /// `scratch` (optional; the event loop passes its own) holds two augmented states of the
+  /// full system, so that state() allocates nothing; without it state() allocates.
   DenseSegmentView(const ContactMode& mode, const Segment& segment, double t_begin, double t_end,
-                   double force_tolerance)
+                   double force_tolerance, Eigen::VectorXd* scratch = nullptr)
       : SegmentView(t_begin, t_end), mode_(&mode), segment_(&segment),
-        force_tolerance_(force_tolerance) {}
+        force_tolerance_(force_tolerance), scratch_(scratch) {}
 
   const ContactMode& mode() const { return *mode_; }
   Eigen::Index dof() const override { return mode_->reduced().to_full.rows() / 2 - 1; }
@@ -96,6 +98,7 @@ class DenseSegmentView final : public SegmentView {
   const ContactMode* mode_;
   const Segment* segment_;
   double force_tolerance_;
+  Eigen::VectorXd* scratch_;
 };
 
 class Observer {
