@@ -2,6 +2,8 @@
 
 #include "vibro/contact.hpp"  // solve_lcp
 
+#include "secular.hpp"
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -273,6 +275,15 @@ ChainModes::ChainModes(BandedChain chain, TridiagonalSolver solver)
     omega2_ = eig.eigenvalues();
     q_ = eig.eigenvectors();
   }
+  // Modal forcing φ_kᵀ f = Qᵀ M^{-1/2} f.
+  const HarmonicForcing& f = chain_.forcing;
+  finish(q_.transpose() * f.constant.cwiseProduct(inv_sqrt_mass_), q_.transpose() * f.cosine.cwiseProduct(inv_sqrt_mass_),
+         q_.transpose() * f.sine.cwiseProduct(inv_sqrt_mass_));
+  setup_seconds_ = seconds_since(start);
+}
+
+void ChainModes::finish(const Eigen::VectorXd& p0, const Eigen::VectorXd& pc, const Eigen::VectorXd& ps) {
+  const Eigen::Index n = omega2_.size();
   const double top = omega2_.maxCoeff();
   if (!(omega2_(0) > 1e-13 * top))
     throw InvalidInput("chain: lowest ω² = " + number_text(omega2_(0)) + " (largest " +
@@ -288,12 +299,8 @@ ChainModes::ChainModes(BandedChain chain, TridiagonalSolver solver)
     regime_(k) = D > 0.0 ? 1 : (D < 0.0 ? -1 : 0);
     root_(k) = std::sqrt(std::abs(D));
   }
-  // Modal forcing φ_kᵀ f = Qᵀ M^{-1/2} f and the periodic particular solution.
-  const HarmonicForcing& f = chain_.forcing;
-  const double W = f.frequency;
-  const Eigen::VectorXd p0 = q_.transpose() * f.constant.cwiseProduct(inv_sqrt_mass_);
-  const Eigen::VectorXd pc = q_.transpose() * f.cosine.cwiseProduct(inv_sqrt_mass_);
-  const Eigen::VectorXd ps = q_.transpose() * f.sine.cwiseProduct(inv_sqrt_mass_);
+  // The periodic particular solution of each mode for the modal forcing p0, pc, ps.
+  const double W = chain_.forcing.frequency;
   c0_ = p0.cwiseQuotient(omega2_);
   cc_.resize(n);
   cs_.resize(n);
@@ -309,10 +316,125 @@ ChainModes::ChainModes(BandedChain chain, TridiagonalSolver solver)
     cc_(k) = det > 0.0 ? (detune * pc(k) - friction * ps(k)) / det : 0.0;
     cs_(k) = det > 0.0 ? (detune * ps(k) + friction * pc(k)) / det : 0.0;
   }
+}
+
+/// The secular route's data: the free modes, where the reduced coordinates sit, the restriction
+/// levels (one per held stop) and scratch for the basis changes (these modes belong to one
+/// simulator's cache, so one thread).
+struct ChainModes::Implicit {
+  const ChainModes* free = nullptr;
+  ChainReduction reduction;
+  std::vector<detail::SecularLevel> levels;
+  Eigen::VectorXd group_mass;  // M_r
+  mutable Eigen::MatrixXd x2, y2a, y2b;  // N × 2 and level-sized scratch
+
+  /// Y (n_r × k) = Ψᵀ X for X in the free modal coordinates (N × k).
+  Eigen::MatrixXd down(Eigen::MatrixXd x) const {
+    for (const detail::SecularLevel& level : levels) {
+      Eigen::MatrixXd y(level.child_size(), x.cols());
+      level.to_child(x, y);
+      x = std::move(y);
+    }
+    return x;
+  }
+  /// X (N × k) = Ψ Y.
+  Eigen::MatrixXd up(Eigen::MatrixXd y) const {
+    for (auto it = levels.rbegin(); it != levels.rend(); ++it) {
+      Eigen::MatrixXd x(it->parent_size(), y.cols());
+      it->to_parent(y, x);
+      y = std::move(x);
+    }
+    return y;
+  }
+  /// √m ∘ (T Y): reduced coordinates to the mass-scaled full coordinates (held masses 0).
+  Eigen::MatrixXd spread(const Eigen::Ref<const Eigen::MatrixXd>& y) const {
+    Eigen::MatrixXd x = Eigen::MatrixXd::Zero(free->dof(), y.cols());
+    for (std::size_t r = 0; r < reduction.first.size(); ++r)
+      for (Eigen::Index l = reduction.first[r]; l <= reduction.last[r]; ++l)
+        x.row(l) = free->sqrt_mass_(l) * y.row(static_cast<Eigen::Index>(r));
+    return x;
+  }
+  /// The M-weighted mean over each group of M^{-1/2}·(rows of X) = Σ √m_l X_l / M_r (the
+  /// M-orthogonal projection onto the reduced coordinates).
+  Eigen::MatrixXd gather(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
+    Eigen::MatrixXd y = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(reduction.first.size()), x.cols());
+    for (std::size_t r = 0; r < reduction.first.size(); ++r) {
+      for (Eigen::Index l = reduction.first[r]; l <= reduction.last[r]; ++l)
+        y.row(static_cast<Eigen::Index>(r)) += free->sqrt_mass_(l) * x.row(l);
+      y.row(static_cast<Eigen::Index>(r)) /= group_mass(static_cast<Eigen::Index>(r));
+    }
+    return y;
+  }
+};
+
+ChainModes::ChainModes(BandedChain reduced, const ChainModes& free, ChainReduction reduction)
+    : chain_(std::move(reduced)), solver_(TridiagonalSolver::secular) {
+  chain_.validate();
+  const auto start = std::chrono::steady_clock::now();
+  const Eigen::Index n = chain_.dof(), N = free.dof();
+  if (free.implicit_) throw std::logic_error("ChainModes: the secular route needs the free chain's own modes");
+  if (static_cast<Eigen::Index>(reduction.first.size()) != n || reduction.last.size() != reduction.first.size())
+    throw std::logic_error("ChainModes: the reduction has " + std::to_string(reduction.first.size()) +
+                           " coordinates for a reduced chain of " + std::to_string(n));
+  auto im = std::make_shared<Implicit>();
+  im->free = &free;
+  im->group_mass = chain_.mass;
+  // Each held stop restricts the current modes by w_jᵀ x = 0, i.e. (Φᵀ w_j)ᵀ q = 0 in the free
+  // modal coordinates q (Φ = M^{-1/2} Q), carried down through the levels built so far.
+  Eigen::VectorXd d = free.omega2_;
+  for (const auto& normal : reduction.normals) {
+    Eigen::MatrixXd b = Eigen::MatrixXd::Zero(N, 1);
+    for (const auto& [mass, weight] : normal) b.col(0) += (weight * free.inv_sqrt_mass_(mass)) * free.q_.row(mass).transpose();
+    const Eigen::MatrixXd z = im->down(b);
+    im->levels.emplace_back(d, z.col(0));
+    d = im->levels.back().eigenvalues();
+  }
+  if (d.size() != n)
+    throw std::logic_error("ChainModes: " + std::to_string(reduction.normals.size()) + " held stops leave " +
+                           std::to_string(d.size()) + " modes for a reduced chain of " + std::to_string(n));
+  im->reduction = std::move(reduction);
+  implicit_ = im;
+  omega2_ = d;
+  // Modal forcing of the reduced chain: Φ_rᵀ F_r = Ψᵀ Φᵀ M T M_r⁻¹ F_r (Φ_r = M_r⁻¹ Tᵀ M Φ Ψ).
+  const HarmonicForcing& f = chain_.forcing;
+  Eigen::MatrixXd g(n, 3);
+  g.col(0) = f.constant.cwiseQuotient(chain_.mass);
+  g.col(1) = f.cosine.cwiseQuotient(chain_.mass);
+  g.col(2) = f.sine.cwiseQuotient(chain_.mass);
+  const Eigen::MatrixXd p = im->down(free.q_.transpose() * im->spread(g));
+  finish(p.col(0), p.col(1), p.col(2));
   setup_seconds_ = seconds_since(start);
 }
 
+std::size_t ChainModes::bytes() const {
+  std::size_t b = sizeof(double) * static_cast<std::size_t>(q_.size() + 12 * omega2_.size());
+  if (implicit_)
+    for (const auto& level : implicit_->levels) b += level.bytes();
+  return b;
+}
+
+Eigen::MatrixXd ChainModes::phi_rows(const std::vector<Eigen::Index>& coordinates) const {
+  const auto count = static_cast<Eigen::Index>(coordinates.size());
+  if (!implicit_) {
+    Eigen::MatrixXd rows(count, dof());
+    for (Eigen::Index c = 0; c < count; ++c) rows.row(c) = phi_row(coordinates[static_cast<std::size_t>(c)]).transpose();
+    return rows;
+  }
+  // Row r of Φ_r = M_r⁻¹ Tᵀ M Φ Ψ: the group's Σ √m_l Q(l, :) / M_r, carried down.
+  const Implicit& im = *implicit_;
+  const ChainModes& fr = *im.free;
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(fr.dof(), count);
+  for (Eigen::Index c = 0; c < count; ++c) {
+    const auto r = static_cast<std::size_t>(coordinates[static_cast<std::size_t>(c)]);
+    for (Eigen::Index l = im.reduction.first[r]; l <= im.reduction.last[r]; ++l)
+      a.col(c) += fr.sqrt_mass_(l) * fr.q_.row(l).transpose();
+    a.col(c) /= im.group_mass(static_cast<Eigen::Index>(r));
+  }
+  return im.down(a).transpose();
+}
+
 Eigen::VectorXd ChainModes::phi_row(Eigen::Index i) const {
+  if (implicit_) return phi_rows({i}).row(0).transpose();
   return q_.row(i).transpose() * inv_sqrt_mass_(i);
 }
 
@@ -320,8 +442,18 @@ void ChainModes::to_modal(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
                           const Eigen::Ref<const Eigen::VectorXd>& v, Eigen::Ref<Eigen::VectorXd> u,
                           Eigen::Ref<Eigen::VectorXd> ud) const {
   const double W = frequency(), c = std::cos(W * t), s = std::sin(W * t);
-  u.noalias() = q_.transpose() * x.cwiseProduct(sqrt_mass_);
-  ud.noalias() = q_.transpose() * v.cwiseProduct(sqrt_mass_);
+  if (implicit_) {
+    const Implicit& im = *implicit_;
+    Eigen::MatrixXd y(x.size(), 2);
+    y.col(0) = x;
+    y.col(1) = v;
+    const Eigen::MatrixXd q = im.down(im.free->q_.transpose() * im.spread(y));
+    u = q.col(0);
+    ud = q.col(1);
+  } else {
+    u.noalias() = q_.transpose() * x.cwiseProduct(sqrt_mass_);
+    ud.noalias() = q_.transpose() * v.cwiseProduct(sqrt_mass_);
+  }
   u -= c0_ + cc_ * c + cs_ * s;
   ud -= W * (cs_ * c - cc_ * s);
 }
@@ -332,6 +464,16 @@ void ChainModes::to_physical(double t, const Eigen::Ref<const Eigen::VectorXd>& 
   const double W = frequency(), c = std::cos(W * t), s = std::sin(W * t);
   const Eigen::VectorXd q = u + c0_ + cc_ * c + cs_ * s;
   const Eigen::VectorXd qd = ud + W * (cs_ * c - cc_ * s);
+  if (implicit_) {
+    const Implicit& im = *implicit_;
+    Eigen::MatrixXd modal(q.size(), 2);
+    modal.col(0) = q;
+    modal.col(1) = qd;
+    const Eigen::MatrixXd y = im.gather(im.free->q_ * im.up(modal));
+    x = y.col(0);
+    v = y.col(1);
+    return;
+  }
   x.noalias() = q_ * q;
   v.noalias() = q_ * qd;
   x.array() *= inv_sqrt_mass_.array();

@@ -105,10 +105,16 @@ double stiffness_entry(const BandedChain& ch, Eigen::Index l, Eigen::Index lp) {
   return 0.0;
 }
 
+/// Chains of at least this many masses build their contact sets' modes by the secular equation
+/// (ModalSimulatorOptions::contact_modes = automatic): at N = 1000 both routes take ~0.05 s,
+/// beyond it the tridiagonal one grows as N² in time and memory, the secular one in time only.
+constexpr Eigen::Index kSecularFromMasses = 1000;
+
 /// Builds the modal form of contact set `set` (modal.hpp, ModalContactMode), or returns null and
 /// says why in `why_not` when the set is one the modal engine cannot reduce.
 std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::vector<Stop>& stops,
-                                             const ContactSet& set, std::string* why_not) {
+                                             const ContactSet& set, std::string* why_not,
+                                             TridiagonalSolver route = TridiagonalSolver::automatic) {
   const auto start = std::chrono::steady_clock::now();
   auto mode = std::make_unique<ModalContactMode>();
   mode->stuck = set;
@@ -251,10 +257,29 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
         if (r + 1 < nr && b + 1 == mode->first[static_cast<std::size_t>(r + 1)])
           red.stiffness_off(r) = ch.stiffness_off(b);
       }
+      // The reduced chain's modes: its own tridiagonal eigenproblem (O(n_r²) time and memory),
+      // or the free modes restricted by the held stops (secular equation, O(k n²) time, O(k n)
+      // memory; modal.hpp), the default for long chains.
+      const bool secular = route == TridiagonalSolver::secular ||
+                           (route == TridiagonalSolver::automatic && n >= kSecularFromMasses);
       try {
-        mode->owned = std::make_unique<ChainModes>(std::move(red), free.solver());
+        if (secular) {
+          ChainReduction reduction{mode->first, mode->last, {}};
+          for (int j : set) {
+            const Normal w = normal_of(stops[static_cast<std::size_t>(j)]);
+            reduction.normals.push_back({{w.i, w.wi}});
+            if (w.k >= 0) reduction.normals.back().push_back({w.k, w.wk});
+          }
+          mode->owned = std::make_unique<ChainModes>(std::move(red), free, std::move(reduction));
+        } else {
+          mode->owned = std::make_unique<ChainModes>(
+              std::move(red), route == TridiagonalSolver::automatic ? free.solver() : route);
+        }
       } catch (const InvalidInput& e) {
         *why_not = "the subsystem with the held stops cannot be put in modal form: " + std::string(e.what());
+        return nullptr;
+      } catch (const std::runtime_error& e) {
+        *why_not = "the held stops' constraints cannot be imposed on the modes: " + std::string(e.what());
         return nullptr;
       }
       mode->modes = mode->owned.get();
@@ -280,6 +305,38 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
     }
     return rows.emplace(l, std::move(entry)).first->second;
   };
+  if (md && md->solver() == TridiagonalSolver::secular) {
+    // Every row the guards below read, in one pass over the implicit modes: the masses of the
+    // free stops' normals, and of the held groups with their neighbours (contact forces).
+    std::set<Eigen::Index> masses;
+    for (int j = 0; j < static_cast<int>(stops.size()); ++j) {
+      const Normal w = normal_of(stops[static_cast<std::size_t>(j)]);
+      if (!contains(set, j)) {
+        masses.insert(w.i);
+        if (w.k >= 0) masses.insert(w.k);
+      } else {
+        for (Eigen::Index l : {w.i, w.k})
+          for (Eigen::Index lp = l - 1; l >= 0 && lp <= l + 1; ++lp)
+            if (lp >= 0 && lp < n) masses.insert(lp);
+      }
+    }
+    std::vector<Eigen::Index> wanted, coordinates;
+    for (Eigen::Index l : masses)
+      if (mode->coordinate[static_cast<std::size_t>(l)] >= 0) {
+        wanted.push_back(l);
+        coordinates.push_back(mode->coordinate[static_cast<std::size_t>(l)]);
+      }
+    // Groups: every mass of a held group (the force rows sum over them).
+    const Eigen::MatrixXd phi = md->phi_rows(coordinates);
+    for (std::size_t c = 0; c < wanted.size(); ++c) {
+      const Eigen::Index l = wanted[c];
+      std::pair<Eigen::VectorXd, Harmonic> entry{phi.row(static_cast<Eigen::Index>(c)).transpose(),
+                                                 {mode->o0(l), mode->oc(l), mode->os(l)}};
+      entry.second += Harmonic{entry.first.dot(md->particular_constant()), entry.first.dot(md->particular_cosine()),
+                               entry.first.dot(md->particular_sine())};
+      rows.emplace(l, std::move(entry));
+    }
+  }
 
   const auto m = static_cast<Eigen::Index>(stops.size());
   const auto held = static_cast<Eigen::Index>(set.size());
@@ -370,8 +427,8 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
   }
   g.finish(W);
   mode->build_seconds = seconds_since(start);
-  mode->bytes = sizeof(double) * static_cast<std::size_t>(
-                                      (mode->owned ? nr * nr + 12 * nr : 0) + 2 * (m + held) * nr + 4 * n);
+  mode->bytes = (mode->owned ? mode->owned->bytes() : 0) +
+                sizeof(double) * static_cast<std::size_t>(2 * (m + held) * nr + 4 * n);
   return mode;
 }
 
@@ -881,7 +938,7 @@ const ModalContactMode* ModalChainSimulator::mode_for(const ContactSet& set, std
     *why_not = it->second;
     return nullptr;
   }
-  auto mode = build_mode(*modes_, stops_, set, why_not);
+  auto mode = build_mode(*modes_, stops_, set, why_not, options_.contact_modes);
   if (!mode) {
     c.unsupported[set] = *why_not;
     return nullptr;

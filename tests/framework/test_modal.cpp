@@ -227,7 +227,7 @@ struct Agreement {
 /// Runs both engines on `chain` with `stops` from rest and compares events one to one, the
 /// contact intervals (ContactLog, with its certified interior force minima) and the final state.
 Agreement compare_sticking(const BandedChain& chain, const std::vector<Stop>& stops, double periods,
-                           std::set<int>* stuck_stops) {
+                           std::set<int>* stuck_stops, const vibro::ModalSimulatorOptions& options = {}) {
   const double T = 2.0 * std::numbers::pi / chain.forcing.frequency, t_end = periods * T;
   const Eigen::Index n = chain.dof();
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n);
@@ -239,7 +239,7 @@ Agreement compare_sticking(const BandedChain& chain, const std::vector<Stop>& st
   REQUIRE(ds.status == vibro::RunStatus::completed);
 
   const ChainModes modes(chain);
-  ModalChainSimulator modal(modes, stops);
+  ModalChainSimulator modal(modes, stops, options);
   vibro::EventLog modal_log;
   vibro::ContactLog modal_contacts;
   const auto ms = modal.run(0.0, zero, zero, t_end, {&modal_log, &modal_contacts});
@@ -379,6 +379,96 @@ TEST_CASE("modal engine: sticking on a 100-mass chain agrees with the dense Simu
   CHECK(a.state <= 1e-8);
 }
 
+TEST_CASE("modal engine: contact sets built by the secular equation (the long-chain route) agree with the dense "
+          "Simulator", "[modal][secular]") {
+  // The route chains of ≥ 1000 masses take (ChainModes' second constructor: the free modes
+  // restricted by each held stop), forced here on the chains of the two tests above, with the
+  // same tolerance and for the same reasons: it must give the events the dense engine gives.
+  vibro::ModalSimulatorOptions secular;
+  secular.contact_modes = vibro::TridiagonalSolver::secular;
+  std::set<int> stuck;
+  SECTION("a stop on one mass, r = 0.6: chatter into sticking, then release") {
+    const Agreement a = compare_sticking(uniform_chain(6, 0.05, 0.6, 0.35),
+                                         {Stop::upper(0, 0.3, 0.6), Stop::lower(3, -0.2, 0.8)}, 4.0, &stuck, secular);
+    CHECK(stuck.count(0) == 1);
+    CHECK(std::max({a.event_time, a.event_rate, a.event_force, a.force_min, a.state}) <= 1e-8);
+  }
+  SECTION("plastic stops on a moving stop and between neighbouring masses: two held at once") {
+    const Agreement a = compare_sticking(
+        uniform_chain(7, 0.05, 0.7, 0.4),
+        {Stop::upper(1, 0.25, 0.0).moving(0.03, 0.7), Stop::between(3, 4, 0.05, 0.0), Stop::lower(5, -0.1, 0.5),
+         Stop::upper(4, 0.2, 0.3)},
+        4.0, &stuck, secular);
+    CHECK(stuck.size() == 4);
+    CHECK(std::max({a.event_time, a.event_rate, a.event_force, a.force_min, a.state}) <= 1e-8);
+  }
+  SECTION("100 masses: a plastic stop, a chattering one and one between masses") {
+    const Agreement a = compare_sticking(
+        uniform_chain(100, 0.05, 0.8, 0.4),
+        {Stop::upper(0, 0.3, 0.5), Stop::lower(2, -0.15, 0.0), Stop::between(4, 5, 0.05, 0.7)}, 3.0, &stuck,
+        secular);
+    CHECK(stuck.size() >= 2);
+    CHECK(std::max({a.event_time, a.event_rate, a.event_force, a.force_min, a.state}) <= 1e-8);
+  }
+}
+
+TEST_CASE("modal set-up: the secular route's modes are the reduced chain's, deflation included", "[modal][secular]") {
+  // The reduced chain of a contact set two ways: its own tridiagonal eigenproblem, and the free
+  // modes restricted by the held stops. Sign-free checks of the implicit basis Φ_r (all its rows
+  // from phi_rows): completeness and orthogonality Φ_r Φ_rᵀ = M_r⁻¹ and Φ_rᵀ K_r Φ_r = diag ω²,
+  // to 1e-12 relative, and the same ω² as the tridiagonal route to 1e-12 of the largest. Cases
+  // that deflate (secular.hpp): a held mass at the centre of a symmetric chain (the
+  // antisymmetric modes have a node there, zero weight), and two identical halves joined by a
+  // spring of 1e-14 (eigenvalues in pairs closer than rounding, rotated apart).
+  struct Case {
+    std::string name;
+    std::vector<double> masses, springs;
+    vibro::ContactSet held;
+    std::vector<Stop> stops;
+  };
+  std::vector<double> weak(39, 1.0);
+  weak[19] = 1e-14;
+  std::vector<double> varied(29);
+  for (std::size_t i = 0; i < varied.size(); ++i) varied[i] = 1.0 + 0.5 * std::sin(1.7 * static_cast<double>(i));
+  const std::vector<Case> cases{
+      {"centre of a symmetric chain", std::vector<double>(31, 1.0), std::vector<double>(30, 1.0), {0},
+       {Stop::upper(15, 0.2, 0.0)}},
+      {"two halves joined by 1e-14", std::vector<double>(40, 1.0), weak, {0}, {Stop::upper(5, 0.2, 0.0)}},
+      {"varied masses, a stop on a mass and one between masses", std::vector<double>(30, 1.3), varied, {0, 1},
+       {Stop::lower(3, -0.2, 0.0), Stop::between(10, 11, 0.1, 0.0)}},
+  };
+  for (const Case& c : cases) {
+    INFO(c.name);
+    const auto n = static_cast<Eigen::Index>(c.masses.size());
+    vibro::HarmonicForcing f = vibro::HarmonicForcing::zero(n, 0.9);
+    f.cosine(0) = 0.5;
+    const BandedChain chain = BandedChain::from_links(c.masses, c.springs, std::vector<double>(c.springs.size(), 0.0), 1.0,
+                                                      0.0, 1.0, 0.0, f);
+    const ChainModes free(chain);
+    vibro::ModalSimulatorOptions tri, sec;
+    tri.contact_modes = vibro::TridiagonalSolver::lapack;
+    sec.contact_modes = vibro::TridiagonalSolver::secular;
+    ModalChainSimulator a(free, c.stops, tri), b(free, c.stops, sec);
+    const vibro::ModalContactMode& ma = a.contact_mode(c.held);
+    const vibro::ModalContactMode& mb = b.contact_mode(c.held);
+    REQUIRE(mb.modes->solver() == vibro::TridiagonalSolver::secular);
+    const Eigen::Index nr = mb.size();
+    REQUIRE(ma.size() == nr);
+    const double top = ma.modes->omega_squared().maxCoeff();
+    CHECK((ma.modes->omega_squared() - mb.modes->omega_squared()).cwiseAbs().maxCoeff() <= 1e-12 * top);
+    std::vector<Eigen::Index> all(static_cast<std::size_t>(nr));
+    for (Eigen::Index r = 0; r < nr; ++r) all[static_cast<std::size_t>(r)] = r;
+    const Eigen::MatrixXd phi = mb.modes->phi_rows(all);  // n_r × n_r: row r = coordinate r
+    const BandedChain& red = mb.modes->chain();
+    Eigen::MatrixXd K = red.stiffness_diagonal.asDiagonal();
+    for (Eigen::Index i = 0; i + 1 < nr; ++i) K(i, i + 1) = K(i + 1, i) = red.stiffness_off(i);
+    const Eigen::MatrixXd minv = red.mass.cwiseInverse().asDiagonal();
+    CHECK((phi * phi.transpose() - minv).cwiseAbs().maxCoeff() <= 1e-12 * minv.cwiseAbs().maxCoeff());
+    const Eigen::MatrixXd w2 = mb.modes->omega_squared().asDiagonal();
+    CHECK((phi.transpose() * K * phi - w2).cwiseAbs().maxCoeff() <= 1e-12 * top);
+  }
+}
+
 TEST_CASE("modal engine: a longer chain than a wave can cross gives the same events (N = 120 and 400)", "[modal]") {
   // Independent of the dense engine: the unit chain's group velocity is at most 1 mass per time
   // unit (ω = 2 sin(κ/2)), so in 15 periods (t ≈ 118) nothing driven at mass 0 reaches mass 120
@@ -389,12 +479,17 @@ TEST_CASE("modal engine: a longer chain than a wave can cross gives the same eve
   std::vector<Stop> stops{Stop::upper(1, 0.35, 0.0), Stop::lower(2, -0.3, 0.5), Stop::between(3, 4, 0.25, 0.5),
                           Stop::upper(5, 0.25, 0.5)};
   const double T = 2.0 * std::numbers::pi / 0.8;
+  // Both routes to the contact sets' modes (the tridiagonal one by default at these sizes; the
+  // secular one, the default from N = 1000).
+  const auto route = GENERATE(vibro::TridiagonalSolver::automatic, vibro::TridiagonalSolver::secular);
+  vibro::ModalSimulatorOptions options;
+  options.contact_modes = route;
   std::vector<vibro::EventLog> logs(2);
   std::vector<vibro::ModalRunSummary> runs;
   for (int k = 0; k < 2; ++k) {
     const int n = k == 0 ? 120 : 400;
     const ChainModes modes(uniform_chain(n, 0.02, 0.6, 0.8));
-    ModalChainSimulator sim(modes, stops);
+    ModalChainSimulator sim(modes, stops, options);
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n);
     runs.push_back(sim.run(0.0, zero, zero, 15.0 * T, {&logs[static_cast<std::size_t>(k)]}));
     REQUIRE(runs.back().status == vibro::RunStatus::completed);

@@ -54,20 +54,24 @@
 ///     TᵀMT y'' + TᵀCT y' + TᵀKT y = Tᵀ(f - M o'' - C o' - K o)
 /// is again a chain: TᵀMT diagonal (group masses), TᵀKT tridiagonal (a prescribed mass cuts
 /// the chain, its springs become walls), TᵀCT = α TᵀMT + β TᵀKT (proportionality survives any
-/// such constraint) and a harmonic right-hand side. So each contact set gets its own ChainModes
-/// from the same tridiagonal solver, O(n_r²) time and memory, n_r ≤ N the free groups; it is
+/// such constraint) and a harmonic right-hand side. Each contact set gets its own ChainModes,
 /// built on the set's first visit (ModalContactMode) and cached (ModalSimulatorOptions::
-/// mode_cache_bytes bounds the cache; the least recently used set is dropped first). A stop
-/// between masses that are not neighbours, or two held stops fixing one group (redundant
+/// mode_cache_bytes bounds the cache; the least recently used set is dropped first), by one of
+/// two routes (ModalSimulatorOptions::contact_modes):
+///  * the reduced chain's own tridiagonal eigenproblem, O(n_r²) time and memory (chains of
+///    fewer than 1000 masses by default);
+///  * the free modes restricted by each held stop in turn (ChainModes' second constructor): in
+///    the free modal coordinates q (x = Φ q) a held stop is the constraint (Φᵀw_j)ᵀ q = 0, a
+///    rank-one restriction of diag(ω²) whose modes are the roots μ of the secular equation
+///    Σ_k (φ_kᵀw_j)² / (ω_k² - μ) = 0 and the vectors (ω² - μ)⁻¹ Φᵀw_j (Golub 1973; solved with
+///    the deflation, root finding and Löwner weights of Gu & Eisenstat 1995, src/secular.hpp).
+///    The vectors are never formed: O(k N²) time, O(k N) memory for k held stops (N = 10 000:
+///    a few MB per set instead of 0.8 GB), and a basis change is two O(N²) products. Default
+///    from 1000 masses. The same eigenvalues and reduced coordinates as the tridiagonal route to
+///    rounding (tests/framework/test_modal.cpp).
+/// A stop between masses that are not neighbours, or two held stops fixing one group (redundant
 /// forces), would break the tridiagonal form: the run then ends with RunStatus::unsupported
 /// and says which stops (the dense Simulator handles those).
-///
-/// This is the "rank-k modification of the free modes" by a different route, and why: the
-/// constrained modes are the roots of the secular equation Σ_k (φ_kᵀw)²/(ω_k² - μ) = 0, but
-/// turning a state into them (and back) is a dense Cauchy-matrix product either way, O(N n_r)
-/// per transition without a fast multipole method, while a reduced tridiagonal solve costs the
-/// same O(n_r²) as N secular roots and stays exact for groups of joined masses and any number
-/// of held stops (the secular route needs a nested rank-1 update per held stop).
 ///
 /// **Contact forces in O(n_r).** With the residual ρ_l = m_l x_l'' + (C x')_l + (K x)_l - f_l of
 /// mass l, the held stops of a group G satisfy W_G λ_G = -ρ_G (W_G the normals restricted to G,
@@ -139,7 +143,18 @@ struct BandedChain {
   LinearSystem dense() const;
 };
 
-enum class TridiagonalSolver { automatic, eigen, lapack };
+/// secular: the modes of a contact set's reduced chain from the free chain's, by the secular
+/// equation (ChainModes' second constructor; never for a free chain).
+enum class TridiagonalSolver { automatic, eigen, lapack, secular };
+
+/// How a contact set's reduced chain sits in the free chain (see "Sticking" above): the masses
+/// of each reduced coordinate (first…last: a group joined by held stops between neighbours; a
+/// mass held by a stop on it belongs to none) and each held stop's normal, as (mass, weight)
+/// pairs. x = T y + o(t) with T_{l,r} = 1 for mass l in group r.
+struct ChainReduction {
+  std::vector<Eigen::Index> first, last;
+  std::vector<std::vector<std::pair<Eigen::Index, double>>> normals;
+};
 
 /// True when this build can use LAPACK's dstemr.
 bool lapack_available();
@@ -151,6 +166,17 @@ class ChainModes {
   /// rigid-body mode (ω_k² ≤ 1e-13 ω_max²: give the chain a wall) or an undamped resonance, and
   /// std::runtime_error if the eigensolver fails.
   explicit ChainModes(BandedChain chain, TridiagonalSolver solver = TridiagonalSolver::automatic);
+  /// The modes of `reduced`, a contact set's reduced chain placed in `free`'s chain by
+  /// `reduction`, without a tridiagonal eigenproblem: the free modes restricted by each held
+  /// stop's constraint w_jᵀ x = 0 in turn (a rank-one restriction, solved by the secular
+  /// equation; src/secular.hpp gives the method and its safeguards), so the constrained modes
+  /// are Φ Ψ with Ψ a product of implicit Cauchy-like factors: O(k N²) time and O(k N) memory
+  /// for k held stops on N masses (the tridiagonal route is O(N²) in both), and no eigenvector
+  /// matrix (vectors() is empty). Each basis change (to_modal, to_physical) costs two O(N²)
+  /// products (the free modes' and the factors'). Same eigenvalues and the same reduced
+  /// coordinates y as the tridiagonal route, to rounding. `free` must outlive these modes.
+  /// Throws InvalidInput as the first constructor (rigid-body mode, undamped resonance).
+  ChainModes(BandedChain reduced, const ChainModes& free, ChainReduction reduction);
 
   const BandedChain& chain() const { return chain_; }
   Eigen::Index dof() const { return chain_.dof(); }
@@ -165,6 +191,11 @@ class ChainModes {
   const Eigen::MatrixXd& vectors() const { return q_; }
   /// Row i of Φ = M^{-1/2} Q (the modal amplitudes of x_i).
   Eigen::VectorXd phi_row(Eigen::Index i) const;
+  /// The rows of Φ for several coordinates (rows of the result, in the order given); the
+  /// secular route forms them in one pass.
+  Eigen::MatrixXd phi_rows(const std::vector<Eigen::Index>& coordinates) const;
+  /// Bytes held by these modes (for a secular route, not counting the free modes it refers to).
+  std::size_t bytes() const;
 
   /// Particular solution amplitudes: p(t) = c0 + cc cos Ωt + cs sin Ωt (per mode).
   const Eigen::VectorXd& particular_constant() const { return c0_; }
@@ -187,8 +218,13 @@ class ChainModes {
                Eigen::Ref<Eigen::VectorXd> ud_out, double* bound = nullptr) const;
 
  private:
+  struct Implicit;
+  /// Regimes, rates and the particular solution from ω² and the modal forcing (both routes).
+  void finish(const Eigen::VectorXd& p0, const Eigen::VectorXd& pc, const Eigen::VectorXd& ps);
+
   BandedChain chain_;
   TridiagonalSolver solver_;
+  std::shared_ptr<const Implicit> implicit_;  // the secular route (null for the tridiagonal one)
   double setup_seconds_ = 0.0;
   Eigen::VectorXd omega2_, omega_, sigma_, root_, inv_sqrt_mass_, sqrt_mass_;
   Eigen::VectorXi regime_;  // +1 under-, 0 critically, -1 over-damped
@@ -204,6 +240,10 @@ struct ModalSimulatorOptions : SimulatorOptions {
   /// beyond it the least recently used one is dropped and rebuilt if visited again
   /// (ModalRunSummary::modes_rebuilt counts that). The free chain's modes are not counted.
   double mode_cache_bytes = 2.0 * 1024.0 * 1024.0 * 1024.0;
+  /// How a contact set's modes are built: automatic (the secular equation from the free modes
+  /// for chains of 1000 masses or more, O(k N) memory per set; else the reduced chain's own
+  /// tridiagonal eigenproblem), secular, or a tridiagonal solver (lapack, eigen).
+  TridiagonalSolver contact_modes = TridiagonalSolver::automatic;
   /// End the run (status completed, message saying so) after this many impacts; 0 = no limit.
   /// For benchmarks that want a fixed amount of work.
   long stop_after_impacts = 0;

@@ -1,0 +1,291 @@
+#include "secular.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace vibro::detail {
+namespace {
+
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+
+// The O(m) kernels every pass runs, over raw arrays with four partial sums so that they
+// vectorise (built for AVX2 and for the baseline, chosen at run time): these passes are the
+// whole cost of a contact set of a long chain.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define VIBRO_KERNEL __attribute__((target_clones("avx2", "default")))
+#else
+#define VIBRO_KERNEL
+#endif
+
+/// Σ w_p / ((d_p - d_o) - τ) and Σ w_p / ((d_p - d_o) - τ)² over p ∈ [0, n).
+VIBRO_KERNEL void pole_sums(const double* d, const double* w, long n, double d_o, double tau, double* sum,
+                            double* slope) {
+  double s[4] = {0, 0, 0, 0}, t[4] = {0, 0, 0, 0};
+  long p = 0;
+  for (; p + 4 <= n; p += 4)
+    for (int k = 0; k < 4; ++k) {
+      const double inv = 1.0 / ((d[p + k] - d_o) - tau);
+      const double term = w[p + k] * inv;
+      s[k] += term;
+      t[k] += term * inv;
+    }
+  for (; p < n; ++p) {
+    const double inv = 1.0 / ((d[p] - d_o) - tau);
+    s[0] += w[p] * inv;
+    t[0] += w[p] * inv * inv;
+  }
+  *sum = (s[0] + s[1]) + (s[2] + s[3]);
+  *slope = (t[0] + t[1]) + (t[2] + t[3]);
+}
+
+/// out_j = Σ_p a_{p,j} / ((d_p - d_o) - τ) for k ≤ 8 columns of a (column-major, leading
+/// dimension lda): one division per p shared by the columns.
+VIBRO_KERNEL void cauchy_dots(const double* d, long n, double d_o, double tau, const double* a, long lda, int k,
+                              double* out) {
+  double acc[8][4] = {};
+  long p = 0;
+  for (; p + 4 <= n; p += 4) {
+    double inv[4];
+    for (int t = 0; t < 4; ++t) inv[t] = 1.0 / ((d[p + t] - d_o) - tau);
+    for (int j = 0; j < k; ++j)
+      for (int t = 0; t < 4; ++t) acc[j][t] += a[j * lda + p + t] * inv[t];
+  }
+  for (; p < n; ++p) {
+    const double inv = 1.0 / ((d[p] - d_o) - tau);
+    for (int j = 0; j < k; ++j) acc[j][0] += a[j * lda + p] * inv;
+  }
+  for (int j = 0; j < k; ++j) out[j] = (acc[j][0] + acc[j][1]) + (acc[j][2] + acc[j][3]);
+}
+
+/// b_{p,j} += c_j / ((d_p - d_o) - τ) for k ≤ 8 columns of b (column-major, leading dimension ldb).
+VIBRO_KERNEL void cauchy_axpys(const double* d, long n, double d_o, double tau, const double* c, double* b, long ldb,
+                               int k) {
+  for (long p = 0; p < n; ++p) {
+    const double inv = 1.0 / ((d[p] - d_o) - tau);
+    for (int j = 0; j < k; ++j) b[j * ldb + p] += c[j] * inv;
+  }
+}
+
+/// Π_l num_l / den_l with num_l = (a_l - x) + b_l, den_l = c_l - x (every ratio in (0, 1]).
+VIBRO_KERNEL double ratio_product(const double* a, const double* b, const double* c, long n, double x) {
+  double s[4] = {1, 1, 1, 1};
+  long l = 0;
+  for (; l + 4 <= n; l += 4)
+    for (int k = 0; k < 4; ++k) s[k] *= ((a[l + k] - x) + b[l + k]) / (c[l + k] - x);
+  for (; l < n; ++l) s[0] *= ((a[l] - x) + b[l]) / (c[l] - x);
+  return (s[0] * s[1]) * (s[2] * s[3]);
+}
+
+
+/// The root in (A, B) (A < 0 < B) of c + s1/(A - η) + s2/(B - η) = 0, whose value at η = 0 is
+/// g (so its constant term is g A B): c η² - (c (A + B) + s1 + s2) η + g A B = 0. NaN if none.
+double middle_way_step(double g, double c, double s1, double s2, double A, double B) {
+  const double beta = c * (A + B) + s1 + s2, gamma = g * A * B;
+  auto inside = [&](double eta) { return eta > A && eta < B; };
+  if (c == 0.0) {
+    const double eta = beta != 0.0 ? gamma / beta : std::numeric_limits<double>::quiet_NaN();
+    return inside(eta) ? eta : std::numeric_limits<double>::quiet_NaN();
+  }
+  const double disc = beta * beta - 4.0 * c * gamma;
+  if (!(disc >= 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  const double q = 0.5 * (beta + std::copysign(std::sqrt(disc), beta));
+  const double small = q != 0.0 ? gamma / q : std::numeric_limits<double>::quiet_NaN();
+  const double large = q / c;
+  if (inside(small)) return small;
+  if (inside(large)) return large;
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+}  // namespace
+
+SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z) : m_(d.size()) {
+  if (z.size() != m_ || m_ < 1) throw std::logic_error("secular level: sizes do not match");
+  const double norm = z.norm();
+  if (!(norm > 0.0) || !std::isfinite(norm))
+    throw std::runtime_error("secular level: the constraint is zero in the parent's modes (dependent on the others)");
+  Eigen::VectorXd w = z / norm, dd = d;
+  const double dmax = std::max(d.cwiseAbs().maxCoeff(), 1e-300);
+  // Deflation (dlaed2): negligible weights, then poles too close to tell apart (rotated so that
+  // one of the pair carries the whole weight and the other none).
+  std::vector<Eigen::Index> kept, deflated;
+  for (Eigen::Index i = 0; i < m_; ++i) {
+    if (std::abs(w(i)) <= 8.0 * kEps) {
+      deflated.push_back(i);
+      continue;
+    }
+    if (!kept.empty()) {
+      const Eigen::Index j = kept.back();
+      const double r = std::hypot(w(j), w(i)), c = w(j) / r, s = w(i) / r;
+      if (std::abs((dd(i) - dd(j)) * c * s) <= 8.0 * kEps * dmax) {
+        rotations_.push_back({j, i, c, s});
+        const double dj = dd(j), di = dd(i);
+        dd(j) = c * c * dj + s * s * di;
+        dd(i) = s * s * dj + c * c * di;
+        w(j) = r;
+        w(i) = 0.0;
+        deflated.push_back(i);
+        continue;
+      }
+    }
+    kept.push_back(i);
+  }
+  poles_ = kept;
+  const auto q = static_cast<Eigen::Index>(kept.size());
+  d_.resize(q);
+  Eigen::VectorXd zk(q);
+  for (Eigen::Index p = 0; p < q; ++p) {
+    d_(p) = dd(kept[static_cast<std::size_t>(p)]);
+    zk(p) = w(kept[static_cast<std::size_t>(p)]);
+  }
+  const Eigen::VectorXd z2 = zk.cwiseAbs2();
+
+  // Roots: μ_l = d[origin] + τ_l in (d_l, d_{l+1}), l = 0 … q - 2.
+  const Eigen::Index roots = std::max<Eigen::Index>(q - 1, 0);
+  origin_.resize(static_cast<std::size_t>(roots));
+  tau_.resize(roots);
+  // Where the previous root sat in its interval: the first guess for the next (the weights of
+  // neighbouring poles are alike for a smooth constraint, so the roots sit alike).
+  double fraction = 0.5;
+  for (Eigen::Index l = 0; l < roots; ++l) {
+    const double gap = d_(l + 1) - d_(l);
+    Eigen::Index o = fraction <= 0.5 ? l : l + 1;
+    double tau = o == l ? fraction * gap : -(1.0 - fraction) * gap;
+    for (int pass = 0; pass < 2; ++pass) {
+      const double d_o = d_(o);
+      const double a_pole = d_(l) - d_o, b_pole = d_(l + 1) - d_o;
+      double lo = a_pole, hi = b_pole;  // bracket of τ (open)
+      for (int it = 0; it < 100; ++it) {
+        // ψ, ψ' over the poles up to l (terms < 0), φ, φ' over those above (terms > 0).
+        double psi, dpsi, phi, dphi;
+        pole_sums(d_.data(), z2.data(), l + 1, d_o, tau, &psi, &dpsi);
+        pole_sums(d_.data() + l + 1, z2.data() + l + 1, q - l - 1, d_o, tau, &phi, &dphi);
+        const double g = psi + phi;
+        if (std::abs(g) <= 8.0 * kEps * (phi - psi) || g == 0.0) break;
+        (g < 0.0 ? lo : hi) = tau;
+        const double A = a_pole - tau, B = b_pole - tau;
+        const double s1 = dpsi * A * A, s2 = dphi * B * B;
+        const double c = g - s1 / A - s2 / B;
+        const double eta = middle_way_step(g, c, s1, s2, A, B);
+        double next = tau + eta;
+        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+        // The middle way converges quadratically: after a step below 1e-9 of τ the next would
+        // be below rounding, so τ + η is kept without another pass.
+        if (std::abs(next - tau) <= std::max(1e-9 * std::abs(tau), 2.0 * kEps * std::abs(d_o))) {
+          tau = next;
+          break;
+        }
+        tau = next;
+        if (hi - lo <= 4.0 * kEps * std::max(std::abs(lo), std::abs(hi))) break;
+      }
+      // The root must be measured from the pole it is nearer to (every dᵢ - μ then keeps its
+      // relative accuracy); if the guess chose the other, move the origin and refine.
+      const double position = (d_o - d_(l)) + tau;  // μ - d_l
+      const Eigen::Index nearer = position <= 0.5 * gap ? l : l + 1;
+      if (nearer == o) break;
+      tau = (d_o - d_(nearer)) + tau;
+      o = nearer;
+    }
+    fraction = std::clamp(((d_(o) - d_(l)) + tau) / gap, 1e-6, 1.0 - 1e-6);
+    origin_[static_cast<std::size_t>(l)] = o;
+    tau_(l) = tau;
+  }
+  // Löwner's weights for the computed roots.
+  zhat_.resize(q);
+  Eigen::VectorXd at_origin(roots);
+  for (Eigen::Index l = 0; l < roots; ++l) at_origin(l) = d_(origin_[static_cast<std::size_t>(l)]);
+  for (Eigen::Index p = 0; p < q; ++p) {
+    const double prod = ratio_product(at_origin.data(), tau_.data(), d_.data(), p, d_(p)) *
+                        ratio_product(at_origin.data() + p, tau_.data() + p, d_.data() + p + 1, roots - p, d_(p));
+    zhat_(p) = std::copysign(std::sqrt(std::max(prod, 0.0)), zk(p));
+  }
+  inv_norm_.resize(roots);
+  const Eigen::VectorXd zhat2 = zhat_.cwiseAbs2();
+  for (Eigen::Index l = 0; l < roots; ++l) {
+    double unused, sum;  // Σ ẑ_p² / (d_p - μ_l)²
+    pole_sums(d_.data(), zhat2.data(), q, at_origin(l), tau_(l), &unused, &sum);
+    inv_norm_(l) = 1.0 / std::sqrt(sum);
+  }
+  // Children by ascending eigenvalue: the roots (ascending in l) merged with the deflated poles.
+  std::vector<std::pair<double, Eigen::Index>> all;
+  all.reserve(static_cast<std::size_t>(m_ - 1));
+  for (Eigen::Index l = 0; l < roots; ++l) all.push_back({d_(origin_[static_cast<std::size_t>(l)]) + tau_(l), l});
+  for (Eigen::Index i : deflated) all.push_back({dd(i), -1 - i});
+  std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  if (static_cast<Eigen::Index>(all.size()) != m_ - 1)
+    throw std::logic_error("secular level: " + std::to_string(all.size()) + " children for " + std::to_string(m_) +
+                           " parents");
+  mu_.resize(m_ - 1);
+  child_.resize(all.size());
+  for (std::size_t c = 0; c < all.size(); ++c) {
+    mu_(static_cast<Eigen::Index>(c)) = all[c].first;
+    child_[c] = all[c].second;
+  }
+}
+
+void SecularLevel::rotate(Eigen::Ref<Eigen::MatrixXd> x, bool forward) const {
+  auto apply = [&](const Rotation& r, double s) {
+    for (Eigen::Index k = 0; k < x.cols(); ++k) {
+      const double a = x(r.i, k), b = x(r.j, k);
+      x(r.i, k) = r.c * a + s * b;
+      x(r.j, k) = -s * a + r.c * b;
+    }
+  };
+  if (forward)
+    for (const Rotation& r : rotations_) apply(r, r.s);
+  else
+    for (auto it = rotations_.rbegin(); it != rotations_.rend(); ++it) apply(*it, -it->s);
+}
+
+void SecularLevel::to_child(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eigen::Ref<Eigen::MatrixXd> child) const {
+  const Eigen::Index k = parent.cols(), q = d_.size();
+  Eigen::MatrixXd x = parent;
+  rotate(x, true);
+  Eigen::MatrixXd a(q, k);  // ẑ_p x_p
+  for (Eigen::Index p = 0; p < q; ++p) a.row(p) = zhat_(p) * x.row(poles_[static_cast<std::size_t>(p)]);
+  double out[8];
+  for (std::size_t c = 0; c < child_.size(); ++c) {
+    const Eigen::Index l = child_[c], row = static_cast<Eigen::Index>(c);
+    if (l < 0) {
+      child.row(row) = x.row(-1 - l);
+      continue;
+    }
+    for (Eigen::Index j0 = 0; j0 < k; j0 += 8) {
+      const int block = static_cast<int>(std::min<Eigen::Index>(8, k - j0));
+      cauchy_dots(d_.data(), q, d_(origin_[static_cast<std::size_t>(l)]), tau_(l), a.col(j0).data(), q, block, out);
+      for (int j = 0; j < block; ++j) child(row, j0 + j) = inv_norm_(l) * out[j];
+    }
+  }
+}
+
+void SecularLevel::to_parent(const Eigen::Ref<const Eigen::MatrixXd>& child, Eigen::Ref<Eigen::MatrixXd> parent) const {
+  const Eigen::Index k = child.cols(), q = d_.size();
+  Eigen::MatrixXd x = Eigen::MatrixXd::Zero(m_, k), b = Eigen::MatrixXd::Zero(q, k);
+  double coef[8];
+  for (std::size_t c = 0; c < child_.size(); ++c) {
+    const Eigen::Index l = child_[c], row = static_cast<Eigen::Index>(c);
+    if (l < 0) {
+      x.row(-1 - l) = child.row(row);
+      continue;
+    }
+    for (Eigen::Index j0 = 0; j0 < k; j0 += 8) {
+      const int block = static_cast<int>(std::min<Eigen::Index>(8, k - j0));
+      for (int j = 0; j < block; ++j) coef[j] = inv_norm_(l) * child(row, j0 + j);
+      cauchy_axpys(d_.data(), q, d_(origin_[static_cast<std::size_t>(l)]), tau_(l), coef, b.col(j0).data(), q, block);
+    }
+  }
+  for (Eigen::Index p = 0; p < q; ++p) x.row(poles_[static_cast<std::size_t>(p)]) = zhat_(p) * b.row(p);
+  rotate(x, false);
+  parent = x;
+}
+
+std::size_t SecularLevel::bytes() const {
+  return sizeof(double) * static_cast<std::size_t>(d_.size() + zhat_.size() + tau_.size() + inv_norm_.size() +
+                                                   mu_.size()) +
+         sizeof(Eigen::Index) * (poles_.size() + origin_.size() + child_.size()) +
+         sizeof(Rotation) * rotations_.size();
+}
+
+}  // namespace vibro::detail
