@@ -321,49 +321,74 @@ void ChainModes::finish(const Eigen::VectorXd& p0, const Eigen::VectorXd& pc, co
 /// The secular route's data: the free modes, where the reduced coordinates sit, the restriction
 /// levels (one per held stop) and scratch for the basis changes (these modes belong to one
 /// simulator's cache, so one thread).
+Eigen::Map<Eigen::MatrixXd> ChainModes::Workspace::matrix(int slot, Eigen::Index n, Eigen::Index k) {
+  Eigen::VectorXd& store = store_[slot];
+  if (store.size() < n * k) store.resize(n * k);
+  return {store.data(), n, k};
+}
+
+/// The secular route's data: the free modes, where the reduced coordinates sit, and the
+/// restriction levels (one per held stop). The products below use a Workspace's buffers:
+/// 0 and 1 alternate between levels, 2 is the levels' own scratch.
 struct ChainModes::Implicit {
   const ChainModes* free = nullptr;
   ChainReduction reduction;
   std::vector<detail::SecularLevel> levels;
   Eigen::VectorXd group_mass;  // M_r
-  mutable Eigen::MatrixXd x2, y2a, y2b;  // N × 2 and level-sized scratch
 
-  /// Y (n_r × k) = Ψᵀ X for X in the free modal coordinates (N × k).
-  Eigen::MatrixXd down(Eigen::MatrixXd x) const {
-    for (const detail::SecularLevel& level : levels) {
-      Eigen::MatrixXd y(level.child_size(), x.cols());
-      level.to_child(x, y);
-      x = std::move(y);
-    }
-    return x;
+  /// out (n_r × k) = Ψᵀ x for x in the free modal coordinates (N × k; not in buffers 0-2).
+  void down(const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::Ref<Eigen::MatrixXd> out, Workspace& w) const {
+    through(x, out, w, true);
   }
-  /// X (N × k) = Ψ Y.
-  Eigen::MatrixXd up(Eigen::MatrixXd y) const {
-    for (auto it = levels.rbegin(); it != levels.rend(); ++it) {
-      Eigen::MatrixXd x(it->parent_size(), y.cols());
-      it->to_parent(y, x);
-      y = std::move(x);
-    }
-    return y;
+  /// out (N × k) = Ψ y.
+  void up(const Eigen::Ref<const Eigen::MatrixXd>& y, Eigen::Ref<Eigen::MatrixXd> out, Workspace& w) const {
+    through(y, out, w, false);
   }
-  /// √m ∘ (T Y): reduced coordinates to the mass-scaled full coordinates (held masses 0).
-  Eigen::MatrixXd spread(const Eigen::Ref<const Eigen::MatrixXd>& y) const {
-    Eigen::MatrixXd x = Eigen::MatrixXd::Zero(free->dof(), y.cols());
+  void through(const Eigen::Ref<const Eigen::MatrixXd>& in, Eigen::Ref<Eigen::MatrixXd> out, Workspace& w,
+               bool down) const {
+    const Eigen::Index k = in.cols(), count = static_cast<Eigen::Index>(levels.size());
+    if (count == 0) {
+      out = in;
+      return;
+    }
+    const double* from = in.data();
+    Eigen::Index rows = in.rows();
+    int slot = 0;
+    for (Eigen::Index i = 0; i < count; ++i) {
+      const detail::SecularLevel& level = down ? levels[static_cast<std::size_t>(i)]
+                                               : levels[static_cast<std::size_t>(count - 1 - i)];
+      const Eigen::Map<const Eigen::MatrixXd> current(from, rows, k);
+      double* scratch = w.matrix(2, level.scratch_size(k), 1).data();
+      const Eigen::Index next_rows = down ? level.child_size() : level.parent_size();
+      if (i + 1 == count) {
+        if (down) level.to_child(current, out, scratch);
+        else level.to_parent(current, out, scratch);
+        return;
+      }
+      Eigen::Map<Eigen::MatrixXd> next = w.matrix(slot, next_rows, k);
+      if (down) level.to_child(current, next, scratch);
+      else level.to_parent(current, next, scratch);
+      from = next.data();
+      rows = next_rows;
+      slot = 1 - slot;
+    }
+  }
+  /// out = √m ∘ (T y): reduced coordinates to the mass-scaled full coordinates (held masses 0).
+  void spread(const Eigen::Ref<const Eigen::MatrixXd>& y, Eigen::Ref<Eigen::MatrixXd> out) const {
+    out.setZero();
     for (std::size_t r = 0; r < reduction.first.size(); ++r)
       for (Eigen::Index l = reduction.first[r]; l <= reduction.last[r]; ++l)
-        x.row(l) = free->sqrt_mass_(l) * y.row(static_cast<Eigen::Index>(r));
-    return x;
+        out.row(l) = free->sqrt_mass_(l) * y.row(static_cast<Eigen::Index>(r));
   }
-  /// The M-weighted mean over each group of M^{-1/2}·(rows of X) = Σ √m_l X_l / M_r (the
+  /// out = the M-weighted mean over each group of M^{-1/2}·(rows of x) = Σ √m_l x_l / M_r (the
   /// M-orthogonal projection onto the reduced coordinates).
-  Eigen::MatrixXd gather(const Eigen::Ref<const Eigen::MatrixXd>& x) const {
-    Eigen::MatrixXd y = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(reduction.first.size()), x.cols());
+  void gather(const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::Ref<Eigen::MatrixXd> out) const {
+    out.setZero();
     for (std::size_t r = 0; r < reduction.first.size(); ++r) {
       for (Eigen::Index l = reduction.first[r]; l <= reduction.last[r]; ++l)
-        y.row(static_cast<Eigen::Index>(r)) += free->sqrt_mass_(l) * x.row(l);
-      y.row(static_cast<Eigen::Index>(r)) /= group_mass(static_cast<Eigen::Index>(r));
+        out.row(static_cast<Eigen::Index>(r)) += free->sqrt_mass_(l) * x.row(l);
+      out.row(static_cast<Eigen::Index>(r)) /= group_mass(static_cast<Eigen::Index>(r));
     }
-    return y;
   }
 };
 
@@ -385,7 +410,9 @@ ChainModes::ChainModes(BandedChain reduced, const ChainModes& free, ChainReducti
   for (const auto& normal : reduction.normals) {
     Eigen::MatrixXd b = Eigen::MatrixXd::Zero(N, 1);
     for (const auto& [mass, weight] : normal) b.col(0) += (weight * free.inv_sqrt_mass_(mass)) * free.q_.row(mass).transpose();
-    const Eigen::MatrixXd z = im->down(b);
+    Workspace w;
+    Eigen::MatrixXd z(d.size(), 1);
+    im->down(b, z, w);
     im->levels.emplace_back(d, z.col(0));
     d = im->levels.back().eigenvalues();
   }
@@ -401,7 +428,10 @@ ChainModes::ChainModes(BandedChain reduced, const ChainModes& free, ChainReducti
   g.col(0) = f.constant.cwiseQuotient(chain_.mass);
   g.col(1) = f.cosine.cwiseQuotient(chain_.mass);
   g.col(2) = f.sine.cwiseQuotient(chain_.mass);
-  const Eigen::MatrixXd p = im->down(free.q_.transpose() * im->spread(g));
+  Workspace w;
+  Eigen::MatrixXd spread(N, 3), p(n, 3);
+  im->spread(g, spread);
+  im->down(free.q_.transpose() * spread, p, w);
   finish(p.col(0), p.col(1), p.col(2));
   setup_seconds_ = seconds_since(start);
 }
@@ -430,7 +460,10 @@ Eigen::MatrixXd ChainModes::phi_rows(const std::vector<Eigen::Index>& coordinate
       a.col(c) += fr.sqrt_mass_(l) * fr.q_.row(l).transpose();
     a.col(c) /= im.group_mass(static_cast<Eigen::Index>(r));
   }
-  return im.down(a).transpose();
+  Workspace w;
+  Eigen::MatrixXd rows(dof(), count);
+  im.down(a, rows, w);
+  return rows.transpose();
 }
 
 Eigen::VectorXd ChainModes::phi_row(Eigen::Index i) const {
@@ -441,18 +474,32 @@ Eigen::VectorXd ChainModes::phi_row(Eigen::Index i) const {
 void ChainModes::to_modal(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
                           const Eigen::Ref<const Eigen::VectorXd>& v, Eigen::Ref<Eigen::VectorXd> u,
                           Eigen::Ref<Eigen::VectorXd> ud) const {
+  Workspace work;
+  to_modal(t, x, v, u, ud, work);
+}
+
+void ChainModes::to_modal(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
+                          const Eigen::Ref<const Eigen::VectorXd>& v, Eigen::Ref<Eigen::VectorXd> u,
+                          Eigen::Ref<Eigen::VectorXd> ud, Workspace& work) const {
   const double W = frequency(), c = std::cos(W * t), s = std::sin(W * t);
   if (implicit_) {
+    // Ψᵀ Qᵀ √m ∘ (T y): buffers 3 (y, then the result), 4 (spread), 5 (free modal).
     const Implicit& im = *implicit_;
-    Eigen::MatrixXd y(x.size(), 2);
+    const Eigen::Index n = dof(), N = im.free->dof();
+    Eigen::Map<Eigen::MatrixXd> y = work.matrix(3, n, 2), spread = work.matrix(4, N, 2), modal = work.matrix(5, N, 2);
     y.col(0) = x;
     y.col(1) = v;
-    const Eigen::MatrixXd q = im.down(im.free->q_.transpose() * im.spread(y));
-    u = q.col(0);
-    ud = q.col(1);
+    im.spread(y, spread);
+    for (int j = 0; j < 2; ++j) modal.col(j).noalias() = im.free->q_.transpose() * spread.col(j);
+    im.down(modal, y, work);
+    u = y.col(0);
+    ud = y.col(1);
   } else {
-    u.noalias() = q_.transpose() * x.cwiseProduct(sqrt_mass_);
-    ud.noalias() = q_.transpose() * v.cwiseProduct(sqrt_mass_);
+    Eigen::Map<Eigen::MatrixXd> scaled = work.matrix(3, x.size(), 2);
+    scaled.col(0) = x.cwiseProduct(sqrt_mass_);
+    scaled.col(1) = v.cwiseProduct(sqrt_mass_);
+    u.noalias() = q_.transpose() * scaled.col(0);
+    ud.noalias() = q_.transpose() * scaled.col(1);
   }
   u -= c0_ + cc_ * c + cs_ * s;
   ud -= W * (cs_ * c - cc_ * s);
@@ -461,21 +508,32 @@ void ChainModes::to_modal(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
 void ChainModes::to_physical(double t, const Eigen::Ref<const Eigen::VectorXd>& u,
                              const Eigen::Ref<const Eigen::VectorXd>& ud,
                              Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const {
+  Workspace work;
+  to_physical(t, u, ud, x, v, work);
+}
+
+void ChainModes::to_physical(double t, const Eigen::Ref<const Eigen::VectorXd>& u,
+                             const Eigen::Ref<const Eigen::VectorXd>& ud, Eigen::Ref<Eigen::VectorXd> x,
+                             Eigen::Ref<Eigen::VectorXd> v, Workspace& work) const {
   const double W = frequency(), c = std::cos(W * t), s = std::sin(W * t);
-  const Eigen::VectorXd q = u + c0_ + cc_ * c + cs_ * s;
-  const Eigen::VectorXd qd = ud + W * (cs_ * c - cc_ * s);
+  const Eigen::Index n = dof();
+  Eigen::Map<Eigen::MatrixXd> q = work.matrix(3, n, 2);  // the modal state with its particular part
+  q.col(0) = u + c0_ + cc_ * c + cs_ * s;
+  q.col(1) = ud + W * (cs_ * c - cc_ * s);
   if (implicit_) {
     const Implicit& im = *implicit_;
-    Eigen::MatrixXd modal(q.size(), 2);
-    modal.col(0) = q;
-    modal.col(1) = qd;
-    const Eigen::MatrixXd y = im.gather(im.free->q_ * im.up(modal));
+    const Eigen::Index N = im.free->dof();
+    Eigen::Map<Eigen::MatrixXd> modal = work.matrix(5, N, 2), full = work.matrix(4, N, 2);
+    im.up(q, modal, work);
+    for (int j = 0; j < 2; ++j) full.col(j).noalias() = im.free->q_ * modal.col(j);
+    Eigen::Map<Eigen::MatrixXd> y = work.matrix(3, n, 2);
+    im.gather(full, y);
     x = y.col(0);
     v = y.col(1);
     return;
   }
-  x.noalias() = q_ * q;
-  v.noalias() = q_ * qd;
+  x.noalias() = q_ * q.col(0);
+  v.noalias() = q_ * q.col(1);
   x.array() *= inv_sqrt_mass_.array();
   v.array() *= inv_sqrt_mass_.array();
 }

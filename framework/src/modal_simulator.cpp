@@ -432,12 +432,21 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
   return mode;
 }
 
+/// Buffers of the free chain's size for the basis changes and guard values of an event, so that
+/// no event allocates once they are warm (each use takes the head it needs).
+struct Buffers {
+  explicit Buffers(Eigen::Index n) : y(n), yd(n), u(n), ud(n), udd(n), fu(n), fud(n), z(n), kz(n) {}
+  Eigen::VectorXd y, yd, u, ud, udd, fu, fud, z, kz;
+  ChainModes::Workspace work;
+};
+
 /// Full physical state from a mode's homogeneous modal state at t. O(n·n_r).
-void to_physical(const ModalContactMode& mode, double W, double t, const Eigen::VectorXd& u,
-                 const Eigen::VectorXd& ud, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) {
+void to_physical(const ModalContactMode& mode, double W, double t, const Eigen::Ref<const Eigen::VectorXd>& u,
+                 const Eigen::Ref<const Eigen::VectorXd>& ud, Eigen::Ref<Eigen::VectorXd> x,
+                 Eigen::Ref<Eigen::VectorXd> v, Buffers& b) {
   const Eigen::Index n = static_cast<Eigen::Index>(mode.coordinate.size());
-  Eigen::VectorXd y(mode.size()), yd(mode.size());
-  if (mode.modes) mode.modes->to_physical(t, u, ud, y, yd);
+  auto y = b.y.head(mode.size()), yd = b.yd.head(mode.size());
+  if (mode.modes) mode.modes->to_physical(t, u, ud, y, yd, b.work);
   const double c = std::cos(W * t), s = std::sin(W * t);
   for (Eigen::Index l = 0; l < n; ++l) {
     const Eigen::Index r = mode.coordinate[static_cast<std::size_t>(l)];
@@ -449,14 +458,14 @@ void to_physical(const ModalContactMode& mode, double W, double t, const Eigen::
 /// A mode's homogeneous modal state from the full state at t: each reduced coordinate is the
 /// mass-weighted mean of its masses (less their offsets), the M-orthogonal projection onto the
 /// constraints, so rounding drift off them is projected away. O(n·n_r).
+/// `u`, `ud` have the mode's size.
 void to_modal(const ModalContactMode& mode, const Eigen::VectorXd& mass, double W, double t,
-              const Eigen::VectorXd& x, const Eigen::VectorXd& v, Eigen::VectorXd& u, Eigen::VectorXd& ud) {
+              const Eigen::VectorXd& x, const Eigen::VectorXd& v, Eigen::Ref<Eigen::VectorXd> u,
+              Eigen::Ref<Eigen::VectorXd> ud, Buffers& b) {
   const Eigen::Index nr = mode.size();
-  u.resize(nr);
-  ud.resize(nr);
   if (nr == 0) return;
   const double c = std::cos(W * t), s = std::sin(W * t);
-  Eigen::VectorXd y(nr), yd(nr);
+  auto y = b.y.head(nr), yd = b.yd.head(nr);
   for (Eigen::Index r = 0; r < nr; ++r) {
     double sy = 0.0, sv = 0.0, sm = 0.0;
     for (Eigen::Index l = mode.first[static_cast<std::size_t>(r)]; l <= mode.last[static_cast<std::size_t>(r)]; ++l) {
@@ -467,26 +476,26 @@ void to_modal(const ModalContactMode& mode, const Eigen::VectorXd& mass, double 
     y(r) = sy / sm;
     yd(r) = sv / sm;
   }
-  mode.modes->to_modal(t, y, yd, u, ud);
+  mode.modes->to_modal(t, y, yd, u, ud, b.work);
 }
 
 /// Value and slope of guard `row` at t0 + τ from the homogeneous state (u0, ud0) at t0. O(n_r).
-void guard_at(const ModalContactMode& mode, double W, double t0, const Eigen::VectorXd& u0,
-              const Eigen::VectorXd& ud0, double tau, Eigen::Index row, double* value, double* slope) {
+void guard_at(const ModalContactMode& mode, double W, double t0, const Eigen::Ref<const Eigen::VectorXd>& u0,
+              const Eigen::Ref<const Eigen::VectorXd>& ud0, double tau, Eigen::Index row, double* value, double* slope,
+              Buffers& b) {
   const ModalGuards& g = mode.guards;
   const double t = t0 + tau, c = std::cos(W * t), s = std::sin(W * t);
   *value = g.h0(row) + g.hc(row) * c + g.hs(row) * s;
   *slope = W * (g.hs(row) * c - g.hc(row) * s);
   if (!mode.modes) return;
   const Eigen::Index nr = mode.size();
-  Eigen::VectorXd u(nr), ud(nr);
+  auto u = b.u.head(nr), ud = b.ud.head(nr), udd = b.udd.head(nr);
   mode.modes->advance(tau, u0, ud0, u, ud);
   *value += g.P.row(row).dot(u);
   *slope += g.P.row(row).dot(ud);
   const Eigen::Index first_d = g.rows() - g.D.rows();
   if (row >= first_d) {
-    const Eigen::VectorXd udd =
-        -(2.0 * mode.modes->decay().cwiseProduct(ud) + mode.modes->omega_squared().cwiseProduct(u));
+    udd = -(2.0 * mode.modes->decay().cwiseProduct(ud) + mode.modes->omega_squared().cwiseProduct(u));
     *value += g.D.row(row - first_d).dot(ud);
     *slope += g.D.row(row - first_d).dot(udd);
   }
@@ -498,16 +507,27 @@ void guard_at(const ModalContactMode& mode, double W, double t0, const Eigen::Ve
 class ChainAlgebra final : public detail::ContactAlgebra {
  public:
   using ModeOf = std::function<const ModalContactMode*(const ContactSet&, std::string*)>;
-  ChainAlgebra(const BandedChain& chain, const std::vector<Stop>& stops, ModeOf mode_of)
-      : ch_(chain), stops_(stops), W_(chain.forcing.frequency), mode_of_(std::move(mode_of)) {
+  ChainAlgebra(const BandedChain& chain, const std::vector<Stop>& stops, ModeOf mode_of, Buffers& buffers)
+      : ch_(chain), stops_(stops), W_(chain.forcing.frequency), mode_of_(std::move(mode_of)), b_(buffers) {
     const auto m = static_cast<Eigen::Index>(stops.size());
+    const Eigen::Index n = chain.dof();
     q_.resize(m);
     G_.resize(m, m);
     lcp_.reserve(m);
     G_diag_.resize(m);
+    alpha_.resize(m);
+    kx_.resize(n);
+    kv_.resize(n);
+    acc_.resize(n);
     for (Eigen::Index j = 0; j < m; ++j) {
       normal_.push_back(normal_of(stops[static_cast<std::size_t>(j)]));
       G_diag_(j) = delassus_entry(normal_.back(), normal_.back(), ch_.mass);
+    }
+    for (Eigen::Index j = 0; j < m; ++j) {  // α_j = -w_jᵀM⁻¹CM⁻¹w_j / G_jj, C = αM + βK
+      b_.z.setZero();
+      add_minv_w(static_cast<int>(j), 1.0, b_.z);
+      stiffness_times(ch_, b_.z, b_.kz);
+      alpha_(j) = -(ch_.rayleigh_mass * G_diag_(j) + ch_.rayleigh_stiffness * b_.z.dot(b_.kz)) / G_diag_(j);
     }
   }
 
@@ -560,29 +580,24 @@ class ChainAlgebra final : public detail::ContactAlgebra {
     add_minv_w(set[static_cast<std::size_t>(a)], -s, z);
   }
   bool accept(const ContactSet& held, std::string* why) override { return mode_of_(held, why) != nullptr; }
-  double chatter_alpha(int j) const override {
-    Eigen::VectorXd z = Eigen::VectorXd::Zero(ch_.dof()), kz;
-    add_minv_w(j, 1.0, z);
-    stiffness_times(ch_, z, kz);
-    return -(ch_.rayleigh_mass * G_diag_(j) + ch_.rayleigh_stiffness * z.dot(kz)) / G_diag_(j);
-  }
+  double chatter_alpha(int j) const override { return alpha_(j); }
   double force_slope(const ContactSet& held, int j, double t, const Eigen::VectorXd& x,
                      const Eigen::VectorXd& v) override {
     std::string why;
     const ModalContactMode* mode = mode_of_(held, &why);
     if (!mode) throw std::logic_error("force_slope: the held set was not accepted: " + why);
-    Eigen::VectorXd u, ud;
-    to_modal(*mode, ch_.mass, W_, t, x, v, u, ud);
+    auto u = b_.fu.head(mode->size()), ud = b_.fud.head(mode->size());
+    to_modal(*mode, ch_.mass, W_, t, x, v, u, ud, b_);
     const auto a_idx = std::lower_bound(held.begin(), held.end(), j) - held.begin();
     double value, slope;
-    guard_at(*mode, W_, t, u, ud, 0.0, mode->gap_rows + a_idx, &value, &slope);
+    guard_at(*mode, W_, t, u, ud, 0.0, mode->gap_rows + a_idx, &value, &slope, b_);
     return -slope;  // the guard is -λ
   }
   void chatter_kick(int j, double s, Eigen::VectorXd& v) override {
-    Eigen::VectorXd z = Eigen::VectorXd::Zero(ch_.dof()), kz;
-    add_minv_w(j, 1.0, z);
-    stiffness_times(ch_, z, kz);
-    v -= (kz.cwiseQuotient(ch_.mass) / G_diag_(j)) * s;
+    b_.z.setZero();
+    add_minv_w(j, 1.0, b_.z);
+    stiffness_times(ch_, b_.z, b_.kz);
+    v -= (b_.kz.cwiseQuotient(ch_.mass) / G_diag_(j)) * s;
   }
 
  private:
@@ -601,8 +616,9 @@ class ChainAlgebra final : public detail::ContactAlgebra {
   const std::vector<Stop>& stops_;
   double W_;
   ModeOf mode_of_;
+  Buffers& b_;
   std::vector<Normal> normal_;
-  Eigen::VectorXd G_diag_, kx_, kv_, acc_, q_;
+  Eigen::VectorXd G_diag_, alpha_, kx_, kv_, acc_, q_;
   Eigen::MatrixXd G_;
   LcpWorkspace lcp_;
 };
@@ -625,24 +641,26 @@ class ModalChainSimulator::Search {
     Eigen::VectorXd h, d, bound;  // per row: value, slope, |h''| bound valid on [tau, ∞)
   };
 
-  Search(double frequency, long* evaluations) : W_(frequency), evaluations_(evaluations) {}
+  /// `capacity`: the largest mode count (the free chain's N), so that no reset allocates.
+  Search(double frequency, long* evaluations, Eigen::Index capacity)
+      : W_(frequency), evaluations_(evaluations), u_(capacity), ud_(capacity), udd_(capacity), b2_(capacity),
+        b3_(capacity) {}
 
   /// Targets guards `g` of modes `md` (null: no free mass) from the homogeneous state (u0, ud0)
-  /// at absolute time t0. The references must outlive the search's use.
-  void reset(const ChainModes* md, const ModalGuards& g, double t0, const Eigen::VectorXd& u0,
-             const Eigen::VectorXd& ud0, double resolution) {
+  /// at absolute time t0. The state's storage must outlive the search's use.
+  void reset(const ChainModes* md, const ModalGuards& g, double t0, const Eigen::Ref<const Eigen::VectorXd>& u0,
+             const Eigen::Ref<const Eigen::VectorXd>& ud0, double resolution) {
     md_ = md;
     g_ = &g;
     t0_ = t0;
-    u0_ = &u0;
-    ud0_ = &ud0;
+    nr_ = md ? md->dof() : 0;
+    u0_ = u0.data();
+    ud0_ = ud0.data();
     resolution_ = resolution;
-    const Eigen::Index nr = md ? md->dof() : 0, rows = g.rows();
-    u_.resize(nr);
-    ud_.resize(nr);
-    udd_.resize(nr);
-    b2_.resize(nr);
-    b3_.resize(nr);
+    const Eigen::Index rows = g.rows();
+    if (u_.size() < nr_) {  // a capacity below the free chain's: grow (not in the event loop)
+      for (Eigen::VectorXd* v : {&u_, &ud_, &udd_, &b2_, &b3_}) v->resize(nr_);
+    }
     if (stack_.size() < 200) stack_.resize(200);
     for (Point& p : stack_) {
       p.h.resize(rows);
@@ -690,13 +708,17 @@ class ModalChainSimulator::Search {
     const Eigen::Index nd = g.D.rows(), rows = g.rows(), first_d = rows - nd;
     const bool full = only < 0;
     const double t = t0_ + tau, c = std::cos(W_ * t), s = std::sin(W_ * t);
+    auto u_ = this->u_.head(nr_), ud_ = this->ud_.head(nr_), udd_ = this->udd_.head(nr_);
+    auto b2_ = this->b2_.head(nr_), b3_ = this->b3_.head(nr_);
     if (md_) {
-      md_->advance(tau, *u0_, *ud0_, u_, ud_, full ? b2_.data() : nullptr);
+      md_->advance(tau, Eigen::Map<const Eigen::VectorXd>(u0_, nr_), Eigen::Map<const Eigen::VectorXd>(ud0_, nr_), u_,
+                   ud_, full ? this->b2_.data() : nullptr);
       if (nd > 0) {
         const Eigen::VectorXd& sg = md_->decay();
         udd_ = -(2.0 * sg.cwiseProduct(ud_) + md_->omega_squared().cwiseProduct(u_));
         if (full) {
-          const Eigen::ArrayXd two_s = 2.0 * sg.array(), w = md_->omega().array();
+          const auto two_s = 2.0 * sg.array();
+          const auto w = md_->omega().array();
           b3_ = (b2_.array() * (two_s * (two_s + w) + w * w) / (two_s + w)).matrix();
         }
       }
@@ -735,8 +757,8 @@ class ModalChainSimulator::Search {
     }
   }
 
-  const Eigen::VectorXd& u() const { return u_; }
-  const Eigen::VectorXd& ud() const { return ud_; }
+  auto u() const { return u_.head(nr_); }
+  auto ud() const { return ud_.head(nr_); }
   const Eigen::VectorXd& trig() const { return trig_; }
   Point& point(std::size_t i) { return stack_[i]; }
 
@@ -840,8 +862,9 @@ class ModalChainSimulator::Search {
   const ChainModes* md_ = nullptr;
   const ModalGuards* g_ = nullptr;
   double t0_ = 0.0, resolution_ = 0.0, from_ = 0.0;
-  const Eigen::VectorXd *u0_ = nullptr, *ud0_ = nullptr;
-  Eigen::VectorXd u_, ud_, udd_, b2_, b3_;
+  Eigen::Index nr_ = 0;
+  const double *u0_ = nullptr, *ud0_ = nullptr;
+  Eigen::VectorXd u_, ud_, udd_, b2_, b3_;  // capacity N, used through head(nr_)
   std::vector<Point> stack_;
   Eigen::VectorXd trig_, last_below_;
   std::vector<bool> leaving_;
@@ -1005,9 +1028,15 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
   // Events other than a lone free-flight impact are resolved in physical coordinates by the
   // rules shared with the dense engine (event_resolution.hpp).
   std::set<ContactSet> sets_seen;  // impact and contact sets visited (contact_sets_built)
+  // Storage for the whole run, sized once for the free chain's N (modes have n_r ≤ N).
+  Buffers buffers(n);
+  u0_.resize(n);
+  ud0_.resize(n);
+  auto u0 = [&] { return u0_.head(nr_); };
+  auto ud0 = [&] { return ud0_.head(nr_); };
   ChainAlgebra algebra(ch, stops_, [&](const ContactSet& set, std::string* why) {
     return set.empty() ? cache_->modes.at(ContactSet{}).mode.get() : mode_for(set, why, summary);
-  });
+  }, buffers);
   const detail::EventRules& rules = sc.rules;
   for (int j = 0; j < m; ++j) {
     const double g = algebra.gap(j, t0, x0);
@@ -1016,7 +1045,7 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
                          " at t = " + number_text(t0));
   }
   long evaluations = 0;
-  Search search(W, &evaluations);
+  Search search(W, &evaluations, n);
   const RunContext context{n, stops_.size(), W};
   for (Observer* o : observers) o->begin(context, t0);
 
@@ -1033,6 +1062,7 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
   // Ends the run; the state reached is the mode's, or (x, v) after an event that could not be
   // carried into a mode (physical = true).
   auto finish = [&](RunStatus status, std::string message, bool physical = false) {
+    for (Observer* o : observers) o->end(t);
     summary.status = status;
     summary.message = std::move(message);
     summary.t = t;
@@ -1042,13 +1072,12 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
       summary.x = x;
       summary.v = v;
     } else {
-      to_physical(*mode, W, t, u0_, ud0_, summary.x, summary.v);
+      to_physical(*mode, W, t, u0(), ud0(), summary.x, summary.v, buffers);
     }
     summary.stuck = stuck;
     summary.evaluations = evaluations;
     summary.contact_sets_built = sets_seen.size();
     summary.sticking_flows_built = cache_->ever_built.size();
-    for (Observer* o : observers) o->end(t);
     return summary;
   };
   // Enters the mode of `stuck` from the physical state (x, v) at t. False if unsupported.
@@ -1057,7 +1086,8 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
     if (!next) return false;
     mode = next;
     sets_seen.insert(stuck);
-    to_modal(*mode, ch.mass, W, t, x, v, u0_, ud0_);
+    nr_ = mode->size();
+    to_modal(*mode, ch.mass, W, t, x, v, u0(), ud0(), buffers);
     seg_t0_ = t;
     return true;
   };
@@ -1073,10 +1103,14 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
   };
 
   seg_t0_ = t0;
-  to_modal(*mode, ch.mass, W, t, x, v, u0_, ud0_);
+  nr_ = mode->size();
+  to_modal(*mode, ch.mass, W, t, x, v, u0(), ud0(), buffers);
+  ContactSet impacting, releasing;
+  impacting.reserve(static_cast<std::size_t>(m));
+  releasing.reserve(static_cast<std::size_t>(m));
   try {
     {  // Stops touched at t0 (within ε) that are approached or resting.
-      ContactSet impacting, resting;
+      ContactSet resting;
       for (int j = 0; j < m; ++j) {
         if (algebra.gap(j, t, x) < -eps_gap) continue;
         const double gd = algebra.gap_rate(j, t, v);
@@ -1097,7 +1131,7 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
       const Eigen::Index rows = guards.rows();
       base.resize(rows);
       for (Eigen::Index i = 0; i < rows; ++i) base(i) = i < mode->gap_rows ? eps_gap : eps_force;
-      search.reset(mode->modes, guards, t, u0_, ud0_, resolution);
+      search.reset(mode->modes, guards, t, u0(), ud0(), resolution);
       search.start(base);
       const double top = std::max(W, mode->modes ? mode->modes->omega().maxCoeff() : 0.0);
       const double span = t_end - t;
@@ -1114,14 +1148,15 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
       }
       Search::Point& P = search.point(0);
       search.evaluate(tau, P);
-      u0_ = search.u();
-      ud0_ = search.ud();
+      u0() = search.u();
+      ud0() = search.ud();
       t = t_next;
       seg_t0_ = t;
-      if (!u0_.allFinite() || !ud0_.allFinite())
+      if (!u0().allFinite() || !ud0().allFinite())
         return finish(RunStatus::numerical_failure, "non-finite modal state at t = " + number_text(t));
       if (!hit) break;
-      ContactSet impacting, releasing;
+      impacting.clear();
+      releasing.clear();
       for (Eigen::Index i = 0; i < rows; ++i) {
         const double trig = search.trig()(i);
         const bool fired = i == row_hit || (P.d(i) > 0.0 && P.h(i) >= -std::max(trig, P.d(i) * dt_simultaneous));
@@ -1143,7 +1178,8 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
         bool slow = false;
         if (r > 0.0 && r < 1.0) {
           // Free gap acceleration (the acceleration LCP of one stop holds iff it is > 0).
-          const Eigen::VectorXd udd = -(2.0 * md.decay().cwiseProduct(ud0_) + md.omega_squared().cwiseProduct(u0_));
+          auto udd = buffers.udd.head(nr_);
+          udd = -(2.0 * md.decay().cwiseProduct(ud0()) + md.omega_squared().cwiseProduct(u0()));
           const double c = std::cos(W * t), s = std::sin(W * t);
           const double accel = guards.P.row(row).dot(udd) - W * W * (guards.hc(row) * c + guards.hs(row) * s);
           slow = accel > 0.0 && (before <= v_chatter || (r * before) * (r * before) / (2.0 * accel) <= h_chatter);
@@ -1152,17 +1188,17 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
           fast = true;
           sets_seen.insert(impacting);
           const double impulse = before > 0.0 ? (1.0 + r) * before / algebra.delassus_diagonal(j) : 0.0;
-          ud0_ -= guards.P.row(row).transpose() * impulse;
-          const double g = guards.P.row(row).dot(u0_) + value_at({guards.h0(row), guards.hc(row), guards.hs(row)}, W, t);
-          if (g > 0.0) u0_ -= guards.P.row(row).transpose() * (g / algebra.delassus_diagonal(j));
+          ud0() -= guards.P.row(row).transpose() * impulse;
+          const double g = guards.P.row(row).dot(u0()) + value_at({guards.h0(row), guards.hc(row), guards.hs(row)}, W, t);
+          if (g > 0.0) u0() -= guards.P.row(row).transpose() * (g / algebra.delassus_diagonal(j));
           const double c = std::cos(W * t), s = std::sin(W * t);
-          const double after_rate = guards.P.row(row).dot(ud0_) + W * (guards.hs(row) * c - guards.hc(row) * s);
+          const double after_rate = guards.P.row(row).dot(ud0()) + W * (guards.hs(row) * c - guards.hc(row) * s);
           emit({t, j, EventKind::impact, before, after_rate, 0.0});
           ++summary.impacts;
         }
       }
       if (!fast) {
-        to_physical(*mode, W, t, u0_, ud0_, x, v);
+        to_physical(*mode, W, t, u0(), ud0(), x, v, buffers);
         if (!handle(impacting, releasing, {}) || !enter()) return finish(RunStatus::unsupported, why_not, true);
       }
       if (options_.stop_after_impacts > 0 && summary.impacts >= options_.stop_after_impacts)
@@ -1193,13 +1229,15 @@ void ModalSegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref
   const Eigen::Index nr = mode_->size();
   Eigen::VectorXd u(nr), ud(nr);
   if (mode_->modes) mode_->modes->advance(t - t_begin(), sim_->segment_u(), sim_->segment_ud(), u, ud);
-  to_physical(*mode_, sim_->modes().frequency(), t, u, ud, x, v);
+  Buffers buffers(sim_->modes().dof());  // observers' own scratch (they may allocate)
+  to_physical(*mode_, sim_->modes().frequency(), t, u, ud, x, v, buffers);
 }
 
 double ModalSegmentView::force(Eigen::Index a, double t) const {
   double value, slope;
+  Buffers buffers(mode_->size());
   guard_at(*mode_, sim_->modes().frequency(), t_begin(), sim_->segment_u(), sim_->segment_ud(),
-           t - t_begin(), mode_->gap_rows + a, &value, &slope);
+           t - t_begin(), mode_->gap_rows + a, &value, &slope, buffers);
   return -value;
 }
 
@@ -1230,7 +1268,7 @@ std::vector<Minimum> ModalSegmentView::force_local_minima(Eigen::Index a) const 
   slope.finish(W);
 
   long evaluations = 0;
-  ModalChainSimulator::Search s(W, &evaluations);
+  ModalChainSimulator::Search s(W, &evaluations, nr);
   const double span = t_end() - t_begin();
   const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(t_end()));
   s.reset(mode_->modes, slope, t_begin(), sim_->segment_u(), sim_->segment_ud(), resolution);

@@ -5,6 +5,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace vibro::detail {
 namespace {
@@ -225,7 +226,7 @@ SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z) :
   }
 }
 
-void SecularLevel::rotate(Eigen::Ref<Eigen::MatrixXd> x, bool forward) const {
+void SecularLevel::rotate(Eigen::Map<Eigen::MatrixXd>& x, bool forward) const {
   auto apply = [&](const Rotation& r, double s) {
     for (Eigen::Index k = 0; k < x.cols(); ++k) {
       const double a = x(r.i, k), b = x(r.j, k);
@@ -240,10 +241,17 @@ void SecularLevel::rotate(Eigen::Ref<Eigen::MatrixXd> x, bool forward) const {
 }
 
 void SecularLevel::to_child(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eigen::Ref<Eigen::MatrixXd> child) const {
+  std::vector<double> scratch(static_cast<std::size_t>(scratch_size(parent.cols())));
+  to_child(parent, child, scratch.data());
+}
+
+void SecularLevel::to_child(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eigen::Ref<Eigen::MatrixXd> child,
+                            double* scratch) const {
   const Eigen::Index k = parent.cols(), q = d_.size();
-  Eigen::MatrixXd x = parent;
+  Eigen::Map<Eigen::MatrixXd> x(scratch, m_, k);
+  x = parent;
   rotate(x, true);
-  Eigen::MatrixXd a(q, k);  // ẑ_p x_p
+  Eigen::Map<Eigen::MatrixXd> a(scratch + m_ * k, q, k);  // ẑ_p x_p
   for (Eigen::Index p = 0; p < q; ++p) a.row(p) = zhat_(p) * x.row(poles_[static_cast<std::size_t>(p)]);
   double out[8];
   for (std::size_t c = 0; c < child_.size(); ++c) {
@@ -260,9 +268,12 @@ void SecularLevel::to_child(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eig
   }
 }
 
-void SecularLevel::to_parent(const Eigen::Ref<const Eigen::MatrixXd>& child, Eigen::Ref<Eigen::MatrixXd> parent) const {
+void SecularLevel::to_parent(const Eigen::Ref<const Eigen::MatrixXd>& child, Eigen::Ref<Eigen::MatrixXd> parent,
+                             double* scratch) const {
   const Eigen::Index k = child.cols(), q = d_.size();
-  Eigen::MatrixXd x = Eigen::MatrixXd::Zero(m_, k), b = Eigen::MatrixXd::Zero(q, k);
+  Eigen::Map<Eigen::MatrixXd> x(scratch, m_, k), b(scratch + m_ * k, q, k);
+  x.setZero();
+  b.setZero();
   double coef[8];
   for (std::size_t c = 0; c < child_.size(); ++c) {
     const Eigen::Index l = child_[c], row = static_cast<Eigen::Index>(c);

@@ -49,10 +49,17 @@ class SecularLevel {
   /// The restricted problem's eigenvalues, ascending (size m - 1).
   const Eigen::VectorXd& eigenvalues() const { return mu_; }
 
-  /// child = Vᵀ parent (each column a vector), parent (m × k), child ((m-1) × k).
+  /// child = Vᵀ parent (each column a vector), parent (m × k), child ((m-1) × k). `scratch`
+  /// (≥ (m + q) k doubles, q ≤ m the poles kept) is used and not allocated; the other overload
+  /// allocates it.
+  void to_child(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eigen::Ref<Eigen::MatrixXd> child,
+                double* scratch) const;
   void to_child(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eigen::Ref<Eigen::MatrixXd> child) const;
-  /// parent = V child.
-  void to_parent(const Eigen::Ref<const Eigen::MatrixXd>& child, Eigen::Ref<Eigen::MatrixXd> parent) const;
+  /// parent = V child (same scratch).
+  void to_parent(const Eigen::Ref<const Eigen::MatrixXd>& child, Eigen::Ref<Eigen::MatrixXd> parent,
+                 double* scratch) const;
+  /// Doubles of scratch a product with k vectors needs.
+  Eigen::Index scratch_size(Eigen::Index k) const { return (m_ + d_.size()) * k; }
 
   /// Bytes held.
   std::size_t bytes() const;
@@ -62,7 +69,7 @@ class SecularLevel {
     Eigen::Index i, j;
     double c, s;  // (xᵢ, xⱼ) ← (c xᵢ + s xⱼ, -s xᵢ + c xⱼ)
   };
-  void rotate(Eigen::Ref<Eigen::MatrixXd> x, bool forward) const;
+  void rotate(Eigen::Map<Eigen::MatrixXd>& x, bool forward) const;
 
   Eigen::Index m_ = 0;
   std::vector<Rotation> rotations_;

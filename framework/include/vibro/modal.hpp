@@ -202,14 +202,32 @@ class ChainModes {
   const Eigen::VectorXd& particular_cosine() const { return cc_; }
   const Eigen::VectorXd& particular_sine() const { return cs_; }
 
+  /// Scratch for the basis changes below: storage that grows to the largest size asked for,
+  /// then is reused, so that an event loop changing basis allocates nothing once warm. One per
+  /// thread (the modes themselves stay const and shareable).
+  class Workspace {
+   public:
+    /// An n × k view of buffer `slot` (0 ≤ slot < 6), grown if needed.
+    Eigen::Map<Eigen::MatrixXd> matrix(int slot, Eigen::Index n, Eigen::Index k);
+
+   private:
+    Eigen::VectorXd store_[6];
+  };
+
   /// Homogeneous modal state (u, u') at t from the physical (x, v). O(n²).
   void to_modal(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
                 const Eigen::Ref<const Eigen::VectorXd>& v, Eigen::Ref<Eigen::VectorXd> u,
                 Eigen::Ref<Eigen::VectorXd> ud) const;
+  void to_modal(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
+                const Eigen::Ref<const Eigen::VectorXd>& v, Eigen::Ref<Eigen::VectorXd> u,
+                Eigen::Ref<Eigen::VectorXd> ud, Workspace& work) const;
   /// Physical (x, v) at t from the homogeneous modal state. O(n²).
   void to_physical(double t, const Eigen::Ref<const Eigen::VectorXd>& u,
                    const Eigen::Ref<const Eigen::VectorXd>& ud, Eigen::Ref<Eigen::VectorXd> x,
                    Eigen::Ref<Eigen::VectorXd> v) const;
+  void to_physical(double t, const Eigen::Ref<const Eigen::VectorXd>& u,
+                   const Eigen::Ref<const Eigen::VectorXd>& ud, Eigen::Ref<Eigen::VectorXd> x,
+                   Eigen::Ref<Eigen::VectorXd> v, Workspace& work) const;
 
   /// Advances every mode's homogeneous part by τ ≥ 0: (u, ud) → (u_out, ud_out). O(n).
   /// If `bound` is non-empty it receives (2σ_k + ω_k)·√(ud² + ω² u²) at τ (see the header).
@@ -346,8 +364,8 @@ class ModalChainSimulator {
 
   // For ModalSegmentView: the current segment's start and homogeneous modal state.
   double segment_start() const { return seg_t0_; }
-  const Eigen::VectorXd& segment_u() const { return u0_; }
-  const Eigen::VectorXd& segment_ud() const { return ud0_; }
+  Eigen::Ref<const Eigen::VectorXd> segment_u() const { return u0_.head(nr_); }
+  Eigen::Ref<const Eigen::VectorXd> segment_ud() const { return ud0_.head(nr_); }
   /// The run's force trigger ε_F = trigger·F (for force minima).
   double force_tolerance() const { return force_tolerance_; }
 
@@ -364,7 +382,10 @@ class ModalChainSimulator {
   double stop_setup_seconds_ = 0.0;
   std::unique_ptr<Cache> cache_;
   double seg_t0_ = 0.0, force_tolerance_ = 1e-13;
+  // The segment's homogeneous modal state: storage for the free chain's N modes, the current
+  // mode's nr_ of them in use (so that changing modes allocates nothing).
   Eigen::VectorXd u0_, ud0_;
+  Eigen::Index nr_ = 0;
 };
 
 }  // namespace vibro
