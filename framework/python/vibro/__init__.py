@@ -263,7 +263,8 @@ def simulate(scene, *, periods=None, transient_periods=None, threads=None, **rec
     given (only what is recorded is computed):
       events, contacts, statistics, poincare: True or False;
       samples: samples per forcing period (an int ≥ 1, 0 for none), or sample_times: times from
-      the start of the recording; record: a dict, the whole record: section (unlisted: off).
+      the start of the recording; record: a dict, a whole record: section to start from instead
+      of the scene's (what it does not list is off), which the single keywords then change.
     Returns a Result with the groups recorded (``result.events.t``, ``result.samples.x``, …) and
     /scene and /meta. ``result.status`` is 'completed', or why the run stopped early
     ('event_cap', 'numerical_failure', 'unsupported').
