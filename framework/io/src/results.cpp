@@ -6,6 +6,7 @@
 #include <hdf5.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -300,21 +301,45 @@ std::string index_text(hsize_t flat, const Dims& shape) {
 /// An open HDF5 file and the name used in messages.
 class Store {
  public:
-  enum class Mode { create, read, write };
+  /// memory: a new file held in memory (HDF5's core driver, nothing on disk; `name` only labels
+  /// it and must be unique among open files); image: read-only, from the bytes of a file.
+  enum class Mode { create, read, write, memory, image };
 
-  Store(std::string name, Mode mode) : name_(std::move(name)) {
+  Store(std::string name, Mode mode, const std::vector<char>* image = nullptr) : name_(std::move(name)) {
     silence_hdf5();
     // SEMI: closing fails if an object is still open, which would be a leak in this file.
     Hid fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
     H5Pset_fclose_degree(fapl, H5F_CLOSE_SEMI);
+    if (mode == Mode::memory || mode == Mode::image) H5Pset_fapl_core(fapl, 1 << 20, /*backing_store=*/0);
+    if (mode == Mode::image && image && !image->empty()) H5Pset_file_image(fapl, const_cast<char*>(image->data()), image->size());
     hid_t id = -1;
     switch (mode) {
-      case Mode::create: id = H5Fcreate(name_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl); break;
-      case Mode::read: id = H5Fopen(name_.c_str(), H5F_ACC_RDONLY, fapl); break;
+      case Mode::create: case Mode::memory: id = H5Fcreate(name_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl); break;
+      case Mode::read: case Mode::image: id = H5Fopen(name_.c_str(), H5F_ACC_RDONLY, fapl); break;
       case Mode::write: id = H5Fopen(name_.c_str(), H5F_ACC_RDWR, fapl); break;
     }
-    if (id < 0) fail("/", mode == Mode::create ? "cannot create the file" : "cannot open the file");
+    if (id < 0)
+      fail("/", mode == Mode::create || mode == Mode::memory ? "cannot create the file"
+                : mode == Mode::image                       ? "not an HDF5 file image"
+                                                            : "cannot open the file");
     file_ = Hid(id, H5Fclose);
+  }
+
+  /// A unique label for a file held in memory (HDF5 takes two open files of one name for one).
+  static std::string memory_name(const char* what) {
+    static std::atomic<unsigned long> count{0};
+    return std::string("<") + what + " " + std::to_string(++count) + ">";
+  }
+
+  /// The bytes of the file as it is now (flushed first): what it would be on disk.
+  std::vector<char> image() const {
+    flush();
+    const ssize_t size = H5Fget_file_image(file_, nullptr, 0);
+    if (size < 0) fail("/", "cannot take the file's image");
+    std::vector<char> bytes(static_cast<std::size_t>(size));
+    if (size > 0 && H5Fget_file_image(file_, bytes.data(), bytes.size()) != size)
+      fail("/", "cannot take the file's image");
+    return bytes;
   }
 
   const std::string& name() const { return name_; }
@@ -1171,6 +1196,8 @@ struct ResultFile::Impl {
   bool sweep_begun = false;
   std::size_t completed = 0, total = 0, parameters = 0;
   bool finished = false;
+  bool in_memory = false;        ///< create_in_memory(): no file on disk, nothing to rename
+  std::vector<char> final_image; ///< in memory: the finished file's bytes (taken by finish())
 
   Impl(std::string final_path, std::string file, Store::Mode mode, const Scene& scene)
       : path(std::move(final_path)),
@@ -1380,7 +1407,7 @@ ResultFile::~ResultFile() {
   } catch (...) {
     // Nothing better to do in a destructor; the file is abandoned either way.
   }
-  if (!impl_->keep_unfinished) std::remove(impl_->file_name.c_str());
+  if (!impl_->keep_unfinished && !impl_->in_memory) std::remove(impl_->file_name.c_str());
 }
 
 ResultFile ResultFile::create(const std::string& path, const Scene& scene, const RunMeta& meta) {
@@ -1392,6 +1419,21 @@ ResultFile ResultFile::create(const std::string& path, const Scene& scene, const
   f.commit();
   f.keep_unfinished = f.sweep_run;
   return file;
+}
+
+ResultFile ResultFile::create_in_memory(const Scene& scene, const RunMeta& meta) {
+  const std::string name = Store::memory_name("memory");
+  ResultFile file(std::make_unique<Impl>(name, name, Store::Mode::memory, scene));
+  Impl& f = *file.impl_;
+  f.in_memory = true;
+  f.write_scene(scene);
+  f.write_meta(meta, scene);
+  f.commit();
+  return file;
+}
+
+std::vector<char> ResultFile::image() const {
+  return impl_->finished ? impl_->final_image : impl_->store.image();
 }
 
 ResultFile ResultFile::open_partial(const std::string& path, const Scene& scene) {
@@ -1576,8 +1618,10 @@ void ResultFile::finish(const RunMeta& meta) {
   f.store.set_real("/meta", "wall_time", meta.wall_seconds);
   f.store.set_integer("/meta", "threads", meta.threads);
   f.store.flush();
+  if (f.in_memory) f.final_image = f.store.image();
   f.store.close();
   f.finished = true;  // closed: from here on the destructor leaves the file alone
+  if (f.in_memory) return;
   if (std::rename(f.partial.c_str(), f.path.c_str()) != 0)
     throw ResultError(f.partial + ": cannot rename to " + f.path + ": " + std::strerror(errno));
 }
@@ -1590,6 +1634,8 @@ struct ResultReader::Impl {
 
 ResultReader::ResultReader(const std::string& path)
     : impl_(std::make_unique<Impl>(Impl{Store(path, Store::Mode::read)})) {}
+ResultReader::ResultReader(const std::vector<char>& image)
+    : impl_(std::make_unique<Impl>(Impl{Store(Store::memory_name("image"), Store::Mode::image, &image)})) {}
 ResultReader::ResultReader(ResultReader&&) noexcept = default;
 ResultReader& ResultReader::operator=(ResultReader&&) noexcept = default;
 ResultReader::~ResultReader() = default;
@@ -1634,6 +1680,15 @@ std::vector<std::string> ResultReader::attributes(const std::string& object) con
 }
 bool ResultReader::attribute_is_string(const std::string& object, const std::string& name) const {
   return impl_->store.attribute_is_text(object, name);
+}
+std::string ResultReader::attribute_type(const std::string& object, const std::string& name) const {
+  switch (impl_->store.attribute_kind(object, name)) {
+    case Store::Attribute::text: return "str";
+    case Store::Attribute::texts: return "str[]";
+    case Store::Attribute::integer: return "i64";
+    case Store::Attribute::real: break;
+  }
+  return "f64";
 }
 std::string ResultReader::attribute_string(const std::string& object, const std::string& name) const {
   return impl_->store.text_attribute(object, name);

@@ -125,20 +125,23 @@ class Progress {
 };
 
 RunReport run_simulation(const Scene& scene, const RunRequest& request) {
-  ResultFile file = ResultFile::create(request.output, scene, current_meta(1));
-  const Recording rec = simulate(scene, {scene.t0, scene.x0, scene.v0});
+  ResultFile file = open_result_file(request, scene, current_meta(1));
+  Scene interruptible = scene;
+  interruptible.solver.interrupt = request.interrupt;
+  const Recording rec = simulate(interruptible, {scene.t0, scene.x0, scene.v0});
   file.write_simulation(rec);
   RunMeta meta = current_meta(1);
   meta.wall_seconds = rec.wall_seconds;
   file.finish(meta);
   RunReport report;
   const RunSummary& s = rec.summary;
-  report.exit_code = s.status == RunStatus::completed ? 0 : 1;
+  report.exit_code = s.status == RunStatus::completed ? 0 : s.status == RunStatus::interrupted ? 130 : 1;
   report.summary = fmt::format(
       "Simulated {} with the {} engine from t = {:g} over {:g} transient and {:g} recorded forcing periods in "
       "{:.3f} s: {}; {}.{} Results in {}.",
       scene.file, to_string(scene.engine), scene.t0, scene.run.transient_periods, scene.run.periods, rec.wall_seconds,
-      to_string(s.status), status_line(s), s.message.empty() ? "" : " " + s.message, request.output);
+      to_string(s.status), status_line(s), s.message.empty() ? "" : " " + s.message, file.path());
+  if (request.in_memory) report.image = file.image();
   return report;
 }
 
@@ -157,10 +160,14 @@ struct SweepPlan {
   /// Chains of points that must run in order: with `follow`, a whole row; else one point each.
   std::size_t chain_length = 1;
   std::size_t chains = 0;
+  /// Stops the sweep: raised by a signal (the process-wide flag), by the caller
+  /// (RunRequest::interrupt), or by the writer itself (a write error, interrupt_after).
+  std::atomic<bool>* interrupted = nullptr;
 };
 
-SweepPlan plan_sweep(const SceneDocument& doc, const Scene& scene) {
+SweepPlan plan_sweep(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
   SweepPlan plan;
+  plan.interrupted = request.interrupt ? request.interrupt : &g_interrupted;
   const auto& axes = scene.run.axes;
   if (axes.size() == 1) {
     for (double a : axes[0].values) plan.grid.push_back({a});
@@ -179,6 +186,7 @@ SweepPlan plan_sweep(const SceneDocument& doc, const Scene& scene) {
     for (std::size_t a = 0; a < axes.size(); ++a) point.set(axes[a].path, plan.grid[p][a]);
     try {
       plan.scenes.push_back(point.build_point());  // build() checks the whole grid: once, in main
+      plan.scenes.back().solver.interrupt = request.interrupt;
     } catch (const SceneError& e) {
       std::string where;
       for (std::size_t a = 0; a < axes.size(); ++a) where += fmt::format("{}{} = {:.12g}", a ? ", " : "", axes[a].path, plan.grid[p][a]);
@@ -203,12 +211,13 @@ struct SweepStart {
 /// is in the way.
 ResultFile open_sweep_file(const SweepPlan& plan, const Scene& scene, const RunRequest& request,
                            int threads, SweepStart& start) {
-  if (!request.resume && std::filesystem::exists(ResultFile::partial_path(request.output)))
+  if (request.in_memory && request.resume) throw std::logic_error("runner: a sweep in memory cannot be resumed");
+  if (!request.in_memory && !request.resume && std::filesystem::exists(ResultFile::partial_path(request.output)))
     throw SceneError(scene.file, 0, 0, "",
                      "an interrupted sweep exists in " + ResultFile::partial_path(request.output) +
                          ": finish it with --resume, or delete it to start again");
   ResultFile file = request.resume ? ResultFile::open_partial(request.output, scene)
-                                   : ResultFile::create(request.output, scene, current_meta(threads));
+                                   : open_result_file(request, scene, current_meta(threads));
   file.begin_sweep(plan.names, plan.total);
   start.first = file.completed_points();
   start.resumed.reset();
@@ -243,7 +252,7 @@ void run_chain(const SweepPlan& plan, const SweepStart& from, std::size_t c, Del
   const std::size_t end = std::min(plan.total, begin + plan.chain_length);
   std::optional<StartState> carried;
   for (std::size_t p = std::max(begin, from.first); p < end; ++p) {
-    if (g_interrupted.load()) break;
+    if (plan.interrupted->load()) break;
     const Scene& sc = plan.scenes[p];
     StartState start{sc.t0, sc.x0, sc.v0};
     if (plan.follow && carried) start = {sc.t0, carried->x, carried->v};
@@ -270,10 +279,11 @@ void run_chains(int threads, const SweepPlan& plan, const SweepStart& from, Take
 /// Hands out the chains in grid order, one per call, from any thread.
 class ChainDispenser {
  public:
-  ChainDispenser(std::size_t first_chain, std::size_t chains) : next_(first_chain), chains_(chains) {}
+  ChainDispenser(const SweepPlan& plan, std::size_t first_chain)
+      : next_(first_chain), chains_(plan.chains), interrupted_(*plan.interrupted) {}
   /// The next chain, or none once all are handed out or the sweep is interrupted.
   std::optional<std::size_t> operator()() {
-    if (g_interrupted.load()) return std::nullopt;
+    if (interrupted_.load()) return std::nullopt;
     const std::size_t c = next_.fetch_add(1);
     if (c >= chains_) return std::nullopt;
     return c;
@@ -282,6 +292,7 @@ class ChainDispenser {
  private:
   std::atomic<std::size_t> next_;
   std::size_t chains_;
+  const std::atomic<bool>& interrupted_;
 };
 
 /// Takes finished points from any thread and writes them in grid order (points that finish
@@ -294,6 +305,10 @@ class SweepWriter {
 
   void operator()(std::size_t p, Recording&& rec) {
     std::lock_guard<std::mutex> hold(lock_);
+    if (rec.summary.status == RunStatus::interrupted) {  // cut short: never written as a result
+      plan_.interrupted->store(true);
+      return;
+    }
     cpu_seconds_ += rec.wall_seconds;
     done_.emplace(p, std::move(rec));
     while (!write_error_ && done_.count(next_to_write_)) {
@@ -303,7 +318,7 @@ class SweepWriter {
         file_.append_point(next_to_write_, plan_.grid[next_to_write_], r);
       } catch (const ResultError& e) {
         write_error_ = e;
-        g_interrupted.store(true);
+        plan_.interrupted->store(true);
         break;
       }
       if (r.summary.status != RunStatus::completed) ++stopped_early_;
@@ -313,7 +328,7 @@ class SweepWriter {
       totals_.chatters += r.summary.chatters;
       ++next_to_write_;
       progress_.update(next_to_write_);
-      if (request_.interrupt_after > 0 && next_to_write_ >= request_.interrupt_after) g_interrupted.store(true);
+      if (request_.interrupt_after > 0 && next_to_write_ >= request_.interrupt_after) plan_.interrupted->store(true);
     }
   }
 
@@ -326,9 +341,9 @@ class SweepWriter {
     if (next_to_write_ < total) {
       report.exit_code = 130;
       report.summary = fmt::format(
-          "Interrupted: {} of {} sweep points are kept in {}; run the same command with --resume to "
-          "finish the rest.",
-          next_to_write_, total, ResultFile::partial_path(request_.output));
+          "Interrupted: {} of {} sweep points are kept in {}{}.", next_to_write_, total,
+          request_.in_memory ? "memory" : ResultFile::partial_path(request_.output),
+          request_.in_memory ? "" : "; run the same command with --resume to finish the rest");
       return report;  // the partial file is kept by ResultFile's destructor
     }
     RunMeta meta = current_meta(threads);
@@ -341,7 +356,7 @@ class SweepWriter {
         "Results in {}.",
         scene.file, total, total - first_, first_ ? fmt::format(", {} resumed", first_) : "", on, wall,
         cpu_seconds_, totals_.impacts, totals_.sticks, totals_.releases, totals_.chatters, stopped_early_,
-        stopped_early_ ? " (see /sweep/status and /sweep/message)" : "", request_.output);
+        stopped_early_ ? " (see /sweep/status and /sweep/message)" : "", file_.path());
     return report;
   }
 
@@ -395,7 +410,7 @@ RunReport run_sweep_mpi(const SweepPlan& plan, const Scene& scene, const RunRequ
 #endif
 
 RunReport run_sweep(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
-  const SweepPlan plan = plan_sweep(doc, scene);
+  const SweepPlan plan = plan_sweep(doc, scene, request);
   const int threads = thread_count(request);
 #ifdef VIBRO_WITH_MPI
   if (const auto [rank, size] = world(); size > 1) return run_sweep_mpi(plan, scene, request, threads, rank, size);
@@ -403,11 +418,14 @@ RunReport run_sweep(const SceneDocument& doc, const Scene& scene, const RunReque
   SweepStart from;
   ResultFile file = open_sweep_file(plan, scene, request, threads, from);
   SweepWriter writer(file, plan, from.first, request);
-  ChainDispenser dispenser(from.first / plan.chain_length, plan.chains);
+  ChainDispenser dispenser(plan, from.first / plan.chain_length);
   const auto wall_start = std::chrono::steady_clock::now();
-  InterruptGuard guard;
+  std::optional<InterruptGuard> guard;  // signals are the caller's when it gives its own flag
+  if (!request.interrupt) guard.emplace();
   run_chains(threads, plan, from, dispenser, writer);
-  return writer.report(scene, threads, seconds_since(wall_start), fmt::format("{} threads", threads));
+  RunReport report = writer.report(scene, threads, seconds_since(wall_start), fmt::format("{} threads", threads));
+  if (request.in_memory) report.image = file.image();
+  return report;
 }
 
 #ifdef VIBRO_WITH_MPI
@@ -693,7 +711,7 @@ RunReport run_rank0(const SweepPlan& plan, const Scene& scene, const RunRequest&
   if (failure) std::rethrow_exception(failure);
 
   SweepWriter writer(*file, plan, from.first, request);
-  ChainDispenser dispenser(from.first / plan.chain_length, plan.chains);
+  ChainDispenser dispenser(plan, from.first / plan.chain_length);
   const auto wall_start = std::chrono::steady_clock::now();
   InterruptGuard guard;
   std::atomic<bool> computed{false};
@@ -707,7 +725,7 @@ RunReport run_rank0(const SweepPlan& plan, const Scene& scene, const RunRequest&
     bool stop_sent = false;
     Backoff idle;
     while (!(computed.load() && byes == size - 1)) {
-      if (g_interrupted.load() && !stop_sent) {
+      if (plan.interrupted->load() && !stop_sent) {
         for (int r = 1; r < size; ++r) MPI_Send(nullptr, 0, MPI_BYTE, r, tag::stop, MPI_COMM_WORLD);
         stop_sent = true;
       }
@@ -762,7 +780,7 @@ RunReport run_worker(const SweepPlan& plan, const Scene& scene, int threads) {
   std::deque<Message> outbox;
   std::deque<long long> assigned;
   auto take = [&]() -> std::optional<std::size_t> {
-    if (g_interrupted.load()) return std::nullopt;
+    if (plan.interrupted->load()) return std::nullopt;
     std::unique_lock<std::mutex> hold(lock);
     outbox.push_back({tag::request, 0, {}});
     assigned_cv.wait(hold, [&] { return !assigned.empty(); });
@@ -823,7 +841,7 @@ RunReport run_worker(const SweepPlan& plan, const Scene& scene, int threads) {
         assigned_cv.notify_all();
       } else {
         MPI_Recv(nullptr, 0, MPI_BYTE, 0, status.MPI_TAG, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-        if (status.MPI_TAG == tag::stop) g_interrupted.store(true);
+        if (status.MPI_TAG == tag::stop) plan.interrupted->store(true);
         if (status.MPI_TAG == tag::done) done = true;
       }
     }
@@ -848,6 +866,11 @@ RunReport run_sweep_mpi(const SweepPlan& plan, const Scene& scene, const RunRequ
 #endif  // VIBRO_WITH_MPI
 
 }  // namespace
+
+ResultFile open_result_file(const RunRequest& request, const Scene& scene, const RunMeta& meta) {
+  return request.in_memory ? ResultFile::create_in_memory(scene, meta)
+                           : ResultFile::create(request.output, scene, meta);
+}
 
 RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
   // Under MPI only sweeps are split across the processes; any other run is rank 0's alone.

@@ -313,6 +313,13 @@ struct SceneDocument::Impl {
   std::string file, text;
   YAML::Node root;
   std::vector<std::pair<std::string, double>> overrides;  // set() calls, in order
+  /// Every edit in order (set: a number; replace: YAML text), replayed by a copy.
+  struct Edit {
+    std::string path;
+    std::optional<double> number;
+    std::string yaml;
+  };
+  std::vector<Edit> edits;
 };
 
 SceneDocument::SceneDocument() : impl_(std::make_unique<Impl>()) {}
@@ -323,7 +330,7 @@ SceneDocument::SceneDocument(const SceneDocument& o) : impl_(std::make_unique<Im
 SceneDocument& SceneDocument::operator=(const SceneDocument& o) {
   if (this != &o) {
     SceneDocument fresh = parse(o.impl_->text, o.impl_->file);
-    for (const auto& [path, value] : o.impl_->overrides) fresh.set(path, value);
+    for (const Impl::Edit& e : o.impl_->edits) e.number ? fresh.set(e.path, *e.number) : fresh.replace(e.path, e.yaml);
     std::swap(impl_, fresh.impl_);
   }
   return *this;
@@ -396,6 +403,39 @@ void SceneDocument::set(const std::string& path, double value) {
   r.number(node, path);  // must already be a number
   node = number_text(value);
   impl_->overrides.emplace_back(path, value);
+  impl_->edits.push_back({path, value, {}});
+}
+
+void SceneDocument::replace(const std::string& path, const std::string& yaml) {
+  std::vector<PathStep> steps;
+  try {
+    steps = split_path(path);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(impl_->file, 0, 0, path, std::string("malformed path: ") + e.what());
+  }
+  YAML::Node value;
+  try {
+    if (!yaml.empty()) value = YAML::Load(yaml);
+  } catch (const YAML::ParserException& e) {
+    throw SceneError(impl_->file, 0, 0, path, "YAML syntax error in the value given: " + e.msg);
+  }
+  YAML::Node node = impl_->root;
+  for (std::size_t k = 0; k < steps.size(); ++k) {
+    const std::string& key = steps[k].key;
+    if (key.empty() || !node.IsMap())
+      throw SceneError(impl_->file, 0, 0, path, "only mappings' keys can be replaced");
+    if (k + 1 == steps.size()) {
+      if (yaml.empty())
+        node.remove(key);
+      else
+        node[key] = value;
+    } else {
+      const YAML::Node& look = node;  // a const lookup never inserts the key
+      if (!look[key]) node[key] = YAML::Node(YAML::NodeType::Map);
+      node.reset(node[key]);
+    }
+  }
+  impl_->edits.push_back({path, std::nullopt, yaml});
 }
 
 void SceneDocument::set_assignment(const std::string& assignment) {

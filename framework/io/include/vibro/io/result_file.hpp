@@ -71,6 +71,13 @@ class ResultFile {
   /// completed_points() says where to continue; begin_sweep() only checks the grid.
   static ResultFile open_partial(const std::string& path, const Scene& scene);
   static std::string partial_path(const std::string& path) { return path + ".partial"; }
+  /// The same file held in memory (nothing on disk; for library use, session.hpp): written as
+  /// create() writes, finish() renames nothing, image() gives its bytes. Sweeps are not kept
+  /// for --resume.
+  static ResultFile create_in_memory(const Scene& scene, const RunMeta& meta);
+  /// The bytes of the file (flushed): after finish(), the finished file; before, what is written
+  /// so far (an interrupted sweep's counted points). Written to disk, they are an HDF5 file.
+  std::vector<char> image() const;
 
   ResultFile(ResultFile&&) noexcept;
   ResultFile& operator=(ResultFile&&) noexcept;
@@ -120,6 +127,8 @@ class ResultFile {
 class ResultReader {
  public:
   explicit ResultReader(const std::string& path);
+  /// Reads the bytes of a result file (ResultFile::image(), or a file's content) from memory.
+  explicit ResultReader(const std::vector<char>& image);
   ResultReader(ResultReader&&) noexcept;
   ResultReader& operator=(ResultReader&&) noexcept;
   ~ResultReader();
@@ -141,6 +150,8 @@ class ResultReader {
 
   std::vector<std::string> attributes(const std::string& object) const;
   bool attribute_is_string(const std::string& object, const std::string& name) const;
+  /// "str" (one string), "str[]" (an array of strings), "i64" or "f64" (numbers).
+  std::string attribute_type(const std::string& object, const std::string& name) const;
   std::string attribute_string(const std::string& object, const std::string& name) const;
   std::vector<std::string> attribute_strings(const std::string& object,
                                              const std::string& name) const;

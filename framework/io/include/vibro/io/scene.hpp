@@ -180,6 +180,12 @@ class SceneDocument {
   void set_assignment(const std::string& assignment);
   /// The numeric value at `path`.
   double get(const std::string& path) const;
+  /// Replaces the value at `path` (keys only, e.g. "record" or "run.sweep") by the YAML text
+  /// `yaml` (a scalar, list or mapping), adding missing keys; an empty `yaml` removes the key.
+  /// For what a program chooses per run (the Python module's record and run keywords): build()
+  /// checks it as if the file said it. Like set(), it leaves text() as loaded. Throws SceneError
+  /// if a step of the path is not a mapping or `yaml` does not parse.
+  void replace(const std::string& path, const std::string& yaml);
 
   /// Builds and validates the scene. Throws SceneError.
   Scene build() const;
