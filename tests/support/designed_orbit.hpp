@@ -53,13 +53,45 @@ struct DesignedOrbit {
     P << e * (C + z / wd * S), e * S / wd, -e * S / wd, e * (C - z / wd * S);
     return P;
   }
-  Eigen::VectorXd particular(double t) const {  // unit amplitude: (P_x, P_v)
-    const double den = (1.0 - omega * omega) * (1.0 - omega * omega) + c * c * omega * omega;
-    const double a = (1.0 - omega * omega) / den, b = c * omega / den;
+  Eigen::VectorXd particular(double t) const { return particular(t, omega); }
+  /// Unit-amplitude particular solution (P_x, P_v) at forcing frequency w.
+  Eigen::VectorXd particular(double t, double w) const {
+    const double den = (1.0 - w * w) * (1.0 - w * w) + c * c * w * w;
+    const double a = (1.0 - w * w) / den, b = c * w / den;
     Eigen::VectorXd p(2);
-    p << a * std::cos(omega * t) + b * std::sin(omega * t), omega * (b * std::cos(omega * t) - a * std::sin(omega * t));
+    p << a * std::cos(w * t) + b * std::sin(w * t), w * (b * std::cos(w * t) - a * std::sin(w * t));
     return p;
   }
+
+  // With s and A fixed, the period-1 orbits at any frequency w: the impact time t* and speed u
+  // solve G(u, t*, w) = 0 (the periodicity condition above), and their monodromy matrix is
+  // M(u, t*, w) = Φ(T/2) S Φ(T/2). A fold of the family in w is where ∂G/∂(u, t*) is singular, a
+  // period doubling where M has the eigenvalue −1 (tr M + 1 + det M = 0).
+  Eigen::Vector2d G(double speed, double ts, double w) const {
+    const double period = 2.0 * std::numbers::pi / w;
+    const Eigen::VectorXd p = particular(ts, w);
+    const Eigen::Vector2d before(s - A * p(0), speed - A * p(1)), after(s - A * p(0), -r * speed - A * p(1));
+    return before - phi(period) * after;
+  }
+  Eigen::Matrix2d dG(double speed, double ts, double w) const {
+    (void)speed;
+    const double period = 2.0 * std::numbers::pi / w;
+    const Eigen::VectorXd p = particular(ts, w);
+    const Eigen::Vector2d dp(p(1), -w * w * p(0));  // d/dt of (P_x, P_v)
+    Eigen::Matrix2d out;
+    out.col(0) = Eigen::Vector2d(0.0, 1.0) - phi(period) * Eigen::Vector2d(0.0, -r);
+    out.col(1) = -A * dp + phi(period) * (A * dp);
+    return out;
+  }
+  Eigen::Matrix2d monodromy(double speed, double ts, double w) const {
+    const double period = 2.0 * std::numbers::pi / w;
+    const double force = A * std::cos(w * ts) - s;
+    const double a_minus = force - c * speed, a_plus = force + c * r * speed;
+    Eigen::Matrix2d S;
+    S << -r, 0.0, (a_plus + r * a_minus) / speed, -r;
+    return phi(0.5 * period) * S * phi(0.5 * period);
+  }
+
   ImpactSystem system() const {
     HarmonicForcing f = HarmonicForcing::zero(1, omega);
     f.cosine(0) = A;
@@ -73,15 +105,8 @@ struct DesignedOrbit {
     post << s, -r * u;
     return phi(tau) * (post - A * particular(t_star)) + A * particular(t_star + tau);
   }
-  Eigen::MatrixXd saltation() const {
-    const double force = A * std::cos(omega * t_star) - s;
-    const double a_minus = force - c * u, a_plus = force + c * r * u;
-    Eigen::MatrixXd S(2, 2);
-    S << -r, 0.0, (a_plus + r * a_minus) / u, -r;
-    return S;
-  }
-  /// The monodromy matrix from half a period after the impact.
-  Eigen::MatrixXd monodromy() const { return phi(0.5 * T) * saltation() * phi(0.5 * T); }
+  /// The monodromy matrix of the designed orbit, from half a period after the impact.
+  Eigen::MatrixXd monodromy() const { return monodromy(u, t_star, omega); }
 };
 
 }  // namespace vibro::test

@@ -187,7 +187,7 @@ class TangentRecorder final : public Observer {
       held_ = S;
       for (int j : S) open_phase(j, tb);
     } else if (pending_) {
-      finish_transition(xb, vb, S);
+      finish_transition(vb, S);
     }
     Mode& mode = mode_for(S);
     if (out_.rate_start.size() == 0) out_.rate_start = rate(mode, tb, xb, vb);
@@ -403,7 +403,7 @@ class TangentRecorder final : public Observer {
   }
 
   /// The events since the last segment, resolved: their saltation applied to J and ζ.
-  void finish_transition(const VectorXd& xp, const VectorXd& vp, const ContactSet& held_after) {
+  void finish_transition(const VectorXd& vp, const ContactSet& held_after) {
     pending_ = false;
     const double t = te_;
     ContactSet impacting, caught, released;
@@ -423,7 +423,14 @@ class TangentRecorder final : public Observer {
     rec.caught = caught;
     rec.released = released;
     rec.held_after = held_after;
-    if (options_.features) phases_at(t, held_, held_after);
+    if (options_.features) {
+      phases_at(t, held_, held_after);
+      Mode& before = mode_for(held_);
+      const VectorXd a = rate(before, t, xe_, ve_).tail(n_);
+      for (int j : impacting)
+        out_.impacts.push_back({j, t, mech_.gap_rate(j, ve_, t),
+                                mech_.normal_dot(j, a) - mech_.stop_position(j, t, 2)});
+    }
     past_release(released);
 
     Jump total;

@@ -97,6 +97,14 @@ struct ForceDip {
   bool past_release = false;
 };
 
+/// An impact: its stop, time, approach speed u = g'⁻ > 0 and the gap's acceleration g''⁻ just
+/// before it (< 0 where the free trajectory would turn back: u²/(2|g''|) is then how far past the
+/// stop its parabola would rise, → 0 at grazing).
+struct ImpactRecord {
+  int stop = -1;
+  double t = 0.0, speed = 0.0, acceleration = 0.0;
+};
+
 /// A contact phase: stop `stop` held over [t_start, t_end] (closed: ended by a release).
 struct HeldPhase {
   int stop = -1;
@@ -138,6 +146,7 @@ struct TangentMap {
 
   std::vector<GapPeak> gap_peaks;
   std::vector<ForceDip> force_dips;
+  std::vector<ImpactRecord> impacts;
   std::vector<HeldPhase> phases;
 };
 

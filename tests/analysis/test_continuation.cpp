@@ -1,0 +1,180 @@
+/// Tests of continuation and bifurcation location (framework/analysis, continuation.hpp).
+///
+/// The engineered case: the designed 1-DOF impact oscillator of support/designed_orbit.hpp with
+/// its stop s and amplitude A fixed, continued in Ω. Its period-1 impacting orbits solve two
+/// closed-form equations G(u, t*, Ω) = 0, so the fold (∂G/∂(u, t*) singular) and the period
+/// doubling (a multiplier −1 of the closed-form monodromy matrix) are located independently by
+/// Newton on those equations; its non-impacting orbit is the linear response of amplitude
+/// A/√((1 − Ω²)² + c²Ω²), which grazes the stop where that equals s — a quadratic in Ω².
+/// Along Ω ∈ [0.8, 1.45] the branch is: non-impacting, grazing (0.8863), impacting and stable,
+/// period doubling (0.9898), a fold (1.3390), unstable impacting back down to a grazing corner
+/// (1.0975) where the non-impacting branch takes over. The doubled branch grazes and turns at
+/// 0.99021, then doubles again.
+#include "support/analysis_helpers.hpp"
+#include "support/designed_orbit.hpp"
+#include "vibro/continuation.hpp"
+#include "vibro/models/chain.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <numbers>
+
+namespace {
+
+using Eigen::VectorXd;
+using vibro::test::DesignedOrbit;
+
+/// The designed 1-DOF system (s, A from the orbit at Ω = 1.2) as a family in Ω.
+vibro::ParameterFamily designed_family(const DesignedOrbit& d) {
+  return [d](double omega) {
+    vibro::HarmonicForcing f = vibro::HarmonicForcing::zero(1, omega);
+    f.cosine(0) = d.A;
+    vibro::ImpactSystem sys(vibro::LinearSystem(Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Constant(1, 1, d.c),
+                                                Eigen::MatrixXd::Identity(1, 1), f),
+                            {vibro::Stop::upper(0, d.s, d.r)});
+    return vibro::FamilyPoint{std::move(sys), vibro::SystemDerivative::frequency_only()};
+  };
+}
+
+}  // namespace
+
+
+namespace {
+
+/// Newton on the closed-form equations [G(u, t*, Ω); condition(u, t*, Ω)] = 0 for (u, t*, Ω),
+/// with a central-difference Jacobian (it only steers the iteration: the root is where the
+/// residual, evaluated in closed form, vanishes).
+Eigen::Vector3d solve_closed_form(const DesignedOrbit& d, Eigen::Vector3d y,
+                                  const std::function<double(const DesignedOrbit&, double, double, double)>& condition) {
+  auto F = [&](const Eigen::Vector3d& q) {
+    const Eigen::Vector2d g = d.G(q(0), q(1), q(2));
+    return Eigen::Vector3d(g(0), g(1), condition(d, q(0), q(1), q(2)));
+  };
+  for (int it = 0; it < 50; ++it) {
+    Eigen::Matrix3d J;
+    for (int i = 0; i < 3; ++i) {
+      Eigen::Vector3d h = Eigen::Vector3d::Zero();
+      h(i) = 1e-7;
+      J.col(i) = (F(y + h) - F(y - h)) / 2e-7;
+    }
+    const Eigen::Vector3d step = J.fullPivLu().solve(F(y));
+    y -= step;
+    if (step.cwiseAbs().maxCoeff() < 1e-15) break;
+  }
+  REQUIRE(F(y).cwiseAbs().maxCoeff() < 1e-13);
+  return y;
+}
+
+const vibro::Bifurcation* find(const vibro::ContinuationResult& r, vibro::BifurcationKind kind, double near,
+                               int branch = 0) {
+  const vibro::Bifurcation* best = nullptr;
+  for (const vibro::Bifurcation& b : r.bifurcations)
+    if (b.kind == kind && b.branch == branch && (!best || std::abs(b.p - near) < std::abs(best->p - near))) best = &b;
+  return best;
+}
+
+vibro::ContinuationResult designed_branch() {
+  const DesignedOrbit d(0.125);
+  vibro::ContinuationOptions o;
+  o.p_min = 0.8;
+  o.p_max = 1.45;
+  o.step = 0.02;
+  const double t0 = d.t_star + 0.5 * d.T;
+  const VectorXd z0 = d.state_after_impact(0.5 * d.T);
+  return vibro::continue_orbits(designed_family(d), d.omega, t0, z0.head(1), z0.tail(1), o);
+}
+
+}  // namespace
+
+TEST_CASE("continuation: the designed oscillator's fold, period doubling and two grazings are "
+          "located to 1e-10 of their closed-form values",
+          "[continuation][closed-form]") {
+  const DesignedOrbit d(0.125);
+  const vibro::ContinuationResult r = designed_branch();
+  REQUIRE_FALSE(r.branches.empty());
+  const vibro::Branch& main = r.branches[0];
+  INFO("branch: " << main.end);
+  // The whole range is covered, both ends at the limits, through the fold and the corner.
+  CHECK(main.end.find("reached p_min") != std::string::npos);
+  CHECK(main.end.find("reached p_max") != std::string::npos);
+
+  // Fold: ∂G/∂(u, t*) singular.
+  const Eigen::Vector3d fold = solve_closed_form(d, {0.62, 1.27, 1.339},
+      [](const DesignedOrbit& o, double u, double ts, double w) { return o.dG(u, ts, w).determinant(); });
+  // Period doubling: tr M + 1 + det M = 0.
+  const Eigen::Vector3d pd = solve_closed_form(d, {0.19, 0.42, 0.99}, [](const DesignedOrbit& o, double u, double ts, double w) {
+    const Eigen::Matrix2d M = o.monodromy(u, ts, w);
+    return M.trace() + 1.0 + M.determinant();
+  });
+  // Grazing of the linear response: A² = s² ((1 − Ω²)² + c²Ω²), a quadratic in Ω².
+  const double b = 2.0 - d.c * d.c, disc = std::sqrt(b * b - 4.0 * (1.0 - d.A * d.A / (d.s * d.s)));
+  const double graze_high = std::sqrt(0.5 * (b + disc)), graze_low = std::sqrt(0.5 * (b - disc));
+
+  struct Expect {
+    vibro::BifurcationKind kind;
+    double p;
+  };
+  for (const Expect& e : {Expect{vibro::BifurcationKind::fold, fold(2)}, Expect{vibro::BifurcationKind::period_doubling, pd(2)},
+                          Expect{vibro::BifurcationKind::grazing, graze_high}, Expect{vibro::BifurcationKind::grazing, graze_low}}) {
+    const vibro::Bifurcation* found = find(r, e.kind, e.p);
+    INFO(vibro::to_string(e.kind) << " expected at " << e.p);
+    REQUIRE(found != nullptr);
+    INFO("located at " << found->p << " (bracket " << found->p_low << " … " << found->p_high << ", value " << found->value << ")");
+    CHECK(found->smooth);
+    CHECK(std::abs(found->p - e.p) <= 1e-10);
+    CHECK(found->p_high - found->p_low <= 1e-10);
+    if (e.kind == vibro::BifurcationKind::grazing) CHECK(found->stop == 0);
+  }
+  // Nothing else on the period-1 branch.
+  int on_main = 0;
+  for (const vibro::Bifurcation& b : r.bifurcations) on_main += b.branch == 0;
+  CHECK(on_main == 4);
+  // The test functions vanish at the located points (in their own scales: t_p, the product
+  // Π(1 + μ), the gap in units of s).
+  CHECK(std::abs(find(r, vibro::BifurcationKind::fold, fold(2))->value) < 1e-8);
+  CHECK(std::abs(find(r, vibro::BifurcationKind::period_doubling, pd(2))->value) < 1e-8);
+  CHECK(std::abs(find(r, vibro::BifurcationKind::grazing, graze_low)->value) < 1e-9 * d.s);
+  // Stability along the branch (the order is from p_min up, over the fold and back down):
+  // non-impacting orbits are stable; the impacting ones coming up from the low grazing are
+  // unstable (a multiplier below −1, growing like 1/u towards the grazing) until the period
+  // doubling, stable from there to the fold, unstable (a multiplier above 1) beyond it.
+  for (const vibro::BranchPoint& p : main.points) {
+    if (p.located) continue;
+    INFO("p = " << p.p << ", dp/ds " << p.tangent_p << ", largest multiplier " << p.multipliers.spectral_radius);
+    const bool impacting = p.signature.impacts[0] > 0, rising = p.tangent_p > 0.0;
+    if (!impacting) CHECK(p.multipliers.stable);
+    else if (rising && p.p < pd(2) - 1e-6) CHECK_FALSE(p.multipliers.stable);
+    else if (rising && p.p > pd(2) + 1e-6 && p.p < fold(2) - 1e-6) CHECK(p.multipliers.stable);
+    else if (!rising && p.p < fold(2) - 1e-6) CHECK_FALSE(p.multipliers.stable);
+  }
+}
+
+TEST_CASE("continuation: branch switching at the period doubling gives a period-2 branch whose "
+          "orbits have minimal period 2; it grazes, turns and doubles again",
+          "[continuation][doubling]") {
+  const DesignedOrbit d(0.125);
+  const vibro::ContinuationResult r = designed_branch();
+  REQUIRE(r.branches.size() >= 2);
+  const vibro::Branch& doubled = r.branches[1];
+  CHECK(doubled.k == 2);
+  CHECK(doubled.parent == 0);
+  REQUIRE(doubled.points.size() >= 4);
+  // Its points away from the PD point are genuine period-2 orbits: shooting with k = 2 from one
+  // converges there with minimal period 2.
+  const vibro::BranchPoint& q = doubled.points[3];
+  vibro::ShootingOptions so;
+  so.period = 2;
+  so.phase = q.phase;
+  so.free_section = false;
+  const vibro::ShootingResult s = vibro::shoot(designed_family(d)(q.p).system, so, q.t0, q.x, q.v);
+  REQUIRE(s.converged());
+  CHECK(s.minimal_k == 2);
+  CHECK((vibro::test::stack(s.x, s.v) - vibro::test::stack(q.x, q.v)).cwiseAbs().maxCoeff() < 1e-9);
+  // The doubled branch's grazing corner and its own period doubling.
+  CHECK(find(r, vibro::BifurcationKind::grazing, 0.9902, 1) != nullptr);
+  CHECK(find(r, vibro::BifurcationKind::period_doubling, 0.9762, 1) != nullptr);
+  bool period_four = false;
+  for (const vibro::Branch& b : r.branches) period_four |= b.k == 4;
+  CHECK(period_four);
+}
