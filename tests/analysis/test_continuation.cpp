@@ -17,7 +17,9 @@
 
 #include <catch2/catch.hpp>
 
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 
 namespace {
@@ -177,4 +179,72 @@ TEST_CASE("continuation: branch switching at the period doubling gives a period-
   bool period_four = false;
   for (const vibro::Branch& b : r.branches) period_four |= b.k == 4;
   CHECK(period_four);
+}
+
+namespace {
+
+vibro::FamilyPoint paper_at(double omega) {
+  vibro::models::Wagg2004 p;
+  p.frequency = omega;
+  return vibro::FamilyPoint{vibro::models::wagg2004(p), vibro::SystemDerivative::frequency_only()};
+}
+
+}  // namespace
+
+TEST_CASE("continuation: the paper's system near Ω = 0.2637: mass 1 loses an impact per period at "
+          "a grazing corner and the impacting branch folds just above it; in between two stable "
+          "orbits coexist, each attracting a run started on it",
+          "[continuation][wagg2004]") {
+  vibro::models::Wagg2004 p;
+  p.frequency = 0.2634;
+  const vibro::ImpactSystem sys = vibro::models::wagg2004(p);
+  vibro::Simulator sim(sys);
+  const double T = 2.0 * std::numbers::pi / p.frequency;
+  const vibro::RunSummary warm = sim.run(0.0, VectorXd::Zero(2), VectorXd::Zero(2), 200.0 * T);
+  vibro::ContinuationOptions o;
+  o.p_min = 0.2634;
+  o.p_max = 0.2640;
+  o.step = 0.02;
+  const vibro::ContinuationResult r = vibro::continue_orbits(paper_at, p.frequency, 200.0 * T, warm.x, warm.v, o);
+  const vibro::Bifurcation* fold = find(r, vibro::BifurcationKind::fold, 0.26378);
+  const vibro::Bifurcation* graze = find(r, vibro::BifurcationKind::grazing, 0.26373);
+  REQUIRE(fold != nullptr);
+  REQUIRE(graze != nullptr);
+  CHECK(graze->stop == 0);
+  CHECK(graze->smooth);
+  CHECK(graze->p < fold->p);
+  CHECK(std::abs(graze->value) < 1e-12);  // the gap maximum there, length units (L = 0.3)
+  // Between the corner and the fold: the impacting orbit (one impact of mass 1 per period) is
+  // stable below the fold, and the orbit without that impact stable above the corner.
+  const double mid = 0.5 * (graze->p + fold->p);
+  const vibro::BranchPoint* with = nullptr;
+  const vibro::BranchPoint* without = nullptr;
+  for (const vibro::BranchPoint& q : r.branches[0].points) {
+    if (q.located || !q.multipliers.stable) continue;
+    const vibro::BranchPoint*& slot = q.signature.impacts[0] == 1 ? with : without;
+    if (!slot || std::abs(q.p - mid) < std::abs(slot->p - mid)) slot = &q;
+  }
+  REQUIRE(with != nullptr);
+  REQUIRE(without != nullptr);
+  // Both orbits at Ω = mid, by shooting from those branch points; each is stable and a run from
+  // it stays on it for 100 periods (two attractors at one Ω).
+  const vibro::ImpactSystem at_mid = paper_at(mid).system;
+  std::vector<VectorXd> found;
+  for (const vibro::BranchPoint* q : {with, without}) {
+    vibro::ShootingOptions so;
+    so.phase = q->phase;
+    so.free_section = false;
+    const vibro::ShootingResult orbit = vibro::shoot(at_mid, so, q->t0, q->x, q->v);
+    REQUIRE(orbit.converged());
+    CHECK(orbit.multipliers.stable);
+    vibro::Simulator run(at_mid);
+    VectorXd z = vibro::test::stack(orbit.x, orbit.v);
+    z(2) += 1e-7;  // a small push: it must come back
+    const double Tm = 2.0 * std::numbers::pi / mid;
+    const vibro::RunSummary s = run.run(orbit.t0, z.head(2), z.tail(2), orbit.t0 + 100.0 * Tm);
+    CHECK((vibro::test::stack(s.x, s.v) - vibro::test::stack(orbit.x, orbit.v)).cwiseAbs().maxCoeff() < 1e-9);
+    // Compared at phase 0 (the sections may differ).
+    found.push_back(vibro::test::engine_map(at_mid, {}, orbit.t0, vibro::test::stack(orbit.x, orbit.v), Tm * std::ceil(orbit.t0 / Tm + 1.0)));
+  }
+  CHECK((found[0] - found[1]).cwiseAbs().maxCoeff() > 1e-3);  // two different orbits
 }

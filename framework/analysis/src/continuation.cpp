@@ -546,6 +546,31 @@ class BranchRunner {
     return std::nullopt;
   }
 
+  /// Bisection in p on a discrete property (same_as_a: whether a point is on a's side), each
+  /// point by Newton at fixed p from the nearer bracket end's orbit (or the farther one's if
+  /// that fails). Returns a's-side end of the final bracket; where no orbit can be found inside
+  /// the bracket it stops there and reports the bracket reached.
+  std::optional<Node> bisect(const Node& a, const Node& b, const std::function<bool(const Node&)>& same_as_a,
+                             int* count) {
+    Node lo = a, hi = b;
+    for (int it = 0; it < 80 && std::abs(hi.e.p - lo.e.p) > o_.locate_tolerance; ++it) {
+      const double p = 0.5 * (lo.e.p + hi.e.p);
+      std::optional<Node> m = at_p(lo, p, lo.t);
+      if (count) ++*count;
+      if (!m) {
+        m = at_p(hi, p, hi.t);
+        if (count) ++*count;
+      }
+      if (!m) break;
+      if (same_as_a(*m)) lo = *m;
+      else hi = *m;
+    }
+    bracket_low_ = std::min(lo.e.p, hi.e.p);
+    bracket_high_ = std::max(lo.e.p, hi.e.p);
+    located_smooth_ = false;
+    return lo;
+  }
+
   void record(BifurcationKind kind, int stop, const Node& a, const Node& b, int branch_index,
               const TestFunction& f, Mode mode, const std::function<bool(const Node&)>& same_as_a,
               const std::string& note) {
@@ -571,8 +596,14 @@ class BranchRunner {
       const bool a_good = same_as_a(a);  // same_as_a tells the good side here
       at = a_good ? one_sided(a, b, f, same_as_a, &count) : one_sided(b, a, f, same_as_a, &count);
       located_smooth_ = at.has_value();
+      if (!at) {
+        at = bisect(a, b, same_as_a, &count);
+        bif.note += std::string(bif.note.empty() ? "" : "; ") + "the smooth location failed: bracketed by bisection";
+      }
+    } else if (mode == Mode::bisection) {
+      at = bisect(a, b, same_as_a, &count);
     } else {
-      at = illinois(a, b, f, mode == Mode::two_sided, &count, same_as_a);
+      at = illinois(a, b, f, true, &count, same_as_a);
     }
     bif.evaluations = count;
     if (!at) {
@@ -626,7 +657,7 @@ class BranchRunner {
     bool explained = false;
     for (std::size_t j = 0; j < stops; ++j) {
       const int stop = static_cast<int>(j);
-      if (sa.impacts[j] != sb.impacts[j] && sa.chatters[j] == sb.chatters[j]) {
+      if (sa.impacts[j] != sb.impacts[j] && sa.chatters[j] == sb.chatters[j] && sa.phases[j] == sb.phases[j]) {
         explained = true;
         const int fewer = std::min(sa.impacts[j], sb.impacts[j]), more = std::max(sa.impacts[j], sb.impacts[j]);
         const TestFunction f = [this, j, fewer, more](const Node& n) { return grazing_function(n, j, fewer, more); };
@@ -640,7 +671,7 @@ class BranchRunner {
                ok ? fewer_side : same_counts(sa, j, &Signature::impacts),
                ok ? "" : "no gap maximum on the side without the impact: bracketed by bisection");
       }
-      if (sa.phases[j] != sb.phases[j] && sa.chatters[j] == sb.chatters[j]) {
+      if (sa.phases[j] != sb.phases[j]) {
         explained = true;
         const int fewer = std::min(sa.phases[j], sb.phases[j]);
         const TestFunction f = [this, j, fewer](const Node& n) { return rising_function(n, j, fewer); };
@@ -648,13 +679,14 @@ class BranchRunner {
         const Node& good = fewer_side(a) ? a : b;
         const Node& other = fewer_side(a) ? b : a;
         // Rising: on the unsplit side an interior force minimum falls to zero; on the split side
-        // the held flow continued past the release needs a negative force.
+        // the held flow continued past the release needs a negative force. (The new part of the
+        // split phase usually starts with a chatter, so the chatter count moves with it.)
         const bool rising = std::isfinite(f(good)) && f(good) > 0.0 && std::isfinite(f(other)) && f(other) < 0.0;
+        const std::string how = sa.chatters[j] != sb.chatters[j] ? "entered by chatter" : "entered by an impact";
         record(rising ? BifurcationKind::rising : BifurcationKind::phase_change, stop, a, b, branch_index, f,
                rising ? Mode::one_sided : Mode::bisection, rising ? fewer_side : same_counts(sa, j, &Signature::phases),
-               rising ? "" : "not smooth in p: depends on the chatter rule; bracketed by bisection");
-      }
-      if (sa.chatters[j] != sb.chatters[j]) {
+               rising ? "" : "a contact phase (" + how + ") appears or vanishes; not smooth in p (it depends on the chatter rule): bracketed by bisection");
+      } else if (sa.chatters[j] != sb.chatters[j]) {
         explained = true;
         record(BifurcationKind::chatter_change, stop, a, b, branch_index, {}, Mode::bisection,
                same_counts(sa, j, &Signature::chatters), "not smooth in p: bracketed by bisection");
