@@ -85,7 +85,7 @@ py::dict describe(const vibro::io::Scene& s) {
   d["engine"] = vibro::io::to_string(s.engine);
   d["engine_reason"] = s.engine_reason;
   using Kind = vibro::io::RunSpec::Kind;
-  d["run_kind"] = s.run.kind == Kind::sweep ? "sweep" : s.run.kind == Kind::locate ? "locate" : "simulate";
+  d["run_kind"] = s.run.kind == Kind::sweep ? "sweep" : s.run.kind == Kind::locate ? "locate" : s.run.kind == Kind::continuation ? "continue" : "simulate";
   d["transient_periods"] = s.run.transient_periods;
   d["periods"] = s.run.periods;
   py::list axes;

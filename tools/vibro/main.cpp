@@ -42,6 +42,7 @@ std::string resolved(const vibro::io::Scene& s) {
   out += fmt::format("  run: {}, transient {:g} periods, recorded {:g} periods\n",
                      s.run.kind == vibro::io::RunSpec::Kind::sweep    ? "sweep"
                      : s.run.kind == vibro::io::RunSpec::Kind::locate ? "locate"
+                     : s.run.kind == vibro::io::RunSpec::Kind::continuation ? "continue"
                                                                       : "simulate",
                      s.run.transient_periods, s.run.periods);
   for (const auto& a : s.run.axes)

@@ -248,6 +248,10 @@ class Continuer {
     b.k = k;
     b.multipliers = floquet_multipliers(e.map, k);
     b.signature = orbit_signature(e.map, k, stops_);
+    b.sticking = Eigen::VectorXd::Zero(static_cast<Index>(stops_));
+    const double span = e.map.t1 - e.map.t0;
+    for (const HeldPhase& h : e.map.phases)
+      b.sticking(h.stop) += std::max(0.0, std::min(h.t_end, e.map.t1) - std::max(h.t_start, e.map.t0)) / span;
     b.tangent_p = t.size() ? t(2 * n_) : 0.0;
     b.residual = e.residual;
     b.corrector_iterations = iterations;

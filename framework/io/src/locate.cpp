@@ -1,5 +1,7 @@
 #include "vibro/io/locate.hpp"
 
+#include "datasets.hpp"
+
 #include "vibro/bifurcation.hpp"
 #include "vibro/io/result_file.hpp"
 
@@ -16,32 +18,10 @@
 namespace vibro::io {
 namespace {
 
-Dataset reals(std::string name, std::vector<double> values, std::vector<std::size_t> shape) {
-  Dataset d;
-  d.name = std::move(name);
-  d.reals = std::move(values);
-  d.shape = std::move(shape);
-  return d;
-}
-
-Dataset integers(std::string name, std::vector<std::int64_t> values) {
-  Dataset d;
-  d.name = std::move(name);
-  d.shape = {values.size()};
-  d.integers = std::move(values);
-  d.integer = true;
-  return d;
-}
-
-/// Rows of equal length as one row-major rows × cols dataset.
-Dataset table(std::string name, const std::vector<Eigen::VectorXd>& rows, std::size_t cols) {
-  std::vector<double> values;
-  for (const Eigen::VectorXd& r : rows) values.insert(values.end(), r.data(), r.data() + r.size());
-  return reals(std::move(name), std::move(values), {rows.size(), cols});
-}
-
-/// The least-force and shortest-phase limits are "none" (−1 in the file) where no phase exists.
-double or_none(double value) { return std::isfinite(value) ? value : -1.0; }
+using detail::integers;
+using detail::or_none;
+using detail::reals;
+using detail::table;
 
 std::vector<std::string> kind_names() {
   std::vector<std::string> names;

@@ -1217,6 +1217,7 @@ struct ResultFile::Impl {
     store.set_text("/scene", "run_kind",
                    scene.run.kind == RunSpec::Kind::sweep    ? "sweep"
                    : scene.run.kind == RunSpec::Kind::locate ? "locate"
+                   : scene.run.kind == RunSpec::Kind::continuation ? "continue"
                                                              : "simulate");
     store.set_real("/scene", "period", scene.period());
     for (const auto& [name, value] : scene_numbers(scene)) store.set_real("/scene", name, value);

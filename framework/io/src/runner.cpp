@@ -1,4 +1,5 @@
 #include "vibro/io/runner.hpp"
+#include "vibro/io/continuation.hpp"
 #include "vibro/io/locate.hpp"
 
 #include "vibro/io/result_file.hpp"
@@ -877,6 +878,7 @@ RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunReque
   if (scene.run.kind != RunSpec::Kind::sweep && world().first != 0) return {};
   if (scene.run.kind == RunSpec::Kind::sweep) return run_sweep(doc, scene, request);
   if (scene.run.kind == RunSpec::Kind::locate && !request.resume) return run_locate(doc, scene, request);
+  if (scene.run.kind == RunSpec::Kind::continuation && !request.resume) return run_continuation(doc, scene, request);
   if (request.resume)
     throw SceneError(scene.file, 1, 1, "run.kind", "--resume continues an interrupted sweep; this scene is not a sweep");
   return run_simulation(scene, request);

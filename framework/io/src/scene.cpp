@@ -1,5 +1,7 @@
 #include "vibro/io/scene.hpp"
 
+#include "vibro/io/continuation.hpp"
+
 #include "vibro/models/chain.hpp"
 
 #include <yaml-cpp/yaml.h>
@@ -792,14 +794,20 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     }
   };
   if (const YAML::Node rn = root["run"]) {
-    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep", "locate"});
+    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep", "locate", "continue"});
     if (rn["kind"]) {
-      const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate"});
-      run.kind = kind == "sweep" ? RunSpec::Kind::sweep : kind == "locate" ? RunSpec::Kind::locate : RunSpec::Kind::simulate;
+      const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate", "continue"});
+      run.kind = kind == "sweep"      ? RunSpec::Kind::sweep
+                 : kind == "locate"   ? RunSpec::Kind::locate
+                 : kind == "continue" ? RunSpec::Kind::continuation
+                                      : RunSpec::Kind::simulate;
     }
     if (rn["transient_periods"]) run.transient_periods = r.number_in(rn["transient_periods"], "run.transient_periods", 0, 1e9, "a number of periods ≥ 0");
     if (rn["periods"]) run.periods = r.number_in(rn["periods"], "run.periods", 1e-12, 1e9, "a number of periods > 0");
-    const YAML::Node sw = rn["sweep"], lc = rn["locate"];
+    const YAML::Node sw = rn["sweep"], lc = rn["locate"], ct = rn["continue"];
+    if (run.kind == RunSpec::Kind::continuation && !ct)
+      r.fail(rn, "run.continue", "missing: run.kind: continue needs run.continue (path and range)");
+    if (run.kind != RunSpec::Kind::continuation && ct) r.fail(ct, "run.continue", "only for run.kind: continue");
     if (run.kind == RunSpec::Kind::sweep && !sw) r.fail(rn, "run.sweep", "missing: a sweep needs run.sweep.parameters");
     if (run.kind != RunSpec::Kind::sweep && sw) r.fail(sw, "run.sweep", "only for run.kind: sweep");
     if (run.kind == RunSpec::Kind::locate && !lc) r.fail(rn, "run.locate", "missing: run.kind: locate needs run.locate (path and grid)");
@@ -831,6 +839,72 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       if (lc["max_periods"]) l.max_periods = r.integer(lc["max_periods"], "run.locate.max_periods", 2, 100000000);
       if (lc["jump"]) l.jump = r.number_in(lc["jump"], "run.locate.jump", 0, 1, "a fraction of the period in [0, 1] (0: no jump search)");
       check_values(run.axes[0], lc, "run.locate");
+    }
+    if (ct && check_sweep) {
+      ContinueSpec& c = run.continuation;
+      r.expect_map(ct, "run.continue", {"path", "range", "direction", "period", "phase", "step", "min_step", "max_step",
+                                        "max_points", "tolerance", "locate", "locate_tolerance", "max_doublings", "curve"});
+      // A continuation parameter: a number the file sets, outside `run` (and, below, one that
+      // moves the system: continuation.cpp checks that through the parameter's derivative).
+      auto parameter = [&](const YAML::Node& node, const std::string& path) {
+        if (!node) r.fail(ct, path, "missing: the scene value to continue in, e.g. forcing.frequency");
+        const std::string text = r.text(node, path);
+        if (text.rfind("run.", 0) == 0) r.fail(node, path, "the run section cannot be a parameter");
+        try {
+          (void)get(text);
+        } catch (const SceneError& e) {
+          r.fail(node, path, "'" + text + "' does not name a number in this scene: " + e.problem());
+        }
+        return text;
+      };
+      auto range = [&](const YAML::Node& node, const std::string& path, double& lo, double& hi, double value) {
+        if (!node) r.fail(ct, path, "missing: [min, max], the limits of the parameter");
+        const std::vector<double> v = r.numbers(node, path, 2, "min, max");
+        if (!(v[0] < v[1])) r.fail(node, path, "expected min < max, found [" + number_text(v[0]) + ", " + number_text(v[1]) + "]");
+        if (!(value >= v[0] && value <= v[1]))
+          r.fail(node, path, "the scene's value " + number_text(value) + " lies outside [" + number_text(v[0]) + ", " +
+                                 number_text(v[1]) + "]: the branch starts there");
+        lo = v[0];
+        hi = v[1];
+      };
+      // The parameter must move the system, linearly or in closed form (io/continuation.hpp).
+      auto moves = [&](const YAML::Node& node, const std::string& key, const std::string& path) {
+        try {
+          (void)parameter_derivative(*this, path);
+        } catch (const SceneError& e) {
+          r.fail(node, key, "'" + path + "' " + e.problem());
+        }
+      };
+      c.path = parameter(ct["path"], "run.continue.path");
+      moves(ct["path"], "run.continue.path", c.path);
+      range(ct["range"], "run.continue.range", c.p_min, c.p_max, get(c.path));
+      if (ct["direction"]) c.direction = r.choice(ct["direction"], "run.continue.direction", {"up", "down"}) == "up" ? 1 : -1;
+      if (ct["period"]) c.period = static_cast<int>(r.integer(ct["period"], "run.continue.period", 1, 1024));
+      if (ct["phase"]) c.phase = r.number_in(ct["phase"], "run.continue.phase", -1e3, 1e3, "a phase in radians");
+      if (ct["step"]) c.step = r.number_in(ct["step"], "run.continue.step", 1e-12, 1.0, "a step in (0, 1] (scaled arclength)");
+      if (ct["min_step"]) c.min_step = r.number_in(ct["min_step"], "run.continue.min_step", 1e-15, 1.0, "a step in (0, 1]");
+      if (ct["max_step"]) c.max_step = r.number_in(ct["max_step"], "run.continue.max_step", 1e-12, 1.0, "a step in (0, 1]");
+      if (c.min_step > c.max_step) r.fail(ct, "run.continue.min_step", "must not exceed run.continue.max_step");
+      if (ct["max_points"]) c.max_points = static_cast<int>(r.integer(ct["max_points"], "run.continue.max_points", 2, 1000000));
+      if (ct["tolerance"]) c.tolerance = r.number_in(ct["tolerance"], "run.continue.tolerance", 1e-15, 1e-4, "a relative tolerance in [1e-15, 1e-4]");
+      if (ct["locate"]) c.locate = r.boolean(ct["locate"], "run.continue.locate");
+      if (ct["locate_tolerance"]) c.locate_tolerance = r.number_in(ct["locate_tolerance"], "run.continue.locate_tolerance", 1e-15, 1e300, "a width > 0 in the parameter's units");
+      if (ct["max_doublings"]) c.max_doublings = static_cast<int>(r.integer(ct["max_doublings"], "run.continue.max_doublings", 0, 8));
+      if (const YAML::Node cv = ct["curve"]) {
+        r.expect_map(cv, "run.continue.curve", {"path", "range", "step", "max_points", "kinds"});
+        c.curve_path = parameter(cv["path"], "run.continue.curve.path");
+        if (c.curve_path == c.path) r.fail(cv["path"], "run.continue.curve.path", "must differ from run.continue.path");
+        moves(cv["path"], "run.continue.curve.path", c.curve_path);
+        range(cv["range"], "run.continue.curve.range", c.curve_min, c.curve_max, get(c.curve_path));
+        if (cv["step"]) c.curve_step = r.number_in(cv["step"], "run.continue.curve.step", 1e-9, 1.0, "a step in (0, 1] (scaled)");
+        if (cv["max_points"]) c.curve_max_points = static_cast<int>(r.integer(cv["max_points"], "run.continue.curve.max_points", 2, 100000));
+        if (const YAML::Node k = cv["kinds"]) {
+          if (!k.IsSequence() || k.size() == 0) r.fail(k, "run.continue.curve.kinds", "expected a list of grazing and/or rising");
+          c.curve_kinds.clear();
+          for (std::size_t i = 0; i < k.size(); ++i)
+            c.curve_kinds.push_back(r.choice(k[i], "run.continue.curve.kinds[" + std::to_string(i) + "]", {"grazing", "rising"}));
+        }
+      }
     }
   }
 
@@ -882,6 +956,10 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
              std::to_string(kModalAutomaticMinimumDof) + ")";
   }
 
+  if (check_sweep && run.kind == RunSpec::Kind::continuation && engine == EngineKind::modal)
+    r.fail(root["run"]["kind"], "run.kind",
+           "continuation runs on the dense engine (its tangent maps are dense), and this scene resolves to the modal "
+           "engine (" + reason + "): set solver.engine: dense");
   for (const PointEngine& p : point_engines)
     if (p.engine != engine)
       r.fail(p.at, p.path, p.what + " runs with the " + to_string(p.engine) + " engine, the base scene with the " +

@@ -277,6 +277,7 @@ def simulate(scene, *, periods=None, transient_periods=None, threads=None, **rec
     doc.replace("run.kind", "simulate")
     doc.replace("run.sweep", "")
     doc.replace("run.locate", "")
+    doc.replace("run.continue", "")
     return _run(doc, threads)
 
 
@@ -314,6 +315,7 @@ def sweep(scene, parameters=None, *, follow=None, reverse=None, periods=None, tr
             doc.replace("run.sweep." + key, json.dumps(bool(flag)))
     doc.replace("run.kind", "sweep")
     doc.replace("run.locate", "")
+    doc.replace("run.continue", "")
     return _run(doc, threads)
 
 
@@ -339,6 +341,7 @@ def locate(scene, path=None, values=None, *, threads=None, **options):
         doc.replace("run.locate." + key, json.dumps(_plain(value, "run.locate." + key)))
     doc.replace("run.kind", "locate")
     doc.replace("run.sweep", "")
+    doc.replace("run.continue", "")
     return _run(doc, threads)
 
 

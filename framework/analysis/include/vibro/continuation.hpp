@@ -119,6 +119,7 @@ struct BranchPoint {
   int k = 1;
   FloquetMultipliers multipliers;
   Signature signature;
+  Eigen::VectorXd sticking;      ///< per stop: the fraction of kT it is held
   double tangent_p = 0.0;        ///< dp/ds (scaled): its sign change is a fold
   double residual = 0.0;
   int corrector_iterations = 0;
