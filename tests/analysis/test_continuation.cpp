@@ -248,3 +248,58 @@ TEST_CASE("continuation: the paper's system near Ω = 0.2637: mass 1 loses an im
   }
   CHECK((found[0] - found[1]).cwiseAbs().maxCoeff() > 1e-3);  // two different orbits
 }
+
+TEST_CASE("continuation: a grazing point followed in a second parameter stays on the closed-form "
+          "grazing curve A(Ω) = s √((1 − Ω²)² + c²Ω²)",
+          "[continuation][curve]") {
+  const DesignedOrbit d(0.125);
+  // Locate the low grazing (0.8863) in Ω first, on a short stretch of the branch below it.
+  vibro::ContinuationOptions o;
+  o.p_min = 0.85;
+  o.p_max = 0.95;
+  o.step = 0.05;
+  o.max_doublings = 0;
+  const vibro::ParameterFamily fam = designed_family(d);
+  // Start on the non-impacting orbit at Ω = 0.86 (the linear response): a short run from rest.
+  const vibro::FamilyPoint start = fam(0.86);
+  vibro::Simulator sim(start.system);
+  const double T = 2.0 * std::numbers::pi / 0.86;
+  const vibro::RunSummary warm = sim.run(0.0, VectorXd::Zero(1), VectorXd::Zero(1), 100.0 * T);
+  const vibro::ContinuationResult r = vibro::continue_orbits(fam, 0.86, 100.0 * T, warm.x, warm.v, o);
+  const vibro::Bifurcation* graze = find(r, vibro::BifurcationKind::grazing, 0.8863);
+  REQUIRE(graze != nullptr);
+  REQUIRE(graze->smooth);
+  // The plane (Ω, A).
+  const vibro::PlaneFamily plane = [d](double omega, double amplitude) {
+    vibro::HarmonicForcing f = vibro::HarmonicForcing::zero(1, omega);
+    f.cosine(0) = amplitude;
+    vibro::ImpactSystem sys(vibro::LinearSystem(Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Constant(1, 1, d.c),
+                                                Eigen::MatrixXd::Identity(1, 1), f),
+                            {vibro::Stop::upper(0, d.s, d.r)});
+    vibro::SystemDerivative da;
+    da.cosine = VectorXd::Ones(1);
+    return vibro::PlanePoint{std::move(sys), vibro::SystemDerivative::frequency_only(), da};
+  };
+  vibro::CurveOptions co;
+  co.p1_min = 0.7;
+  co.p1_max = 1.0;
+  co.p2_min = 0.8 * d.A;
+  co.p2_max = 1.2 * d.A;
+  co.step = 0.05;
+  co.max_points = 8;
+  co.branch = o;
+  const vibro::Curve curve = vibro::follow_curve(plane, *graze, d.A, co);
+  INFO(curve.end);
+  REQUIRE(curve.points.size() >= 5);
+  double worst = 0.0;
+  for (const vibro::CurvePoint& q : curve.points) {
+    const double w = q.p1;
+    const double exact = d.s * std::sqrt((1.0 - w * w) * (1.0 - w * w) + d.c * d.c * w * w);
+    worst = std::max(worst, std::abs(q.p2 - exact));
+  }
+  // Each curve point is located (to 1e-10 in the line's parameter) on a line across the curve.
+  INFO("curve points " << curve.points.size() << ", worst distance from the closed form " << worst);
+  CHECK(worst <= 1e-9);
+  // It moved along the curve, not on the spot.
+  CHECK(std::abs(curve.points.back().p2 - curve.points.front().p2) > 0.05 * d.A);
+}

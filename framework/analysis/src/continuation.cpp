@@ -289,6 +289,7 @@ class BranchRunner {
     cur.t = c_.tangent(cur.e, t);
     double h = std::min(std::max(o_.step, o_.min_step), o_.max_step);
     double last_dp = h * c_.P;
+    bool jump_tried = false;
     while (static_cast<int>(branch.points.size()) < o_.max_points) {
       int iterations = 0;
       Node next;
@@ -306,10 +307,14 @@ class BranchRunner {
         // on one side: arclength steps shrink towards it. Past a few halvings near such a point,
         // step over it in p (the orbit on the far side is found by Newton at fixed p).
         std::optional<Node> jumped;
-        if (h < 1e-3 * o_.max_step && near_nonsmooth(cur)) jumped = jump(cur, last_dp);
+        if (h < 1e-3 * o_.max_step && !jump_tried && near_nonsmooth(cur)) {
+          jump_tried = true;
+          jumped = jump(cur, last_dp);
+        }
         if (!jumped) {
           if (h < o_.min_step) {
             branch.end = "step below min_step at p = " + number_text(cur.e.p) + " (" + next.e.why + ")";
+            if (near_nonsmooth(cur)) locate_at_end(cur, last_dp, branch_index);
             return;
           }
           continue;
@@ -350,6 +355,7 @@ class BranchRunner {
       append(branch, next);
       last_dp = std::max(std::abs(next.e.p - cur.e.p), 1e-9 * c_.P);
       cur = std::move(next);
+      jump_tried = false;
       if (iterations <= 3) h = std::min(1.5 * h, o_.max_step);
       else if (iterations >= 6) h = std::max(0.6 * h, o_.min_step);
     }
@@ -383,15 +389,71 @@ class BranchRunner {
         // The far side's tangent points away from the non-smooth point: along the jump in p.
         VectorXd away = VectorXd::Zero(cur.t.size());
         away(away.size() - 1) = p > cur.e.p ? 1.0 : -1.0;
-        std::optional<Node> m = at_p(cur, p, away);
+        std::optional<Node> m = shoot_at(cur, p, away);
         if (!m) continue;
         if (sign < 0.0 && m->b.signature == cur.b.signature) continue;
         if (c_.k > o_.period && c_.closes_after(m->e, c_.k / 2)) continue;
-        m->b.located = false;
         return m;
       }
     }
     return std::nullopt;
+  }
+
+  /// The orbit at p by Newton shooting with its trust region (shooting.hpp) from `from`'s state:
+  /// more patient than the corrector where the map is steep on one side (near grazing).
+  std::optional<Node> shoot_at(const Node& from, double p, const VectorXd& along) {
+    ShootingOptions so;
+    so.period = c_.k;
+    so.phase = c_.theta;
+    so.free_section = false;
+    so.tolerance = o_.tolerance;
+    so.solver = o_.solver;
+    const Index n = c_.n_;
+    ShootingResult r;
+    try {
+      r = shoot(c_.family_(p).system, so, from.e.t0, from.e.z.head(n), from.e.z.tail(n));
+    } catch (const InvalidInput&) {
+      return std::nullopt;
+    }
+    if (!r.converged()) return std::nullopt;
+    Node m;
+    m.e = c_.evaluate(stacked(r.x, r.v), p);
+    if (!m.e.ok) return std::nullopt;
+    m.t = c_.tangent(m.e, along);
+    m.b = c_.point(m.e, m.t, r.iterations);
+    return m;
+  }
+
+  /// Where a branch cannot be continued past a grazing or a rising (its steps shrink to nothing
+  /// against the non-smooth point), the point is still located, from this side: the orbit's
+  /// nearest approach to a stop (or its least interior contact force) extrapolated to zero.
+  void locate_at_end(const Node& cur, double last_dp, int branch_index) {
+    const TangentMap& m = cur.e.map;
+    const double L = m.summary.length_scale, F = m.summary.force_scale;
+    int graze = -1, rise = -1;
+    double best_gap = -1e-3 * L, best_force = 1e-3 * F;
+    for (const GapPeak& g : m.gap_peaks)
+      if (g.value > best_gap) best_gap = g.value, graze = g.stop;
+    for (const ForceDip& d : m.force_dips)
+      if (!d.past_release && d.value < best_force) best_force = d.value, rise = d.stop;
+    const double dir = cur.t(cur.t.size() - 1) > 0.0 ? 1.0 : -1.0;
+    Node beyond = cur;
+    beyond.e.p = cur.e.p + dir * std::max(last_dp, 1e-9 * c_.P);
+    const std::string note = "the branch could not be continued past it; located from this side";
+    if (graze >= 0) {
+      const auto j = static_cast<std::size_t>(graze);
+      const int fewer = cur.b.signature.impacts[j];
+      const TestFunction f = [this, j, fewer](const Node& n) { return grazing_function(n, j, fewer, fewer + 1); };
+      record(BifurcationKind::grazing, graze, cur, beyond, branch_index, f, Mode::one_sided,
+             same_counts(cur.b.signature, j, &Signature::impacts), note);
+    }
+    if (rise >= 0) {
+      const auto j = static_cast<std::size_t>(rise);
+      const int fewer = cur.b.signature.phases[j];
+      const TestFunction f = [this, j, fewer](const Node& n) { return rising_function(n, j, fewer); };
+      record(BifurcationKind::rising, rise, cur, beyond, branch_index, f, Mode::one_sided,
+             same_counts(cur.b.signature, j, &Signature::phases), note);
+    }
   }
 
   void append(Branch& branch, const Node& n) {
