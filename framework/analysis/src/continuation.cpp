@@ -290,6 +290,7 @@ class BranchRunner {
     double h = std::min(std::max(o_.step, o_.min_step), o_.max_step);
     double last_dp = h * c_.P;
     bool jump_tried = false;
+    std::vector<VectorXd> trail{c_.scaled(cur.e)};  // the points of this half, scaled
     while (static_cast<int>(branch.points.size()) < o_.max_points) {
       int iterations = 0;
       Node next;
@@ -334,6 +335,24 @@ class BranchRunner {
         next.t = c_.tangent(next.e, along);
         next.b.tangent_p = next.t(next.t.size() - 1);
       }
+      // Near a fold beside a corner the two parts of the branch come close: a step (or a jump)
+      // that lands back on a part already followed is not the continuation. Refused if the new
+      // point is nearer to an earlier point than to the last one.
+      // (The last few points are left out: at a sharp corner the new part starts beside them.)
+      if (trail.size() >= 5) {
+        const VectorXd y = c_.scaled(next.e);
+        const double from_cur = (y - trail.back()).norm();
+        bool back = false;
+        for (std::size_t i = 0; i + 4 < trail.size(); ++i) back |= (y - trail[i]).norm() < 0.25 * from_cur;
+        if (back) {
+          h *= 0.5;
+          if (h < o_.min_step) {
+            branch.end = "step below min_step at p = " + number_text(cur.e.p) + " (steps land on the branch already followed)";
+            return;
+          }
+          continue;
+        }
+      }
       // A doubled branch that closes after half its period has merged back into its parent
       // (at a period doubling of the parent: doubled branches often join two of them).
       if (c_.k > o_.period && c_.closes_after(next.e, c_.k / 2)) {
@@ -354,6 +373,7 @@ class BranchRunner {
       examine(cur, next, branch_index, depth, doublings);
       append(branch, next);
       last_dp = std::max(std::abs(next.e.p - cur.e.p), 1e-9 * c_.P);
+      trail.push_back(c_.scaled(next.e));
       cur = std::move(next);
       jump_tried = false;
       if (iterations <= 3) h = std::min(1.5 * h, o_.max_step);
