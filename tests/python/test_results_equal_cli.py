@@ -32,6 +32,13 @@ run:
   locate: {path: forcing.frequency, linspace: [0.2555, 0.2565, 3], tolerance: 1e-5}
 """
 
+CONTINUE = PAPER + """\
+run:
+  kind: continue
+  transient_periods: 100
+  continue: {path: forcing.frequency, range: [0.2559, 0.2561], step: 0.05, max_step: 0.2}
+"""
+
 
 def check_same(tmp_path, cli, text, threads_cli, **python):
     scene_file = write(tmp_path, "scene.yaml", text)
@@ -74,6 +81,18 @@ def test_locate_equals_the_command(tmp_path, cli):
     assert {"scan", "phases", "transitions"} <= set(result.groups)
     names = result.transitions.labels("kind")["names"]
     assert "rising" in [names[k] for k in result.transitions.kind]  # rising lies in [0.2555, 0.2565]
+
+
+def test_continuation_equals_the_command(tmp_path, cli):
+    scene_text = CONTINUE.replace("frequency: 0.255", "frequency: 0.2559")
+    result = check_same(tmp_path, cli, scene_text, 1)
+    assert {"branch", "branches", "bifurcations"} <= set(result.groups)
+    names = result.bifurcations.labels("kind")["names"]
+    assert "rising" in [names[k] for k in result.bifurcations.kind]
+    # continuation() with the path and range given equals the scene's own run.continue.
+    scene = vibro.Scene.load(write(tmp_path, "c.yaml", scene_text))
+    again = vibro.continuation(scene, "forcing.frequency", [0.2559, 0.2561], step=0.05, max_step=0.2)
+    assert (again.branch.p == result.branch.p).all() and (again.bifurcations.p == result.bifurcations.p).all()
 
 
 def test_keyword_runs_equal_the_scene_that_says_the_same(tmp_path, cli):

@@ -159,6 +159,7 @@ def main():
         ax.set(yscale="log", xlim=(lo, hi), xlabel="Ω", ylabel="largest |μ|",
                title=f"{tag} largest Floquet multiplier, Ω ∈ [{lo}, {hi}]")
         ax.ticklabel_format(axis="x", useOffset=False)
+        ax.xaxis.set_major_locator(plt.MaxNLocator(4))
     fig.tight_layout()
     print(f"branch: {len(b['p'])} points, {len(bi['p'])} bifurcations: {c.save(fig, outdir, 'continuation')}")
     coexistence(build, scene_file, outdir, b, bi, param, scene)

@@ -345,6 +345,40 @@ def locate(scene, path=None, values=None, *, threads=None, **options):
     return _run(doc, threads)
 
 
+def continuation(scene, path=None, range=None, **options):
+    """Follows the scene's branch of periodic orbits in one parameter (pseudo-arclength
+    continuation with Newton shooting and exact Jacobians), with the Floquet multipliers of every
+    orbit and its bifurcations located (folds, period doublings with branch switching,
+    Neimark–Sacker points, grazings, risings; contact phases and chatter appearing or vanishing
+    bracketed).
+
+    path, range: the parameter and its limits [min, max] (None: the scene's run.continue); the
+    branch starts at the scene's value of path. options: the keys of run.continue (direction
+    "up"/"down", period, phase, step, min_step, max_step, max_points, tolerance, locate,
+    locate_tolerance, max_doublings, curve: a dict with path and range) and transient_periods.
+    As ``vibro run`` with run.kind: continue (docs/scenes.md); the Result holds /branch
+    (``result.branch.p``, ``.stable``, ``.multipliers_real``, …), /branches, /bifurcations
+    (``result.bifurcations.p``, ``.kind`` whose names are
+    ``result.bifurcations.labels("kind")["names"]``) and, with a curve, /curve.
+    Ctrl-C raises Interrupted.
+    """
+    transient = options.pop("transient_periods", None)
+    doc = _prepared(scene, None, transient, {})
+    if path is not None:
+        if range is None:
+            raise ValueError("continuation: give the range [min, max] with the path")
+        lo, hi = (float(v) for v in range)
+        doc.replace("run.continue", json.dumps({"path": str(path), "range": [lo, hi]}))
+    elif scene.run_kind != "continue":
+        raise ValueError("continuation: give path and range; the scene has no run.continue")
+    for key, value in options.items():
+        doc.replace("run.continue." + key, json.dumps(_plain(value, "run.continue." + key)))
+    doc.replace("run.kind", "continue")
+    doc.replace("run.sweep", "")
+    doc.replace("run.locate", "")
+    return _run(doc, None)
+
+
 def run(scene, *, threads=None):
     """Runs the scene as ``vibro run`` does: its own run.kind, record and settings."""
     return _run(scene._doc.copy(), threads)
