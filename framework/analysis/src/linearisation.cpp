@@ -162,7 +162,7 @@ class TangentRecorder final : public Observer {
   TangentRecorder(const ImpactSystem& system, const SimulatorOptions& solver,
                   const LinearisationOptions& options, TangentMap& out)
       : system_(system), solver_(solver), options_(options), out_(out), n_(system.dof()),
-        mech_(system), mech0_(system) {
+        mech_(system), mech0_(system), frame_(options.directions.size() > 0) {
     if (options.parameter) mechp_ = std::make_unique<Mechanics<Dual>>(system, &*options.parameter);
   }
 
@@ -170,6 +170,7 @@ class TangentRecorder final : public Observer {
     t0_ = t0;
     K_ = MatrixXd::Identity(2 * n_, 2 * n_);
     Jmid_ = K_;
+    if (frame_) K_ = options_.directions;
     min_dim_ = 2 * n_;
     basis_ = K_;
     zeta_ = VectorXd::Zero(2 * n_);
@@ -219,9 +220,11 @@ class TangentRecorder final : public Observer {
     for (std::size_t j = 0; j < open_.size(); ++j)
       if (open_[j] >= 0) out_.phases[static_cast<std::size_t>(open_[j])].t_end = t;
     const Index N2 = 2 * n_;
-    if (options_.jacobian) {
+    out_.free_dimension = min_dim_;
+    if (frame_) {
+      out_.products = K_;
+    } else if (options_.jacobian) {
       out_.jacobian = K_ * Jmid_;
-      out_.free_dimension = min_dim_;
       if (min_dim_ < N2) {
         out_.reduced = basis_.transpose() * Jmid_ * K_ * basis_;
         out_.lift = K_ * basis_;
@@ -304,17 +307,19 @@ class TangentRecorder final : public Observer {
         zeta_aug(N2) = -tb * std::sin(w * tb) * dw;
         zeta_aug(N2 + 1) = tb * std::cos(w * tb) * dw;
         zeta_ = (E.topLeftCorner(N, N) * zeta_aug + E.topRightCorner(N, N) * zb).head(N2);
-        if (options_.jacobian) K_ = E.topLeftCorner(N2, N2) * K_;
-      } else if (options_.jacobian) {
+        if (carries()) K_ = E.topLeftCorner(N2, N2) * K_;
+      } else if (carries()) {
         K_ = transition(mode, tau) * K_;
       }
     }
-    if (options_.jacobian && dim < min_dim_) {
-      // A new least tangent dimension: split J here (see linearisation.hpp, structural zeros).
-      Jmid_ = K_ * Jmid_;
-      K_.setIdentity();
+    if (dim < min_dim_) {
       min_dim_ = dim;
-      basis_ = mode.basis;
+      // A new least tangent dimension: split J here (see linearisation.hpp, structural zeros).
+      if (options_.jacobian && !frame_) {
+        Jmid_ = K_ * Jmid_;
+        K_.setIdentity();
+        basis_ = mode.basis;
+      }
     }
   }
 
@@ -459,7 +464,7 @@ class TangentRecorder final : public Observer {
     }
     rec.guard_rate = total.rate;
     if (rec.impact) least_rate_ = std::min(least_rate_, total.rate);
-    if (options_.jacobian) K_ = total.S * K_;
+    if (carries()) K_ = total.S * K_;
     if (mechp_) zeta_ = total.S * zeta_ + total.sp;
     out_.saltations.push_back(rec);
     held_ = held_after;
@@ -560,6 +565,9 @@ class TangentRecorder final : public Observer {
       if (!contains(before, j)) open_phase(j, t);
   }
 
+  /// Tangent vectors are carried: the whole Jacobian, or the given directions.
+  bool carries() const { return options_.jacobian || frame_; }
+
   const ImpactSystem& system_;
   SimulatorOptions solver_;
   const LinearisationOptions& options_;
@@ -567,6 +575,7 @@ class TangentRecorder final : public Observer {
   Index n_;
   Mechanics<double> mech_;
   Mechanics<Dual> mech0_;
+  bool frame_;
   std::unique_ptr<Mechanics<Dual>> mechp_;
   std::map<ContactSet, std::unique_ptr<Mode>> modes_;
 
@@ -590,6 +599,9 @@ class TangentRecorder final : public Observer {
 TangentMap linearise(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
                      const VectorXd& x0, const VectorXd& v0, double t1, const LinearisationOptions& options) {
   if (options.parameter) options.parameter->validate(system.dof(), system.stop_count());
+  if (options.directions.size() > 0 && options.directions.rows() != 2 * system.dof())
+    throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +
+                       " rows, expected 2n = " + std::to_string(2 * system.dof()));
   TangentMap out;
   out.t0 = t0;
   out.x0 = x0;

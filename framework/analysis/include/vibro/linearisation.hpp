@@ -114,6 +114,9 @@ struct HeldPhase {
 
 struct LinearisationOptions {
   bool jacobian = true;                      ///< the full 2n × 2n ∂z(t1)/∂z(t0)
+  /// Instead of J, only the products J·D for these columns (2n × p): tangent vectors carried
+  /// through the run (Lyapunov exponents, matrix-free Newton). Empty: J itself.
+  Eigen::MatrixXd directions;
   std::optional<SystemDerivative> parameter; ///< and ∂z(t1)/∂p at fixed t0, t1
   bool features = false;                     ///< gap peaks, force dips, phases (continuation)
   /// How far past a release the held flow is continued to find its next force minimum, in
@@ -126,12 +129,13 @@ struct TangentMap {
   double t0 = 0.0, t1 = 0.0;
   Eigen::VectorXd x0, v0, x1, v1;
   Eigen::MatrixXd jacobian;  ///< ∂(x1, v1)/∂(x0, v0)
+  Eigen::MatrixXd products;  ///< J·directions (when directions were given; jacobian is then empty)
   Eigen::VectorXd parameter; ///< ∂(x1, v1)/∂p (empty unless asked)
   /// The vector fields f(z, t) = (v, a) at the start and the end: ∂z1/∂t1 = rate_end,
   /// ∂z1/∂t0 = −J rate_start.
   Eigen::VectorXd rate_start, rate_end;
 
-  Eigen::Index free_dimension = 0;  ///< d: least tangent dimension along the run
+  Eigen::Index free_dimension = 0;  ///< d: least tangent dimension along the run (2n: none held)
   Eigen::MatrixXd reduced;          ///< d × d, shares J's non-zero eigenvalues (see above)
   /// 2n × d: an eigenvector e of `reduced` for μ ≠ 0 lifts to the eigenvector lift·e of J.
   Eigen::MatrixXd lift;
