@@ -66,6 +66,13 @@ struct RunScales {
 RunScales run_scales(const SimulatorOptions& options, double omega, double kmax, double mmax, double fmax,
                      const std::vector<Stop>& stops, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0);
 
+/// Checks that a run over [t0, t_end] with scales `s` can meet its tolerances in doubles, and
+/// that an explicit solver.length_scale is sane against the scene's own (`automatic`, the L of
+/// the same run with length_scale = 0). Throws InvalidInput where the result would be
+/// meaningless (errors above 1e-6 L); appends a warning where it only misses the trigger.
+void check_resolution(const RunScales& s, const RunScales& automatic, const SimulatorOptions& options,
+                      double t0, double t_end, std::vector<std::string>& warnings);
+
 /// Resolves an event at t on the state (x, v): impacts on `impacting` (generalised Newton law
 /// over the held and impacting stops, contact.hpp), releases of `releasing`, and `resting` stops
 /// touching with zero normal speed (at the start of a run); chatter caught by the chatter rule;

@@ -151,7 +151,7 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
   const std::size_t n = static_cast<std::size_t>(scene.dof());
   const std::size_t m = scene.stops.size();
 
-  ResultFile file = ResultFile::create(request.output, scene, current_meta(request.threads));
+  ResultFile file = ResultFile::create(request.output, scene, current_meta(request.threads), request.force);
   const std::vector<ScanPoint> points = scan(family, axis.values, scene.t0, scene.x0, scene.v0, options);
 
   // Bisections between neighbouring grid points are independent: in parallel, gathered in order.

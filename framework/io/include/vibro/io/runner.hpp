@@ -45,6 +45,8 @@ struct RunRequest {
   /// Behave as if interrupted once this many points are written (0: never). For tests of
   /// interruption and --resume, which must not depend on timing a real signal.
   std::size_t interrupt_after = 0;
+  /// Replace an existing output file (--force); never the scene file itself.
+  bool force = false;
 };
 
 struct RunReport {
