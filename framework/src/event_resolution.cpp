@@ -71,6 +71,13 @@ void check_resolution(const RunScales& s, const RunScales& automatic, const Simu
                        number_text(drift / s.eps_gap) + " × the trigger tolerance " + number_text(s.eps_gap) + ")");
 }
 
+std::string stiff_warning(double steps_per_period, double periods) {
+  return "stiff: the certified event search steps by 1/ρ, ρ the fastest rate of the motion (" +
+         number_text(steps_per_period / (2.0 * std::numbers::pi)) + " × the forcing frequency): about " +
+         number_text(std::round(steps_per_period)) + " search steps per forcing period, " +
+         number_text(std::round(steps_per_period * periods)) + " for this run";
+}
+
 bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, const EventRules& rules,
                    double t, Eigen::VectorXd& x, Eigen::VectorXd& v, ContactSet& stuck,
                    const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting,

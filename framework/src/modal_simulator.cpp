@@ -1034,6 +1034,9 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
           return finish(RunStatus::unsupported, why_not, true);
       }
     }
+    if (const double steps = T * std::max(W, mode->modes ? mode->modes->omega().maxCoeff() : 0.0);
+        steps > detail::kStiffStepsPerPeriod)  // as in the dense engine: the search steps by 1/ω_max
+      summary.warnings.push_back(detail::stiff_warning(steps, (t_end - t0) / T));
     Eigen::VectorXd base;
     while (true) {
       if (options_.interrupt && options_.interrupt->load(std::memory_order_relaxed)) {

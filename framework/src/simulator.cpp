@@ -263,6 +263,10 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
       resolve(impacting, {}, resting);
     }
 
+    // Stiff or heavily damped: the certified search steps by 1/ρ (ρ the flow's spectral radius).
+    if (const double steps = sc.T * modes_.get(stuck).reduced().flow->spectral_radius();
+        steps > detail::kStiffStepsPerPeriod)
+      summary.warnings.push_back(detail::stiff_warning(steps, (t_end - t0) / sc.T));
     auto interrupted = [&] { return options_.interrupt && options_.interrupt->load(std::memory_order_relaxed); };
     auto report = [&](double reached) {
       if (options_.reached) options_.reached->store(reached, std::memory_order_relaxed);

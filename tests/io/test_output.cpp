@@ -171,7 +171,7 @@ TEST_CASE("a symbolic link planted at OUT.partial or OUT.lock is never written t
   }
 }
 
-TEST_CASE("a lock left by a killed run is taken over; a file of that name that is not a lock is kept", "[output]") {
+TEST_CASE("a lock left by a killed run is taken over, and a file of that name that is not a lock is kept", "[output]") {
   const TempDir dir;
   const SceneOnDisk s(dir);
   const std::string out = dir / "out.h5";

@@ -2,6 +2,8 @@
 // refuse or warn about before they start (Simulator::run in simulator.hpp): runs that cannot be
 // resolved in doubles (t0 = 1e15, forcing 1e12 against k = 1, solver.length_scale 1e300).
 #include "vibro/io/resources.hpp"
+#include "vibro/io/result_file.hpp"
+#include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"
 
 #include "support/temp_dir.hpp"
@@ -13,6 +15,7 @@
 #include <atomic>
 #include <cmath>
 #include <string>
+#include <vector>
 
 using namespace vibro;
 using namespace vibro::io;
@@ -85,7 +88,7 @@ TEST_CASE("thread counts are capped by the work and refused beyond what the runt
   CHECK_THAT(what_of([] { (void)checked_threads(100000, 100); }), Contains("--threads 100000: at most 1024 threads"));
 }
 
-TEST_CASE("a run that doubles cannot resolve is refused; one that misses the trigger warns", "[resources]") {
+TEST_CASE("a run that doubles cannot resolve is refused, and one that misses the trigger warns", "[resources]") {
   SECTION("t0 = 1e15: doubles 0.125 apart") {
     const Scene scene = build(one_mass("1", "initial: {time: 1e15}\n"));
     CHECK_THAT(what_of([&] { (void)run_for(scene, 1); }),
@@ -119,6 +122,28 @@ TEST_CASE("a run that doubles cannot resolve is refused; one that misses the tri
                         "forcing: {frequency: 0.8, cosine: [1, 0]}\nsolver: {engine: modal}\ninitial: {time: 1e15}\n";
     CHECK_THAT(what_of([&] { (void)run_for(build(chain), 1); }), Contains("is too large for this run"));
   }
+}
+
+TEST_CASE("a stiff run says so from its start, with the search steps per period", "[resources]") {
+  // A damper of 1e7 on a unit mass: a decay rate of 1e7 against Ω = 0.8, ≈ 7.9e7 steps per period.
+  const Scene scene = build("model: {chain: {masses: [1], left_wall: {spring: 1, damper: 1e7}}}\n"
+                            "forcing: {frequency: 0.8, cosine: [1]}\n");
+  const RunSummary s = run_for(scene, 1e-7);
+  REQUIRE(s.warnings.size() == 1);
+  CHECK_THAT(s.warnings[0], Contains("stiff: the certified event search steps by 1/ρ") &&
+                                Contains("about 78539816 search steps per forcing period"));
+  CHECK(run_for(build(one_mass("1")), 1).warnings.empty());
+}
+
+TEST_CASE("per-period statistics of a scene without stops are written (an empty stop axis)", "[resources]") {
+  const vibro::test::TempDir dir;
+  const std::string text = "model: {chain: {masses: [1], left_wall: {spring: 1, damper: 0.1}}}\n"
+                           "forcing: {frequency: 0.8, cosine: [1]}\nrecord: {statistics: true}\nrun: {periods: 3}\n";
+  const SceneDocument doc = SceneDocument::parse(text, "nostops.yaml");
+  REQUIRE(run_scene(doc, doc.build(), {dir / "out.h5", 1, false, false}).exit_code == 0);
+  const ResultReader file(dir / "out.h5");
+  CHECK(file.shape("/stats/sticking_fraction") == std::vector<std::size_t>{3, 0});
+  CHECK(file.attribute_strings("/stats/sticking_fraction", "stops").empty());
 }
 
 TEST_CASE("both engines report the time they reached for a progress line", "[resources]") {

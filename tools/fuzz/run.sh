@@ -5,7 +5,7 @@
 #
 #   bash tools/fuzz/run.sh SECONDS [TARGET ...]       # default targets: fuzz_scene fuzz_run
 #
-# Each target runs SECONDS of wall time on one core, from the seeds plus what earlier runs kept
+# Each target runs SECONDS of wall time on one core (inputs up to MAX_LEN bytes, default 4096), from the seeds plus what earlier runs kept
 # in build/sanitize/fuzz/corpus-TARGET. Exit status: 0 if no target found anything; else 1, with
 # the crashing input saved as build/sanitize/fuzz/TARGET-crash-* (turn it into a malformed-scene
 # test: tests/io/malformed/, docs/fuzzing.md).
@@ -26,7 +26,7 @@ for target in "${targets[@]}"; do
   echo "fuzz: $target for $seconds s (corpus $corpus, seeds $work/seeds)" >&2
   if ! ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
       "$build/tools/fuzz/$target" "$corpus" "$work/seeds" -dict=tools/fuzz/scene.dict \
-      -max_total_time="$seconds" -max_len=65536 -timeout=30 -rss_limit_mb=4096 -malloc_limit_mb=4096 \
+      -max_total_time="$seconds" -max_len="${MAX_LEN:-4096}" -timeout=30 -rss_limit_mb=4096 -malloc_limit_mb=4096 \
       -artifact_prefix="$work/$target-" -print_final_stats=1 > "$work/$target.log" 2>&1; then
     status=1
     echo "fuzz: $target FOUND A PROBLEM (log: $work/$target.log):" >&2

@@ -187,8 +187,8 @@ class SimulationProgress {
 };
 
 RunReport run_simulation(const Scene& scene, const RunRequest& request) {
-  ResultFile file = ResultFile::create(request.output, scene, current_meta(1), request.force);
   InterruptGuard guard;  // Ctrl-C ends the run at its next event: nothing is written
+  ResultFile file = ResultFile::create(request.output, scene, current_meta(1), request.force);
   Recording rec;
   {
     SimulationProgress progress(request.progress, scene.t0,
