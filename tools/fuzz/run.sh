@@ -25,6 +25,7 @@ for target in "${targets[@]}"; do
   mkdir -p "$corpus"
   echo "fuzz: $target for $seconds s (corpus $corpus, seeds $work/seeds)" >&2
   if ! ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+      LSAN_OPTIONS=suppressions=$PWD/tools/fuzz/lsan.supp \
       "$build/tools/fuzz/$target" "$corpus" "$work/seeds" -dict=tools/fuzz/scene.dict \
       -max_total_time="$seconds" -max_len="${MAX_LEN:-4096}" -timeout=30 -rss_limit_mb=4096 -malloc_limit_mb=4096 \
       -artifact_prefix="$work/$target-" -print_final_stats=1 > "$work/$target.log" 2>&1; then
