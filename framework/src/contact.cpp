@@ -125,7 +125,7 @@ void ContactMode::build_reduced() const {
     for (Eigen::Index b = 0; b < nf; ++b) N(red->free[static_cast<std::size_t>(b)], b) = 1.0;
     for (Eigen::Index a = 0; a < m; ++a) {
       const Eigen::Index d = red->dependent[static_cast<std::size_t>(a)];
-      N.row(d) = -AinvB.row(a);
+      if (nf > 0) N.row(d) = -AinvB.row(a);  // every coordinate held (nf = 0): N is n × 0
       P.row(d) = Ainv.row(a);
     }
   } else {
