@@ -12,6 +12,7 @@ packages=(
   libboost-dev                        # Boost.Odeint: the Runge-Kutta baseline of tools/bench only
   openmpi-bin libopenmpi-dev          # optional MPI sweeps (found at configure time) and their test
   liblapack-dev                       # LAPACK dstemr: O(N²) modal set-up of long chains (framework/src/modal.cpp)
+  clang libclang-rt-14-dev libomp-dev # the sanitize preset (ASan + UBSan) and the libFuzzer targets (docs/fuzzing.md)
 )
 
 missing=()

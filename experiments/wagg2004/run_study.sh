@@ -20,7 +20,7 @@ mkdir -p "$out/data"
 
 run() {  # scene file, result name
   echo "== vibro run $1" >&2
-  "$vibro" run "$1" -o "$out/data/$2.h5"
+  "$vibro" run "$1" -o "$out/data/$2.h5" --force  # a new study replaces the last one's results
 }
 run experiments/wagg2004/fig2_sticking_orbit.yaml fig2_sticking_orbit
 run experiments/wagg2004/fig4_rising_sequence.yaml fig4_rising_sequence

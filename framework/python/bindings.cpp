@@ -255,7 +255,7 @@ PYBIND11_MODULE(_vibro, m) {
                   "Parses scene text; `file` names it in messages.")
       .def("get", &SceneDocument::get, py::arg("path"), "The number at a path.")
       .def("set", &SceneDocument::set, py::arg("path"), py::arg("value"), "Sets the number at a path.")
-      .def("set_assignment", &SceneDocument::set_assignment, py::arg("assignment"),
+      .def("set_assignment", &SceneDocument::set_assignment, py::arg("assignment"), py::arg("ordinal") = 1,
            "Applies 'PATH=VALUE' as `vibro run --set` does, with its messages.")
       .def("replace", &SceneDocument::replace, py::arg("path"), py::arg("yaml"),
            "Replaces (or adds, or with '' removes) the value at a key path by YAML text.")

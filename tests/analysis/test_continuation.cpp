@@ -153,7 +153,7 @@ TEST_CASE("continuation: the designed oscillator's fold, period doubling and two
 }
 
 TEST_CASE("continuation: branch switching at the period doubling gives a period-2 branch whose "
-          "orbits have minimal period 2; it grazes, turns and doubles again",
+          "orbits have minimal period 2, it grazes, turns and doubles again",
           "[continuation][doubling]") {
   const DesignedOrbit d(0.125);
   const vibro::ContinuationResult r = designed_branch();
@@ -192,7 +192,7 @@ vibro::FamilyPoint paper_at(double omega) {
 }  // namespace
 
 TEST_CASE("continuation: the paper's system near Ω = 0.2637: mass 1 loses an impact per period at "
-          "a grazing corner and the impacting branch folds just above it; in between two stable "
+          "a grazing corner and the impacting branch folds just above it, in between two stable "
           "orbits coexist, each attracting a run started on it",
           "[continuation][wagg2004]") {
   vibro::models::Wagg2004 p;

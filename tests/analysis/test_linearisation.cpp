@@ -313,7 +313,7 @@ TEST_CASE("linearisation: time derivatives: dz1/dt1 is the vector field at the e
 }
 
 TEST_CASE("linearisation: Jacobians equal long-double central differences of the independent "
-          "RK8 hybrid integrator's map (impacts; plastic impacts into sticking and releases)",
+          "RK8 hybrid integrator's map (impacts, plastic impacts into sticking and releases)",
           "[linearisation][reference]") {
   using vibro::test::ReferenceHybrid;
   using VectorL = Eigen::Matrix<long double, Eigen::Dynamic, 1>;
@@ -359,7 +359,7 @@ TEST_CASE("linearisation: Jacobians equal long-double central differences of the
   }
 }
 
-TEST_CASE("linearisation: sticking gives exact structural zeros; the reduced map carries the "
+TEST_CASE("linearisation: sticking gives exact structural zeros, the reduced map carries the "
           "other multipliers and their eigenvectors",
           "[linearisation][structure]") {
   // Ω = 0.255 (Wagg 2004, fig. 2): each mass sticks once per period, one at a time, so the

@@ -127,7 +127,7 @@ TEST_CASE("shooting: an unstable orbit is left by a run at the rate of its large
   CHECK(std::abs(growth - mu) <= 1e-3 * mu);  // 0.253⁴ ≈ 4e-3 of the decaying direction is left
 }
 
-TEST_CASE("shooting: the paper's sticking orbits equal the running method's; their multipliers "
+TEST_CASE("shooting: the paper's sticking orbits equal the running method's, their multipliers "
           "have the structural zeros of sticking and predict the running method's contraction",
           "[shooting][wagg2004]") {
   for (double omega : {0.255, 0.27}) {

@@ -45,12 +45,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 FEIGENBAUM = 4.669201609102990
-TRANSIENT = 400          # sweep: periods per point before recording
-RECORDED = 128           # sweep: section states recorded per point (after the transient)
+TRANSIENT = 300          # sweep: periods per point before recording
+RECORDED = 64            # sweep: section states recorded per point (after the transient)
 CONVERGED = 1e-6         # ρ^TRANSIENT at most this: the sweep has converged onto the orbit
 MATCH = 1e-6             # sweep state vs branch orbit, relative to the branches' x and v ranges
-COARSE = 0.0005          # grid spacing over the whole range
-FINE = [(1.7465, 1.7505, 1e-5), (1.7494, 1.7502, 1e-6)]   # grids on the cascade's end: from, to, spacing
+COARSE = 0.001          # grid spacing over the whole range
+FINE = [(1.7465, 1.7505, 2e-5), (1.7494, 1.7502, 2e-6)]   # grids on the cascade's end: from, to, spacing
 # the zooms (b), (c): Ω range and x2 range (one group of prongs each)
 ZOOMS = [((1.7465, 1.7505), (-0.63, -0.45)), ((1.7494, 1.7502), (-2.0, -1.925))]
 COORD = 1                # the displacement drawn: mass 1 (the paper's numbering: x2)
@@ -102,7 +102,7 @@ def orbit_states(vibro, scene_file, pts, lo, hi, what):
             values[f"initial.x[{m}]"] = float(pts["x"][i][m])
             values[f"initial.v[{m}]"] = float(pts["v"][i][m])
         s.update(values)
-        r = vibro.simulate(s, transient_periods=0, periods=k, poincare=True)
+        r = vibro.simulate(s, transient_periods=0, periods=k, poincare=True, threads=1)
         if r.status != "completed":
             c.fail(f"{what} {i} (Ω = {pts['p'][i]}): the run from it stopped: {r.status}")
         px, pv = np.asarray(r.poincare.x), np.asarray(r.poincare.v)
@@ -159,7 +159,7 @@ def legend(ax, ks, colour_of_k):
     h += [Line2D([], [], color=colour_of_k(k), lw=1.1, label=f"period {k}T" if k > 1 else "period T") for k in ks]
     h += [Line2D([], [], color="k", lw=0.6, ls="--", label="unstable"),
           Line2D([], [], ls="none", marker="s", ms=3.2, mfc="white", mec="k", label="period doubling")]
-    ax.legend(handles=h, loc="lower left", ncol=3, fontsize=7, framealpha=0.9)
+    ax.legend(handles=h, loc="upper left", ncol=2, fontsize=7, framealpha=0.9)
 
 
 def main():
@@ -304,14 +304,16 @@ def main():
                        f"period is {sweep_k[g] or 'none'}")
             period_checked += 1
     print(f"check: at {period_checked} grid points inside stable stretches the sweep's period is the branch's")
-    # ---- the sweep's own brackets of the doublings (information)
-    print("the sweep's period changes next to each located doubling (grid points either side):")
+    # ---- the sweep's own view of the doublings (information: by brute force a doubling shows
+    # where the least period found changes, blurred by the slow convergence next to it)
+    print("the sweep by itself: last grid point below each doubling with the old period, first with the new one")
     for n_, pv_ in enumerate(pds):
-        g = int(np.searchsorted(grid, pv_))
-        below = [(grid[q], sweep_k[q]) for q in range(max(g - 1, 0), g)]
-        above = [(grid[q], sweep_k[q]) for q in range(g, min(g + 1, len(grid)))]
-        print(f"  PD{n_ + 1} {pv_:.10f}: sweep period {below[0][1] if below else '-'} at {below[0][0] if below else '-'}"
-              f", {above[0][1] if above else '-'} at {above[0][0] if above else '-'}")
+        k = int(br["k"][bi["branch"][pd[n_]]])
+        below = np.where((grid < pv_) & (sweep_k == k))[0]
+        above = np.where((grid > (grid[below[-1]] if len(below) else lo)) & (sweep_k == 2 * k))[0]
+        a_txt = f"period {k} last at {grid[below[-1]]:.7f} ({grid[below[-1]] - pv_:+.1e})" if len(below) else f"period {k} never"
+        b_txt = f"period {2 * k} first at {grid[above[0]]:.7f} ({grid[above[0]] - pv_:+.1e})" if len(above) else f"period {2 * k} never"
+        print(f"  PD{n_ + 1} {pv_:.10f}: {a_txt}, {b_txt}")
 
     # ---- the figure
     def colour_of_k(k):
@@ -341,6 +343,8 @@ def main():
         ax.ticklabel_format(axis="x", useOffset=False)
         ax.xaxis.set_major_locator(MaxNLocator(4))
     ax_a.set_xlim(lo, hi)
+    y0, y1 = ax_a.get_ylim()
+    ax_a.set_ylim(y0, y1 + 0.45 * (y1 - y0))   # room for the legend
     for zoom, tag in zip(ZOOMS, ("b", "c")):
         (x0, x1), (y0, y1) = zoom
         ax_a.add_patch(plt.Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="0.3", lw=0.6, zorder=6))

@@ -2,6 +2,7 @@
 #include "vibro/io/continuation.hpp"
 #include "vibro/io/locate.hpp"
 
+#include "vibro/io/resources.hpp"
 #include "vibro/io/result_file.hpp"
 
 #include <fmt/format.h>
@@ -27,6 +28,7 @@
 #include <deque>
 #include <exception>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -63,14 +65,23 @@ class InterruptGuard {
   void (*old_term_)(int);
 };
 
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 struct StartState {
   double t;
   Eigen::VectorXd x, v;
 };
 
-/// Transient (unrecorded) then recorded periods of one scene from `start`.
-Recording simulate(const Scene& scene, const StartState& start) {
+/// Transient (unrecorded) then recorded periods of one scene from `start`. The engine polls the
+/// interrupt flag (SIGINT, SIGTERM) at every event and search step, and stores the time it
+/// reached in `reached` (if given) for a progress line.
+Recording simulate(const Scene& base, const StartState& start, std::atomic<double>* reached = nullptr) {
   const auto clock = std::chrono::steady_clock::now();
+  Scene scene = base;  // shares the built system; only the options change
+  if (!scene.solver.interrupt) scene.solver.interrupt = &g_interrupted;  // the caller's flag, or signals
+  scene.solver.reached = reached;
   // One engine per run (a simulation, or a sweep point): everything else in this file (transient
   // then recorded run, observers, files, threads, processes) is the same for both engines.
   const std::unique_ptr<vibro::Engine> engine = make_engine(scene);
@@ -91,6 +102,9 @@ Recording simulate(const Scene& scene, const StartState& start) {
     // Counts are the recorded run's (docs/results.md), as the recorded events are.
     rec.summary = sim.run(t1, transient.x, transient.v, t1 + scene.run.periods * T, rec.observers());
   }
+  for (const std::string& w : transient.warnings)
+    if (std::find(rec.summary.warnings.begin(), rec.summary.warnings.end(), w) == rec.summary.warnings.end())
+      rec.summary.warnings.insert(rec.summary.warnings.begin(), "during the transient: " + w);
   rec.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock).count();
   return rec;
 }
@@ -125,11 +139,73 @@ class Progress {
   std::chrono::steady_clock::time_point start_;
 };
 
+/// A progress line for one long simulation, on stderr from a thread of its own: the time the
+/// engine reached (SimulatorOptions::reached), the share of the run done and an estimate of the
+/// time left, every second once the run has taken 2 s. Only on a terminal (RunRequest::progress).
+class SimulationProgress {
+ public:
+  SimulationProgress(bool on, double t_begin, double t_end) : t_begin_(t_begin), t_end_(t_end) {
+    reached_.store(t_begin);
+    if (on) watcher_ = std::thread([this] { watch(); });
+  }
+  ~SimulationProgress() {
+    {
+      std::lock_guard<std::mutex> hold(lock_);
+      done_ = true;
+    }
+    wake_.notify_all();
+    if (watcher_.joinable()) watcher_.join();
+  }
+  SimulationProgress(const SimulationProgress&) = delete;
+  SimulationProgress& operator=(const SimulationProgress&) = delete;
+  std::atomic<double>* reached() { return &reached_; }
+
+ private:
+  void watch() {
+    const auto start = std::chrono::steady_clock::now();
+    bool printed = false;
+    std::unique_lock<std::mutex> hold(lock_);
+    while (!wake_.wait_for(hold, std::chrono::seconds(1), [this] { return done_; })) {
+      const double elapsed = seconds_since(start);
+      if (elapsed < 2.0) continue;
+      const double share = t_end_ > t_begin_ ? (reached_.load() - t_begin_) / (t_end_ - t_begin_) : 1.0;
+      const std::string left = share > 0.0 ? fmt::format(", about {:.0f} s left", elapsed * (1.0 - share) / share)
+                                            : std::string(", no event yet");
+      std::fprintf(stderr, "\r  t = %.6g of %.6g (%.1f %%), %.0f s%s   ", reached_.load(), t_end_, 100.0 * share,
+                   elapsed, left.c_str());
+      std::fflush(stderr);
+      printed = true;
+    }
+    if (printed) std::fputc('\n', stderr);
+  }
+
+  double t_begin_, t_end_;
+  std::atomic<double> reached_{0.0};
+  std::mutex lock_;
+  std::condition_variable wake_;
+  bool done_ = false;
+  std::thread watcher_;
+};
+
 RunReport run_simulation(const Scene& scene, const RunRequest& request) {
+  // Ctrl-C ends the run at its next event: `vibro run` writes nothing then; a caller with its own
+  // flag (Python) gets the run up to there.
+  std::optional<InterruptGuard> guard;
+  if (!request.interrupt) guard.emplace();
   ResultFile file = open_result_file(request, scene, current_meta(1));
   Scene interruptible = scene;
-  interruptible.solver.interrupt = request.interrupt;
-  const Recording rec = simulate(interruptible, {scene.t0, scene.x0, scene.v0});
+  interruptible.solver.interrupt = request.interrupt;  // null: the signal flag (simulate)
+  Recording rec;
+  {
+    SimulationProgress progress(request.progress, scene.t0,
+                                scene.t0 + (scene.run.transient_periods + scene.run.periods) * scene.period());
+    rec = simulate(interruptible, {scene.t0, scene.x0, scene.v0}, progress.reached());
+  }
+  if (rec.summary.status == RunStatus::interrupted && !request.in_memory)
+    return {130, fmt::format("Interrupted at t = {:g}: {} was not written (a simulation keeps nothing; only sweeps "
+                             "can be resumed).",
+                             rec.summary.t, request.output),
+            {}};  // the ResultFile removes its .partial
   file.write_simulation(rec);
   RunMeta meta = current_meta(1);
   meta.wall_seconds = rec.wall_seconds;
@@ -137,11 +213,13 @@ RunReport run_simulation(const Scene& scene, const RunRequest& request) {
   RunReport report;
   const RunSummary& s = rec.summary;
   report.exit_code = s.status == RunStatus::completed ? 0 : s.status == RunStatus::interrupted ? 130 : 1;
+  std::string warnings;
+  for (const std::string& w : s.warnings) warnings += "\nwarning: " + w;
   report.summary = fmt::format(
       "Simulated {} with the {} engine from t = {:g} over {:g} transient and {:g} recorded forcing periods in "
-      "{:.3f} s: {}; {}.{} Results in {}.",
+      "{:.3f} s: {}; {}.{} Results in {}.{}",
       scene.file, to_string(scene.engine), scene.t0, scene.run.transient_periods, scene.run.periods, rec.wall_seconds,
-      to_string(s.status), status_line(s), s.message.empty() ? "" : " " + s.message, file.path());
+      to_string(s.status), status_line(s), s.message.empty() ? "" : " " + s.message, file.path(), warnings);
   if (request.in_memory) report.image = file.image();
   return report;
 }
@@ -182,12 +260,12 @@ SweepPlan plan_sweep(const SceneDocument& doc, const Scene& scene, const RunRequ
 
   // Build and validate every point's scene first: bad input never starts a file.
   plan.scenes.reserve(plan.total);
+  SceneDocument point = doc;  // one working copy: set() replaces the swept values per point
   for (std::size_t p = 0; p < plan.total; ++p) {
-    SceneDocument point = doc;
     for (std::size_t a = 0; a < axes.size(); ++a) point.set(axes[a].path, plan.grid[p][a]);
     try {
       plan.scenes.push_back(point.build_point());  // build() checks the whole grid: once, in main
-      plan.scenes.back().solver.interrupt = request.interrupt;
+      plan.scenes.back().solver.interrupt = plan.interrupted;
     } catch (const SceneError& e) {
       std::string where;
       for (std::size_t a = 0; a < axes.size(); ++a) where += fmt::format("{}{} = {:.12g}", a ? ", " : "", axes[a].path, plan.grid[p][a]);
@@ -213,11 +291,7 @@ struct SweepStart {
 ResultFile open_sweep_file(const SweepPlan& plan, const Scene& scene, const RunRequest& request,
                            int threads, SweepStart& start) {
   if (request.in_memory && request.resume) throw std::logic_error("runner: a sweep in memory cannot be resumed");
-  if (!request.in_memory && !request.resume && std::filesystem::exists(ResultFile::partial_path(request.output)))
-    throw SceneError(scene.file, 0, 0, "",
-                     "an interrupted sweep exists in " + ResultFile::partial_path(request.output) +
-                         ": finish it with --resume, or delete it to start again");
-  ResultFile file = request.resume ? ResultFile::open_partial(request.output, scene)
+  ResultFile file = request.resume ? ResultFile::open_partial(request.output, scene, request.force)
                                    : open_result_file(request, scene, current_meta(threads));
   file.begin_sweep(plan.names, plan.total);
   start.first = file.completed_points();
@@ -259,6 +333,7 @@ void run_chain(const SweepPlan& plan, const SweepStart& from, std::size_t c, Del
     if (plan.follow && carried) start = {sc.t0, carried->x, carried->v};
     if (plan.follow && !carried && p == from.first && from.resumed) start = {sc.t0, from.resumed->x, from.resumed->v};
     Recording rec = run_point(sc, start);
+    if (rec.summary.status == RunStatus::interrupted) break;  // not a result: computed again on --resume
     if (plan.follow) carried = StartState{sc.t0, rec.summary.x, rec.summary.v};
     deliver(p, std::move(rec));
   }
@@ -376,18 +451,11 @@ class SweepWriter {
   std::optional<ResultError> write_error_;
 };
 
-int thread_count(const RunRequest& request) {
-#ifdef _OPENMP
-  return request.threads > 0 ? request.threads : omp_get_max_threads();
-#else
-  (void)request;
-  return 1;
-#endif
+/// Threads for a sweep: as requested (0: all cores), at most one per unit of work (resources.hpp).
+int thread_count(const RunRequest& request, const SweepPlan& plan) {
+  return checked_threads(request.threads, plan.chains);
 }
 
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 /// Rank and size of MPI_COMM_WORLD if MPI is running, else 0 and 1.
 std::pair<int, int> world() {
@@ -412,7 +480,7 @@ RunReport run_sweep_mpi(const SweepPlan& plan, const Scene& scene, const RunRequ
 
 RunReport run_sweep(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
   const SweepPlan plan = plan_sweep(doc, scene, request);
-  const int threads = thread_count(request);
+  const int threads = thread_count(request, plan);
 #ifdef VIBRO_WITH_MPI
   if (const auto [rank, size] = world(); size > 1) return run_sweep_mpi(plan, scene, request, threads, rank, size);
 #endif
@@ -870,10 +938,11 @@ RunReport run_sweep_mpi(const SweepPlan& plan, const Scene& scene, const RunRequ
 
 ResultFile open_result_file(const RunRequest& request, const Scene& scene, const RunMeta& meta) {
   return request.in_memory ? ResultFile::create_in_memory(scene, meta)
-                           : ResultFile::create(request.output, scene, meta);
+                           : ResultFile::create(request.output, scene, meta, request.force);
 }
 
 RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
+  check_run_resources(scene, checked_threads(request.threads, std::numeric_limits<std::size_t>::max()));  // before any file or allocation
   // Under MPI only sweeps are split across the processes; any other run is rank 0's alone.
   if (scene.run.kind != RunSpec::Kind::sweep && world().first != 0) return {};
   if (scene.run.kind == RunSpec::Kind::sweep) return run_sweep(doc, scene, request);

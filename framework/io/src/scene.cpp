@@ -1,13 +1,22 @@
 #include "vibro/io/scene.hpp"
 
 #include "vibro/io/continuation.hpp"
+#include "vibro/io/resources.hpp"
 
 #include "vibro/models/chain.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -31,6 +40,29 @@ std::size_t edit_distance(const std::string& a, const std::string& b) {
     }
   }
   return row[b.size()];
+}
+
+/// Reads a whole string as a double (strtod's syntax, no leading or trailing space). Accepts
+/// subnormal values (1e-308: strtod reports ERANGE for them); refuses what over- or underflows
+/// to a value other than the one written (1e999 → ∞, 1e-999 → 0). Empty `why` on success.
+double parse_number(const std::string& s, std::string& why) {
+  why.clear();
+  if (s.empty() || std::isspace(static_cast<unsigned char>(s.front()))) {
+    why = "expected a number, found '" + s + "'";
+    return 0.0;
+  }
+  errno = 0;
+  char* end = nullptr;
+  const double v = std::strtod(s.c_str(), &end);
+  const bool range = errno == ERANGE;
+  if (end != s.c_str() + s.size() || end == s.c_str()) {
+    why = "expected a number, found '" + s + "'";
+  } else if (!std::isfinite(v) || (range && std::abs(v) > 1.0)) {
+    why = "expected a finite number, found '" + s + "'";
+  } else if (range && v == 0.0 && s.find_first_of("123456789") < s.find_first_of("eE")) {
+    why = "'" + s + "' is below the smallest double (4.9e-324): write 0 if 0 is meant";
+  }
+  return v;
 }
 
 std::string describe(const YAML::Node& n) {
@@ -103,19 +135,21 @@ class Reader {
     }
   }
 
+  /// A plain (unquoted, untagged) scalar that reads whole as a finite double. A quoted "0.5"
+  /// or `!!str 0.5` is text in YAML, and refused as such.
   double number(const YAML::Node& node, const std::string& path) {
     note(node);
     if (!node.IsScalar()) fail(node, path, "expected a number, found " + describe(node));
     const std::string& s = node.Scalar();
-    std::size_t used = 0;
-    double v = 0.0;
-    try {
-      v = std::stod(s, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != s.size()) fail(node, path, "expected a number, found '" + s + "'");
-    if (!std::isfinite(v)) fail(node, path, "expected a finite number, found '" + s + "'");
+    const std::string& tag = node.Tag();
+    if (tag == "!" || tag == "tag:yaml.org,2002:str")
+      fail(node, path, "expected a number, found the text '" + s + "' (" + (tag == "!" ? "quoted" : "tagged !!str") +
+                           "; write the number without quotes)");
+    if (!tag.empty() && tag != "?" && tag != "tag:yaml.org,2002:float" && tag != "tag:yaml.org,2002:int")
+      fail(node, path, "expected a number, found '" + s + "' tagged " + tag);
+    std::string why;
+    const double v = parse_number(s, why);
+    if (!why.empty()) fail(node, path, why);
     return v;
   }
 
@@ -220,6 +254,8 @@ std::vector<PathStep> split_path(const std::string& path) {
       const std::string digits = path.substr(i + 1, close - i - 1);
       if (digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos)
         throw std::invalid_argument("index '" + digits + "' is not a whole number");
+      if (digits.size() > 9)  // stoul would overflow past 2^64; no list is longer than 1e9
+        throw std::invalid_argument("index '" + digits + "' is too large");
       steps.push_back({"", std::stoul(digits)});
       i = close + 1;
       continue;
@@ -342,11 +378,45 @@ const std::string& SceneDocument::file() const { return impl_->file; }
 const std::string& SceneDocument::text() const { return impl_->text; }
 
 SceneDocument SceneDocument::load(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError(path, 0, 0, "", "cannot open the scene file");
-  std::ostringstream s;
-  s << in.rdbuf();
-  return parse(s.str(), path);
+  // Opened without blocking (a FIFO would wait for a writer for ever) and checked on the open
+  // descriptor: only a regular file is read, and only if parsing it fits in memory.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) throw SceneError(path, 0, 0, "", std::string("cannot open the scene file: ") + std::strerror(errno));
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat info {};
+  if (::fstat(fd, &info) != 0)
+    throw SceneError(path, 0, 0, "", std::string("cannot read the scene file: ") + std::strerror(errno));
+  if (!S_ISREG(info.st_mode)) {
+    const char* kind = S_ISDIR(info.st_mode)    ? "a directory"
+                       : S_ISFIFO(info.st_mode) ? "a FIFO (named pipe)"
+                       : S_ISCHR(info.st_mode)  ? "a character device"
+                       : S_ISBLK(info.st_mode)  ? "a block device"
+                       : S_ISSOCK(info.st_mode) ? "a socket"
+                                                : "not a regular file";
+    throw SceneError(path, 0, 0, "", std::string("is ") + kind + ": a scene must be a regular file");
+  }
+  const auto size = static_cast<std::uint64_t>(info.st_size);
+  try {
+    require_memory(size * kParseBytesPerByte,
+                   "parsing the scene file (" + bytes_text(size) + ", about " + std::to_string(kParseBytesPerByte) +
+                       " bytes of YAML tree per byte)");
+  } catch (const ResourceError& e) {
+    throw SceneError(path, 0, 0, "", e.what());
+  }
+  std::string text(static_cast<std::size_t>(size), '\0');
+  std::size_t got = 0;
+  while (got < text.size()) {
+    const ssize_t r = ::pread(fd, text.data() + got, text.size() - got, static_cast<off_t>(got));
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0) throw SceneError(path, 0, 0, "", std::string("cannot read the scene file: ") + std::strerror(errno));
+    if (r == 0) break;  // shrank while read
+    got += static_cast<std::size_t>(r);
+  }
+  text.resize(got);
+  return parse(text, path);
 }
 
 SceneDocument SceneDocument::parse(const std::string& text, const std::string& file) {
@@ -404,6 +474,10 @@ void SceneDocument::set(const std::string& path, double value) {
   Reader r(impl_->file);
   r.number(node, path);  // must already be a number
   node = number_text(value);
+  // Setting a path again replaces its value: a sweep reuses one working copy for every point.
+  const auto same = std::find_if(impl_->overrides.begin(), impl_->overrides.end(),
+                                 [&](const auto& o) { return o.first == path; });
+  if (same != impl_->overrides.end()) impl_->overrides.erase(same);
   impl_->overrides.emplace_back(path, value);
   impl_->edits.push_back({path, value, {}});
 }
@@ -440,26 +514,24 @@ void SceneDocument::replace(const std::string& path, const std::string& yaml) {
   impl_->edits.push_back({path, std::nullopt, yaml});
 }
 
-void SceneDocument::set_assignment(const std::string& assignment) {
+void SceneDocument::set_assignment(const std::string& assignment, int ordinal) {
+  // Errors point into the assignment: "--set:K:C:", the K-th --set, column C of its text.
+  auto fail = [&](std::size_t column, const std::string& path, const std::string& problem) {
+    throw SceneError("--set", ordinal, static_cast<int>(column), path, problem);
+  };
   const std::size_t eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
-    throw SceneError("--set", 0, 0, assignment, "expected PATH=VALUE, e.g. forcing.frequency=0.26");
+    fail(1, assignment, "expected PATH=VALUE, e.g. forcing.frequency=0.26");
   const std::string path = assignment.substr(0, eq);
   const std::string value = assignment.substr(eq + 1);
-  std::size_t used = 0;
-  double v = 0.0;
-  try {
-    v = std::stod(value, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != value.size() || !std::isfinite(v))
-    throw SceneError("--set", 0, 0, path, "expected a finite number, found '" + value + "'");
+  std::string why;
+  const double v = parse_number(value, why);
+  if (!why.empty())
+    fail(eq + 2, path, why.rfind("expected a number", 0) == 0 ? "expected a finite number, found '" + value + "'" : why);
   try {
     set(path, v);
   } catch (const SceneError& e) {
-    throw SceneError("--set", 0, 0, path,
-                     e.problem() + " (in " + e.file() + (e.path().empty() ? "" : " at " + e.path()) + ")");
+    fail(1, path, e.problem() + " (in " + e.file() + (e.path().empty() ? "" : " at " + e.path()) + ")");
   }
 }
 
@@ -659,26 +731,6 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     if (in["x"]) x0 = to_vector(r.numbers(in["x"], "initial.x", n, "one displacement per mass"));
     if (in["v"]) v0 = to_vector(r.numbers(in["v"], "initial.v", n, "one velocity per mass"));
   }
-  try {
-    check_admissible(stops, f.frequency, t0, x0, 1e-12 * stops_length_scale(stops, x0.cwiseAbs().maxCoeff()));
-  } catch (const InvalidInput& e) {
-    const YAML::Node in = root["initial"];
-    if (in && in["x"]) r.fail(in["x"], "initial.x", e.what());
-    // The default initial state (rest at 0) violates a stop: point at that stop's position.
-    const std::string msg = e.what();
-    const std::size_t at = msg.find("stops[");
-    const YAML::Node sn = root["stops"];
-    if (at != std::string::npos && sn) {
-      const std::size_t j = std::stoul(msg.substr(at + 6));
-      if (j < sn.size()) {
-        const char* key = sn[j]["between"] ? "gap" : "position";
-        r.fail(sn[j][key], "stops[" + std::to_string(j) + "]." + key,
-               msg + "; the initial state defaults to rest at x = 0 (set initial.x)");
-      }
-    }
-    r.fail(root, "initial.x", msg);
-  }
-
   // --- solver ---
   SimulatorOptions opt;
   EngineChoice engine_choice = EngineChoice::automatic;
@@ -707,6 +759,49 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       const std::string e = r.choice(sv["engine"], "solver.engine", {"auto", "dense", "modal"});
       engine_choice = e == "dense" ? EngineChoice::dense : e == "modal" ? EngineChoice::modal : EngineChoice::automatic;
     }
+  }
+
+  // The initial state, with the tolerance the run will use (trigger × L): what `check` accepts,
+  // the run accepts. L is the engines' (run_length_scale); for an unforced scene the engines take
+  // the fastest mode's frequency, unknown here, and the stops' and x0's part of L is used: a lower
+  // bound, so the loader is never the more lenient.
+  try {
+    double kmax = 0.0, mmax = 0.0;
+    if (chain_links) {
+      const models::Chain& c = *chain_links;
+      for (long i = 0; i < n; ++i) {
+        const auto u = static_cast<std::size_t>(i);
+        double k = (i == 0 ? c.left_spring : 0.0) + (i == n - 1 ? c.right_spring : 0.0);
+        if (i > 0) k += c.springs[u - 1];
+        if (i < n - 1) k += c.springs[u];
+        kmax = std::max({kmax, k, i < n - 1 ? c.springs[u] : 0.0});
+        mmax = std::max(mmax, c.masses[u]);
+      }
+    } else {
+      kmax = K.cwiseAbs().maxCoeff();
+      mmax = M.cwiseAbs().maxCoeff();
+    }
+    const bool forced = f.frequency > 0.0;
+    const double fmax = forced ? f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff() : 0.0;
+    const double L = run_length_scale(opt, forced ? f.frequency : 1.0, kmax, mmax, fmax, stops, x0,
+                                      forced ? v0 : Eigen::VectorXd::Zero(n).eval());
+    check_admissible(stops, f.frequency, t0, x0, opt.trigger * L);
+  } catch (const InvalidInput& e) {
+    const YAML::Node in = root["initial"];
+    if (in && in["x"]) r.fail(in["x"], "initial.x", e.what());
+    // The default initial state (rest at 0) violates a stop: point at that stop's position.
+    const std::string msg = e.what();
+    const std::size_t at = msg.find("stops[");
+    const YAML::Node sn = root["stops"];
+    if (at != std::string::npos && sn) {
+      const std::size_t j = std::stoul(msg.substr(at + 6));
+      if (j < sn.size()) {
+        const char* key = sn[j]["between"] ? "gap" : "position";
+        r.fail(sn[j][key], "stops[" + std::to_string(j) + "]." + key,
+               msg + "; the initial state defaults to rest at x = 0 (set initial.x)");
+      }
+    }
+    r.fail(root, "initial.x", msg);
   }
 
   // --- record ---
@@ -777,8 +872,8 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   };
   std::vector<PointEngine> point_engines;
   auto check_values = [&](const SweepAxis& axis, const YAML::Node& p, const std::string& path) {
+    SceneDocument point(*this);  // one copy, its value replaced per point: no re-parse per point
     for (std::size_t i = 0; i < axis.values.size(); ++i) {
-      SceneDocument point(*this);
       point.set(axis.path, axis.values[i]);
       const bool listed = static_cast<bool>(p["values"]);
       const YAML::Node at = listed ? p["values"][i] : p[p["linspace"] ? "linspace" : "logspace"];
@@ -837,6 +932,14 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       if (lc["periodicity"]) l.periodicity = r.number_in(lc["periodicity"], "run.locate.periodicity", 1e-15, 1e-2, "a relative tolerance in [1e-15, 1e-2]");
       if (lc["max_period"]) l.max_period = static_cast<int>(r.integer(lc["max_period"], "run.locate.max_period", 1, 64));
       if (lc["max_periods"]) l.max_periods = r.integer(lc["max_periods"], "run.locate.max_periods", 2, 100000000);
+      // The first orbit is searched after the transient, each for up to max_period periods:
+      // a budget below that would have to be raised behind the user's back (bifurcation.cpp).
+      const long needed = static_cast<long>(std::ceil(run.transient_periods)) + l.max_period + 1;
+      if (l.max_periods < needed)
+        r.fail(lc["max_periods"] ? lc["max_periods"] : lc, "run.locate.max_periods",
+               "expected at least " + std::to_string(needed) + " periods (run.transient_periods " +
+                   number_text(run.transient_periods) + " + max_period " + std::to_string(l.max_period) +
+                   " + 1: the first orbit is tested after the transient), found " + std::to_string(l.max_periods));
       if (lc["jump"]) l.jump = r.number_in(lc["jump"], "run.locate.jump", 0, 1, "a fraction of the period in [0, 1] (0: no jump search)");
       check_values(run.axes[0], lc, "run.locate");
     }

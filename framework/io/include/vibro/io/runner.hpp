@@ -55,6 +55,8 @@ struct RunRequest {
   /// before its next point; the runner raises it too when it stops a sweep itself. No signal
   /// handler is installed when it is given.
   std::atomic<bool>* interrupt = nullptr;
+  /// Replace an existing output file (--force); never the scene file itself.
+  bool force = false;
 };
 
 struct RunReport {

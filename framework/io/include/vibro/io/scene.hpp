@@ -200,8 +200,9 @@ class SceneDocument {
   /// Sets the numeric value at `path` (e.g. "stops[1].position"). Throws SceneError if the path
   /// does not name an existing numeric value (message names the path and what is there).
   void set(const std::string& path, double value);
-  /// Parses "PATH=VALUE" (for --set) and applies it.
-  void set_assignment(const std::string& assignment);
+  /// Parses "PATH=VALUE" (for --set) and applies it. Errors read "--set:K:C: PATH: problem":
+  /// the `ordinal`-th --set (from 1), column C of the assignment (1: the path, after '=': the value).
+  void set_assignment(const std::string& assignment, int ordinal = 1);
   /// The numeric value at `path`.
   double get(const std::string& path) const;
   /// Replaces the value at `path` (keys only, e.g. "record" or "run.sweep") by the YAML text
