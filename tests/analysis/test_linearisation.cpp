@@ -446,3 +446,69 @@ TEST_CASE("linearisation: simultaneous impacts: smooth when their order does not
   CHECK(d.non_smooth);
   CHECK(d.non_smooth_reason.find("simultaneous impacts") != std::string::npos);
 }
+
+TEST_CASE("linearisation: on a 32-mass chain (eigen-decomposition path of the flows and of the "
+          "parameter sensitivity) Jacobian and parameter derivatives equal central differences",
+          "[linearisation][large]") {
+  // 2n + 3 = 67 > 64: the tangent maps of free flight take the eigen-decomposition of the flow
+  // (its cond(V) ≤ 1e4 makes that path's rounding ~1e-12) and the parameter sensitivity the
+  // divided differences of its eigenvalues instead of a 134 × 134 block exponential.
+  const int n = 32;
+  auto chain_at = [n](double omega, double amplitude) {
+    vibro::models::Chain c;
+    c.masses.assign(n, 1.0);
+    c.springs.assign(n - 1, 1.0);
+    c.dampers.assign(n - 1, 0.2);
+    c.left_spring = 1.0;
+    c.left_damper = 0.2;
+    c.force_cosine.assign(n, 0.0);
+    c.force_cosine[0] = amplitude;
+    c.frequency = omega;
+    return ImpactSystem(vibro::models::build_chain(c), {Stop::upper(0, 0.3, 0.8)});
+  };
+  const double omega = 0.6, amplitude = 0.5;
+  const ImpactSystem sys = chain_at(omega, amplitude);
+  const double T = 2.0 * kPi / omega;
+  const VectorXd z0 = engine_map(sys, {}, 0.0, VectorXd::Zero(2 * n), 30.0 * T);
+  for (int which = 0; which < 2; ++which) {
+    LinearisationOptions o;
+    SystemDerivative d;
+    if (which == 0) {
+      d = SystemDerivative::frequency_only();
+    } else {
+      d.cosine = VectorXd::Zero(n);
+      d.cosine(0) = 1.0;
+    }
+    o.parameter = d;
+    const TangentMap m = vibro::linearise(sys, {}, 0.1 * T, z0.head(n), z0.tail(n), 1.1 * T, o);
+    REQUIRE(m.summary.status == vibro::RunStatus::completed);
+    REQUIRE(m.summary.impacts >= 1);
+    auto at = [&](const VectorXd& h) {
+      return engine_map(which == 0 ? chain_at(omega + h(0), amplitude) : chain_at(omega, amplitude + h(0)), {}, 0.1 * T,
+                        z0, 1.1 * T);
+    };
+    const Differences fd = central(at, VectorXd::Zero(1), VectorXd::Ones(1), 1e-6);
+    const VectorXd scale = state_scale(n, 0.3, 0.3 * omega);
+    double worst = 0.0;
+    for (Eigen::Index r = 0; r < 2 * n; ++r) {
+      const double diff = std::abs(m.parameter(r) - fd.value(r, 0)) / scale(r);
+      const double bound = std::max(1e-8, 10.0 * fd.error(r, 0) / scale(r));
+      worst = std::max(worst, diff / bound);
+      CHECK(diff <= bound);
+    }
+    INFO("worst difference / bound " << worst);
+    if (which == 0) {
+      // The Jacobian too, a few columns.
+      for (Eigen::Index col : {Eigen::Index(0), Eigen::Index(n), Eigen::Index(2 * n - 1)}) {
+        auto f = [&](const VectorXd& h) {
+          VectorXd z = z0;
+          z(col) += h(0);
+          return engine_map(sys, {}, 0.1 * T, z, 1.1 * T);
+        };
+        const Differences dc = central(f, VectorXd::Zero(1), VectorXd::Ones(1), 1e-6);
+        for (Eigen::Index r = 0; r < 2 * n; ++r)
+          CHECK(std::abs(m.jacobian(r, col) - dc.value(r, 0)) <= std::max(1e-8, 10.0 * dc.error(r, 0)) * std::max(1.0, std::abs(dc.value(r, 0))));
+      }
+    }
+  }
+}

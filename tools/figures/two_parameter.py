@@ -14,14 +14,18 @@ Inputs, told apart by their content:
       - `run.kind: continue` files without /curve: the branch in Ω at that A1; its rising or
         grazing of s1 nearest the curve point must agree with the curve point's Ω to 1e-9.
 The script prints every comparison and fails if one does not hold, or if a check file's A1 is not
-that of a curve point.
+that of a curve point. With --build BUILD_DIR (the vibro Python module), every grazing orbit that
+a file holds (the curve's starting point, the continue checks' grazings) is also run for one period
+from its state, and its nearest approach to the stop in free flight (away from the stop's events)
+must be ≤ 1e-9·(stop position scale): the orbit touches the stop there.
 
 Figure two_parameter: (a) the curves in (Ω, A1), the paper's point (A1 = 0.5, the rising at
 Ω = 0.2560063) and line marked, the curve's ends labelled, the check points ringed; (b) the
 checks' differences |Ω_check − Ω_curve| against A1 (log scale) with the locate brackets.
 
-    python3 tools/figures/two_parameter.py rising_curve.h5 grazing_curve.h5 check_*.h5 OUTDIR
+    python3 tools/figures/two_parameter.py [--build BUILD_DIR] rising_curve.h5 grazing_curve.h5 check_*.h5 OUTDIR
 """
+import os
 import sys
 
 import common as c
@@ -61,12 +65,70 @@ def read_curves(path):
     return curves
 
 
+def nearest_approach(vibro, f, i):
+    """The located orbit i of /bifurcations of file f, run for one period from its state: its
+    least distance to its stop in free flight, away (by 1e-3 T) from that stop's events, refined
+    on a fine grid around the least sample."""
+    sc = f["scene"]
+    kinds = [text(n) for n in sc["stop_kind"].attrs["names"]]
+    stops = []
+    for j in range(len(sc["stop_mass"])):
+        kind = kinds[int(sc["stop_kind"][j])]
+        if kind == "between":
+            c.fail("stops between masses are not handled here")
+        stops.append({"mass": int(sc["stop_mass"][j]), "side": kind, "position": float(sc["stop_position"][j]),
+                      "restitution": float(sc["stop_restitution"][j]), "name": text(sc["stop_name"][j])})
+    bi = f["bifurcations"]
+    j = int(bi["stop"][i])
+    omega = float(bi["p"][i])
+    s = vibro.Scene.from_matrices(sc["mass"][()], sc["damping"][()], sc["stiffness"][()], frequency=omega,
+                                  cosine=sc["forcing_cosine"][()], sine=sc["forcing_sine"][()],
+                                  constant=sc["forcing_constant"][()], stops=stops, x0=bi["x"][i], v0=bi["v"][i],
+                                  t0=float(bi["t0"][i]))
+    T = 2 * np.pi / omega
+    r = vibro.simulate(s, transient_periods=0, periods=1, samples=20000, events=True, threads=1)
+    t = np.asarray(r.samples.t)
+    m, pos, side = stops[j]["mass"], stops[j]["position"], stops[j]["side"]
+    gap = lambda x: (x[:, m] - pos) if side == "lower" else (pos - x[:, m])   # ≥ 0 away from the stop
+    d = gap(np.asarray(r.samples.x))
+    et = np.asarray(r.events.t)[np.asarray(r.events.stop) == j]
+    away = np.ones(len(t), bool)
+    for te in et:
+        away &= np.abs(t - te) > 1e-3 * T
+    away &= d > 1e-9 * abs(pos)
+    if not np.any(away):
+        c.fail("no free flight away from the stop's events")
+    k = int(np.argmin(np.where(away, d, np.inf)))
+    fine = np.linspace(t[max(k - 2, 0)], t[min(k + 2, len(t) - 1)], 40001) - float(bi["t0"][i])
+    rr = vibro.simulate(s, transient_periods=0, periods=1, sample_times=list(fine), threads=1)
+    return float(np.min(gap(np.asarray(rr.samples.x)))), abs(pos)
+
+
 def a1_of(f):
     return float(f["scene/forcing_cosine"][0])
 
 
 def main():
-    inputs, outdir = c.args(1, 64, "CURVE.h5 [CURVE2.h5 …] [CHECK.h5 …] OUTDIR")
+    vibro = None
+    if len(sys.argv) > 2 and sys.argv[1] == "--build":
+        build = sys.argv[2]
+        del sys.argv[1:3]
+        sys.path.insert(0, os.path.join(build, "python"))
+        try:
+            import vibro
+        except ImportError as e:
+            c.fail(f"the vibro Python module is not in {build}/python ({e}): build first")
+    inputs, outdir = c.args(1, 64, "[--build BUILD_DIR] CURVE.h5 [CURVE2.h5 …] [CHECK.h5 …] OUTDIR")
+
+    def check_grazing_orbit(f, i, where):
+        if vibro is None:
+            return
+        gap, scale = nearest_approach(vibro, f, i)
+        print(f"  {where}: the grazing orbit at Omega = {f['bifurcations/p'][i]:.10f} comes within {gap:.1e} of the stop "
+              f"in free flight (run for one period from its state)")
+        if gap > 1e-9 * scale:
+            c.fail(f"{where}: the located grazing orbit at Omega = {f['bifurcations/p'][i]:.10f} stays {gap:.1e} away "
+                   f"from its stop: not a grazing")
     curves, checks = [], []
     for path in inputs:
         with h5py.File(path, "r") as f:
@@ -79,6 +141,14 @@ def main():
             checks.append((kind, path))
     if not curves:
         c.fail("no curve file given")
+    for path in inputs:
+        with h5py.File(path, "r") as f:
+            if "curve" in f:
+                names = [text(n) for n in f["bifurcations/kind"].attrs["names"]]
+                for i in range(len(f["bifurcations/p"])):
+                    if names[int(f["bifurcations/kind"][i])] == "grazing" and f["bifurcations/smooth"][i] \
+                            and int(f["bifurcations/stop"][i]) == 0:
+                        check_grazing_orbit(f, i, f"{path} (the curve's start)")
     for cv in curves:
         print(f"curve of the {cv['kind']} of stop {cv['stop']} ({cv['file']}): {len(cv['p1'])} points, "
               f"Omega {cv['p1'].min():.7f} .. {cv['p1'].max():.7f}, A1 {cv['p2'].min():.6f} .. {cv['p2'].max():.6f}; "
@@ -93,12 +163,12 @@ def main():
             if how == "locate":
                 tr = {k: f["transitions"][k][()] for k in f["transitions"]}
                 names = [text(n) for n in f["transitions/kind"].attrs["names"]]
-                found = [(float(tr["parameter"][i]), float(tr["parameter_low"][i]), float(tr["parameter_high"][i]), "rising")
+                found = [(float(tr["parameter"][i]), float(tr["parameter_low"][i]), float(tr["parameter_high"][i]), "rising", i)
                          for i in range(len(tr["kind"])) if names[int(tr["kind"][i])] == "rising" and int(tr["stop"][i]) == 0]
             else:
                 bi = {k: f["bifurcations"][k][()] for k in f["bifurcations"]}
                 names = [text(n) for n in f["bifurcations/kind"].attrs["names"]]
-                found = [(float(bi["p"][i]), float(bi["p_low"][i]), float(bi["p_high"][i]), names[int(bi["kind"][i])])
+                found = [(float(bi["p"][i]), float(bi["p_low"][i]), float(bi["p_high"][i]), names[int(bi["kind"][i])], i)
                          for i in range(len(bi["kind"]))
                          if names[int(bi["kind"][i])] in ("rising", "grazing") and int(bi["stop"][i]) == 0 and bi["smooth"][i]]
         # the curve point with this A1
@@ -110,7 +180,7 @@ def main():
         cands = [x for x in found if x[3] == cv["kind"]]
         if not cands:
             c.fail(f"{path} ({how} at A1 = {a1:.9f}): no {cv['kind']} of s1 found (the curve has it at Omega = {target:.10f})")
-        p, lo, hi, _ = min(cands, key=lambda x: abs(x[0] - target))
+        p, lo, hi, _, idx = min(cands, key=lambda x: abs(x[0] - target))
         diff = p - target
         if how == "locate":
             width = hi - lo
@@ -123,6 +193,9 @@ def main():
             note = f"tolerance {CONTINUE_TOL:.0e}"
         print(f"check ({how:8s}) {cv['kind']} of s1 at A1 = {a1:.9f}: curve Omega = {target:.10f}, "
               f"{how} Omega = {p:.10f}, difference {diff:+.1e}; {note}")
+        if how == "continue" and cv["kind"] == "grazing":
+            with h5py.File(path, "r") as f:
+                check_grazing_orbit(f, idx, path)
         if not ok:
             c.fail(f"{path}: the {how} run's {cv['kind']} at Omega = {p:.10f} is {diff:+.1e} from the curve point {target:.10f}")
         rows.append((a1, target, p, cv["kind"], how, width))

@@ -153,6 +153,7 @@ struct Mode {
   MatrixXd dgenerator;      // dÂ_S/dp (parameter runs)
   MatrixXd dforce_rows;     // dL/dp
   MatrixXd basis;           // tangent space of the manifold, 2n × d
+  Eigen::MatrixXcd dmodal;  // V⁻¹ dÂ_S V (parameter runs on the spectral path; empty until used)
   std::unique_ptr<LinearFlow> flow;
   std::unique_ptr<Functionals> rows;  // features: gaps, gap rates, forces, force rates
 };
@@ -290,11 +291,54 @@ class TangentRecorder final : public Observer {
     return f.transition_matrix(tau).topLeftCorner(N2, N2);
   }
 
+  /// Large, well-conditioned flows use their eigen-decomposition (transition(); the parameter
+  /// sensitivity below); small ones the Padé exponential, exact to rounding.
+  static bool spectral(const Mode& mode) {
+    return mode.flow->size() > 64 && mode.flow->method() == LinearFlow::Method::spectral;
+  }
+
+  /// ζ ← Φ ζ + Ψ z over a segment from the eigen-decomposition Â = V Λ V⁻¹: with B = V⁻¹ dÂ V,
+  ///     Ψ = V (B ∘ Δ) V⁻¹,   Δ_ij = ∫₀^τ e^{λ_i (τ − s)} e^{λ_j s} ds = e^{λ_j τ} τ φ₁((λ_i − λ_j) τ),
+  /// φ₁(x) = (eˣ − 1)/x (a series near 0): O(N²) per segment instead of a 2N × 2N exponential.
+  /// Its rounding is cond(V) ε like the flow's own spectral path (the flow accepts it only for
+  /// cond(V) ≤ max_condition).
+  void propagate_spectral(Mode& mode, double tau, double tb, const VectorXd& zb) {
+    const LinearFlow& f = *mode.flow;
+    const Index N = f.size(), N2 = 2 * n_;
+    const Eigen::MatrixXcd& V = f.eigenvectors();
+    const Eigen::MatrixXcd& W = f.inverse_eigenvectors();
+    const Eigen::VectorXcd& L = f.eigenvalues();
+    if (mode.dmodal.size() == 0) mode.dmodal = W * mode.dgenerator.cast<std::complex<double>>() * V;
+    VectorXd zeta_aug = VectorXd::Zero(N);
+    zeta_aug.head(N2) = zeta_;
+    const double w = mech_.frequency(), dw = options_.parameter->frequency;
+    zeta_aug(N2) = -tb * std::sin(w * tb) * dw;
+    zeta_aug(N2 + 1) = tb * std::cos(w * tb) * dw;
+    const Eigen::VectorXcd e = (L * tau).array().exp();
+    const Eigen::VectorXcd a = W * zeta_aug.cast<std::complex<double>>();
+    const Eigen::VectorXcd b = W * zb.cast<std::complex<double>>();
+    Eigen::VectorXcd c = e.cwiseProduct(a);
+    for (Index i = 0; i < N; ++i) {
+      std::complex<double> sum = 0.0;
+      for (Index j = 0; j < N; ++j) {
+        const std::complex<double> x = (L(i) - L(j)) * tau;
+        const std::complex<double> phi1 =
+            std::abs(x) < 1e-4 ? 1.0 + x / 2.0 + x * x / 6.0 + x * x * x / 24.0 : (std::exp(x) - 1.0) / x;
+        sum += mode.dmodal(i, j) * (e(j) * tau * phi1) * b(j);
+      }
+      c(i) += sum;
+    }
+    zeta_ = (V * c).real().head(N2);
+    if (carries()) K_ = transition(mode, tau) * K_;
+  }
+
   void propagate(Mode& mode, double tau, double tb, const VectorXd& zb) {
     const Index N2 = 2 * n_;
     const Index dim = mode.basis.cols();
     if (tau > 0.0) {
-      if (mechp_) {
+      if (mechp_ && spectral(mode)) {
+        propagate_spectral(mode, tau, tb, zb);
+      } else if (mechp_) {
         const Index N = mode.generator.rows();
         MatrixXd block = MatrixXd::Zero(2 * N, 2 * N);
         block.topLeftCorner(N, N) = mode.generator * tau;
