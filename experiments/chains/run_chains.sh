@@ -13,5 +13,5 @@ out=${2:-docs/figures/chains}
 vibro="$build/tools/vibro/vibro"
 [ -x "$vibro" ] || { echo "run_chains: $vibro not found: build first (cmake --preset release && cmake --build --preset release)" >&2; exit 2; }
 mkdir -p "$out/data"
-"$vibro" run experiments/chains/chain_1000_sticking.yaml -o "$out/data/chain_1000_sticking.h5"
+"$vibro" run experiments/chains/chain_1000_sticking.yaml -o "$out/data/chain_1000_sticking.h5" --force
 /usr/bin/python3 tools/figures/chain_sticking.py "$out/data/chain_1000_sticking.h5" "$out"

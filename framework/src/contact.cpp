@@ -132,7 +132,8 @@ ContactMode::ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptio
   for (Eigen::Index a = 0; a < m; ++a)
     normals_.col(a) = scene.normals().col(active_[static_cast<std::size_t>(a)]);
   const LinearSystem& sys = scene.system();
-  minv_w_ = sys.mass().llt().solve(normals_);
+  // No stop held (m = 0): an n × 0 solve would hand Eigen's kernels a null pointer (UBSan).
+  minv_w_ = m > 0 ? Eigen::MatrixXd(sys.mass().llt().solve(normals_)) : Eigen::MatrixXd(n, 0);
   delassus_ = symmetric(normals_.transpose() * minv_w_);
   restitution_ = Eigen::MatrixXd::Identity(n, n);
   if (m > 0) {
@@ -181,12 +182,12 @@ void ContactMode::build_reduced() const {
     for (Eigen::Index b = 0; b < nf; ++b) B.col(b) = Wt.col(red->free[static_cast<std::size_t>(b)]);
     const auto lu = A.fullPivLu();
     const Eigen::MatrixXd Ainv = lu.inverse();
-    const Eigen::MatrixXd AinvB = Ainv * B;
+    const Eigen::MatrixXd AinvB = nf > 0 ? Eigen::MatrixXd(Ainv * B) : Eigen::MatrixXd(m, 0);  // n × 0: as above
     N = Eigen::MatrixXd::Zero(n, nf);
     for (Eigen::Index b = 0; b < nf; ++b) N(red->free[static_cast<std::size_t>(b)], b) = 1.0;
     for (Eigen::Index a = 0; a < m; ++a) {
       const Eigen::Index d = red->dependent[static_cast<std::size_t>(a)];
-      N.row(d) = -AinvB.row(a);
+      if (nf > 0) N.row(d) = -AinvB.row(a);  // every coordinate held (nf = 0): N is n × 0
       P.row(d) = Ainv.row(a);
     }
   } else {

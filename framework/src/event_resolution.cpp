@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iterator>
+#include <limits>
 #include <numbers>
 
 namespace vibro::detail {
@@ -54,6 +55,39 @@ void EventWorkspace::reserve(Eigen::Index m) {
   factor.resize(m, m);
   lcp.reserve(m);
   chatter_limits.reserve(capacity);
+}
+
+void check_resolution(const RunScales& s, const RunScales& automatic, const SimulatorOptions& options,
+                      double t0, double t_end, std::vector<std::string>& warnings) {
+  if (options.length_scale > 0.0 && automatic.L > 0.0) {
+    const double eps = std::numeric_limits<double>::epsilon();
+    if (s.eps_gap > 1e-3 * automatic.L || s.eps_gap < 10.0 * eps * automatic.L)
+      throw InvalidInput("solver.length_scale = " + number_text(options.length_scale) + " puts the gap tolerance (trigger × L = " +
+                         number_text(s.eps_gap) + ") outside [10 ulp, 1e-3] of the scene's own length scale " +
+                         number_text(automatic.L) + " (stops, initial state, static response): " +
+                         (s.eps_gap > 1e-3 * automatic.L ? "impacts would pass unseen" : "rounding would fire the guards") +
+                         "; leave it 0 (automatic) or near " + number_text(automatic.L));
+  }
+  // A stop is located no better than its gap moves in one spacing of doubles near t: V·ulp(t).
+  const double t_far = std::max(std::abs(t0), std::abs(t_end));
+  const double ulp = std::nextafter(t_far, std::numeric_limits<double>::infinity()) - t_far;
+  const double drift = s.V * ulp;  // ≈ |g'| ulp(t)
+  if (drift > 1e-6 * s.L)
+    throw InvalidInput("time " + number_text(t_far) + " is too large for this run: doubles near it are " +
+                       number_text(ulp) + " apart, " + number_text(drift / s.L) +
+                       " of the length scale per step at the run's speeds (1e-6 at most); start the run near "
+                       "t = 0 (initial.time)");
+  if (drift > 10.0 * s.eps_gap)
+    warnings.push_back("time resolution: near t = " + number_text(t_far) + " doubles are " + number_text(ulp) +
+                       " apart, so events are placed to " + number_text(drift) + " in the gaps (" +
+                       number_text(drift / s.eps_gap) + " × the trigger tolerance " + number_text(s.eps_gap) + ")");
+}
+
+std::string stiff_warning(double steps_per_period, double periods) {
+  return "stiff: the certified event search steps by 1/ρ, ρ the fastest rate of the motion (" +
+         number_text(steps_per_period / (2.0 * std::numbers::pi)) + " × the forcing frequency): about " +
+         number_text(std::round(steps_per_period)) + " search steps per forcing period, " +
+         number_text(std::round(steps_per_period * periods)) + " for this run";
 }
 
 bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, const EventRules& rules,

@@ -94,6 +94,18 @@ struct EventWorkspace {
   void reserve(Eigen::Index m);
 };
 
+/// Checks that a run over [t0, t_end] with scales `s` can meet its tolerances in doubles, and
+/// that an explicit solver.length_scale is sane against the scene's own (`automatic`, the L of
+/// the same run with length_scale = 0). Throws InvalidInput where the result would be
+/// meaningless (errors above 1e-6 L); appends a warning where it only misses the trigger.
+void check_resolution(const RunScales& s, const RunScales& automatic, const SimulatorOptions& options,
+                      double t0, double t_end, std::vector<std::string>& warnings);
+
+/// Search steps per period (T × the fastest rate) above which a run is called stiff: it warns,
+/// with the count, so that a run taking minutes per period says why from its start.
+inline constexpr double kStiffStepsPerPeriod = 1e5;
+std::string stiff_warning(double steps_per_period, double periods);
+
 /// Resolves an event at t on the state (x, v): impacts on `impacting` (generalised Newton law
 /// over the held and impacting stops, contact.hpp), releases of `releasing`, and `resting` stops
 /// touching with zero normal speed (at the start of a run); chatter caught by the chatter rule;

@@ -1006,13 +1006,17 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
 
   // Scales and tolerances by the dense engine's rules (event_resolution.hpp).
   const double W = md.frequency();
-  const detail::RunScales sc = detail::run_scales(
-      options_, W > 0.0 ? W : md.omega().maxCoeff(),
-      std::max(ch.stiffness_diagonal.cwiseAbs().maxCoeff(), n > 1 ? ch.stiffness_off.cwiseAbs().maxCoeff() : 0.0),
-      ch.mass.maxCoeff(),
-      ch.forcing.constant.cwiseAbs().maxCoeff() + ch.forcing.cosine.cwiseAbs().maxCoeff() +
-          ch.forcing.sine.cwiseAbs().maxCoeff(),
-      stops_, x0, v0);
+  const double omega = W > 0.0 ? W : md.omega().maxCoeff();
+  const double kmax =
+      std::max(ch.stiffness_diagonal.cwiseAbs().maxCoeff(), n > 1 ? ch.stiffness_off.cwiseAbs().maxCoeff() : 0.0);
+  const double fmax = ch.forcing.constant.cwiseAbs().maxCoeff() + ch.forcing.cosine.cwiseAbs().maxCoeff() +
+                      ch.forcing.sine.cwiseAbs().maxCoeff();
+  const detail::RunScales sc = detail::run_scales(options_, omega, kmax, ch.mass.maxCoeff(), fmax, stops_, x0, v0);
+  SimulatorOptions automatic = options_;
+  automatic.length_scale = 0.0;
+  std::vector<std::string> warnings;
+  detail::check_resolution(sc, detail::run_scales(automatic, omega, kmax, ch.mass.maxCoeff(), fmax, stops_, x0, v0),
+                           options_, t0, t_end, warnings);
   const double L = sc.L, V = sc.V, F = sc.F, T = sc.T;
   const double eps_gap = sc.eps_gap, eps_force = sc.eps_force;
   const double v_chatter = sc.rules.v_chatter, h_chatter = sc.rules.h_chatter, v_contact = sc.rules.v_contact;
@@ -1021,6 +1025,7 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
   force_tolerance_ = eps_force;
 
   ModalRunSummary summary;
+  summary.warnings = std::move(warnings);
   summary.length_scale = L;
   summary.velocity_scale = V;
   summary.force_scale = F;
@@ -1122,11 +1127,15 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
           return finish(RunStatus::unsupported, why_not, true);
       }
     }
+    if (const double steps = T * std::max(W, mode->modes ? mode->modes->omega().maxCoeff() : 0.0);
+        steps > detail::kStiffStepsPerPeriod)  // as in the dense engine: the search steps by 1/ω_max
+      summary.warnings.push_back(detail::stiff_warning(steps, (t_end - t0) / T));
     Eigen::VectorXd base;
     while (true) {
       if (options_.interrupt && options_.interrupt->load(std::memory_order_relaxed)) {
         return finish(RunStatus::interrupted, "interrupted at t = " + number_text(t));
       }
+      if (options_.reached) options_.reached->store(t, std::memory_order_relaxed);
       const ModalGuards& guards = mode->guards;
       const Eigen::Index rows = guards.rows();
       base.resize(rows);

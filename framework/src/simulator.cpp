@@ -44,8 +44,9 @@ struct StopTables {
     const auto m = static_cast<Eigen::Index>(scene.stop_count());
     const Eigen::LLT<Eigen::MatrixXd> mass_llt(sys.mass());
     normals = scene.normals();
-    minv_normals = mass_llt.solve(normals);
-    const Eigen::MatrixXd g = normals.transpose() * minv_normals;
+    // No stops: an n × 0 solve (or product) would hand Eigen's kernels a null pointer (UBSan).
+    minv_normals = m > 0 ? Eigen::MatrixXd(mass_llt.solve(normals)) : Eigen::MatrixXd(sys.dof(), 0);
+    const Eigen::MatrixXd g = m > 0 ? Eigen::MatrixXd(normals.transpose() * minv_normals) : Eigen::MatrixXd(0, 0);
     delassus = 0.5 * (g + g.transpose());
     s0.resize(m);
     sc.resize(m);
@@ -196,6 +197,11 @@ void SimulatorOptions::validate() const {
                        ": must be < 1e-3 (it is the allowed penetration relative to the length scale)");
 }
 
+double run_length_scale(const SimulatorOptions& options, double omega, double kmax, double mmax, double fmax,
+                        const std::vector<Stop>& stops, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0) {
+  return detail::run_scales(options, omega, kmax, mmax, fmax, stops, x0, v0).L;
+}
+
 Simulator::Simulator(const ImpactSystem& scene, SimulatorOptions options)
     : scene_(&scene), options_(options), modes_(scene, options.flow) {
   options_.validate();
@@ -239,16 +245,37 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
     throw InvalidInput("time span: [" + number_text(t0) + ", " + number_text(t_end) + "] must be finite with t_end ≥ t0");
 
   const HarmonicForcing& f = sys.forcing();
-  const detail::RunScales sc = detail::run_scales(
-      options_, scale_frequency(), sys.stiffness().cwiseAbs().maxCoeff(), sys.mass().cwiseAbs().maxCoeff(),
-      f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff(),
-      scene.stops(), x0, v0);
+  const double omega = scale_frequency(), kmax = sys.stiffness().cwiseAbs().maxCoeff();
+  const double mmax = sys.mass().cwiseAbs().maxCoeff();
+  const double fmax = f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff();
+  const detail::RunScales sc = detail::run_scales(options_, omega, kmax, mmax, fmax, scene.stops(), x0, v0);
+  SimulatorOptions automatic = options_;
+  automatic.length_scale = 0.0;
+  std::vector<std::string> warnings;
+  detail::check_resolution(sc, detail::run_scales(automatic, omega, kmax, mmax, fmax, scene.stops(), x0, v0),
+                           options_, t0, t_end, warnings);
+  {
+    // The exact flow carries the forcing as a unit oscillator (z = [x; v; cos; sin; 1]), so its
+    // rounding is relative to max(1, fmax/k) in the scene's length unit: measured 12 ε fmax/k
+    // relative (one mass, k = 1, F = 1e6 … 1e15: 3.6e-9 … 0.67; tests/framework/test_resolution.cpp).
+    const double stiff = std::max(kmax, mmax * omega * omega);
+    const double deflection = stiff > 0.0 ? fmax / stiff : 0.0;
+    const double relative = 12.0 * std::numeric_limits<double>::epsilon() * deflection;
+    const std::string why = "the forcing's static deflection fmax/k = " + number_text(deflection) +
+                            " (in the scene's length unit) costs the exact flow about 12 ε × " + number_text(deflection) +
+                            " = " + number_text(relative) + " relative rounding";
+    const std::string hint = "; scale lengths (stops, initial state) and forces by one factor so that the "
+                             "deflection is of order 1 (the motion scales exactly)";
+    if (relative > 1e-6) throw InvalidInput(why + " (1e-6 at most)" + hint);
+    if (relative > options_.trigger) warnings.push_back(why + ", above the trigger " + number_text(options_.trigger) + hint);
+  }
   const double eps_gap = sc.eps_gap, eps_force = sc.eps_force, v_contact = sc.rules.v_contact;
   const double dt_simultaneous = sc.dt_simultaneous, window = sc.window;
   scene.check_admissible(t0, x0, eps_gap);
 
   RunSummary summary;
   guard_evaluations_ = 0;
+  summary.warnings = std::move(warnings);
   summary.length_scale = sc.L;
   summary.velocity_scale = sc.V;
   summary.force_scale = sc.F;
@@ -309,9 +336,17 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
       resolve(impacting, {}, resting);
     }
 
+    // Stiff or heavily damped: the certified search steps by 1/ρ (ρ the flow's spectral radius).
+    if (const double steps = sc.T * modes_.get(stuck).reduced().flow->spectral_radius();
+        steps > detail::kStiffStepsPerPeriod)
+      summary.warnings.push_back(detail::stiff_warning(steps, (t_end - t0) / sc.T));
     auto interrupted = [&] { return options_.interrupt && options_.interrupt->load(std::memory_order_relaxed); };
     const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end), sc.T);
+    auto report = [&](double reached) {
+      if (options_.reached) options_.reached->store(reached, std::memory_order_relaxed);
+    };
     while (true) {
+      report(t);
       if (interrupted()) return finish(RunStatus::interrupted, "interrupted at t = " + number_text(t));
       const ContactMode& mode = modes_.get(stuck);
       const ContactMode::Reduced& red = mode.reduced();
@@ -348,6 +383,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
       std::optional<Crossing> hit;
       for (double a = 0.0; a < reach && !hit;) {
         if (interrupted()) return finish(RunStatus::interrupted, "interrupted at t = " + number_text(t));
+        report(t + a);
         const double b = std::min(a + step, reach);
         if (rows > 0) hit = finder.first(a, b);
         a = b;
@@ -363,8 +399,14 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
         for (Observer* o : observers) o->segment(view);
       }
       auto z = zr.head(size);
-      if (hit) segment.state(finder.crossing_sample(), z);
-      else segment.state(tau, z);
+      // The state at t_next exactly as the observers' view gives it (at t_next - t, which may
+      // differ from tau by an ulp of t): the analysis layer's saltation matrices combine the
+      // view's pre-event state with the engine's post-event one, and a state an ulp of t
+      // apart (|ż|·ulp(t), ~1e-12 at t ~ 1e4) biases, e.g., a conservative system's Lyapunov sum (test_lyapunov.cpp).
+      // The crossing's own exponentials are reused where the two times agree.
+      const double elapsed = t_next - t;
+      if (hit && elapsed == hit->tau) segment.state(finder.crossing_sample(), z);
+      else segment.state(elapsed, z);
       mode.expand(z, z_full);
       x = z_full.head(n);
       v = z_full.segment(n, n);

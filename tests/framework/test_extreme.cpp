@@ -1062,7 +1062,7 @@ TEST_CASE("all modes over-damped: sticking and releases match the RK8 hybrid ref
   CHECK(f.reference.release_time <= 1e-9);
 }
 
-TEST_CASE("a mode exactly critically damped: events match the closed form (t e^{-t}); the spectral method is refused with the condition number",
+TEST_CASE("a mode exactly critically damped: events match the closed form (t e^{-t}), and the spectral method is refused with the condition number",
           "[extreme][critical]") {
   const ImpactSystem scene = critical_scene();
   const vibro::LinearFlow flow(scene.system());
@@ -1085,7 +1085,7 @@ TEST_CASE("a mode exactly critically damped: events match the closed form (t e^{
   CHECK(f.state_error <= 1e-10);
 }
 
-TEST_CASE("r = 0 and r = 1: plastic sticking and elastic rattling match the closed form; r = 1 loses no energy",
+TEST_CASE("r = 0 and r = 1: plastic sticking and elastic rattling match the closed form, and r = 1 loses no energy",
           "[extreme][restitution]") {
   const Figures p = plastic();
   check_matched(p);
@@ -1174,7 +1174,7 @@ TEST_CASE("exact undamped resonance: the secular growth t sin t reaches the stop
   CHECK(f.state_error <= 1e-10);
 }
 
-TEST_CASE("a free mass under a constant force: damped bounces chatter into sticking (closed form); r = 1 bounces 500 times on time",
+TEST_CASE("a free mass under a constant force: damped bounces chatter into sticking (closed form), and r = 1 bounces 500 times on time",
           "[extreme][free-mass]") {
   const Figures f = free_mass_damped();
   check_matched(f);

@@ -5,6 +5,8 @@
 #include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"
 
+#include "support/temp_dir.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <filesystem>
@@ -54,8 +56,10 @@ ScanResult direct_locate(const SceneDocument& doc, const Scene& scene, const std
   return scan_and_locate(family, grid, 0.0, scene.x0, scene.v0, options);
 }
 
+/// A file in this test process's own directory (ctest runs every test case in its own process).
 std::string temp_path(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("vibro_test_locate_" + name)).string();
+  static const vibro::test::TempDir dir;
+  return dir / name;
 }
 
 }  // namespace

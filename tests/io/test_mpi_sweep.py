@@ -26,8 +26,10 @@ Exit status 0 if every check holds, 1 with one line per failure.
 """
 import argparse
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 
 import h5py
 import numpy as np
@@ -163,10 +165,9 @@ def main():
     parser.add_argument("--mpirun", required=True)
     parser.add_argument("--work", required=True)
     o = parser.parse_args()
-    work = os.path.join(o.work, o.case)
-    os.makedirs(work, exist_ok=True)
-    for f in os.listdir(work):
-        os.remove(os.path.join(work, f))
+    # A fresh directory per run: two test runs at once share nothing.
+    os.makedirs(o.work, exist_ok=True)
+    work = tempfile.mkdtemp(prefix=o.case + "-", dir=o.work)
     mpirun = [o.mpirun, "--oversubscribe", "-np", "2"]
 
     def reference(scene, out):
@@ -222,8 +223,8 @@ def main():
         scene = write_scene(work, "plain")
         out = os.path.join(work, "out.h5")
         open(out + ".partial", "w").close()
-        err = expect(mpirun + [o.vibro, "run", scene, "-o", out], "stale .partial", 2)
-        if err.count("an interrupted sweep exists") != 1:
+        err = expect(mpirun + [o.vibro, "run", scene, "-o", out], "stale .partial", 3)
+        if err.count("an interrupted sweep is kept there") != 1:
             fail(f"stale .partial: expected the message once, got:\n{err}")
         os.remove(out + ".partial")
         err = expect(mpirun + [o.vibro, "run", scene, "-o", out, "--set", "stops[1].position=-0.5"],
@@ -235,6 +236,7 @@ def main():
     for f in FAILURES:
         print(f)
     if not FAILURES:
+        shutil.rmtree(work, ignore_errors=True)
         print(f"{o.case}: MPI and one-process results agree")
     return 1 if FAILURES else 0
 

@@ -6,6 +6,8 @@
 // Ω ≈ 0.25 it impacts, chatters and sticks, so every recorded group has content.
 #include "vibro/io/result_file.hpp"
 
+#include "support/temp_dir.hpp"
+
 #include <catch2/catch.hpp>
 #include <hdf5.h>
 #include <signal.h>
@@ -91,10 +93,10 @@ Scene sweep_point(std::size_t p) {
   return make_scene(kFrequencies[p], record_everything(), sweep_run());
 }
 
+/// A file in this test process's own directory (ctest runs every test case in its own process).
 std::string temp_file(const std::string& name) {
-  return (fs::temp_directory_path() /
-          ("vibro_test_results_" + std::to_string(::getpid()) + "_" + name + ".h5"))
-      .string();
+  static const vibro::test::TempDir dir;
+  return dir / (name + ".h5");
 }
 
 /// Removes a result file and its .partial when a test ends.
@@ -345,7 +347,7 @@ TEST_CASE("A value that is not finite is never written", "[results]") {
 TEST_CASE("HDF5 failures name the file and the object", "[results]") {
   const Scene scene = make_scene(0.255, record_everything(), simulate_run(1.0));
   CHECK_THROWS_WITH(ResultFile::create("/nonexistent-dir/x.h5", scene, current_meta(1)),
-                    Catch::StartsWith("/nonexistent-dir/x.h5.partial: /: cannot create the file"));
+                    Catch::StartsWith("/nonexistent-dir/x.h5.lock: cannot create the lock file: No such file"));
   CHECK_THROWS_AS(ResultReader("/nonexistent-dir/x.h5"), ResultError);
   const std::string path = temp_file("errors");
   Cleanup cleanup{{path}};

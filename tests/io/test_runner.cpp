@@ -5,6 +5,8 @@
 #include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"
 
+#include "support/temp_dir.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <cstdio>
@@ -50,8 +52,11 @@ std::string sweep_scene(bool follow) {
   return s;
 }
 
+/// A file in this test process's own directory: ctest runs every test case in its own process,
+/// so no two tests (and no two test runs at once) share a name.
 std::string temp_path(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("vibro_test_runner_" + name)).string();
+  static const vibro::test::TempDir dir;
+  return dir / name;
 }
 
 /// Every dataset of two files is identical (the /meta attributes, with wall times, may differ).

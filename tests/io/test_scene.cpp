@@ -274,6 +274,21 @@ TEST_CASE("set, get and set_assignment reject bad paths and values", "[scene]") 
                Contains("has no key 'frequncy'"));
     CHECK(doc.get("forcing.frequency") == 0.255);  // nothing was changed
   }
+  SECTION("errors in an assignment carry the --set position prefix (docs/scenes.md, Errors)") {
+    // The K-th --set, column C of its text: the path at 1, the value after '='.
+    CHECK(std::string(scene_error([&] { doc.set_assignment("forcing.frequency=fast", 3); }).what()) ==
+          "--set:3:19: forcing.frequency: expected a finite number, found 'fast'");
+    CHECK_THAT(scene_error([&] { doc.set_assignment("forcing.cosine[99999999999999999999]=1", 2); }).what(),
+               Catch::StartsWith("--set:2:1: forcing.cosine[99999999999999999999]: malformed path: index "
+                                 "'99999999999999999999' is too large"));
+    CHECK_THAT(scene_error([&] { doc.set_assignment("forcing.frequency"); }).what(),
+               Catch::StartsWith("--set:1:1: forcing.frequency: expected PATH=VALUE"));
+    // Numbers as the file reads them: a subnormal is a number, an underflow to 0 is refused.
+    doc.set_assignment("forcing.cosine[1]=1e-308");
+    CHECK(doc.get("forcing.cosine[1]") == 1e-308);
+    CHECK_THAT(scene_error([&] { doc.set_assignment("forcing.cosine[1]=1e-400"); }).problem(),
+               Contains("below the smallest double"));
+  }
   SECTION("a value set out of range fails at build with the value's path") {
     doc.set_assignment("forcing.frequency=-1");
     const SceneError e = scene_error([&] { (void)doc.build(); });

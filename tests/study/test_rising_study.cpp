@@ -13,6 +13,7 @@
 // The framework's values come from find_periodic_orbit and scan_and_locate (bifurcation.hpp).
 #include "support/reference_hybrid.hpp"
 #include "vibro/bifurcation.hpp"
+#include "vibro/continuation.hpp"
 #include "vibro/models/chain.hpp"
 
 #include <catch2/catch.hpp>
@@ -189,4 +190,27 @@ TEST_CASE("rising study: the located rising frequency agrees with the reference'
   // Ω at the slope |λ'| ≈ 7. The framework's bracket is 1e-8 wide: its midpoint is within 5e-9 of
   // its tangency. 1e-8 covers both.
   CHECK(std::abs(static_cast<double>(w) - rising.p) < 1e-8);
+
+  // Continuation (continuation.hpp) locates the same tangency by solving its defining condition:
+  // the interior force minimum, smooth on the unsplit side, secant-extrapolated to zero there.
+  // Against the reference's extrapolation: its ≲ 1.5e-11 in Ω (above) plus the force minima's
+  // agreement (1e-10 in force, ≈ 1.5e-11 in Ω at the slope 7): 1e-10 leaves a factor 3.
+  vibro::ContinuationOptions co;
+  co.p_min = 0.2559;
+  co.p_max = 0.2561;
+  co.step = 0.05;
+  co.max_step = 0.2;
+  const vibro::Orbit start = framework_orbit(0.2559);
+  const vibro::ContinuationResult branch = vibro::continue_orbits(
+      [](double omega) { return vibro::FamilyPoint{paper_at(omega), vibro::SystemDerivative::frequency_only()}; },
+      0.2559, start.t_start, start.x, start.v, co);
+  const vibro::Bifurcation* located = nullptr;
+  for (const vibro::Bifurcation& b : branch.bifurcations)
+    if (b.kind == vibro::BifurcationKind::rising) located = &b;
+  REQUIRE(located != nullptr);
+  CHECK(located->stop == 0);
+  CHECK(located->smooth);
+  CAPTURE(located->p, located->value);
+  CHECK(std::abs(static_cast<double>(w) - located->p) < 1e-10);
+  CHECK(std::abs(located->value) < 1e-10);  // the force minimum there, in force units (F ≈ 0.3)
 }

@@ -1,13 +1,17 @@
 // vibro: the command-line front end. Scenes in (YAML), results out (HDF5).
 //
-//   vibro run SCENE [-o OUT.h5] [--set PATH=VALUE ...] [--threads N] [--resume]
+//   vibro run SCENE [-o OUT.h5] [--set PATH=VALUE ...] [--threads N] [--resume] [--force]
 //   vibro check SCENE [--set PATH=VALUE ...]
 //   vibro info SCENE [--set PATH=VALUE ...]
 //
 // Exit codes: 0 success, 1 a run stopped early (event cap, numerical failure), 2 bad input,
-// 3 the result file could not be written, 130 interrupted (a sweep keeps OUT.partial).
+// 3 the result file could not be written (or exists: --force), 4 not enough memory or threads
+// for this run (the message gives the numbers), 5 an internal error (a bug: please report it),
+// 130 interrupted (a sweep keeps OUT.partial). Every failure is one line on stderr, "error: …";
+// no exception ever leaves main().
 #include "info.hpp"
 
+#include "vibro/io/resources.hpp"
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"
@@ -18,6 +22,8 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <exception>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -42,6 +48,7 @@ std::string resolved(const vibro::io::Scene& s) {
   out += fmt::format("  run: {}, transient {:g} periods, recorded {:g} periods\n",
                      s.run.kind == vibro::io::RunSpec::Kind::sweep    ? "sweep"
                      : s.run.kind == vibro::io::RunSpec::Kind::locate ? "locate"
+                     : s.run.kind == vibro::io::RunSpec::Kind::continuation ? "continue"
                                                                       : "simulate",
                      s.run.transient_periods, s.run.periods);
   for (const auto& a : s.run.axes)
@@ -50,9 +57,38 @@ std::string resolved(const vibro::io::Scene& s) {
   return out;
 }
 
+/// Units of work a run can spread over threads: a sweep's points (a followed 1-D sweep is one
+/// chain, a followed 2-D sweep one per row), a locate scan's grid steps; else one.
+std::size_t sweep_units(const vibro::io::Scene& s) {
+  const auto& axes = s.run.axes;
+  if (axes.empty()) return 1;
+  if (s.run.kind == vibro::io::RunSpec::Kind::locate) return axes[0].values.size();
+  if (s.run.follow) return axes.size() == 1 ? 1 : axes[0].values.size();
+  return axes[0].values.size() * (axes.size() > 1 ? axes[1].values.size() : 1);
+}
+
 }  // namespace
 
+int run_command(int argc, char** argv);
+
 int main(int argc, char** argv) {
+  // The one place where any failure becomes a message and an exit code (see the top).
+  try {
+    return run_command(argc, argv);
+  } catch (const std::bad_alloc&) {
+    std::fputs("error: out of memory (an allocation failed; the run's estimate did not foresee it: please report "
+               "the scene)\n", stderr);
+    return 4;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: internal error (please report it with the scene): %s\n", e.what());
+    return 5;
+  } catch (...) {
+    std::fputs("error: internal error (an unknown exception; please report it with the scene)\n", stderr);
+    return 5;
+  }
+}
+
+int run_command(int argc, char** argv) {
   // Under `mpirun -np K` (a build with MPI) every process runs this; rank 0 alone prints.
   const vibro::io::ProcessGroup processes(argc, argv);
   const bool speaks = processes.rank() == 0;
@@ -69,14 +105,16 @@ int main(int argc, char** argv) {
   std::vector<std::string> sets;
 
   std::string output;
-  int threads = 0;
+  int threads_requested = 0;
   bool resume = false;
+  bool force = false;
   CLI::App* run = app.add_subcommand("run", "Simulate a scene (or sweep it) and write an HDF5 result file");
   run->add_option("scene", scene_path, "scene file (YAML)")->required();
   run->add_option("-o,--output", output, "result file (default: the scene's name with .h5, in the current folder)");
   run->add_option("--set", sets, "override a value: PATH=VALUE (repeatable)");
-  run->add_option("--threads", threads, "threads for sweeps (default: all cores)")->check(CLI::NonNegativeNumber);
+  run->add_option("--threads", threads_requested, "threads for sweeps (default: all cores)")->check(CLI::NonNegativeNumber);
   run->add_flag("--resume", resume, "finish an interrupted sweep from OUT.partial");
+  run->add_flag("--force", force, "replace an existing OUT (and a stale OUT.partial); never the scene file");
 
   CLI::App* check = app.add_subcommand("check", "Validate a scene and print it resolved");
   check->add_option("scene", scene_path, "scene file (YAML)")->required();
@@ -89,14 +127,18 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   try {
     vibro::io::SceneDocument doc = vibro::io::SceneDocument::load(scene_path);
-    for (const std::string& s : sets) doc.set_assignment(s);
+    for (std::size_t k = 0; k < sets.size(); ++k) doc.set_assignment(sets[k], static_cast<int>(k + 1));
     const vibro::io::Scene scene = doc.build();
+    // Threads and memory are checked by `check` and `info` too: they say whether `run` can start.
+    const int threads = vibro::io::checked_threads(threads_requested, sweep_units(scene));
+    vibro::io::check_run_resources(scene, threads);
     if (run->parsed()) {
       if (output.empty()) {
         std::string base = scene_path.substr(scene_path.find_last_of('/') + 1);
         output = base.substr(0, base.find_last_of('.')) + ".h5";
       }
       vibro::io::RunRequest request{output, threads, resume, isatty(STDERR_FILENO) == 1};
+      request.force = force;
       const vibro::io::RunReport report = vibro::io::run_scene(doc, scene, request);
       if (speaks) std::fprintf(stderr, "%s\n", report.summary.c_str());
       return report.exit_code;
@@ -113,6 +155,9 @@ int main(int argc, char** argv) {
   } catch (const vibro::io::ResultError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());  // only rank 0 writes files
     return 3;
+  } catch (const vibro::io::ResourceError& e) {
+    if (speaks) std::fprintf(stderr, "error: %s: %s\n", scene_path.c_str(), e.what());
+    return 4;
   }
   return 0;
 }

@@ -95,6 +95,9 @@ struct SimulatorOptions {
   /// search, and end the run with RunStatus::interrupted (state and time where they stopped) as
   /// soon as it is true. For Ctrl-C in sweeps and in Python; the flag must outlive the run.
   const std::atomic<bool>* interrupt = nullptr;
+  /// Progress: when set, both engines store the time reached there (relaxed) wherever they poll
+  /// `interrupt`, so that another thread can report a long run's progress. Costs one store.
+  std::atomic<double>* reached = nullptr;
 
   /// Throws InvalidInput naming the field, the value and the rule.
   void validate() const;
@@ -118,8 +121,19 @@ struct RunSummary {
   long guard_evaluations = 0, evaluation_points = 0;
   std::size_t contact_sets_built = 0;    ///< restitution data built (distinct sets visited)
   std::size_t sticking_flows_built = 0;  ///< reduced sticking subsystems built
+  /// What the run could not do as well as the tolerances ask, found before it started (see
+  /// Simulator::run): e.g. the spacing of doubles near t coarser than the trigger allows.
+  std::vector<std::string> warnings;
   double length_scale = 0.0, velocity_scale = 0.0, force_scale = 0.0, time_scale = 0.0;
 };
+
+/// The length scale L a run uses (RunSummary::length_scale; SimulatorOptions' tolerances are
+/// relative to it) for a system of forcing frequency `omega` (> 0), max |K_ij| = kmax,
+/// max |M_ij| = mmax, forcing amplitudes summing to fmax, started from (x0, v0). For an unforced
+/// system (the engines use the fastest mode's frequency) give omega = 1, fmax = 0 and v0 = 0:
+/// the result is then a lower bound of the L the run will use.
+double run_length_scale(const SimulatorOptions& options, double omega, double kmax, double mmax, double fmax,
+                        const std::vector<Stop>& stops, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0);
 
 class Simulator {
  public:
@@ -127,8 +141,15 @@ class Simulator {
   explicit Simulator(const ImpactSystem& scene, SimulatorOptions options = {});
 
   /// Runs from (t0, x0, v0) to t_end, reporting to `observers`. Throws InvalidInput if x0
-  /// violates a stop by more than the trigger tolerance or sizes are wrong. Numerical trouble
-  /// and the Zeno guard end the run with a status and a message, never with NaN.
+  /// violates a stop by more than the trigger tolerance or sizes are wrong, and if the run
+  /// cannot be resolved in doubles at all: near t the spacing of doubles moves a stop by more
+  /// than 1e-6 L (|ω|·ulp(t) > 1e-6: e.g. t0 = 1e15), the forcing is so large against the
+  /// stiffness that the exact flow's rounding exceeds 1e-6 of the motion (fmax/k > 3.8e8 length
+  /// units: the flow carries the forcing as a unit oscillator, so its rounding grows like
+  /// 12 ε fmax/k), or solver.length_scale puts the trigger outside [10 ulp, 1e-3] of the scene's
+  /// own length scale. Where those errors only exceed the trigger tolerance, the run goes on and
+  /// says so in RunSummary::warnings. Numerical trouble and the Zeno guard end the run with a
+  /// status and a message, never with NaN.
   RunSummary run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t_end,
                  const std::vector<Observer*>& observers = {});
 

@@ -1,5 +1,7 @@
 #include "vibro/io/locate.hpp"
 
+#include "datasets.hpp"
+
 #include "vibro/bifurcation.hpp"
 #include "vibro/io/result_file.hpp"
 
@@ -16,32 +18,10 @@
 namespace vibro::io {
 namespace {
 
-Dataset reals(std::string name, std::vector<double> values, std::vector<std::size_t> shape) {
-  Dataset d;
-  d.name = std::move(name);
-  d.reals = std::move(values);
-  d.shape = std::move(shape);
-  return d;
-}
-
-Dataset integers(std::string name, std::vector<std::int64_t> values) {
-  Dataset d;
-  d.name = std::move(name);
-  d.shape = {values.size()};
-  d.integers = std::move(values);
-  d.integer = true;
-  return d;
-}
-
-/// Rows of equal length as one row-major rows × cols dataset.
-Dataset table(std::string name, const std::vector<Eigen::VectorXd>& rows, std::size_t cols) {
-  std::vector<double> values;
-  for (const Eigen::VectorXd& r : rows) values.insert(values.end(), r.data(), r.data() + r.size());
-  return reals(std::move(name), std::move(values), {rows.size(), cols});
-}
-
-/// The least-force and shortest-phase limits are "none" (−1 in the file) where no phase exists.
-double or_none(double value) { return std::isfinite(value) ? value : -1.0; }
+using detail::integers;
+using detail::or_none;
+using detail::reals;
+using detail::table;
 
 std::vector<std::string> kind_names() {
   std::vector<std::string> names;
@@ -63,7 +43,7 @@ void write_scan(ResultFile& file, const std::vector<ScanPoint>& points, std::siz
     p.push_back(points[i].p);
     periodic.push_back(o.periodic ? 1 : 0);
     k.push_back(o.k);
-    residual.push_back(o.residual);
+    residual.push_back(or_none(o.residual));  // none measured: a search stopped before one period
     periods_run.push_back(o.periods_run);
     chatter.push_back(o.chatter_limits);
     t_start.push_back(o.t_start);
@@ -135,13 +115,16 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
   const LocateSpec& spec = scene.run.locate;
   // Grid values were validated at load; a bisection point between two valid values that is not
   // valid itself surfaces as SceneError from here, before anything is written.
-  const EngineFamily family = [&doc, &axis](double value) {
+  const EngineFamily family = [&doc, &axis, &request](double value) {
     SceneDocument point(doc);
     point.set(axis.path, value);
-    return make_engine(point.build_point());  // the scene's engine, dense or modal
+    Scene built = point.build_point();
+    built.solver.interrupt = request.interrupt;
+    return make_engine(built);  // the scene's engine, dense or modal
   };
   ScanOptions options;
   options.orbit.solver = scene.solver;
+  options.orbit.solver.interrupt = request.interrupt;
   options.orbit.tolerance = spec.periodicity;
   options.orbit.max_period = spec.max_period;
   options.orbit.max_periods = spec.max_periods;
@@ -151,7 +134,7 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
   const std::size_t n = static_cast<std::size_t>(scene.dof());
   const std::size_t m = scene.stops.size();
 
-  ResultFile file = ResultFile::create(request.output, scene, current_meta(request.threads));
+  ResultFile file = open_result_file(request, scene, current_meta(request.threads));
   const std::vector<ScanPoint> points = scan(family, axis.values, scene.t0, scene.x0, scene.v0, options);
 
   // Bisections between neighbouring grid points are independent: in parallel, gathered in order.
@@ -192,7 +175,13 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
       if (failure_message.empty()) failure_message = fmt::format("at {} = {:.12g}: {}", axis.path, s.p, s.orbit.message);
     }
   }
-  file.set_outcome(failed ? "points_stopped_early" : "completed", failure_message,
+  // Stopped by the caller (RunRequest::interrupt): the orbits after that point stopped at once,
+  // so neither they nor the transitions found between them mean anything.
+  const bool interrupted = request.interrupt && request.interrupt->load();
+  file.set_outcome(interrupted ? "interrupted" : failed ? "points_stopped_early" : "completed",
+                   interrupted ? "interrupted: orbits computed after it are cut short and the transitions found "
+                                 "are not reliable"
+                               : failure_message,
                    {{"orbits_computed", orbits}, {"transitions", static_cast<std::int64_t>(transitions.size())},
                     {"points_not_periodic", not_periodic}});
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
@@ -213,8 +202,8 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
   if (not_periodic > 0)
     text += fmt::format("  {} of {} grid points are not periodic within {} periods (see /scan/periodic).\n",
                         not_periodic, points.size(), spec.max_periods);
-  text += fmt::format("Results in {}.", request.output);
-  return {failed ? 1 : 0, text};
+  text += fmt::format("Results in {}.", file.path());
+  return {interrupted ? 130 : failed ? 1 : 0, text, request.in_memory ? file.image() : std::vector<char>{}};
 }
 
 }  // namespace vibro::io

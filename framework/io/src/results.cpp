@@ -3,9 +3,12 @@
 /// written here is specified in docs/results.md; change both together, and only compatibly.
 #include "vibro/io/result_file.hpp"
 
+#include "output_lock.hpp"
+
 #include <hdf5.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -168,11 +171,30 @@ std::string hdf5_reason() {
       },
       &reason);
   H5Eclear2(H5E_DEFAULT);
+  // A system call's failure comes as "file write failed: time = …, errno = 28, error message =
+  // 'No space left on device', buf = …": keep what it says, and what failed.
+  const std::string tag = "error message = '";
+  const std::size_t at = reason.find(tag);
+  if (at != std::string::npos) {
+    const std::size_t end = reason.find('\'', at + tag.size());
+    reason = reason.substr(0, reason.find(':')) + ": " + reason.substr(at + tag.size(), end - at - tag.size());
+  }
   return reason;
 }
 
-/// HDF5 errors are reported by exceptions, not printed by the library.
-void silence_hdf5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+/// HDF5 errors are reported by exceptions, not printed by the library. And HDF5 does not run its
+/// exit handler: after a failed write (a full disk) H5Fclose fails and leaves the file half
+/// closed inside the library, and the handler then crashes on it at exit (HDF5 1.10, SIGSEGV in
+/// H5F__close_cb). Every file here is closed by its owner, so the handler has nothing to do.
+/// H5dont_atexit must come before the library's first use: this is called first by every Store.
+void silence_hdf5() {
+  static const bool once = [] {
+    H5dont_atexit();
+    return true;
+  }();
+  (void)once;
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+}
 
 enum class Type { f64, i32, i64, str };
 
@@ -300,21 +322,47 @@ std::string index_text(hsize_t flat, const Dims& shape) {
 /// An open HDF5 file and the name used in messages.
 class Store {
  public:
-  enum class Mode { create, read, write };
+  /// memory: a new file held in memory (HDF5's core driver, nothing on disk; `name` only labels
+  /// it and must be unique among open files); image: read-only, from the bytes of a file.
+  enum class Mode { create, read, write, memory, image };
 
-  Store(std::string name, Mode mode) : name_(std::move(name)) {
+  Store(std::string name, Mode mode, const std::vector<char>* image = nullptr) : name_(std::move(name)) {
     silence_hdf5();
     // SEMI: closing fails if an object is still open, which would be a leak in this file.
     Hid fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
     H5Pset_fclose_degree(fapl, H5F_CLOSE_SEMI);
+    if (mode == Mode::memory || mode == Mode::image) H5Pset_fapl_core(fapl, 1 << 20, /*backing_store=*/0);
+    if (mode == Mode::image && image && !image->empty()) H5Pset_file_image(fapl, const_cast<char*>(image->data()), image->size());
     hid_t id = -1;
     switch (mode) {
-      case Mode::create: id = H5Fcreate(name_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl); break;
-      case Mode::read: id = H5Fopen(name_.c_str(), H5F_ACC_RDONLY, fapl); break;
+      // EXCL: never an existing file, never through a symbolic link (O_CREAT | O_EXCL).
+      case Mode::create: id = H5Fcreate(name_.c_str(), H5F_ACC_EXCL, H5P_DEFAULT, fapl); break;
+      case Mode::memory: id = H5Fcreate(name_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl); break;
+      case Mode::read: case Mode::image: id = H5Fopen(name_.c_str(), H5F_ACC_RDONLY, fapl); break;
       case Mode::write: id = H5Fopen(name_.c_str(), H5F_ACC_RDWR, fapl); break;
     }
-    if (id < 0) fail("/", mode == Mode::create ? "cannot create the file" : "cannot open the file");
+    if (id < 0)
+      fail("/", mode == Mode::create || mode == Mode::memory ? "cannot create the file"
+                : mode == Mode::image                       ? "not an HDF5 file image"
+                                                            : "cannot open the file");
     file_ = Hid(id, H5Fclose);
+  }
+
+  /// A unique label for a file held in memory (HDF5 takes two open files of one name for one).
+  static std::string memory_name(const char* what) {
+    static std::atomic<unsigned long> count{0};
+    return std::string("<") + what + " " + std::to_string(++count) + ">";
+  }
+
+  /// The bytes of the file as it is now (flushed first): what it would be on disk.
+  std::vector<char> image() const {
+    flush();
+    const ssize_t size = H5Fget_file_image(file_, nullptr, 0);
+    if (size < 0) fail("/", "cannot take the file's image");
+    std::vector<char> bytes(static_cast<std::size_t>(size));
+    if (size > 0 && H5Fget_file_image(file_, bytes.data(), bytes.size()) != size)
+      fail("/", "cannot take the file's image");
+    return bytes;
   }
 
   const std::string& name() const { return name_; }
@@ -665,7 +713,7 @@ class Store {
       Dims current(static_cast<std::size_t>(std::max(H5Sget_simple_extent_ndims(space), 0)));
       if (!current.empty()) H5Sget_simple_extent_dims(space, current.data(), nullptr);
       if (H5Tequal(type, ftype) > 0 && current == dims) {
-        check(H5Awrite(existing, mtype, data), object, what);
+        if (dims.empty() || element_count(dims) > 0) check(H5Awrite(existing, mtype, data), object, what);
         return;
       }
       existing.reset();
@@ -679,6 +727,9 @@ class Store {
     Hid attribute(check_id(H5Acreate2(handle, name.c_str(), ftype, space, H5P_DEFAULT, H5P_DEFAULT),
                            object, what),
                   H5Aclose);
+    // An empty array (a scene without stops: /stats' `stops`) has nothing to write; HDF5
+    // refuses a write of nothing (null buffer).
+    if (!dims.empty() && element_count(dims) == 0) return;
     check(H5Awrite(attribute, mtype, data), object, what);
   }
 
@@ -1156,6 +1207,8 @@ class CompletedPoints {
 // --- ResultFile --------------------------------------------------------------------------------------
 
 struct ResultFile::Impl {
+  /// Held from before the file exists until after it is closed and published or removed.
+  std::unique_ptr<detail::OutputLock> lock;
   std::string path, partial;
   std::string file_name;  ///< the open file: `partial`, or while resuming a rebuilt copy of it
   Store store;
@@ -1171,9 +1224,13 @@ struct ResultFile::Impl {
   bool sweep_begun = false;
   std::size_t completed = 0, total = 0, parameters = 0;
   bool finished = false;
+  bool in_memory = false;        ///< create_in_memory(): no file on disk, nothing to rename
+  std::vector<char> final_image; ///< in memory: the finished file's bytes (taken by finish())
 
-  Impl(std::string final_path, std::string file, Store::Mode mode, const Scene& scene)
-      : path(std::move(final_path)),
+  Impl(std::unique_ptr<detail::OutputLock> output_lock, std::string final_path, std::string file,
+       Store::Mode mode, const Scene& scene)
+      : lock(std::move(output_lock)),
+        path(std::move(final_path)),
         partial(partial_path(path)),
         file_name(std::move(file)),
         store(file_name, mode),
@@ -1190,6 +1247,7 @@ struct ResultFile::Impl {
     store.set_text("/scene", "run_kind",
                    scene.run.kind == RunSpec::Kind::sweep    ? "sweep"
                    : scene.run.kind == RunSpec::Kind::locate ? "locate"
+                   : scene.run.kind == RunSpec::Kind::continuation ? "continue"
                                                              : "simulate");
     store.set_real("/scene", "period", scene.period());
     for (const auto& [name, value] : scene_numbers(scene)) store.set_real("/scene", name, value);
@@ -1380,12 +1438,14 @@ ResultFile::~ResultFile() {
   } catch (...) {
     // Nothing better to do in a destructor; the file is abandoned either way.
   }
-  if (!impl_->keep_unfinished) std::remove(impl_->file_name.c_str());
+  if (!impl_->keep_unfinished && !impl_->in_memory) std::remove(impl_->file_name.c_str());
 }
 
-ResultFile ResultFile::create(const std::string& path, const Scene& scene, const RunMeta& meta) {
+ResultFile ResultFile::create(const std::string& path, const Scene& scene, const RunMeta& meta, bool overwrite) {
   const std::string partial = partial_path(path);
-  ResultFile file(std::make_unique<Impl>(path, partial, Store::Mode::create, scene));
+  auto lock = std::make_unique<detail::OutputLock>(path, scene.file, overwrite);
+  lock->discard_stale_partial(scene.run.kind == RunSpec::Kind::sweep);
+  ResultFile file(std::make_unique<Impl>(std::move(lock), path, partial, Store::Mode::create, scene));
   Impl& f = *file.impl_;  // from here on, a failure removes the new file
   f.write_scene(scene);
   f.write_meta(meta, scene);
@@ -1394,10 +1454,26 @@ ResultFile ResultFile::create(const std::string& path, const Scene& scene, const
   return file;
 }
 
-ResultFile ResultFile::open_partial(const std::string& path, const Scene& scene) {
+ResultFile ResultFile::create_in_memory(const Scene& scene, const RunMeta& meta) {
+  const std::string name = Store::memory_name("memory");
+  ResultFile file(std::make_unique<Impl>(nullptr, name, name, Store::Mode::memory, scene));
+  Impl& f = *file.impl_;
+  f.in_memory = true;
+  f.write_scene(scene);
+  f.write_meta(meta, scene);
+  f.commit();
+  return file;
+}
+
+std::vector<char> ResultFile::image() const {
+  return impl_->finished ? impl_->final_image : impl_->store.image();
+}
+
+ResultFile ResultFile::open_partial(const std::string& path, const Scene& scene, bool overwrite) {
   const std::string partial = partial_path(path);
   if (scene.run.kind != RunSpec::Kind::sweep)
     throw ResultError(partial + ": only a sweep can be resumed (this scene's run.kind is simulate)");
+  auto lock = std::make_unique<detail::OutputLock>(path, scene.file, overwrite);
   if (!std::filesystem::exists(partial))
     throw ResultError(partial + ": no interrupted run to resume (file not found)");
   Store old(partial, Store::Mode::read);
@@ -1407,7 +1483,8 @@ ResultFile ResultFile::open_partial(const std::string& path, const Scene& scene)
   // kill may have left half-flushed in the old file is carried over, and until the rename the
   // old file is untouched (a failure here removes only the copy).
   const std::string rebuilt = partial + ".resume";
-  ResultFile file(std::make_unique<Impl>(path, rebuilt, Store::Mode::create, scene));
+  detail::OutputLock::remove_if_present(rebuilt);  // a killed resume's scratch copy (we hold the lock)
+  ResultFile file(std::make_unique<Impl>(std::move(lock), path, rebuilt, Store::Mode::create, scene));
   Impl& f = *file.impl_;
   f.write_scene(scene);
   f.store.create_group("/meta");
@@ -1450,6 +1527,7 @@ void ResultFile::write_simulation(const Recording& recording) {
   for (std::size_t k = 0; k < values.size(); ++k)
     f.store.set_integer("/meta", count_names()[k], values[k]);
   f.store.set_real("/meta", "t_reached", s.t);
+  f.store.set_texts("/meta", "warnings", s.warnings);
   f.store.flush();
   f.status = status_name(s.status);
   f.message = s.message;
@@ -1576,10 +1654,18 @@ void ResultFile::finish(const RunMeta& meta) {
   f.store.set_real("/meta", "wall_time", meta.wall_seconds);
   f.store.set_integer("/meta", "threads", meta.threads);
   f.store.flush();
+  if (f.in_memory) f.final_image = f.store.image();
   f.store.close();
   f.finished = true;  // closed: from here on the destructor leaves the file alone
-  if (std::rename(f.partial.c_str(), f.path.c_str()) != 0)
-    throw ResultError(f.partial + ": cannot rename to " + f.path + ": " + std::strerror(errno));
+  if (f.in_memory) return;
+  try {
+    f.lock->publish(f.partial);
+  } catch (const ResultError&) {
+    if (!f.keep_unfinished) std::remove(f.partial.c_str());  // a sweep's stays, for --resume
+    f.lock.reset();
+    throw;
+  }
+  f.lock.reset();  // released and removed: the file is complete
 }
 
 // --- ResultReader ----------------------------------------------------------------------------------
@@ -1590,6 +1676,8 @@ struct ResultReader::Impl {
 
 ResultReader::ResultReader(const std::string& path)
     : impl_(std::make_unique<Impl>(Impl{Store(path, Store::Mode::read)})) {}
+ResultReader::ResultReader(const std::vector<char>& image)
+    : impl_(std::make_unique<Impl>(Impl{Store(Store::memory_name("image"), Store::Mode::image, &image)})) {}
 ResultReader::ResultReader(ResultReader&&) noexcept = default;
 ResultReader& ResultReader::operator=(ResultReader&&) noexcept = default;
 ResultReader::~ResultReader() = default;
@@ -1634,6 +1722,15 @@ std::vector<std::string> ResultReader::attributes(const std::string& object) con
 }
 bool ResultReader::attribute_is_string(const std::string& object, const std::string& name) const {
   return impl_->store.attribute_is_text(object, name);
+}
+std::string ResultReader::attribute_type(const std::string& object, const std::string& name) const {
+  switch (impl_->store.attribute_kind(object, name)) {
+    case Store::Attribute::text: return "str";
+    case Store::Attribute::texts: return "str[]";
+    case Store::Attribute::integer: return "i64";
+    case Store::Attribute::real: break;
+  }
+  return "f64";
 }
 std::string ResultReader::attribute_string(const std::string& object, const std::string& name) const {
   return impl_->store.text_attribute(object, name);

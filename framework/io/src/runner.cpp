@@ -1,6 +1,8 @@
 #include "vibro/io/runner.hpp"
+#include "vibro/io/continuation.hpp"
 #include "vibro/io/locate.hpp"
 
+#include "vibro/io/resources.hpp"
 #include "vibro/io/result_file.hpp"
 
 #include <fmt/format.h>
@@ -26,6 +28,7 @@
 #include <deque>
 #include <exception>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -62,14 +65,23 @@ class InterruptGuard {
   void (*old_term_)(int);
 };
 
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 struct StartState {
   double t;
   Eigen::VectorXd x, v;
 };
 
-/// Transient (unrecorded) then recorded periods of one scene from `start`.
-Recording simulate(const Scene& scene, const StartState& start) {
+/// Transient (unrecorded) then recorded periods of one scene from `start`. The engine polls the
+/// interrupt flag (SIGINT, SIGTERM) at every event and search step, and stores the time it
+/// reached in `reached` (if given) for a progress line.
+Recording simulate(const Scene& base, const StartState& start, std::atomic<double>* reached = nullptr) {
   const auto clock = std::chrono::steady_clock::now();
+  Scene scene = base;  // shares the built system; only the options change
+  if (!scene.solver.interrupt) scene.solver.interrupt = &g_interrupted;  // the caller's flag, or signals
+  scene.solver.reached = reached;
   // One engine per run (a simulation, or a sweep point): everything else in this file (transient
   // then recorded run, observers, files, threads, processes) is the same for both engines.
   const std::unique_ptr<vibro::Engine> engine = make_engine(scene);
@@ -90,6 +102,9 @@ Recording simulate(const Scene& scene, const StartState& start) {
     // Counts are the recorded run's (docs/results.md), as the recorded events are.
     rec.summary = sim.run(t1, transient.x, transient.v, t1 + scene.run.periods * T, rec.observers());
   }
+  for (const std::string& w : transient.warnings)
+    if (std::find(rec.summary.warnings.begin(), rec.summary.warnings.end(), w) == rec.summary.warnings.end())
+      rec.summary.warnings.insert(rec.summary.warnings.begin(), "during the transient: " + w);
   rec.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock).count();
   return rec;
 }
@@ -124,21 +139,88 @@ class Progress {
   std::chrono::steady_clock::time_point start_;
 };
 
+/// A progress line for one long simulation, on stderr from a thread of its own: the time the
+/// engine reached (SimulatorOptions::reached), the share of the run done and an estimate of the
+/// time left, every second once the run has taken 2 s. Only on a terminal (RunRequest::progress).
+class SimulationProgress {
+ public:
+  SimulationProgress(bool on, double t_begin, double t_end) : t_begin_(t_begin), t_end_(t_end) {
+    reached_.store(t_begin);
+    if (on) watcher_ = std::thread([this] { watch(); });
+  }
+  ~SimulationProgress() {
+    {
+      std::lock_guard<std::mutex> hold(lock_);
+      done_ = true;
+    }
+    wake_.notify_all();
+    if (watcher_.joinable()) watcher_.join();
+  }
+  SimulationProgress(const SimulationProgress&) = delete;
+  SimulationProgress& operator=(const SimulationProgress&) = delete;
+  std::atomic<double>* reached() { return &reached_; }
+
+ private:
+  void watch() {
+    const auto start = std::chrono::steady_clock::now();
+    bool printed = false;
+    std::unique_lock<std::mutex> hold(lock_);
+    while (!wake_.wait_for(hold, std::chrono::seconds(1), [this] { return done_; })) {
+      const double elapsed = seconds_since(start);
+      if (elapsed < 2.0) continue;
+      const double share = t_end_ > t_begin_ ? (reached_.load() - t_begin_) / (t_end_ - t_begin_) : 1.0;
+      const std::string left = share > 0.0 ? fmt::format(", about {:.0f} s left", elapsed * (1.0 - share) / share)
+                                            : std::string(", no event yet");
+      std::fprintf(stderr, "\r  t = %.6g of %.6g (%.1f %%), %.0f s%s   ", reached_.load(), t_end_, 100.0 * share,
+                   elapsed, left.c_str());
+      std::fflush(stderr);
+      printed = true;
+    }
+    if (printed) std::fputc('\n', stderr);
+  }
+
+  double t_begin_, t_end_;
+  std::atomic<double> reached_{0.0};
+  std::mutex lock_;
+  std::condition_variable wake_;
+  bool done_ = false;
+  std::thread watcher_;
+};
+
 RunReport run_simulation(const Scene& scene, const RunRequest& request) {
-  ResultFile file = ResultFile::create(request.output, scene, current_meta(1));
-  const Recording rec = simulate(scene, {scene.t0, scene.x0, scene.v0});
+  // Ctrl-C ends the run at its next event: `vibro run` writes nothing then; a caller with its own
+  // flag (Python) gets the run up to there.
+  std::optional<InterruptGuard> guard;
+  if (!request.interrupt) guard.emplace();
+  ResultFile file = open_result_file(request, scene, current_meta(1));
+  Scene interruptible = scene;
+  interruptible.solver.interrupt = request.interrupt;  // null: the signal flag (simulate)
+  Recording rec;
+  {
+    SimulationProgress progress(request.progress, scene.t0,
+                                scene.t0 + (scene.run.transient_periods + scene.run.periods) * scene.period());
+    rec = simulate(interruptible, {scene.t0, scene.x0, scene.v0}, progress.reached());
+  }
+  if (rec.summary.status == RunStatus::interrupted && !request.in_memory)
+    return {130, fmt::format("Interrupted at t = {:g}: {} was not written (a simulation keeps nothing; only sweeps "
+                             "can be resumed).",
+                             rec.summary.t, request.output),
+            {}};  // the ResultFile removes its .partial
   file.write_simulation(rec);
   RunMeta meta = current_meta(1);
   meta.wall_seconds = rec.wall_seconds;
   file.finish(meta);
   RunReport report;
   const RunSummary& s = rec.summary;
-  report.exit_code = s.status == RunStatus::completed ? 0 : 1;
+  report.exit_code = s.status == RunStatus::completed ? 0 : s.status == RunStatus::interrupted ? 130 : 1;
+  std::string warnings;
+  for (const std::string& w : s.warnings) warnings += "\nwarning: " + w;
   report.summary = fmt::format(
       "Simulated {} with the {} engine from t = {:g} over {:g} transient and {:g} recorded forcing periods in "
-      "{:.3f} s: {}; {}.{} Results in {}.",
+      "{:.3f} s: {}; {}.{} Results in {}.{}",
       scene.file, to_string(scene.engine), scene.t0, scene.run.transient_periods, scene.run.periods, rec.wall_seconds,
-      to_string(s.status), status_line(s), s.message.empty() ? "" : " " + s.message, request.output);
+      to_string(s.status), status_line(s), s.message.empty() ? "" : " " + s.message, file.path(), warnings);
+  if (request.in_memory) report.image = file.image();
   return report;
 }
 
@@ -157,10 +239,14 @@ struct SweepPlan {
   /// Chains of points that must run in order: with `follow`, a whole row; else one point each.
   std::size_t chain_length = 1;
   std::size_t chains = 0;
+  /// Stops the sweep: raised by a signal (the process-wide flag), by the caller
+  /// (RunRequest::interrupt), or by the writer itself (a write error, interrupt_after).
+  std::atomic<bool>* interrupted = nullptr;
 };
 
-SweepPlan plan_sweep(const SceneDocument& doc, const Scene& scene) {
+SweepPlan plan_sweep(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
   SweepPlan plan;
+  plan.interrupted = request.interrupt ? request.interrupt : &g_interrupted;
   const auto& axes = scene.run.axes;
   if (axes.size() == 1) {
     for (double a : axes[0].values) plan.grid.push_back({a});
@@ -174,11 +260,12 @@ SweepPlan plan_sweep(const SceneDocument& doc, const Scene& scene) {
 
   // Build and validate every point's scene first: bad input never starts a file.
   plan.scenes.reserve(plan.total);
+  SceneDocument point = doc;  // one working copy: set() replaces the swept values per point
   for (std::size_t p = 0; p < plan.total; ++p) {
-    SceneDocument point = doc;
     for (std::size_t a = 0; a < axes.size(); ++a) point.set(axes[a].path, plan.grid[p][a]);
     try {
       plan.scenes.push_back(point.build_point());  // build() checks the whole grid: once, in main
+      plan.scenes.back().solver.interrupt = plan.interrupted;
     } catch (const SceneError& e) {
       std::string where;
       for (std::size_t a = 0; a < axes.size(); ++a) where += fmt::format("{}{} = {:.12g}", a ? ", " : "", axes[a].path, plan.grid[p][a]);
@@ -203,12 +290,9 @@ struct SweepStart {
 /// is in the way.
 ResultFile open_sweep_file(const SweepPlan& plan, const Scene& scene, const RunRequest& request,
                            int threads, SweepStart& start) {
-  if (!request.resume && std::filesystem::exists(ResultFile::partial_path(request.output)))
-    throw SceneError(scene.file, 0, 0, "",
-                     "an interrupted sweep exists in " + ResultFile::partial_path(request.output) +
-                         ": finish it with --resume, or delete it to start again");
-  ResultFile file = request.resume ? ResultFile::open_partial(request.output, scene)
-                                   : ResultFile::create(request.output, scene, current_meta(threads));
+  if (request.in_memory && request.resume) throw std::logic_error("runner: a sweep in memory cannot be resumed");
+  ResultFile file = request.resume ? ResultFile::open_partial(request.output, scene, request.force)
+                                   : open_result_file(request, scene, current_meta(threads));
   file.begin_sweep(plan.names, plan.total);
   start.first = file.completed_points();
   start.resumed.reset();
@@ -243,12 +327,13 @@ void run_chain(const SweepPlan& plan, const SweepStart& from, std::size_t c, Del
   const std::size_t end = std::min(plan.total, begin + plan.chain_length);
   std::optional<StartState> carried;
   for (std::size_t p = std::max(begin, from.first); p < end; ++p) {
-    if (g_interrupted.load()) break;
+    if (plan.interrupted->load()) break;
     const Scene& sc = plan.scenes[p];
     StartState start{sc.t0, sc.x0, sc.v0};
     if (plan.follow && carried) start = {sc.t0, carried->x, carried->v};
     if (plan.follow && !carried && p == from.first && from.resumed) start = {sc.t0, from.resumed->x, from.resumed->v};
     Recording rec = run_point(sc, start);
+    if (rec.summary.status == RunStatus::interrupted) break;  // not a result: computed again on --resume
     if (plan.follow) carried = StartState{sc.t0, rec.summary.x, rec.summary.v};
     deliver(p, std::move(rec));
   }
@@ -270,10 +355,11 @@ void run_chains(int threads, const SweepPlan& plan, const SweepStart& from, Take
 /// Hands out the chains in grid order, one per call, from any thread.
 class ChainDispenser {
  public:
-  ChainDispenser(std::size_t first_chain, std::size_t chains) : next_(first_chain), chains_(chains) {}
+  ChainDispenser(const SweepPlan& plan, std::size_t first_chain)
+      : next_(first_chain), chains_(plan.chains), interrupted_(*plan.interrupted) {}
   /// The next chain, or none once all are handed out or the sweep is interrupted.
   std::optional<std::size_t> operator()() {
-    if (g_interrupted.load()) return std::nullopt;
+    if (interrupted_.load()) return std::nullopt;
     const std::size_t c = next_.fetch_add(1);
     if (c >= chains_) return std::nullopt;
     return c;
@@ -282,6 +368,7 @@ class ChainDispenser {
  private:
   std::atomic<std::size_t> next_;
   std::size_t chains_;
+  const std::atomic<bool>& interrupted_;
 };
 
 /// Takes finished points from any thread and writes them in grid order (points that finish
@@ -294,6 +381,10 @@ class SweepWriter {
 
   void operator()(std::size_t p, Recording&& rec) {
     std::lock_guard<std::mutex> hold(lock_);
+    if (rec.summary.status == RunStatus::interrupted) {  // cut short: never written as a result
+      plan_.interrupted->store(true);
+      return;
+    }
     cpu_seconds_ += rec.wall_seconds;
     done_.emplace(p, std::move(rec));
     while (!write_error_ && done_.count(next_to_write_)) {
@@ -303,7 +394,7 @@ class SweepWriter {
         file_.append_point(next_to_write_, plan_.grid[next_to_write_], r);
       } catch (const ResultError& e) {
         write_error_ = e;
-        g_interrupted.store(true);
+        plan_.interrupted->store(true);
         break;
       }
       if (r.summary.status != RunStatus::completed) ++stopped_early_;
@@ -316,7 +407,7 @@ class SweepWriter {
       if (request_.interrupt_after > 0 && next_to_write_ >= request_.interrupt_after) {
         // Write nothing more: points other threads finished meanwhile would otherwise complete
         // the file before the interruption is seen (a race a faster engine loses more often).
-        g_interrupted.store(true);
+        plan_.interrupted->store(true);
         break;
       }
     }
@@ -331,9 +422,9 @@ class SweepWriter {
     if (next_to_write_ < total) {
       report.exit_code = 130;
       report.summary = fmt::format(
-          "Interrupted: {} of {} sweep points are kept in {}; run the same command with --resume to "
-          "finish the rest.",
-          next_to_write_, total, ResultFile::partial_path(request_.output));
+          "Interrupted: {} of {} sweep points are kept in {}{}.", next_to_write_, total,
+          request_.in_memory ? "memory" : ResultFile::partial_path(request_.output),
+          request_.in_memory ? "" : "; run the same command with --resume to finish the rest");
       return report;  // the partial file is kept by ResultFile's destructor
     }
     RunMeta meta = current_meta(threads);
@@ -346,7 +437,7 @@ class SweepWriter {
         "Results in {}.",
         scene.file, total, total - first_, first_ ? fmt::format(", {} resumed", first_) : "", on, wall,
         cpu_seconds_, totals_.impacts, totals_.sticks, totals_.releases, totals_.chatters, stopped_early_,
-        stopped_early_ ? " (see /sweep/status and /sweep/message)" : "", request_.output);
+        stopped_early_ ? " (see /sweep/status and /sweep/message)" : "", file_.path());
     return report;
   }
 
@@ -365,18 +456,11 @@ class SweepWriter {
   std::optional<ResultError> write_error_;
 };
 
-int thread_count(const RunRequest& request) {
-#ifdef _OPENMP
-  return request.threads > 0 ? request.threads : omp_get_max_threads();
-#else
-  (void)request;
-  return 1;
-#endif
+/// Threads for a sweep: as requested (0: all cores), at most one per unit of work (resources.hpp).
+int thread_count(const RunRequest& request, const SweepPlan& plan) {
+  return checked_threads(request.threads, plan.chains);
 }
 
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 /// Rank and size of MPI_COMM_WORLD if MPI is running, else 0 and 1.
 std::pair<int, int> world() {
@@ -400,19 +484,22 @@ RunReport run_sweep_mpi(const SweepPlan& plan, const Scene& scene, const RunRequ
 #endif
 
 RunReport run_sweep(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
-  const SweepPlan plan = plan_sweep(doc, scene);
-  const int threads = thread_count(request);
+  const SweepPlan plan = plan_sweep(doc, scene, request);
+  const int threads = thread_count(request, plan);
 #ifdef VIBRO_WITH_MPI
   if (const auto [rank, size] = world(); size > 1) return run_sweep_mpi(plan, scene, request, threads, rank, size);
 #endif
   SweepStart from;
   ResultFile file = open_sweep_file(plan, scene, request, threads, from);
   SweepWriter writer(file, plan, from.first, request);
-  ChainDispenser dispenser(from.first / plan.chain_length, plan.chains);
+  ChainDispenser dispenser(plan, from.first / plan.chain_length);
   const auto wall_start = std::chrono::steady_clock::now();
-  InterruptGuard guard;
+  std::optional<InterruptGuard> guard;  // signals are the caller's when it gives its own flag
+  if (!request.interrupt) guard.emplace();
   run_chains(threads, plan, from, dispenser, writer);
-  return writer.report(scene, threads, seconds_since(wall_start), fmt::format("{} threads", threads));
+  RunReport report = writer.report(scene, threads, seconds_since(wall_start), fmt::format("{} threads", threads));
+  if (request.in_memory) report.image = file.image();
+  return report;
 }
 
 #ifdef VIBRO_WITH_MPI
@@ -698,7 +785,7 @@ RunReport run_rank0(const SweepPlan& plan, const Scene& scene, const RunRequest&
   if (failure) std::rethrow_exception(failure);
 
   SweepWriter writer(*file, plan, from.first, request);
-  ChainDispenser dispenser(from.first / plan.chain_length, plan.chains);
+  ChainDispenser dispenser(plan, from.first / plan.chain_length);
   const auto wall_start = std::chrono::steady_clock::now();
   InterruptGuard guard;
   std::atomic<bool> computed{false};
@@ -712,7 +799,7 @@ RunReport run_rank0(const SweepPlan& plan, const Scene& scene, const RunRequest&
     bool stop_sent = false;
     Backoff idle;
     while (!(computed.load() && byes == size - 1)) {
-      if (g_interrupted.load() && !stop_sent) {
+      if (plan.interrupted->load() && !stop_sent) {
         for (int r = 1; r < size; ++r) MPI_Send(nullptr, 0, MPI_BYTE, r, tag::stop, MPI_COMM_WORLD);
         stop_sent = true;
       }
@@ -767,7 +854,7 @@ RunReport run_worker(const SweepPlan& plan, const Scene& scene, int threads) {
   std::deque<Message> outbox;
   std::deque<long long> assigned;
   auto take = [&]() -> std::optional<std::size_t> {
-    if (g_interrupted.load()) return std::nullopt;
+    if (plan.interrupted->load()) return std::nullopt;
     std::unique_lock<std::mutex> hold(lock);
     outbox.push_back({tag::request, 0, {}});
     assigned_cv.wait(hold, [&] { return !assigned.empty(); });
@@ -828,7 +915,7 @@ RunReport run_worker(const SweepPlan& plan, const Scene& scene, int threads) {
         assigned_cv.notify_all();
       } else {
         MPI_Recv(nullptr, 0, MPI_BYTE, 0, status.MPI_TAG, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-        if (status.MPI_TAG == tag::stop) g_interrupted.store(true);
+        if (status.MPI_TAG == tag::stop) plan.interrupted->store(true);
         if (status.MPI_TAG == tag::done) done = true;
       }
     }
@@ -854,11 +941,18 @@ RunReport run_sweep_mpi(const SweepPlan& plan, const Scene& scene, const RunRequ
 
 }  // namespace
 
+ResultFile open_result_file(const RunRequest& request, const Scene& scene, const RunMeta& meta) {
+  return request.in_memory ? ResultFile::create_in_memory(scene, meta)
+                           : ResultFile::create(request.output, scene, meta, request.force);
+}
+
 RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
+  check_run_resources(scene, checked_threads(request.threads, std::numeric_limits<std::size_t>::max()));  // before any file or allocation
   // Under MPI only sweeps are split across the processes; any other run is rank 0's alone.
   if (scene.run.kind != RunSpec::Kind::sweep && world().first != 0) return {};
   if (scene.run.kind == RunSpec::Kind::sweep) return run_sweep(doc, scene, request);
   if (scene.run.kind == RunSpec::Kind::locate && !request.resume) return run_locate(doc, scene, request);
+  if (scene.run.kind == RunSpec::Kind::continuation && !request.resume) return run_continuation(doc, scene, request);
   if (request.resume)
     throw SceneError(scene.file, 1, 1, "run.kind", "--resume continues an interrupted sweep; this scene is not a sweep");
   return run_simulation(scene, request);

@@ -1,11 +1,22 @@
 #include "vibro/io/scene.hpp"
 
+#include "vibro/io/continuation.hpp"
+#include "vibro/io/resources.hpp"
+
 #include "vibro/models/chain.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -29,6 +40,29 @@ std::size_t edit_distance(const std::string& a, const std::string& b) {
     }
   }
   return row[b.size()];
+}
+
+/// Reads a whole string as a double (strtod's syntax, no leading or trailing space). Accepts
+/// subnormal values (1e-308: strtod reports ERANGE for them); refuses what over- or underflows
+/// to a value other than the one written (1e999 → ∞, 1e-999 → 0). Empty `why` on success.
+double parse_number(const std::string& s, std::string& why) {
+  why.clear();
+  if (s.empty() || std::isspace(static_cast<unsigned char>(s.front()))) {
+    why = "expected a number, found '" + s + "'";
+    return 0.0;
+  }
+  errno = 0;
+  char* end = nullptr;
+  const double v = std::strtod(s.c_str(), &end);
+  const bool range = errno == ERANGE;
+  if (end != s.c_str() + s.size() || end == s.c_str()) {
+    why = "expected a number, found '" + s + "'";
+  } else if (!std::isfinite(v) || (range && std::abs(v) > 1.0)) {
+    why = "expected a finite number, found '" + s + "'";
+  } else if (range && v == 0.0 && s.find_first_of("123456789") < s.find_first_of("eE")) {
+    why = "'" + s + "' is below the smallest double (4.9e-324): write 0 if 0 is meant";
+  }
+  return v;
 }
 
 std::string describe(const YAML::Node& n) {
@@ -101,19 +135,21 @@ class Reader {
     }
   }
 
+  /// A plain (unquoted, untagged) scalar that reads whole as a finite double. A quoted "0.5"
+  /// or `!!str 0.5` is text in YAML, and refused as such.
   double number(const YAML::Node& node, const std::string& path) {
     note(node);
     if (!node.IsScalar()) fail(node, path, "expected a number, found " + describe(node));
     const std::string& s = node.Scalar();
-    std::size_t used = 0;
-    double v = 0.0;
-    try {
-      v = std::stod(s, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != s.size()) fail(node, path, "expected a number, found '" + s + "'");
-    if (!std::isfinite(v)) fail(node, path, "expected a finite number, found '" + s + "'");
+    const std::string& tag = node.Tag();
+    if (tag == "!" || tag == "tag:yaml.org,2002:str")
+      fail(node, path, "expected a number, found the text '" + s + "' (" + (tag == "!" ? "quoted" : "tagged !!str") +
+                           "; write the number without quotes)");
+    if (!tag.empty() && tag != "?" && tag != "tag:yaml.org,2002:float" && tag != "tag:yaml.org,2002:int")
+      fail(node, path, "expected a number, found '" + s + "' tagged " + tag);
+    std::string why;
+    const double v = parse_number(s, why);
+    if (!why.empty()) fail(node, path, why);
     return v;
   }
 
@@ -218,6 +254,8 @@ std::vector<PathStep> split_path(const std::string& path) {
       const std::string digits = path.substr(i + 1, close - i - 1);
       if (digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos)
         throw std::invalid_argument("index '" + digits + "' is not a whole number");
+      if (digits.size() > 9)  // stoul would overflow past 2^64; no list is longer than 1e9
+        throw std::invalid_argument("index '" + digits + "' is too large");
       steps.push_back({"", std::stoul(digits)});
       i = close + 1;
       continue;
@@ -313,6 +351,13 @@ struct SceneDocument::Impl {
   std::string file, text;
   YAML::Node root;
   std::vector<std::pair<std::string, double>> overrides;  // set() calls, in order
+  /// Every edit in order (set: a number; replace: YAML text), replayed by a copy.
+  struct Edit {
+    std::string path;
+    std::optional<double> number;
+    std::string yaml;
+  };
+  std::vector<Edit> edits;
 };
 
 SceneDocument::SceneDocument() : impl_(std::make_unique<Impl>()) {}
@@ -323,7 +368,7 @@ SceneDocument::SceneDocument(const SceneDocument& o) : impl_(std::make_unique<Im
 SceneDocument& SceneDocument::operator=(const SceneDocument& o) {
   if (this != &o) {
     SceneDocument fresh = parse(o.impl_->text, o.impl_->file);
-    for (const auto& [path, value] : o.impl_->overrides) fresh.set(path, value);
+    for (const Impl::Edit& e : o.impl_->edits) e.number ? fresh.set(e.path, *e.number) : fresh.replace(e.path, e.yaml);
     std::swap(impl_, fresh.impl_);
   }
   return *this;
@@ -333,11 +378,45 @@ const std::string& SceneDocument::file() const { return impl_->file; }
 const std::string& SceneDocument::text() const { return impl_->text; }
 
 SceneDocument SceneDocument::load(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError(path, 0, 0, "", "cannot open the scene file");
-  std::ostringstream s;
-  s << in.rdbuf();
-  return parse(s.str(), path);
+  // Opened without blocking (a FIFO would wait for a writer for ever) and checked on the open
+  // descriptor: only a regular file is read, and only if parsing it fits in memory.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) throw SceneError(path, 0, 0, "", std::string("cannot open the scene file: ") + std::strerror(errno));
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat info {};
+  if (::fstat(fd, &info) != 0)
+    throw SceneError(path, 0, 0, "", std::string("cannot read the scene file: ") + std::strerror(errno));
+  if (!S_ISREG(info.st_mode)) {
+    const char* kind = S_ISDIR(info.st_mode)    ? "a directory"
+                       : S_ISFIFO(info.st_mode) ? "a FIFO (named pipe)"
+                       : S_ISCHR(info.st_mode)  ? "a character device"
+                       : S_ISBLK(info.st_mode)  ? "a block device"
+                       : S_ISSOCK(info.st_mode) ? "a socket"
+                                                : "not a regular file";
+    throw SceneError(path, 0, 0, "", std::string("is ") + kind + ": a scene must be a regular file");
+  }
+  const auto size = static_cast<std::uint64_t>(info.st_size);
+  try {
+    require_memory(size * kParseBytesPerByte,
+                   "parsing the scene file (" + bytes_text(size) + ", about " + std::to_string(kParseBytesPerByte) +
+                       " bytes of YAML tree per byte)");
+  } catch (const ResourceError& e) {
+    throw SceneError(path, 0, 0, "", e.what());
+  }
+  std::string text(static_cast<std::size_t>(size), '\0');
+  std::size_t got = 0;
+  while (got < text.size()) {
+    const ssize_t r = ::pread(fd, text.data() + got, text.size() - got, static_cast<off_t>(got));
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0) throw SceneError(path, 0, 0, "", std::string("cannot read the scene file: ") + std::strerror(errno));
+    if (r == 0) break;  // shrank while read
+    got += static_cast<std::size_t>(r);
+  }
+  text.resize(got);
+  return parse(text, path);
 }
 
 SceneDocument SceneDocument::parse(const std::string& text, const std::string& file) {
@@ -395,29 +474,64 @@ void SceneDocument::set(const std::string& path, double value) {
   Reader r(impl_->file);
   r.number(node, path);  // must already be a number
   node = number_text(value);
+  // Setting a path again replaces its value: a sweep reuses one working copy for every point.
+  const auto same = std::find_if(impl_->overrides.begin(), impl_->overrides.end(),
+                                 [&](const auto& o) { return o.first == path; });
+  if (same != impl_->overrides.end()) impl_->overrides.erase(same);
   impl_->overrides.emplace_back(path, value);
+  impl_->edits.push_back({path, value, {}});
 }
 
-void SceneDocument::set_assignment(const std::string& assignment) {
+void SceneDocument::replace(const std::string& path, const std::string& yaml) {
+  std::vector<PathStep> steps;
+  try {
+    steps = split_path(path);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(impl_->file, 0, 0, path, std::string("malformed path: ") + e.what());
+  }
+  YAML::Node value;
+  try {
+    if (!yaml.empty()) value = YAML::Load(yaml);
+  } catch (const YAML::ParserException& e) {
+    throw SceneError(impl_->file, 0, 0, path, "YAML syntax error in the value given: " + e.msg);
+  }
+  YAML::Node node = impl_->root;
+  for (std::size_t k = 0; k < steps.size(); ++k) {
+    const std::string& key = steps[k].key;
+    if (key.empty() || !node.IsMap())
+      throw SceneError(impl_->file, 0, 0, path, "only mappings' keys can be replaced");
+    if (k + 1 == steps.size()) {
+      if (yaml.empty())
+        node.remove(key);
+      else
+        node[key] = value;
+    } else {
+      const YAML::Node& look = node;  // a const lookup never inserts the key
+      if (!look[key]) node[key] = YAML::Node(YAML::NodeType::Map);
+      node.reset(node[key]);
+    }
+  }
+  impl_->edits.push_back({path, std::nullopt, yaml});
+}
+
+void SceneDocument::set_assignment(const std::string& assignment, int ordinal) {
+  // Errors point into the assignment: "--set:K:C:", the K-th --set, column C of its text.
+  auto fail = [&](std::size_t column, const std::string& path, const std::string& problem) {
+    throw SceneError("--set", ordinal, static_cast<int>(column), path, problem);
+  };
   const std::size_t eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
-    throw SceneError("--set", 0, 0, assignment, "expected PATH=VALUE, e.g. forcing.frequency=0.26");
+    fail(1, assignment, "expected PATH=VALUE, e.g. forcing.frequency=0.26");
   const std::string path = assignment.substr(0, eq);
   const std::string value = assignment.substr(eq + 1);
-  std::size_t used = 0;
-  double v = 0.0;
-  try {
-    v = std::stod(value, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != value.size() || !std::isfinite(v))
-    throw SceneError("--set", 0, 0, path, "expected a finite number, found '" + value + "'");
+  std::string why;
+  const double v = parse_number(value, why);
+  if (!why.empty())
+    fail(eq + 2, path, why.rfind("expected a number", 0) == 0 ? "expected a finite number, found '" + value + "'" : why);
   try {
     set(path, v);
   } catch (const SceneError& e) {
-    throw SceneError("--set", 0, 0, path,
-                     e.problem() + " (in " + e.file() + (e.path().empty() ? "" : " at " + e.path()) + ")");
+    fail(1, path, e.problem() + " (in " + e.file() + (e.path().empty() ? "" : " at " + e.path()) + ")");
   }
 }
 
@@ -617,26 +731,6 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     if (in["x"]) x0 = to_vector(r.numbers(in["x"], "initial.x", n, "one displacement per mass"));
     if (in["v"]) v0 = to_vector(r.numbers(in["v"], "initial.v", n, "one velocity per mass"));
   }
-  try {
-    check_admissible(stops, f.frequency, t0, x0, 1e-12 * stops_length_scale(stops, x0.cwiseAbs().maxCoeff()));
-  } catch (const InvalidInput& e) {
-    const YAML::Node in = root["initial"];
-    if (in && in["x"]) r.fail(in["x"], "initial.x", e.what());
-    // The default initial state (rest at 0) violates a stop: point at that stop's position.
-    const std::string msg = e.what();
-    const std::size_t at = msg.find("stops[");
-    const YAML::Node sn = root["stops"];
-    if (at != std::string::npos && sn) {
-      const std::size_t j = std::stoul(msg.substr(at + 6));
-      if (j < sn.size()) {
-        const char* key = sn[j]["between"] ? "gap" : "position";
-        r.fail(sn[j][key], "stops[" + std::to_string(j) + "]." + key,
-               msg + "; the initial state defaults to rest at x = 0 (set initial.x)");
-      }
-    }
-    r.fail(root, "initial.x", msg);
-  }
-
   // --- solver ---
   SimulatorOptions opt;
   EngineChoice engine_choice = EngineChoice::automatic;
@@ -665,6 +759,49 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       const std::string e = r.choice(sv["engine"], "solver.engine", {"auto", "dense", "modal"});
       engine_choice = e == "dense" ? EngineChoice::dense : e == "modal" ? EngineChoice::modal : EngineChoice::automatic;
     }
+  }
+
+  // The initial state, with the tolerance the run will use (trigger × L): what `check` accepts,
+  // the run accepts. L is the engines' (run_length_scale); for an unforced scene the engines take
+  // the fastest mode's frequency, unknown here, and the stops' and x0's part of L is used: a lower
+  // bound, so the loader is never the more lenient.
+  try {
+    double kmax = 0.0, mmax = 0.0;
+    if (chain_links) {
+      const models::Chain& c = *chain_links;
+      for (long i = 0; i < n; ++i) {
+        const auto u = static_cast<std::size_t>(i);
+        double k = (i == 0 ? c.left_spring : 0.0) + (i == n - 1 ? c.right_spring : 0.0);
+        if (i > 0) k += c.springs[u - 1];
+        if (i < n - 1) k += c.springs[u];
+        kmax = std::max({kmax, k, i < n - 1 ? c.springs[u] : 0.0});
+        mmax = std::max(mmax, c.masses[u]);
+      }
+    } else {
+      kmax = K.cwiseAbs().maxCoeff();
+      mmax = M.cwiseAbs().maxCoeff();
+    }
+    const bool forced = f.frequency > 0.0;
+    const double fmax = forced ? f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff() : 0.0;
+    const double L = run_length_scale(opt, forced ? f.frequency : 1.0, kmax, mmax, fmax, stops, x0,
+                                      forced ? v0 : Eigen::VectorXd::Zero(n).eval());
+    check_admissible(stops, f.frequency, t0, x0, opt.trigger * L);
+  } catch (const InvalidInput& e) {
+    const YAML::Node in = root["initial"];
+    if (in && in["x"]) r.fail(in["x"], "initial.x", e.what());
+    // The default initial state (rest at 0) violates a stop: point at that stop's position.
+    const std::string msg = e.what();
+    const std::size_t at = msg.find("stops[");
+    const YAML::Node sn = root["stops"];
+    if (at != std::string::npos && sn) {
+      const std::size_t j = std::stoul(msg.substr(at + 6));
+      if (j < sn.size()) {
+        const char* key = sn[j]["between"] ? "gap" : "position";
+        r.fail(sn[j][key], "stops[" + std::to_string(j) + "]." + key,
+               msg + "; the initial state defaults to rest at x = 0 (set initial.x)");
+      }
+    }
+    r.fail(root, "initial.x", msg);
   }
 
   // --- record ---
@@ -735,8 +872,8 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   };
   std::vector<PointEngine> point_engines;
   auto check_values = [&](const SweepAxis& axis, const YAML::Node& p, const std::string& path) {
+    SceneDocument point(*this);  // one copy, its value replaced per point: no re-parse per point
     for (std::size_t i = 0; i < axis.values.size(); ++i) {
-      SceneDocument point(*this);
       point.set(axis.path, axis.values[i]);
       const bool listed = static_cast<bool>(p["values"]);
       const YAML::Node at = listed ? p["values"][i] : p[p["linspace"] ? "linspace" : "logspace"];
@@ -752,14 +889,20 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     }
   };
   if (const YAML::Node rn = root["run"]) {
-    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep", "locate"});
+    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep", "locate", "continue"});
     if (rn["kind"]) {
-      const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate"});
-      run.kind = kind == "sweep" ? RunSpec::Kind::sweep : kind == "locate" ? RunSpec::Kind::locate : RunSpec::Kind::simulate;
+      const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate", "continue"});
+      run.kind = kind == "sweep"      ? RunSpec::Kind::sweep
+                 : kind == "locate"   ? RunSpec::Kind::locate
+                 : kind == "continue" ? RunSpec::Kind::continuation
+                                      : RunSpec::Kind::simulate;
     }
     if (rn["transient_periods"]) run.transient_periods = r.number_in(rn["transient_periods"], "run.transient_periods", 0, 1e9, "a number of periods ≥ 0");
     if (rn["periods"]) run.periods = r.number_in(rn["periods"], "run.periods", 1e-12, 1e9, "a number of periods > 0");
-    const YAML::Node sw = rn["sweep"], lc = rn["locate"];
+    const YAML::Node sw = rn["sweep"], lc = rn["locate"], ct = rn["continue"];
+    if (run.kind == RunSpec::Kind::continuation && !ct)
+      r.fail(rn, "run.continue", "missing: run.kind: continue needs run.continue (path and range)");
+    if (run.kind != RunSpec::Kind::continuation && ct) r.fail(ct, "run.continue", "only for run.kind: continue");
     if (run.kind == RunSpec::Kind::sweep && !sw) r.fail(rn, "run.sweep", "missing: a sweep needs run.sweep.parameters");
     if (run.kind != RunSpec::Kind::sweep && sw) r.fail(sw, "run.sweep", "only for run.kind: sweep");
     if (run.kind == RunSpec::Kind::locate && !lc) r.fail(rn, "run.locate", "missing: run.kind: locate needs run.locate (path and grid)");
@@ -789,8 +932,82 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       if (lc["periodicity"]) l.periodicity = r.number_in(lc["periodicity"], "run.locate.periodicity", 1e-15, 1e-2, "a relative tolerance in [1e-15, 1e-2]");
       if (lc["max_period"]) l.max_period = static_cast<int>(r.integer(lc["max_period"], "run.locate.max_period", 1, 64));
       if (lc["max_periods"]) l.max_periods = r.integer(lc["max_periods"], "run.locate.max_periods", 2, 100000000);
+      // The first orbit is searched after the transient, each for up to max_period periods:
+      // a budget below that would have to be raised behind the user's back (bifurcation.cpp).
+      const long needed = static_cast<long>(std::ceil(run.transient_periods)) + l.max_period + 1;
+      if (l.max_periods < needed)
+        r.fail(lc["max_periods"] ? lc["max_periods"] : lc, "run.locate.max_periods",
+               "expected at least " + std::to_string(needed) + " periods (run.transient_periods " +
+                   number_text(run.transient_periods) + " + max_period " + std::to_string(l.max_period) +
+                   " + 1: the first orbit is tested after the transient), found " + std::to_string(l.max_periods));
       if (lc["jump"]) l.jump = r.number_in(lc["jump"], "run.locate.jump", 0, 1, "a fraction of the period in [0, 1] (0: no jump search)");
       check_values(run.axes[0], lc, "run.locate");
+    }
+    if (ct && check_sweep) {
+      ContinueSpec& c = run.continuation;
+      r.expect_map(ct, "run.continue", {"path", "range", "direction", "period", "phase", "step", "min_step", "max_step",
+                                        "max_points", "tolerance", "locate", "locate_tolerance", "max_doublings", "curve"});
+      // A continuation parameter: a number the file sets, outside `run` (and, below, one that
+      // moves the system: continuation.cpp checks that through the parameter's derivative).
+      auto parameter = [&](const YAML::Node& node, const std::string& path) {
+        if (!node) r.fail(ct, path, "missing: the scene value to continue in, e.g. forcing.frequency");
+        const std::string text = r.text(node, path);
+        if (text.rfind("run.", 0) == 0) r.fail(node, path, "the run section cannot be a parameter");
+        try {
+          (void)get(text);
+        } catch (const SceneError& e) {
+          r.fail(node, path, "'" + text + "' does not name a number in this scene: " + e.problem());
+        }
+        return text;
+      };
+      auto range = [&](const YAML::Node& node, const std::string& path, double& lo, double& hi, double value) {
+        if (!node) r.fail(ct, path, "missing: [min, max], the limits of the parameter");
+        const std::vector<double> v = r.numbers(node, path, 2, "min, max");
+        if (!(v[0] < v[1])) r.fail(node, path, "expected min < max, found [" + number_text(v[0]) + ", " + number_text(v[1]) + "]");
+        if (!(value >= v[0] && value <= v[1]))
+          r.fail(node, path, "the scene's value " + number_text(value) + " lies outside [" + number_text(v[0]) + ", " +
+                                 number_text(v[1]) + "]: the branch starts there");
+        lo = v[0];
+        hi = v[1];
+      };
+      // The parameter must move the system, linearly or in closed form (io/continuation.hpp).
+      auto moves = [&](const YAML::Node& node, const std::string& key, const std::string& path) {
+        try {
+          (void)parameter_derivative(*this, path);
+        } catch (const SceneError& e) {
+          r.fail(node, key, "'" + path + "' " + e.problem());
+        }
+      };
+      c.path = parameter(ct["path"], "run.continue.path");
+      moves(ct["path"], "run.continue.path", c.path);
+      range(ct["range"], "run.continue.range", c.p_min, c.p_max, get(c.path));
+      if (ct["direction"]) c.direction = r.choice(ct["direction"], "run.continue.direction", {"up", "down"}) == "up" ? 1 : -1;
+      if (ct["period"]) c.period = static_cast<int>(r.integer(ct["period"], "run.continue.period", 1, 1024));
+      if (ct["phase"]) c.phase = r.number_in(ct["phase"], "run.continue.phase", -1e3, 1e3, "a phase in radians");
+      if (ct["step"]) c.step = r.number_in(ct["step"], "run.continue.step", 1e-12, 1.0, "a step in (0, 1] (scaled arclength)");
+      if (ct["min_step"]) c.min_step = r.number_in(ct["min_step"], "run.continue.min_step", 1e-15, 1.0, "a step in (0, 1]");
+      if (ct["max_step"]) c.max_step = r.number_in(ct["max_step"], "run.continue.max_step", 1e-12, 1.0, "a step in (0, 1]");
+      if (c.min_step > c.max_step) r.fail(ct, "run.continue.min_step", "must not exceed run.continue.max_step");
+      if (ct["max_points"]) c.max_points = static_cast<int>(r.integer(ct["max_points"], "run.continue.max_points", 2, 1000000));
+      if (ct["tolerance"]) c.tolerance = r.number_in(ct["tolerance"], "run.continue.tolerance", 1e-15, 1e-4, "a relative tolerance in [1e-15, 1e-4]");
+      if (ct["locate"]) c.locate = r.boolean(ct["locate"], "run.continue.locate");
+      if (ct["locate_tolerance"]) c.locate_tolerance = r.number_in(ct["locate_tolerance"], "run.continue.locate_tolerance", 1e-15, 1e300, "a width > 0 in the parameter's units");
+      if (ct["max_doublings"]) c.max_doublings = static_cast<int>(r.integer(ct["max_doublings"], "run.continue.max_doublings", 0, 8));
+      if (const YAML::Node cv = ct["curve"]) {
+        r.expect_map(cv, "run.continue.curve", {"path", "range", "step", "max_points", "kinds"});
+        c.curve_path = parameter(cv["path"], "run.continue.curve.path");
+        if (c.curve_path == c.path) r.fail(cv["path"], "run.continue.curve.path", "must differ from run.continue.path");
+        moves(cv["path"], "run.continue.curve.path", c.curve_path);
+        range(cv["range"], "run.continue.curve.range", c.curve_min, c.curve_max, get(c.curve_path));
+        if (cv["step"]) c.curve_step = r.number_in(cv["step"], "run.continue.curve.step", 1e-9, 1.0, "a step in (0, 1] (scaled)");
+        if (cv["max_points"]) c.curve_max_points = static_cast<int>(r.integer(cv["max_points"], "run.continue.curve.max_points", 2, 100000));
+        if (const YAML::Node k = cv["kinds"]) {
+          if (!k.IsSequence() || k.size() == 0) r.fail(k, "run.continue.curve.kinds", "expected a list of grazing and/or rising");
+          c.curve_kinds.clear();
+          for (std::size_t i = 0; i < k.size(); ++i)
+            c.curve_kinds.push_back(r.choice(k[i], "run.continue.curve.kinds[" + std::to_string(i) + "]", {"grazing", "rising"}));
+        }
+      }
     }
   }
 
@@ -842,6 +1059,10 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
              std::to_string(kModalAutomaticMinimumDof) + ")";
   }
 
+  if (check_sweep && run.kind == RunSpec::Kind::continuation && engine == EngineKind::modal)
+    r.fail(root["run"]["kind"], "run.kind",
+           "continuation runs on the dense engine (its tangent maps are dense), and this scene resolves to the modal "
+           "engine (" + reason + "): set solver.engine: dense");
   for (const PointEngine& p : point_engines)
     if (p.engine != engine)
       r.fail(p.at, p.path, p.what + " runs with the " + to_string(p.engine) + " engine, the base scene with the " +

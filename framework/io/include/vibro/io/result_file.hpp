@@ -61,16 +61,29 @@ struct Dataset {
 /// Writes one run's HDF5 file (docs/results.md).
 class ResultFile {
  public:
-  /// Starts `path + ".partial"` (replacing any file of that name): /scene, and in /meta the
-  /// facts of `meta` (version, commit, date, compiler, threads) and the scene's tolerances.
-  static ResultFile create(const std::string& path, const Scene& scene, const RunMeta& meta);
+  /// Starts `path + ".partial"`: /scene, and in /meta the facts of `meta` (version, commit, date,
+  /// compiler, threads) and the scene's tolerances. First takes `path + ".lock"` and checks the
+  /// target (docs/results.md, "Writing"): throws ResultError if another writer holds the lock,
+  /// if `path` exists and not `overwrite` (--force), if `path` is a directory or the scene file,
+  /// or if a `.partial` is in the way and not `overwrite`. The partial is created exclusively
+  /// (never an existing file, never through a symbolic link).
+  static ResultFile create(const std::string& path, const Scene& scene, const RunMeta& meta,
+                           bool overwrite = false);
   /// Resumes the `.partial` of an interrupted sweep of `scene` (see above; the copy is written as
   /// `.partial.resume` and renamed over the `.partial`, which is untouched until then). Throws
   /// ResultError if there is none, if it is not a sweep, or if its /scene differs from `scene`
   /// (YAML text, any resolved value — e.g. another --set — or a tolerance). Then
   /// completed_points() says where to continue; begin_sweep() only checks the grid.
-  static ResultFile open_partial(const std::string& path, const Scene& scene);
+  /// Takes the lock and checks the target as create() does.
+  static ResultFile open_partial(const std::string& path, const Scene& scene, bool overwrite = false);
   static std::string partial_path(const std::string& path) { return path + ".partial"; }
+  /// The same file held in memory (nothing on disk; for library use, session.hpp): written as
+  /// create() writes, finish() renames nothing, image() gives its bytes. Sweeps are not kept
+  /// for --resume.
+  static ResultFile create_in_memory(const Scene& scene, const RunMeta& meta);
+  /// The bytes of the file (flushed): after finish(), the finished file; before, what is written
+  /// so far (an interrupted sweep's counted points). Written to disk, they are an HDF5 file.
+  std::vector<char> image() const;
 
   ResultFile(ResultFile&&) noexcept;
   ResultFile& operator=(ResultFile&&) noexcept;
@@ -120,6 +133,8 @@ class ResultFile {
 class ResultReader {
  public:
   explicit ResultReader(const std::string& path);
+  /// Reads the bytes of a result file (ResultFile::image(), or a file's content) from memory.
+  explicit ResultReader(const std::vector<char>& image);
   ResultReader(ResultReader&&) noexcept;
   ResultReader& operator=(ResultReader&&) noexcept;
   ~ResultReader();
@@ -141,6 +156,8 @@ class ResultReader {
 
   std::vector<std::string> attributes(const std::string& object) const;
   bool attribute_is_string(const std::string& object, const std::string& name) const;
+  /// "str" (one string), "str[]" (an array of strings), "i64" or "f64" (numbers).
+  std::string attribute_type(const std::string& object, const std::string& name) const;
   std::string attribute_string(const std::string& object, const std::string& name) const;
   std::vector<std::string> attribute_strings(const std::string& object,
                                              const std::string& name) const;

@@ -33,7 +33,9 @@
 /// `date` differ from a one-process run, as they do between any two runs.
 #include "vibro/io/scene.hpp"
 
+#include <atomic>
 #include <string>
+#include <vector>
 
 namespace vibro::io {
 
@@ -45,11 +47,22 @@ struct RunRequest {
   /// Behave as if interrupted once this many points are written (0: never). For tests of
   /// interruption and --resume, which must not depend on timing a real signal.
   std::size_t interrupt_after = 0;
+  /// Write the result file into memory (RunReport::image) instead of `output`, for programs
+  /// using the library (session.hpp); a sweep is then not resumable and `resume` must be false.
+  bool in_memory = false;
+  /// The caller's stop flag (null for `vibro run`, where SIGINT/SIGTERM stop sweeps): set from
+  /// another thread, it ends a simulation at its next event (status interrupted) and a sweep
+  /// before its next point; the runner raises it too when it stops a sweep itself. No signal
+  /// handler is installed when it is given.
+  std::atomic<bool>* interrupt = nullptr;
+  /// Replace an existing output file (--force); never the scene file itself.
+  bool force = false;
 };
 
 struct RunReport {
   int exit_code = 0;       ///< 0 all completed, 1 some run stopped early, 130 interrupted
   std::string summary;     ///< one paragraph for the user
+  std::vector<char> image; ///< RunRequest::in_memory: the result file's bytes
 };
 
 /// `doc` is the (already --set) scene document, `scene` its build(). Throws SceneError for bad
@@ -57,6 +70,12 @@ struct RunReport {
 /// process calls it with the same arguments; the ranks other than 0 write nothing and return
 /// exit code 0 and an empty summary (rank 0's report is the run's).
 RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunRequest& request);
+
+class ResultFile;
+struct RunMeta;
+/// The result file of a run (for each run kind's code): `request.output`, written as OUT.partial
+/// until finished, or in memory (RunRequest::in_memory).
+ResultFile open_result_file(const RunRequest& request, const Scene& scene, const RunMeta& meta);
 
 /// The processes of this run. In a build with MPI, MPI is started (MPI_THREAD_FUNNELED) only
 /// when the process was launched by an MPI launcher, which sets OMPI_COMM_WORLD_SIZE (Open MPI)

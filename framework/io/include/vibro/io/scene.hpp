@@ -79,14 +79,38 @@ struct LocateSpec {
   double jump = 0.02;          ///< sticking-fraction change searched for a jump (0: none)
 };
 
+/// run.kind: continue — branches of periodic orbits followed in one parameter by pseudo-arclength
+/// continuation, their stability and bifurcations (vibro/continuation.hpp), and optionally the
+/// located grazing and rising points followed in a second parameter.
+struct ContinueSpec {
+  std::string path;                   ///< the parameter (a --set path)
+  double p_min = 0.0, p_max = 0.0;    ///< `range`
+  int direction = 1;                  ///< first direction: +1 up, −1 down
+  int period = 1;                     ///< k
+  double phase = 0.0;                 ///< section phase θ, radians
+  double step = 0.01, min_step = 1e-7, max_step = 0.05;
+  int max_points = 400;
+  double tolerance = 1e-11;
+  bool locate = true;
+  double locate_tolerance = 1e-10;
+  int max_doublings = 3;
+  /// run.continue.curve: a second parameter for the located grazing and rising points.
+  std::string curve_path;             ///< empty: no curves
+  double curve_min = 0.0, curve_max = 0.0;
+  double curve_step = 0.02;
+  int curve_max_points = 50;
+  std::vector<std::string> curve_kinds{"grazing", "rising"};
+};
+
 struct RunSpec {
-  enum class Kind { simulate, sweep, locate };
+  enum class Kind { simulate, sweep, locate, continuation };
   Kind kind = Kind::simulate;
   double transient_periods = 0.0;  ///< simulated, not recorded
   double periods = 1.0;            ///< recorded forcing periods (or time units when Ω = 0)
   /// Sweep: one axis (1-D) or two (2-D grid, the second varying fastest). Locate: one axis.
   std::vector<SweepAxis> axes;
   LocateSpec locate;
+  ContinueSpec continuation;  ///< run.kind: continue
   bool follow = false;   ///< each point starts from the previous point's final state
   bool reverse = false;  ///< walk the grid from its last point to its first
 };
@@ -176,10 +200,17 @@ class SceneDocument {
   /// Sets the numeric value at `path` (e.g. "stops[1].position"). Throws SceneError if the path
   /// does not name an existing numeric value (message names the path and what is there).
   void set(const std::string& path, double value);
-  /// Parses "PATH=VALUE" (for --set) and applies it.
-  void set_assignment(const std::string& assignment);
+  /// Parses "PATH=VALUE" (for --set) and applies it. Errors read "--set:K:C: PATH: problem":
+  /// the `ordinal`-th --set (from 1), column C of the assignment (1: the path, after '=': the value).
+  void set_assignment(const std::string& assignment, int ordinal = 1);
   /// The numeric value at `path`.
   double get(const std::string& path) const;
+  /// Replaces the value at `path` (keys only, e.g. "record" or "run.sweep") by the YAML text
+  /// `yaml` (a scalar, list or mapping), adding missing keys; an empty `yaml` removes the key.
+  /// For what a program chooses per run (the Python module's record and run keywords): build()
+  /// checks it as if the file said it. Like set(), it leaves text() as loaded. Throws SceneError
+  /// if a step of the path is not a mapping or `yaml` does not parse.
+  void replace(const std::string& path, const std::string& yaml);
 
   /// Builds and validates the scene. Throws SceneError.
   Scene build() const;

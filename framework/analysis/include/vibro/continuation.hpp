@@ -1,0 +1,206 @@
+#pragma once
+/// \file continuation.hpp
+/// Branches of periodic orbits followed in a parameter, through folds and along unstable parts,
+/// with their bifurcations located by solving their defining conditions.
+///
+/// **Pseudo-arclength continuation** (Keller 1977). A branch is a curve y(s) = (z, p) of zeros
+/// of F(z, p) = P(z; p) − z, P the stroboscopic map of period kT at the forcing phase θ (section
+/// time t0 = θ/Ω, so that with p = Ω the section moves with the period). In scaled variables
+/// (x/L, v/V, p/P) its tangent t spans the null space of DF = [J − I, ∂P/∂p], with
+///     ∂P/∂p = ζ + f(z1, t1) dt1/dp − J f(z0, t0) dt0/dp          (linearisation.hpp)
+/// (ζ the sensitivity at fixed times; the time terms move the section and the period with Ω).
+///
+/// procedure Continue(y0):
+///     repeat: t ← null vector of DF(y) oriented along the previous t
+///             y_pred ← y + h t
+///             Newton on [F(y); tᵀ(y − y_pred)] = 0 from y_pred (the exact Jacobian)
+///             failure (no convergence in max_corrector_iterations, a run that fails, an orbit
+///                 that leaves the scan limits by more than a step): h ← h/2, retry; h < min: stop
+///             success: h ← 1.5 h if ≤ 3 iterations, 0.6 h if ≥ 6; the point's multipliers,
+///                 test functions and event signature; a change between neighbours is located
+///     stop at the scan limits (the last point placed on the limit), after max_points, or when
+///     the step falls below min_step (the reason is kept with the branch).
+/// A fold is passed because the arclength, not p, parametrises the curve; unstable parts are
+/// followed like stable ones (nothing here needs the orbit to attract).
+///
+/// **Bifurcations**, each by a test function that changes sign there, located by the Illinois
+/// (modified regula falsi) iteration on the arclength between two neighbours, each evaluation a
+/// corrected branch point, to |Δp| ≤ locate_tolerance where the function is smooth:
+///  * fold (saddle-node): the p-component of the tangent; a multiplier passes through +1;
+///  * period doubling: Π(1 + μ_i) over the non-structural multipliers; a multiplier at −1.
+///    The doubled branch (period 2k) is then continued from the located point along the
+///    multiplier's eigenvector (branch switching), recursively up to max_doublings deep;
+///  * Neimark–Sacker: Π_{i<j}(μ_iμ_j − 1); kept only if a complex pair lies on the unit circle;
+///  * grazing of stop j (the number of impacts on j per orbit changes, chatter excluded): the
+///    orbit's nearest approach to the stop, continuous through the grazing — below it the
+///    largest interior maximum of the gap (< 0), above it the height u²/(2|g''|) the slowest
+///    impact's free parabola would rise past the stop (> 0; u the approach speed, g'' the gap's
+///    free acceleration at impact);
+///  * rising / multi-sliding of stop j (a contact phase of j splits): before it, the least
+///    interior minimum of j's contact force (> 0); after it, the minimum of the force the held
+///    flow continued past the release would need (< 0) (Wagg 2004; linearisation.hpp features);
+///  * a contact phase of j appearing or vanishing, chatter on j appearing or vanishing, any
+///    other change of the orbit's event signature: not smooth in p (they depend on the chatter
+///    rule's thresholds), located by bisection to locate_tolerance and reported as such.
+/// Each is reported with its kind, p, the stop, the branch, the test function's value at the
+/// located point and the orbit there.
+///
+/// **Curves in two parameters.** A grazing or rising point located in p1 is followed in (p1, p2)
+/// by locating it again on lines across the curve: from each curve point a predictor step along
+/// the curve's secant, then the same location on the line through the predictor along the normal
+/// (a one-parameter family along that line: the system at each point and its derivative
+/// n1 dD/dp1 + n2 dD/dp2), so every curve point is located like a branch point.
+///
+/// Usage:
+///     vibro::ParameterFamily fam = [&](double omega) { return vibro::FamilyPoint{system_at(omega), d_domega}; };
+///     vibro::ContinuationOptions o;  o.p_min = 0.24;  o.p_max = 0.28;
+///     vibro::ContinuationResult r = vibro::continue_orbits(fam, 0.255, t, x, v, o);
+///     for (const vibro::Bifurcation& b : r.bifurcations) … b.kind, b.p, b.stop, b.value …
+#include "vibro/shooting.hpp"
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace vibro {
+
+/// The system at one value of the parameter and the derivative of its data there.
+struct FamilyPoint {
+  ImpactSystem system;
+  SystemDerivative derivative;
+};
+using ParameterFamily = std::function<FamilyPoint(double p)>;
+
+enum class BifurcationKind {
+  fold,
+  period_doubling,
+  neimark_sacker,
+  grazing,
+  rising,
+  phase_change,    ///< a contact phase appears or vanishes (not by rising)
+  chatter_change,  ///< chatter into sticking appears or vanishes
+  other            ///< another change of the event signature, or of the period
+};
+const char* to_string(BifurcationKind kind);
+/// All kinds in enum order (for file attributes).
+std::vector<std::string> bifurcation_kind_names();
+
+struct ContinuationOptions {
+  double p_min = 0.0, p_max = 0.0;  ///< scan limits (required: p_min < p_max)
+  int direction = +1;               ///< initial direction of p: +1 up, −1 down
+  int period = 1;                   ///< k of the first branch
+  double phase = 0.0;               ///< section phase θ (moved off held stops, as shooting does)
+  double step = 0.01;               ///< first arclength step (scaled variables)
+  double min_step = 1e-7, max_step = 0.05;
+  int max_points = 400;             ///< per branch
+  double tolerance = 1e-11;         ///< corrector residual, max(|Δx|/L, |Δv|/V)
+  int max_corrector_iterations = 8;
+  double parameter_scale = 0.0;     ///< P of the scaled p; 0: p_max − p_min
+  bool locate = true;               ///< locate bifurcations (else only detect them)
+  double locate_tolerance = 1e-10;  ///< |Δp| of a located point (absolute, in p's units)
+  int max_doublings = 3;            ///< depth of branch switching at period doublings (0: none)
+  SimulatorOptions solver;
+  void validate() const;            ///< throws InvalidInput naming the field
+};
+
+/// Per stop, per orbit: impacts outside chatter sequences, chatter sequences caught by the
+/// chatter rule, contact phases. Two orbits with different signatures differ in their events.
+struct Signature {
+  int k = 1;
+  std::vector<int> impacts, chatters, phases;
+  bool operator==(const Signature& o) const = default;
+  std::string text() const;  ///< e.g. "k=1 s0:i1c1h1 s1:i2c1h1"
+};
+
+struct BranchPoint {
+  double p = 0.0;
+  double phase = 0.0, t0 = 0.0;  ///< section
+  Eigen::VectorXd x, v;          ///< on the orbit at t0
+  int k = 1;
+  FloquetMultipliers multipliers;
+  Signature signature;
+  Eigen::VectorXd sticking;      ///< per stop: the fraction of kT it is held
+  double tangent_p = 0.0;        ///< dp/ds (scaled): its sign change is a fold
+  double residual = 0.0;
+  int corrector_iterations = 0;
+  bool located = false;          ///< a located bifurcation point (not a regular step)
+};
+
+struct Bifurcation {
+  BifurcationKind kind = BifurcationKind::other;
+  double p = 0.0;
+  int stop = -1;          ///< the stop concerned (grazing, rising, phase and chatter changes)
+  int branch = 0;         ///< index into ContinuationResult::branches
+  double value = 0.0;     ///< the test function at the located point (→ 0)
+  bool smooth = true;     ///< located by solving a smooth condition (else by bisection)
+  double p_low = 0.0, p_high = 0.0;  ///< the final bracket
+  int evaluations = 0;    ///< branch points computed to locate it
+  BranchPoint point;      ///< the orbit there
+  std::string note;
+};
+
+struct Branch {
+  int k = 1;
+  int parent = -1;        ///< the branch it was switched from (period doubling), or −1
+  std::vector<BranchPoint> points;  ///< in arclength order
+  std::string end;        ///< why it stopped
+};
+
+struct ContinuationResult {
+  std::vector<Branch> branches;
+  std::vector<Bifurcation> bifurcations;  ///< in the order found
+  long maps = 0;          ///< tangent maps computed (one per Newton iteration)
+};
+
+/// Called after every accepted point (for progress lines).
+using ContinuationProgress = std::function<void(const Branch&, const BranchPoint&)>;
+
+/// Continues the branch through the periodic orbit found by shooting from the guess
+/// (t_guess, x, v) at p0, in options.direction and then the other way (both halves form one
+/// branch, in order of arclength), switching at period doublings. Throws InvalidInput for bad
+/// options, or if shooting at p0 fails (the message says why).
+ContinuationResult continue_orbits(const ParameterFamily& family, double p0, double t_guess,
+                                   const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                                   const ContinuationOptions& options,
+                                   const ContinuationProgress& progress = {});
+
+/// The signature of an orbit from its map (events over kT).
+Signature orbit_signature(const TangentMap& m, int k, std::size_t stops);
+
+/// A point of a two-parameter curve.
+struct CurvePoint {
+  double p1 = 0.0, p2 = 0.0;
+  double value = 0.0;
+  BranchPoint point;
+};
+struct Curve {
+  BifurcationKind kind = BifurcationKind::grazing;
+  int stop = -1;
+  std::vector<CurvePoint> points;
+  std::string end;
+};
+
+/// The system at (p1, p2) and the derivatives of its data along p1 and along p2.
+struct PlanePoint {
+  ImpactSystem system;
+  SystemDerivative d1, d2;
+};
+using PlaneFamily = std::function<PlanePoint(double p1, double p2)>;
+
+struct CurveOptions {
+  double p2_min = 0.0, p2_max = 0.0;  ///< limits of the second parameter
+  double p1_min = 0.0, p1_max = 0.0;  ///< limits of the first (the curve stops outside)
+  double step = 0.02;                 ///< along the curve, in scaled (p1/P1, p2/P2)
+  int max_points = 100;
+  int direction = +1;                 ///< initial direction of p2
+  double scale1 = 0.0, scale2 = 0.0;  ///< P1, P2 (0: the limits' widths)
+  ContinuationOptions branch;         ///< tolerances, solver, period and locate_tolerance
+  void validate() const;
+};
+
+/// Follows a located grazing or rising point (`start`, found with p2 = p2_start) in (p1, p2).
+/// Throws InvalidInput if `start` is not a grazing or rising point.
+Curve follow_curve(const PlaneFamily& family, const Bifurcation& start, double p2_start,
+                   const CurveOptions& options);
+
+}  // namespace vibro

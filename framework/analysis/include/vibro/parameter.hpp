@@ -1,0 +1,61 @@
+#pragma once
+/// \file parameter.hpp
+/// How a system moves with one scalar parameter: the derivative dD/dp of the scene data D.
+///
+/// Everything the analysis layer differentiates with respect to a parameter p (a frequency, a
+/// forcing amplitude, a stop position, a restitution coefficient, a damper, a mass …) enters
+/// through the data of an ImpactSystem:
+///
+///     D = (M, C, K, F0, Fc, Fs, Ω, and per stop j: s0_j, sc_j, ss_j, r_j),
+///
+/// with the stop in canonical form g_j = w_jᵀx − s_j(t), s_j(t) = s0_j + sc_j cos Ωt + ss_j sin Ωt
+/// (stops.hpp; the normals w_j are topology and never move). A SystemDerivative is dD/dp at one
+/// point. The tangent maps of linearisation.hpp use it exactly: the generator's derivative
+/// dÂ/dp, the guards' ∂g/∂p and the resets' ∂R/∂p are the directional derivatives of the same
+/// code along dD (forward-mode differentiation), so no step size enters anywhere.
+///
+/// Where the scene comes from a file, the io layer turns a `--set` path into a SystemDerivative
+/// (vibro::io::parameter_derivative): model, forcing and stop values enter D affinely (a mass,
+/// a spring, a damper, an amplitude, a position, r) except Ω and a stop's phase, whose
+/// derivatives it writes in closed form.
+///
+/// Usage:
+///     vibro::SystemDerivative d = vibro::SystemDerivative::frequency_only();   // d/dΩ
+///     vibro::SystemDerivative e;                                               // d/dA1
+///     e.cosine = Eigen::Vector2d(1.0, 0.0);
+#include <Eigen/Dense>
+
+#include <vector>
+
+namespace vibro {
+
+/// d/dp of one stop's canonical data.
+struct StopDerivative {
+  double offset = 0.0;       ///< ds0/dp
+  double cosine = 0.0;       ///< dsc/dp
+  double sine = 0.0;         ///< dss/dp
+  double restitution = 0.0;  ///< dr/dp
+};
+
+struct SystemDerivative {
+  /// dM/dp, dC/dp, dK/dp (n × n, symmetric), dF0/dp, dFc/dp, dFs/dp (n); empty means zero.
+  Eigen::MatrixXd mass, damping, stiffness;
+  Eigen::VectorXd constant, cosine, sine;
+  double frequency = 0.0;  ///< dΩ/dp
+  /// One per stop, in the system's order; empty means zero for every stop.
+  std::vector<StopDerivative> stops;
+
+  /// d/dΩ: only the frequency moves (the forcing period, moving stops' motion, the oscillator).
+  static SystemDerivative frequency_only();
+
+  /// True when nothing moves.
+  bool is_zero() const;
+  /// Throws InvalidInput when a non-empty entry has the wrong size for n DOF and m stops, is
+  /// not finite, or a matrix is not symmetric (relative 1e-12).
+  void validate(Eigen::Index n, std::size_t m) const;
+
+  /// a·this + b·other (for a direction in a plane of two parameters).
+  SystemDerivative combined(double a, const SystemDerivative& other, double b) const;
+};
+
+}  // namespace vibro

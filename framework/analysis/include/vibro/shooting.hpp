@@ -1,0 +1,102 @@
+#pragma once
+/// \file shooting.hpp
+/// Periodic orbits by Newton shooting on the stroboscopic map, with their Floquet multipliers.
+///
+/// With the section at the forcing phase θ (t0 = θ/Ω) the stroboscopic map of period kT is
+/// P(z) = φ(t0 + kT; t0, z), and a periodic orbit is a zero of F(z) = P(z) − z. Newton's method
+/// uses the exact Jacobian of linearisation.hpp (flows and saltation matrices, to rounding):
+///
+/// procedure Shoot(t_guess, z_guess):
+///     z ← state at the first section time after t_guess (a run from the guess)
+///     if a stop is held at the section, or an event falls within 1e-6 T of it, move the section
+///        to the middle of the longest stretch of the guess's period in which no stop is held
+///     repeat (at most max_iterations):
+///         (P(z), J) ← linearise over kT from (t0, z);   F ← P(z) − z
+///         r ← max(|F_x|∞ / L, |F_v|∞ / V)
+///         if r ≤ tolerance: verify and stop
+///         Δ ← −(J − I)⁻¹ F                       # in the scaled variables (x/L, v/V)
+///         limit Δ to the trust radius; halve it (up to 12 times) until the trial point is
+///         admissible, its run completes and r decreases; grow the radius after full steps
+///     report the least k' | k with P^{k'}(z) = z (the minimal period), the multipliers
+///
+/// While the orbit's event sequence stays fixed, F is smooth and the iteration converges
+/// quadratically; where a step changes the sequence (an impact appears, a phase splits) the
+/// model is wrong across the step and the trust region keeps it safe. The result is either a
+/// converged orbit (residual ≤ tolerance, checked on a final run) or a failure with the
+/// residual, the iterations and why — never a false orbit. Unstable orbits converge as well as
+/// stable ones: nothing here relies on the dynamics contracting.
+///
+/// Floquet multipliers are the eigenvalues of J = ∂P/∂z at the orbit. While stops are held the
+/// map loses rank (linearisation.hpp): 2n − d of them are exactly zero (d the least tangent
+/// dimension along the orbit), reported as structural zeros and not as numbers; the other d are
+/// the eigenvalues of the reduced map. The orbit is stable when all of those lie inside the unit
+/// circle; a stable orbit is approached like ρ^m after m forcing periods, ρ = (max |μ|)^{1/k}.
+///
+/// Usage:
+///     vibro::ShootingOptions o;                     // period 1, section at phase 0
+///     vibro::ShootingResult r = vibro::shoot(system, o, t_guess, x_guess, v_guess);
+///     if (r.converged()) … r.x, r.v, r.multipliers.values, r.multipliers.stable …
+#include "vibro/linearisation.hpp"
+
+#include <string>
+#include <vector>
+
+namespace vibro {
+
+struct ShootingOptions {
+  int period = 1;              ///< k: the orbit repeats after kT (T = 2π/Ω)
+  double phase = 0.0;          ///< θ of the section, radians: t0 = θ/Ω (mod T)
+  bool free_section = true;    ///< move the section off a held stop or an event (see above)
+  /// Converged when max(|Δx|∞/L, |Δv|∞/V) ≤ tolerance (L, V the simulator's scales).
+  double tolerance = 1e-11;
+  int max_iterations = 40;
+  double trust_radius = 0.25;  ///< initial largest step, in units of L and V
+  SimulatorOptions solver;
+  void validate() const;       ///< throws InvalidInput naming the field
+};
+
+/// The Floquet multipliers of an orbit of period kT.
+struct FloquetMultipliers {
+  /// All 2n: the non-structural ones by decreasing modulus, then the structural zeros (exact 0).
+  Eigen::VectorXcd values;
+  int structural_zeros = 0;
+  double spectral_radius = 0.0;  ///< max |μ| over the non-structural ones
+  bool stable = false;           ///< spectral_radius < 1
+  double rate = 0.0;             ///< spectral_radius^(1/k): contraction per forcing period
+};
+
+/// The multipliers of the map `m` over k periods (from its reduced map).
+FloquetMultipliers floquet_multipliers(const TangentMap& m, int k);
+
+enum class ShootingStatus { converged, not_converged, map_failed, singular };
+const char* to_string(ShootingStatus s);
+
+struct ShootingResult {
+  ShootingStatus status = ShootingStatus::not_converged;
+  std::string message;             ///< why not converged (residual, iterations, what failed)
+  bool converged() const { return status == ShootingStatus::converged; }
+
+  int iterations = 0;
+  std::vector<double> residuals;   ///< r of every accepted iterate, the first is the guess's
+  double residual = 0.0;           ///< r at the returned state
+  int k = 1;                       ///< the period asked for
+  int minimal_k = 1;               ///< the least k' dividing k with P^{k'}(z) = z (converged)
+  double phase = 0.0;              ///< θ of the section used
+  double t0 = 0.0;                 ///< its time, in [0, T)
+  Eigen::VectorXd x, v;            ///< state on the orbit at t0 (the last iterate if not converged)
+  TangentMap map;                  ///< over kT from (t0, x, v): Jacobian, events, features
+  FloquetMultipliers multipliers;  ///< valid when converged
+  double length_scale = 0.0, velocity_scale = 0.0;
+};
+
+/// Newton shooting from the guess (t_guess, x, v) (see the file comment). `options_map` says what
+/// the returned map also carries (a parameter derivative, features); its `jacobian` is always on.
+/// Throws InvalidInput for bad options, sizes or an inadmissible guess; Ω must be > 0.
+ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options, double t_guess,
+                     const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                     const LinearisationOptions& options_map = {});
+
+/// max(|Δx|∞/L, |Δv|∞/V) of the map's end state against its start.
+double periodicity_residual(const TangentMap& m);
+
+}  // namespace vibro

@@ -1,0 +1,660 @@
+#include "vibro/linearisation.hpp"
+
+#include "mechanics.hpp"
+#include "vibro/contact.hpp"
+#include "vibro/flow.hpp"
+
+#include <Eigen/SVD>
+#include <unsupported/Eigen/MatrixFunctions>
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <memory>
+#include <string>
+#include <utility>
+
+namespace vibro {
+namespace {
+
+using detail::Dual;
+using detail::Mechanics;
+using detail::ResetRule;
+using Eigen::Index;
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+using VecD = detail::VecT<Dual>;
+using MatD = detail::MatT<Dual>;
+
+VecD seeded(const VectorXd& value, const VectorXd& direction) {
+  VecD out(value.size());
+  for (Index i = 0; i < value.size(); ++i) out(i) = Dual(value(i), direction.size() ? direction(i) : 0.0);
+  return out;
+}
+VectorXd derivative(const VecD& a) {
+  VectorXd out(a.size());
+  for (Index i = 0; i < a.size(); ++i) out(i) = a(i).d;
+  return out;
+}
+MatrixXd derivative(const MatD& a) {
+  MatrixXd out(a.rows(), a.cols());
+  for (Index i = 0; i < a.rows(); ++i)
+    for (Index k = 0; k < a.cols(); ++k) out(i, k) = a(i, k).d;
+  return out;
+}
+
+ContactSet set_union(const ContactSet& a, const ContactSet& b) {
+  ContactSet out;
+  std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
+  return out;
+}
+bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
+
+/// Upper bound of h over [a, b] from its ends, its end slopes and B ≥ |h''| (Taylor, as in
+/// events.hpp), and the matching lower bound.
+double upper_bound(double ha, double da, double hb, double db, double B, double L) {
+  const double chord = std::max(ha, hb) + B * L * L / 8.0;
+  const double from_a = std::max(ha, ha + da * L + 0.5 * B * L * L);
+  const double from_b = std::max(hb, hb - db * L + 0.5 * B * L * L);
+  return std::min({chord, from_a, from_b});
+}
+double lower_bound(double ha, double da, double hb, double db, double B, double L) {
+  return -upper_bound(-ha, -da, -hb, -db, B, L);
+}
+
+/// The points of (a, b) where sign·(row `slope` of the segment) changes from > 0 to ≤ 0: the
+/// interior local maxima (sign = +1) or minima (sign = −1) of the quantity whose derivative the
+/// row is. Certified with the row's second-derivative bound: an interval is passed over only
+/// when the Taylor bounds show no such change in it, and a root is accepted when the row is
+/// monotone around it; intervals shorter than `resolution` are not split further.
+class SignChanges {
+ public:
+  SignChanges(const Segment& segment, Index slope, double sign, double resolution)
+      : seg_(segment), row_(slope), sign_(sign), resolution_(resolution) {}
+
+  std::vector<double> in(double a, double b) {
+    out_.clear();
+    if (b > a) scan(a, b, h(a), dh(a), h(b), dh(b), 0);
+    return out_;
+  }
+
+ private:
+  double h(double tau) const { return sign_ * seg_.value(row_, tau); }
+  double dh(double tau) const { return sign_ * seg_.value(row_, tau, 1); }
+
+  void scan(double a, double b, double ha, double da, double hb, double db, int depth) {
+    const double L = b - a;
+    if (L <= resolution_ || depth > 60) {
+      if (ha > 0.0 && hb <= 0.0) out_.push_back(refine(a, b));
+      return;
+    }
+    const double B = seg_.second_derivative_bound(row_, a, b);
+    if (ha > 0.0 && hb <= 0.0 && std::max(da, db) + B * L < 0.0) {  // monotone: exactly one
+      out_.push_back(refine(a, b));
+      return;
+    }
+    if (ha > 0.0 && hb > 0.0 && lower_bound(ha, da, hb, db, B, L) > 0.0) return;
+    if (ha <= 0.0 && hb <= 0.0 && upper_bound(ha, da, hb, db, B, L) <= 0.0) return;
+    if (ha <= 0.0 && hb > 0.0 && std::min(da, db) - B * L > 0.0) return;  // monotone rise
+    const double m = 0.5 * (a + b);
+    const double hm = h(m), dm = dh(m);
+    scan(a, m, ha, da, hm, dm, depth + 1);
+    scan(m, b, hm, dm, hb, db, depth + 1);
+  }
+
+  /// h(a) > 0 ≥ h(b): safeguarded Newton / bisection to a few ulps.
+  double refine(double a, double b) const {
+    for (int it = 0; it < 200; ++it) {
+      const double ulp = 4.0 * std::numeric_limits<double>::epsilon() *
+                         std::max({std::abs(seg_.t0() + a), std::abs(seg_.t0() + b), 1e-300});
+      if (b - a <= ulp) break;
+      const double hb = h(b), db = dh(b);
+      double x = db < 0.0 ? b - hb / db : 0.5 * (a + b);
+      if (!(x > a && x < b) || it % 3 == 2) x = 0.5 * (a + b);
+      if (h(x) > 0.0) a = x;
+      else b = x;
+    }
+    return 0.5 * (a + b);
+  }
+
+  const Segment& seg_;
+  Index row_;
+  double sign_, resolution_;
+  std::vector<double> out_;
+};
+
+/// Orthonormal basis (2n × d) of {(δx, δv) : Wᵀδx = 0, Wᵀδv = 0}.
+MatrixXd tangent_basis(const MatrixXd& W, Index n) {
+  MatrixXd null;
+  if (W.cols() == 0) {
+    null = MatrixXd::Identity(n, n);
+  } else {
+    Eigen::JacobiSVD<MatrixXd> svd(W, Eigen::ComputeFullU);
+    const double tol = 1e-12 * std::max(1.0, svd.singularValues()(0));
+    Index rank = 0;
+    for (Index i = 0; i < svd.singularValues().size(); ++i) rank += svd.singularValues()(i) > tol;
+    null = svd.matrixU().rightCols(n - rank);
+  }
+  const Index d = null.cols();
+  MatrixXd B = MatrixXd::Zero(2 * n, 2 * d);
+  B.topLeftCorner(n, d) = null;
+  B.bottomRightCorner(n, d) = null;
+  return B;
+}
+
+/// What one contact set's motion needs, built on first use.
+struct Mode {
+  ContactSet set;
+  MatrixXd generator;       // Â_S
+  MatrixXd force_rows;      // λ_S = L z (|S| × N)
+  MatrixXd dgenerator;      // dÂ_S/dp (parameter runs)
+  MatrixXd dforce_rows;     // dL/dp
+  MatrixXd basis;           // tangent space of the manifold, 2n × d
+  Eigen::MatrixXcd dmodal;  // V⁻¹ dÂ_S V (parameter runs on the spectral path; empty until used)
+  std::unique_ptr<LinearFlow> flow;
+  std::unique_ptr<Functionals> rows;  // features: gaps, gap rates, forces, force rates
+};
+
+class TangentRecorder final : public Observer {
+ public:
+  TangentRecorder(const ImpactSystem& system, const SimulatorOptions& solver,
+                  const LinearisationOptions& options, TangentMap& out)
+      : system_(system), solver_(solver), options_(options), out_(out), n_(system.dof()),
+        mech_(system), mech0_(system), frame_(options.directions.size() > 0) {
+    if (options.parameter) mechp_ = std::make_unique<Mechanics<Dual>>(system, &*options.parameter);
+  }
+
+  void begin(const RunContext& /*run*/, double t0) override {
+    t0_ = t0;
+    K_ = MatrixXd::Identity(2 * n_, 2 * n_);
+    Jmid_ = K_;
+    if (frame_) K_ = options_.directions;
+    min_dim_ = 2 * n_;
+    basis_ = K_;
+    zeta_ = VectorXd::Zero(2 * n_);
+    least_rate_ = std::numeric_limits<double>::infinity();
+  }
+
+  void segment(const SegmentView& view) override {
+    const double tb = view.t_begin(), te = view.t_end();
+    const ContactSet& S = view.active();
+    VectorXd xb(n_), vb(n_);
+    view.state(tb, xb, vb);
+    if (first_) {
+      first_ = false;
+      out_.starts_held = !S.empty();
+      held_ = S;
+      for (int j : S) open_phase(j, tb);
+    } else if (pending_) {
+      finish_transition(vb, S);
+    }
+    Mode& mode = mode_for(S);
+    if (out_.rate_start.size() == 0) out_.rate_start = rate(mode, tb, xb, vb);
+    const VectorXd zb = mode.flow->augment(tb, xb, vb);
+    propagate(mode, te - tb, tb, zb);
+    if (options_.features && te > tb) features(mode, tb, te, zb);
+    last_mode_ = &mode;
+    last_tb_ = tb;
+    last_zb_ = zb;
+    xe_.resize(n_);
+    ve_.resize(n_);
+    view.state(te, xe_, ve_);
+    te_ = te;
+    pending_ = true;
+    events_.clear();
+  }
+
+  void event(const Event& e) override {
+    events_.push_back(e);
+    out_.events.push_back(e);
+  }
+
+  void end(double t) override {
+    if (!events_.empty()) out_.ends_at_event = true;
+    out_.t1 = t;
+    out_.x1 = xe_;
+    out_.v1 = ve_;
+    if (last_mode_) out_.rate_end = rate(*last_mode_, te_, xe_, ve_);
+    for (std::size_t j = 0; j < open_.size(); ++j)
+      if (open_[j] >= 0) out_.phases[static_cast<std::size_t>(open_[j])].t_end = t;
+    const Index N2 = 2 * n_;
+    out_.free_dimension = min_dim_;
+    if (frame_) {
+      out_.products = K_;
+    } else if (options_.jacobian) {
+      out_.jacobian = K_ * Jmid_;
+      if (min_dim_ < N2) {
+        out_.reduced = basis_.transpose() * Jmid_ * K_ * basis_;
+        out_.lift = K_ * basis_;
+      } else {
+        out_.reduced = out_.jacobian;
+        out_.lift = MatrixXd::Identity(N2, N2);
+      }
+    }
+    if (options_.parameter) out_.parameter = zeta_;
+    out_.least_guard_rate = least_rate_;
+  }
+
+ private:
+  Mode& mode_for(const ContactSet& S) {
+    auto it = modes_.find(S);
+    if (it != modes_.end()) return *it->second;
+    auto m = std::make_unique<Mode>();
+    m->set = S;
+    m->generator = mech_.generator(S);
+    m->force_rows = S.empty() ? MatrixXd(0, 2 * n_ + 3) : mech_.force_rows(S);
+    if (mechp_) {
+      m->dgenerator = derivative(mechp_->generator(S));
+      m->dforce_rows = S.empty() ? MatrixXd(0, 2 * n_ + 3) : derivative(mechp_->force_rows(S));
+    }
+    m->basis = tangent_basis(mech_.normals(S), n_);
+    m->flow = std::make_unique<LinearFlow>(m->generator, n_, value_of_omega(), solver_.flow);
+    if (options_.features) {
+      const Index N = 2 * n_ + 3, ms = static_cast<Index>(system_.stop_count());
+      const Index h = static_cast<Index>(S.size());
+      MatrixXd rows(2 * ms + 2 * h, N);
+      for (Index j = 0; j < ms; ++j) {
+        const VectorXd g = mech_.gap_row(static_cast<int>(j));
+        rows.row(j) = g.transpose();
+        rows.row(ms + j) = g.transpose() * m->generator;
+      }
+      if (h > 0) {
+        rows.middleRows(2 * ms, h) = m->force_rows;
+        rows.middleRows(2 * ms + h, h) = m->force_rows * m->generator;
+      }
+      m->rows = std::make_unique<Functionals>(*m->flow, rows);
+    }
+    return *modes_.emplace(S, std::move(m)).first->second;
+  }
+
+  double value_of_omega() const { return mech_.frequency(); }
+
+  /// f(z, t) = (v, a_S) from the generator.
+  VectorXd rate(const Mode& mode, double t, const VectorXd& x, const VectorXd& v) const {
+    const VectorXd z = mode.flow->augment(t, x, v);
+    return (mode.generator * z).head(2 * n_);
+  }
+
+  /// The state block of exp(Â_S τ): from the eigen-decomposition for large well-conditioned
+  /// systems, else the Padé exponential (exact to rounding; cheap at these sizes).
+  MatrixXd transition(const Mode& mode, double tau) const {
+    const Index N2 = 2 * n_;
+    const LinearFlow& f = *mode.flow;
+    if (f.size() > 64 && f.method() == LinearFlow::Method::spectral) {
+      const Eigen::VectorXcd e = (f.eigenvalues() * tau).array().exp();
+      const Eigen::MatrixXcd left = f.eigenvectors().topRows(N2) * e.asDiagonal();
+      return (left * f.inverse_eigenvectors().leftCols(N2)).real();
+    }
+    return f.transition_matrix(tau).topLeftCorner(N2, N2);
+  }
+
+  /// Large, well-conditioned flows use their eigen-decomposition (transition(); the parameter
+  /// sensitivity below); small ones the Padé exponential, exact to rounding.
+  static bool spectral(const Mode& mode) {
+    return mode.flow->size() > 64 && mode.flow->method() == LinearFlow::Method::spectral;
+  }
+
+  /// ζ ← Φ ζ + Ψ z over a segment from the eigen-decomposition Â = V Λ V⁻¹: with B = V⁻¹ dÂ V,
+  ///     Ψ = V (B ∘ Δ) V⁻¹,   Δ_ij = ∫₀^τ e^{λ_i (τ − s)} e^{λ_j s} ds = e^{λ_j τ} τ φ₁((λ_i − λ_j) τ),
+  /// φ₁(x) = (eˣ − 1)/x (a series near 0): O(N²) per segment instead of a 2N × 2N exponential.
+  /// Its rounding is cond(V) ε like the flow's own spectral path (the flow accepts it only for
+  /// cond(V) ≤ max_condition).
+  void propagate_spectral(Mode& mode, double tau, double tb, const VectorXd& zb) {
+    const LinearFlow& f = *mode.flow;
+    const Index N = f.size(), N2 = 2 * n_;
+    const Eigen::MatrixXcd& V = f.eigenvectors();
+    const Eigen::MatrixXcd& W = f.inverse_eigenvectors();
+    const Eigen::VectorXcd& L = f.eigenvalues();
+    if (mode.dmodal.size() == 0) mode.dmodal = W * mode.dgenerator.cast<std::complex<double>>() * V;
+    VectorXd zeta_aug = VectorXd::Zero(N);
+    zeta_aug.head(N2) = zeta_;
+    const double w = mech_.frequency(), dw = options_.parameter->frequency;
+    zeta_aug(N2) = -tb * std::sin(w * tb) * dw;
+    zeta_aug(N2 + 1) = tb * std::cos(w * tb) * dw;
+    const Eigen::VectorXcd e = (L * tau).array().exp();
+    const Eigen::VectorXcd a = W * zeta_aug.cast<std::complex<double>>();
+    const Eigen::VectorXcd b = W * zb.cast<std::complex<double>>();
+    Eigen::VectorXcd c = e.cwiseProduct(a);
+    for (Index i = 0; i < N; ++i) {
+      std::complex<double> sum = 0.0;
+      for (Index j = 0; j < N; ++j) {
+        const std::complex<double> x = (L(i) - L(j)) * tau;
+        const std::complex<double> phi1 =
+            std::abs(x) < 1e-4 ? 1.0 + x / 2.0 + x * x / 6.0 + x * x * x / 24.0 : (std::exp(x) - 1.0) / x;
+        sum += mode.dmodal(i, j) * (e(j) * tau * phi1) * b(j);
+      }
+      c(i) += sum;
+    }
+    zeta_ = (V * c).real().head(N2);
+    if (carries()) K_ = transition(mode, tau) * K_;
+  }
+
+  void propagate(Mode& mode, double tau, double tb, const VectorXd& zb) {
+    const Index N2 = 2 * n_;
+    const Index dim = mode.basis.cols();
+    if (tau > 0.0) {
+      if (mechp_ && spectral(mode)) {
+        propagate_spectral(mode, tau, tb, zb);
+      } else if (mechp_) {
+        const Index N = mode.generator.rows();
+        MatrixXd block = MatrixXd::Zero(2 * N, 2 * N);
+        block.topLeftCorner(N, N) = mode.generator * tau;
+        block.topRightCorner(N, N) = mode.dgenerator * tau;
+        block.bottomRightCorner(N, N) = mode.generator * tau;
+        const MatrixXd E = block.exp();
+        VectorXd zeta_aug = VectorXd::Zero(N);
+        zeta_aug.head(N2) = zeta_;
+        const double w = mech_.frequency(), dw = options_.parameter->frequency;
+        zeta_aug(N2) = -tb * std::sin(w * tb) * dw;
+        zeta_aug(N2 + 1) = tb * std::cos(w * tb) * dw;
+        zeta_ = (E.topLeftCorner(N, N) * zeta_aug + E.topRightCorner(N, N) * zb).head(N2);
+        if (carries()) K_ = E.topLeftCorner(N2, N2) * K_;
+      } else if (carries()) {
+        K_ = transition(mode, tau) * K_;
+      }
+    }
+    if (dim < min_dim_) {
+      min_dim_ = dim;
+      // A new least tangent dimension: split J here (see linearisation.hpp, structural zeros).
+      if (options_.jacobian && !frame_) {
+        Jmid_ = K_ * Jmid_;
+        K_.setIdentity();
+        basis_ = mode.basis;
+      }
+    }
+  }
+
+  // ---- events --------------------------------------------------------------------------
+
+  /// One impact (or none) resolved at (x, v⁻, t): the saltation matrix and the parameter column.
+  struct Jump {
+    MatrixXd S;
+    VectorXd sp;
+    VectorXd v_after;
+    double rate = 0.0;
+  };
+
+  /// The impulse LCP's active set over S ∪ I at (v, t), as the engine solves it.
+  ContactSet impulse_set(const ContactSet& held, const ContactSet& impacting, const ContactSet& caught,
+                         const VectorXd& v, double t) const {
+    const ContactSet all = set_union(held, impacting);
+    if (impacting.empty() || all.empty()) return {};
+    const MatrixXd W = mech_.normals(all);
+    const MatrixXd G = W.transpose() * mech_.mass_inverse(W);
+    VectorXd q(static_cast<Index>(all.size()));
+    for (std::size_t a = 0; a < all.size(); ++a) {
+      const int j = all[a];
+      const bool rests = contains(held, j) || contains(caught, j);
+      q(static_cast<Index>(a)) = (1.0 + (rests ? 0.0 : mech_.restitution(j))) * mech_.gap_rate(j, v, t);
+    }
+    const VectorXd impulse = solve_lcp(G, q);
+    ContactSet A;
+    for (std::size_t a = 0; a < all.size(); ++a)
+      if (impulse(static_cast<Index>(a)) > 0.0) A.push_back(all[a]);
+    return A;
+  }
+
+  /// The saltation of one resolution (`rule`) at (x, v⁻, t), with the guard of stop `guard`
+  /// (a gap if `impact`, else the contact force of a held stop, −λ), landing in the state
+  /// (x, v⁺) of the set rule.held_after.
+  Jump jump(const ResetRule& rule, int guard, bool impact, const VectorXd& x, const VectorXd& vm,
+            const VectorXd& vp, double t) {
+    const Index n = n_, N2 = 2 * n;
+    Mode& before = mode_for(rule.held_before);
+    Mode& after = mode_for(rule.held_after);
+    const VectorXd fm = rate(before, t, x, vm);
+    const VectorXd fp = rate(after, t, x, vp);
+    auto reset_along = [&](const VectorXd& dx, const VectorXd& dv, double dt) {
+      return derivative(mech0_.reset_velocity(rule, seeded(x, dx), seeded(vm, dv), Dual(t, dt)));
+    };
+    Jump out;
+    out.v_after = vp;
+    // R_z column by column, and c = R_z f⁻ + R_t along the flow.
+    MatrixXd Rz = MatrixXd::Zero(N2, N2);
+    Rz.topLeftCorner(n, n).setIdentity();
+    for (Index i = 0; i < N2; ++i) {
+      VectorXd dx = VectorXd::Zero(n), dv = VectorXd::Zero(n);
+      (i < n ? dx(i) : dv(i - n)) = 1.0;
+      Rz.col(i).tail(n) = reset_along(dx, dv, 0.0);
+    }
+    VectorXd c(N2);
+    c.head(n) = fm.head(n);
+    c.tail(n) = reset_along(fm.head(n), fm.tail(n), 1.0);
+    // The guard: h_z, ḣ⁻, h_p.
+    VectorXd hz = VectorXd::Zero(N2);
+    double hdot = 0.0, hp = 0.0;
+    if (guard >= 0 && impact) {
+      const detail::SparseNormal& w = mech_.normal(guard);
+      hz(w.i) = w.a;
+      if (w.k >= 0) hz(w.k) = w.b;
+      hdot = mech_.gap_rate(guard, vm, t);
+      if (mechp_) hp = mechp_->gap(guard, seeded(x, VectorXd()), Dual(t)).d;
+    } else if (guard >= 0) {
+      const ContactSet& S = rule.held_before;
+      const auto a = static_cast<Index>(std::lower_bound(S.begin(), S.end(), guard) - S.begin());
+      const VectorXd z = before.flow->augment(t, x, vm);
+      hz = -before.force_rows.row(a).head(N2).transpose();
+      hdot = -before.force_rows.row(a).dot(before.generator * z);
+      if (mechp_) hp = -before.dforce_rows.row(a).dot(z);
+    }
+    out.rate = hdot;
+    out.S = Rz;
+    if (guard >= 0 && hdot != 0.0) out.S += (fp - c) * hz.transpose() / hdot;
+    if (mechp_) {
+      out.sp = VectorXd::Zero(N2);
+      out.sp.tail(n) = derivative(mechp_->reset_velocity(rule, seeded(x, VectorXd()), seeded(vm, VectorXd()), Dual(t)));
+      if (guard >= 0 && hdot != 0.0) out.sp += (fp - c) * (hp / hdot);
+    }
+    return out;
+  }
+
+  /// The events since the last segment, resolved: their saltation applied to J and ζ.
+  void finish_transition(const VectorXd& vp, const ContactSet& held_after) {
+    pending_ = false;
+    const double t = te_;
+    ContactSet impacting, caught, released;
+    for (const Event& e : events_) {
+      if (e.kind == EventKind::impact) impacting.push_back(e.stop);
+      if (e.kind == EventKind::chatter_limit) caught.push_back(e.stop);
+      if (e.kind == EventKind::release) released.push_back(e.stop);
+    }
+    for (ContactSet* s : {&impacting, &caught, &released}) {
+      std::sort(s->begin(), s->end());
+      s->erase(std::unique(s->begin(), s->end()), s->end());
+    }
+    SaltationRecord rec;
+    rec.t = t;
+    rec.held_before = held_;
+    rec.impacting = impacting;
+    rec.caught = caught;
+    rec.released = released;
+    rec.held_after = held_after;
+    if (options_.features) {
+      phases_at(t, held_, held_after);
+      Mode& before = mode_for(held_);
+      const VectorXd a = rate(before, t, xe_, ve_).tail(n_);
+      for (int j : impacting)
+        out_.impacts.push_back({j, t, mech_.gap_rate(j, ve_, t),
+                                mech_.normal_dot(j, a) - mech_.stop_position(j, t, 2)});
+    }
+    past_release(released);
+
+    Jump total;
+    if (impacting.size() <= 1) {
+      ResetRule rule{held_, impacting, caught, impulse_set(held_, impacting, caught, ve_, t), held_after,
+                     solver_.chatter_rule};
+      const bool impact = !impacting.empty();
+      const int guard = impact ? impacting.front() : (released.empty() ? -1 : released.front());
+      rec.guard_stop = guard;
+      rec.impact = impact;
+      total = jump(rule, guard, impact, xe_, ve_, vp, t);
+    } else {
+      rec.simultaneous = true;
+      rec.guard_stop = impacting.front();
+      rec.impact = true;
+      const Jump forward = in_sequence(impacting, caught, held_after, vp, t, false);
+      const Jump backward = in_sequence(impacting, caught, held_after, vp, t, true);
+      rec.order_spread = (forward.S - backward.S).norm() / std::max(forward.S.norm(), 1e-300);
+      if (rec.order_spread > 1e-8 && !out_.non_smooth) {
+        out_.non_smooth = true;
+        out_.non_smooth_reason = "simultaneous impacts at t = " + number_text(t) +
+                                 " whose order changes the tangent map (relative difference " +
+                                 number_text(rec.order_spread) + ")";
+      }
+      total = forward;
+    }
+    rec.guard_rate = total.rate;
+    if (rec.impact) least_rate_ = std::min(least_rate_, total.rate);
+    if (carries()) K_ = total.S * K_;
+    if (mechp_) zeta_ = total.S * zeta_ + total.sp;
+    out_.saltations.push_back(rec);
+    held_ = held_after;
+  }
+
+  /// Simultaneous impacts taken one at a time (index order, or reversed), each with its own
+  /// guard; the last lands in the engine's post-event state.
+  Jump in_sequence(const ContactSet& impacting, const ContactSet& caught, const ContactSet& held_after,
+                   const VectorXd& vp, double t, bool reverse) {
+    ContactSet order = impacting;
+    if (reverse) std::reverse(order.begin(), order.end());
+    ContactSet held = held_;
+    VectorXd v = ve_;
+    Jump total;
+    total.S = MatrixXd::Identity(2 * n_, 2 * n_);
+    if (mechp_) total.sp = VectorXd::Zero(2 * n_);
+    total.rate = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < order.size(); ++i) {
+      const int j = order[i];
+      const ContactSet one{j};
+      ContactSet caught_j;
+      if (contains(caught, j)) caught_j = one;
+      ContactSet next = held;
+      if (contains(held_after, j)) next = set_union(held, one);
+      const bool last = i + 1 == order.size();
+      if (last) next = held_after;
+      const ResetRule rule{held, one, caught_j, impulse_set(held, one, caught_j, v, t), next, solver_.chatter_rule};
+      const VectorXd v_next = last ? vp : mech_.reset_velocity(rule, xe_, v, t);
+      const Jump step = jump(rule, j, true, xe_, v, v_next, t);
+      total.S = step.S * total.S;
+      if (mechp_) total.sp = step.S * total.sp + step.sp;
+      total.rate = std::min(total.rate, step.rate);
+      held = next;
+      v = v_next;
+    }
+    return total;
+  }
+
+  // ---- features ------------------------------------------------------------------------
+
+  void features(Mode& mode, double tb, double te, const VectorXd& zb) {
+    const Segment seg(*mode.rows, tb, zb);
+    const Index ms = static_cast<Index>(system_.stop_count());
+    const double resolution = 16.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(te), 1.0);
+    const double tau = te - tb;
+    for (Index j = 0; j < ms; ++j) {
+      if (contains(mode.set, static_cast<int>(j))) continue;
+      SignChanges peaks(seg, ms + j, 1.0, resolution);
+      for (double s : peaks.in(0.0, tau))
+        out_.gap_peaks.push_back({static_cast<int>(j), tb + s, seg.value(j, s)});
+    }
+    const Index h = static_cast<Index>(mode.set.size());
+    for (Index a = 0; a < h; ++a) {
+      SignChanges dips(seg, 2 * ms + h + a, -1.0, resolution);
+      for (double s : dips.in(0.0, tau))
+        out_.force_dips.push_back({mode.set[static_cast<std::size_t>(a)], tb + s, seg.value(2 * ms + a, s), false});
+    }
+  }
+
+  /// After a release, the held flow continued past it to its next interior force minimum.
+  void past_release(const ContactSet& released) {
+    if (!options_.features || released.empty() || !last_mode_ || options_.past_release_window <= 0.0) return;
+    const Mode& mode = *last_mode_;
+    const Segment seg(*mode.rows, last_tb_, last_zb_);
+    const Index ms = static_cast<Index>(system_.stop_count());
+    const Index h = static_cast<Index>(mode.set.size());
+    const double omega = mech_.frequency();
+    const double T = omega > 0.0 ? 2.0 * std::numbers::pi / omega : 1.0;
+    const double from = te_ - last_tb_, to = from + options_.past_release_window * T;
+    const double resolution = 16.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(te_ + to), 1.0);
+    for (int j : released) {
+      const auto it = std::lower_bound(mode.set.begin(), mode.set.end(), j);
+      if (it == mode.set.end() || *it != j) continue;
+      const Index a = it - mode.set.begin();
+      SignChanges dips(seg, 2 * ms + h + a, -1.0, resolution);
+      const std::vector<double> found = dips.in(from, to);
+      if (!found.empty())
+        out_.force_dips.push_back({j, last_tb_ + found.front(), seg.value(2 * ms + a, found.front()), true});
+    }
+  }
+
+  void open_phase(int j, double t) {
+    if (open_.size() < system_.stop_count()) open_.assign(system_.stop_count(), -1);
+    open_[static_cast<std::size_t>(j)] = static_cast<long>(out_.phases.size());
+    out_.phases.push_back({j, t, t, false});
+  }
+
+  void phases_at(double t, const ContactSet& before, const ContactSet& after) {
+    if (open_.size() < system_.stop_count()) open_.assign(system_.stop_count(), -1);
+    for (int j : before)
+      if (!contains(after, j) && open_[static_cast<std::size_t>(j)] >= 0) {
+        HeldPhase& p = out_.phases[static_cast<std::size_t>(open_[static_cast<std::size_t>(j)])];
+        p.t_end = t;
+        p.closed = true;  // a stop leaves the held set only by a release (of its own or an impulse's)
+        open_[static_cast<std::size_t>(j)] = -1;
+      }
+    for (int j : after)
+      if (!contains(before, j)) open_phase(j, t);
+  }
+
+  /// Tangent vectors are carried: the whole Jacobian, or the given directions.
+  bool carries() const { return options_.jacobian || frame_; }
+
+  const ImpactSystem& system_;
+  SimulatorOptions solver_;
+  const LinearisationOptions& options_;
+  TangentMap& out_;
+  Index n_;
+  Mechanics<double> mech_;
+  Mechanics<Dual> mech0_;
+  bool frame_;
+  std::unique_ptr<Mechanics<Dual>> mechp_;
+  std::map<ContactSet, std::unique_ptr<Mode>> modes_;
+
+  double t0_ = 0.0, te_ = 0.0;
+  bool first_ = true, pending_ = false;
+  ContactSet held_;
+  VectorXd xe_, ve_;
+  std::vector<Event> events_;
+  MatrixXd K_, Jmid_, basis_;
+  Index min_dim_ = 0;
+  VectorXd zeta_;
+  double least_rate_ = 0.0;
+  const Mode* last_mode_ = nullptr;
+  double last_tb_ = 0.0;
+  VectorXd last_zb_;
+  std::vector<long> open_;
+};
+
+}  // namespace
+
+TangentMap linearise(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
+                     const VectorXd& x0, const VectorXd& v0, double t1, const LinearisationOptions& options) {
+  if (options.parameter) options.parameter->validate(system.dof(), system.stop_count());
+  if (options.directions.size() > 0 && options.directions.rows() != 2 * system.dof())
+    throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +
+                       " rows, expected 2n = " + std::to_string(2 * system.dof()));
+  TangentMap out;
+  out.t0 = t0;
+  out.x0 = x0;
+  out.v0 = v0;
+  Simulator sim(system, solver);
+  TangentRecorder recorder(system, solver, options, out);
+  out.summary = sim.run(t0, x0, v0, t1, {&recorder});
+  if (out.summary.velocity_scale > 0.0) out.least_guard_rate /= out.summary.velocity_scale;
+  return out;
+}
+
+}  // namespace vibro

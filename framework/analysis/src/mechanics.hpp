@@ -1,0 +1,318 @@
+#pragma once
+// Private to vibro_analysis: the mechanics of an ImpactSystem written once for any scalar type
+// (double for values, Dual for exact directional derivatives; dual.hpp).
+//
+// With n degrees of freedom and the stops in canonical form (stops.hpp) g_j = w_jᵀx − s_j(t):
+//
+//   forcing      f(t) = F0 + Fc cos Ωt + Fs sin Ωt
+//   stop motion  s_j(t) = s0_j + sc_j cos Ωt + ss_j sin Ωt, and its time derivatives
+//   free         a_free = M⁻¹ (f − C v − K x)
+//   held set S   W = [w_j]_{j∈S}, Q = M⁻¹ W, G = Wᵀ Q (Delassus), and from Wᵀ x'' = s''_S:
+//                  λ_S = G⁻¹ (Wᵀ a_free − s''_S)                 (contact forces, contact.hpp)
+//                  a_S = a_free − Q λ_S = Π a_free + Q G⁻¹ s''_S,   Π = I − Q G⁻¹ Wᵀ
+//
+// The constrained generator. With z = [x; v; cos Ωt; sin Ωt; 1] the motion with S held is the
+// linear system z' = Â_S z of size 2n + 3 in the FULL coordinates, whose velocity rows are a_S
+// written as a linear function of z (flow.hpp has Â_∅). It keeps the constraint manifold
+// {Wᵀx = s(t), Wᵀv = s'(t)} invariant (Wᵀa_S = s''), so on the manifold it is the engine's
+// reduced sticking flow (contact.hpp) in other coordinates, and its tangent map is the one of
+// the engine's motion; off the manifold the normal coordinates drift linearly (g'' = 0), which
+// the resets never feed (they leave tangent vectors on the manifold, see linearisation.hpp).
+// Being written in full coordinates, its derivative along a parameter is one formula for every
+// contact set and every kind of parameter, stop positions included.
+//
+// The event reset (the engine's rules, event_resolution.cpp, with its discrete decisions fixed:
+// which stops impact, which the chatter rule catches, which take an impulse, which are held
+// after):
+//   1. impulse over `all` = S ∪ I with r_eff = 0 for held and caught stops, on its active set A:
+//        v1 = v − Q_A G_AA⁻¹ ((1 + r_eff) ∘ (W_Aᵀ v − s'_A(t)))
+//   2. second-order chatter rule, for each caught stop j held after (simulator.hpp, ChatterRule):
+//        v2 = v1 − M⁻¹ K M⁻¹ w_j / G_jj · D_j,   D_j = −(2/3) w0³ / (A_j² (1 − r_j³)),
+//        w0 = r_j (w_jᵀ v − s'_j(t)) (the rebound speed, from the velocity before the impact),
+//        A_j = G_jj λ_j with λ = λ_N(x, v1, t) the forces of the held set N after the event;
+//   3. the held set's residual normal velocity removed:
+//        v3 = v2 − Q_N G_NN⁻¹ (W_Nᵀ v2 − s'_N(t)).
+// The position is not reset (the engine's placement of the gap exactly at zero corrects
+// rounding only and is zero along the exact map).
+#include "dual.hpp"
+#include "vibro/contact.hpp"
+#include "vibro/parameter.hpp"
+#include "vibro/simulator.hpp"
+#include "vibro/stops.hpp"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+#include <vector>
+
+namespace vibro::detail {
+
+template <class T>
+using VecT = Eigen::Matrix<T, Eigen::Dynamic, 1>;
+template <class T>
+using MatT = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
+
+/// The decisions of one event resolution, fixed: the derivative is that of the map that makes
+/// them (the engine makes the same ones for every state near the computed trajectory).
+struct ResetRule {
+  ContactSet held_before;  ///< S
+  ContactSet impacting;    ///< I (empty: no impulse; a release or the start of a run)
+  ContactSet caught;       ///< stops of I the chatter rule ended (r_eff = 0, kick)
+  ContactSet impulse;      ///< A ⊂ S ∪ I: the stops whose impulse is > 0 (LCP active set)
+  ContactSet held_after;   ///< N
+  ChatterRule rule = ChatterRule::second_order;
+};
+
+/// A stop's normal: w = e_i (upper), −e_i (lower), e_i − e_k (between).
+struct SparseNormal {
+  Eigen::Index i = 0, k = -1;
+  double a = 1.0, b = 0.0;  ///< w = a e_i + b e_k
+};
+
+template <class T>
+class Mechanics {
+ public:
+  /// The system's data as T; for T = Dual, `direction` (if given) seeds their derivatives.
+  Mechanics(const ImpactSystem& system, const SystemDerivative* direction = nullptr)
+      : n_(system.dof()), m_(system.stop_count()) {
+    const LinearSystem& sys = system.system();
+    const HarmonicForcing& f = sys.forcing();
+    const SystemDerivative zero;
+    const SystemDerivative& d = direction ? *direction : zero;
+    M_ = seed(sys.mass(), d.mass);
+    C_ = seed(sys.damping(), d.damping);
+    K_ = seed(sys.stiffness(), d.stiffness);
+    F0_ = seed(f.constant, d.constant);
+    Fc_ = seed(f.cosine, d.cosine);
+    Fs_ = seed(f.sine, d.sine);
+    omega_ = make(f.frequency, d.frequency);
+    llt_.compute(M_);
+    for (std::size_t j = 0; j < m_; ++j) {
+      const Stop& s = system.stops()[j];
+      const StopDerivative ds = d.stops.empty() ? StopDerivative{} : d.stops[j];
+      SparseNormal w;
+      w.i = s.mass;
+      if (s.kind == Stop::Kind::between) {
+        w.k = s.other;
+        w.b = -1.0;
+      } else if (s.kind == Stop::Kind::lower) {
+        w.a = -1.0;
+      }
+      normals_.push_back(w);
+      s0_.push_back(make(s.s0(), ds.offset));
+      sc_.push_back(make(s.s_cos(), ds.cosine));
+      ss_.push_back(make(s.s_sin(), ds.sine));
+      r_.push_back(make(s.restitution, ds.restitution));
+    }
+  }
+
+  Eigen::Index dof() const { return n_; }
+  std::size_t stops() const { return m_; }
+  const T& frequency() const { return omega_; }
+  const SparseNormal& normal(int j) const { return normals_[static_cast<std::size_t>(j)]; }
+  const T& restitution(int j) const { return r_[static_cast<std::size_t>(j)]; }
+
+  /// dᵏ/dtᵏ s_j(t), k = 0 … 3.
+  T stop_position(int j, const T& t, int k = 0) const {
+    const auto J = static_cast<std::size_t>(j);
+    using std::cos;
+    using std::sin;
+    const T c = cos(omega_ * t), s = sin(omega_ * t);
+    const T& a = sc_[J];
+    const T& b = ss_[J];
+    switch (k) {
+      case 0: return s0_[J] + a * c + b * s;
+      case 1: return omega_ * (b * c - a * s);
+      case 2: return -omega_ * omega_ * (a * c + b * s);
+      default: return omega_ * omega_ * omega_ * (a * s - b * c);
+    }
+  }
+
+  /// f(t) (k = 0) or f'(t) (k = 1).
+  VecT<T> forcing(const T& t, int k = 0) const {
+    using std::cos;
+    using std::sin;
+    const T c = cos(omega_ * t), s = sin(omega_ * t);
+    if (k == 0) return F0_ + Fc_ * c + Fs_ * s;
+    return omega_ * (Fs_ * c - Fc_ * s);
+  }
+
+  /// w_jᵀ y.
+  T normal_dot(int j, const VecT<T>& y) const {
+    const SparseNormal& w = normal(j);
+    T out = w.a * y(w.i);
+    if (w.k >= 0) out += w.b * y(w.k);
+    return out;
+  }
+  /// g_j = w_jᵀ x − s_j(t), and its rate w_jᵀ v − s_j'(t).
+  T gap(int j, const VecT<T>& x, const T& t) const { return normal_dot(j, x) - stop_position(j, t); }
+  T gap_rate(int j, const VecT<T>& v, const T& t) const { return normal_dot(j, v) - stop_position(j, t, 1); }
+
+  /// W_set (n × |set|) and Q = M⁻¹ W_set.
+  MatT<T> normals(const ContactSet& set) const {
+    MatT<T> W = MatT<T>::Zero(n_, static_cast<Eigen::Index>(set.size()));
+    for (std::size_t a = 0; a < set.size(); ++a) {
+      const SparseNormal& w = normal(set[a]);
+      W(w.i, static_cast<Eigen::Index>(a)) = w.a;
+      if (w.k >= 0) W(w.k, static_cast<Eigen::Index>(a)) = w.b;
+    }
+    return W;
+  }
+  MatT<T> mass_inverse(const MatT<T>& y) const { return llt_.solve(y); }
+  VecT<T> mass_inverse(const VecT<T>& y) const { return llt_.solve(y); }
+
+  /// M⁻¹ (f − C v − K x).
+  VecT<T> free_acceleration(const VecT<T>& x, const VecT<T>& v, const T& t) const {
+    return llt_.solve(VecT<T>(forcing(t) - C_ * v - K_ * x));
+  }
+
+  /// λ_S = G⁻¹ (Wᵀ a_free − s''_S) at (x, v, t).
+  VecT<T> forces(const ContactSet& S, const VecT<T>& x, const VecT<T>& v, const T& t) const {
+    return held_forces(S, free_acceleration(x, v, t), t);
+  }
+
+  /// a_S = a_free − Q λ_S.
+  VecT<T> acceleration(const ContactSet& S, const VecT<T>& x, const VecT<T>& v, const T& t) const {
+    const VecT<T> a = free_acceleration(x, v, t);
+    if (S.empty()) return a;
+    const MatT<T> Q = mass_inverse(normals(S));
+    return a - Q * held_forces(S, a, t);
+  }
+
+  /// a_free = B z with B = M⁻¹ [−K, −C, Fc, Fs, F0] (n × (2n + 3); columns x, v, cos, sin, 1).
+  MatT<T> free_rows() const {
+    MatT<T> X(n_, 2 * n_ + 3);
+    X << -K_, -C_, Fc_, Fs_, F0_;
+    return mass_inverse(X);
+  }
+  /// λ_S = L z with L = G⁻¹ (Wᵀ B − Z), Z z = s''_S(t) (|S| × (2n + 3)).
+  MatT<T> force_rows(const ContactSet& S) const {
+    const Eigen::Index n = n_, N = 2 * n + 3;
+    const MatT<T> W = normals(S);
+    const MatT<T> G = W.transpose() * mass_inverse(W);
+    MatT<T> Z = MatT<T>::Zero(static_cast<Eigen::Index>(S.size()), N);
+    for (std::size_t a = 0; a < S.size(); ++a) {
+      const auto J = static_cast<std::size_t>(S[a]);
+      Z(static_cast<Eigen::Index>(a), 2 * n) = -omega_ * omega_ * sc_[J];
+      Z(static_cast<Eigen::Index>(a), 2 * n + 1) = -omega_ * omega_ * ss_[J];
+    }
+    return G.partialPivLu().solve(MatT<T>(W.transpose() * free_rows() - Z));
+  }
+  /// g_j = ℓ_j z: w_j on x, −(sc_j, ss_j, s0_j) on (cos, sin, 1).
+  VecT<T> gap_row(int j) const {
+    const Eigen::Index n = n_;
+    const auto J = static_cast<std::size_t>(j);
+    VecT<T> row = VecT<T>::Zero(2 * n + 3);
+    const SparseNormal& w = normal(j);
+    row(w.i) = w.a;
+    if (w.k >= 0) row(w.k) = w.b;
+    row(2 * n) = -sc_[J];
+    row(2 * n + 1) = -ss_[J];
+    row(2 * n + 2) = -s0_[J];
+    return row;
+  }
+
+  /// Â_S (2n + 3): the motion with S held, in full coordinates (see the file comment).
+  MatT<T> generator(const ContactSet& S) const {
+    const Eigen::Index n = n_, N = 2 * n + 3;
+    MatT<T> g = MatT<T>::Zero(N, N);
+    MatT<T> B = free_rows();
+    if (!S.empty()) B -= mass_inverse(normals(S)) * force_rows(S);
+    g.block(0, n, n, n).setIdentity();
+    g.middleRows(n, n) = B;
+    g(2 * n, 2 * n + 1) = -omega_;
+    g(2 * n + 1, 2 * n) = omega_;
+    return g;
+  }
+
+  /// v after an event resolved by `rule` at (x, v, t) (the file comment, steps 1–3).
+  VecT<T> reset_velocity(const ResetRule& rule, const VecT<T>& x, const VecT<T>& v, const T& t) const {
+    VecT<T> v1 = v;
+    if (!rule.impacting.empty() && !rule.impulse.empty()) {
+      const ContactSet& A = rule.impulse;
+      const MatT<T> W = normals(A);
+      const MatT<T> Q = mass_inverse(W);
+      const MatT<T> G = W.transpose() * Q;
+      VecT<T> q(static_cast<Eigen::Index>(A.size()));
+      for (std::size_t a = 0; a < A.size(); ++a) {
+        const int j = A[a];
+        const bool rests = contains(rule.held_before, j) || contains(rule.caught, j);
+        const T r = rests ? T(0.0) : restitution(j);
+        q(static_cast<Eigen::Index>(a)) = (T(1.0) + r) * gap_rate(j, v, t);
+      }
+      v1 = v - Q * G.partialPivLu().solve(q);
+    }
+    VecT<T> v2 = v1;
+    if (rule.rule == ChatterRule::second_order && !rule.caught.empty()) {
+      const ContactSet& N = rule.held_after;
+      const VecT<T> lambda = forces(N, x, v1, t);
+      for (int j : rule.caught) {
+        if (!contains(N, j)) continue;
+        const auto a = static_cast<Eigen::Index>(std::lower_bound(N.begin(), N.end(), j) - N.begin());
+        const MatT<T> wj = normals({j});
+        const VecT<T> qj = mass_inverse(VecT<T>(wj.col(0)));
+        const T Gjj = normal_dot(j, qj);
+        const T A = Gjj * lambda(a);
+        if (!(value_of(A) > 0.0)) continue;
+        const T r = restitution(j);
+        const T w0 = r * gap_rate(j, v, t);
+        const T D = -(2.0 / 3.0) * w0 * w0 * w0 / (A * A * (T(1.0) - r * r * r));
+        v2 -= mass_inverse(VecT<T>(K_ * qj)) * (D / Gjj);
+      }
+    }
+    if (rule.held_after.empty()) return v2;
+    const ContactSet& N = rule.held_after;
+    const MatT<T> W = normals(N);
+    const MatT<T> Q = mass_inverse(W);
+    const MatT<T> G = W.transpose() * Q;
+    VecT<T> g(static_cast<Eigen::Index>(N.size()));
+    for (std::size_t a = 0; a < N.size(); ++a) g(static_cast<Eigen::Index>(a)) = gap_rate(N[a], v2, t);
+    return v2 - Q * G.partialPivLu().solve(g);
+  }
+
+  static bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
+
+ private:
+  static T make(double value, double derivative) {
+    if constexpr (std::is_same_v<T, double>) {
+      (void)derivative;
+      return value;
+    } else {
+      return T(value, derivative);
+    }
+  }
+  static MatT<T> seed(const Eigen::MatrixXd& value, const Eigen::MatrixXd& derivative) {
+    MatT<T> out(value.rows(), value.cols());
+    for (Eigen::Index i = 0; i < value.rows(); ++i)
+      for (Eigen::Index k = 0; k < value.cols(); ++k)
+        out(i, k) = make(value(i, k), derivative.size() ? derivative(i, k) : 0.0);
+    return out;
+  }
+  static VecT<T> seed(const Eigen::VectorXd& value, const Eigen::VectorXd& derivative) {
+    VecT<T> out(value.size());
+    for (Eigen::Index i = 0; i < value.size(); ++i) out(i) = make(value(i), derivative.size() ? derivative(i) : 0.0);
+    return out;
+  }
+
+  VecT<T> held_forces(const ContactSet& S, const VecT<T>& a_free, const T& t) const {
+    if (S.empty()) return VecT<T>(0);
+    const MatT<T> W = normals(S);
+    const MatT<T> G = W.transpose() * mass_inverse(W);
+    VecT<T> q = W.transpose() * a_free;
+    for (std::size_t a = 0; a < S.size(); ++a) q(static_cast<Eigen::Index>(a)) -= stop_position(S[a], t, 2);
+    return G.partialPivLu().solve(q);
+  }
+
+  Eigen::Index n_;
+  std::size_t m_;
+  MatT<T> M_, C_, K_;
+  VecT<T> F0_, Fc_, Fs_;
+  T omega_;
+  Eigen::LLT<MatT<T>> llt_;
+  std::vector<SparseNormal> normals_;
+  std::vector<T> s0_, sc_, ss_, r_;
+};
+
+}  // namespace vibro::detail

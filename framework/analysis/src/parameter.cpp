@@ -1,0 +1,95 @@
+#include "vibro/parameter.hpp"
+
+#include "vibro/system.hpp"
+
+#include <cmath>
+#include <string>
+
+namespace vibro {
+namespace {
+
+void check_size(const char* what, Eigen::Index rows, Eigen::Index cols, Eigen::Index n_rows, Eigen::Index n_cols) {
+  if (rows == 0 && cols == 0) return;
+  if (rows != n_rows || cols != n_cols)
+    throw InvalidInput(std::string("parameter derivative: ") + what + " is " + std::to_string(rows) + "x" +
+                       std::to_string(cols) + ", expected " + std::to_string(n_rows) + "x" + std::to_string(n_cols));
+}
+
+template <class Derived>
+void check_finite(const char* what, const Eigen::MatrixBase<Derived>& m) {
+  if (!m.allFinite()) throw InvalidInput(std::string("parameter derivative: ") + what + " has a value that is not finite");
+}
+
+}  // namespace
+
+SystemDerivative SystemDerivative::frequency_only() {
+  SystemDerivative d;
+  d.frequency = 1.0;
+  return d;
+}
+
+bool SystemDerivative::is_zero() const {
+  auto zero = [](const auto& m) { return m.size() == 0 || m.isZero(0.0); };
+  if (!zero(mass) || !zero(damping) || !zero(stiffness) || !zero(constant) || !zero(cosine) || !zero(sine))
+    return false;
+  if (frequency != 0.0) return false;
+  for (const StopDerivative& s : stops)
+    if (s.offset != 0.0 || s.cosine != 0.0 || s.sine != 0.0 || s.restitution != 0.0) return false;
+  return true;
+}
+
+void SystemDerivative::validate(Eigen::Index n, std::size_t m) const {
+  check_size("dM/dp", mass.rows(), mass.cols(), n, n);
+  check_size("dC/dp", damping.rows(), damping.cols(), n, n);
+  check_size("dK/dp", stiffness.rows(), stiffness.cols(), n, n);
+  check_size("dF0/dp", constant.rows(), constant.size() ? 1 : 0, n, 1);
+  check_size("dFc/dp", cosine.rows(), cosine.size() ? 1 : 0, n, 1);
+  check_size("dFs/dp", sine.rows(), sine.size() ? 1 : 0, n, 1);
+  check_finite("dM/dp", mass);
+  check_finite("dC/dp", damping);
+  check_finite("dK/dp", stiffness);
+  check_finite("dF0/dp", constant);
+  check_finite("dFc/dp", cosine);
+  check_finite("dFs/dp", sine);
+  for (const auto* mat : {&mass, &damping, &stiffness}) {
+    if (mat->size() == 0) continue;
+    const double scale = std::max(mat->cwiseAbs().maxCoeff(), 1e-300);
+    if ((*mat - mat->transpose()).cwiseAbs().maxCoeff() > 1e-12 * scale)
+      throw InvalidInput("parameter derivative: a matrix derivative is not symmetric");
+  }
+  if (!std::isfinite(frequency)) throw InvalidInput("parameter derivative: dΩ/dp is not finite");
+  if (!stops.empty() && stops.size() != m)
+    throw InvalidInput("parameter derivative: " + std::to_string(stops.size()) + " stop derivatives for " +
+                       std::to_string(m) + " stops");
+  for (const StopDerivative& s : stops)
+    if (!std::isfinite(s.offset) || !std::isfinite(s.cosine) || !std::isfinite(s.sine) || !std::isfinite(s.restitution))
+      throw InvalidInput("parameter derivative: a stop derivative is not finite");
+}
+
+SystemDerivative SystemDerivative::combined(double a, const SystemDerivative& o, double b) const {
+  auto mix = [&](const auto& x, const auto& y) -> std::decay_t<decltype(x)> {
+    if (x.size() == 0 && y.size() == 0) return x;
+    if (x.size() == 0) return b * y;
+    if (y.size() == 0) return a * x;
+    return a * x + b * y;
+  };
+  SystemDerivative out;
+  out.mass = mix(mass, o.mass);
+  out.damping = mix(damping, o.damping);
+  out.stiffness = mix(stiffness, o.stiffness);
+  out.constant = mix(constant, o.constant);
+  out.cosine = mix(cosine, o.cosine);
+  out.sine = mix(sine, o.sine);
+  out.frequency = a * frequency + b * o.frequency;
+  const std::size_t m = std::max(stops.size(), o.stops.size());
+  out.stops.resize(m);
+  for (std::size_t j = 0; j < m; ++j) {
+    const StopDerivative x = j < stops.size() ? stops[j] : StopDerivative{};
+    const StopDerivative y = j < o.stops.size() ? o.stops[j] : StopDerivative{};
+    out.stops[j] = {a * x.offset + b * y.offset, a * x.cosine + b * y.cosine, a * x.sine + b * y.sine,
+                    a * x.restitution + b * y.restitution};
+  }
+  return out;
+}
+
+}  // namespace vibro

@@ -1,0 +1,68 @@
+#pragma once
+/// \file resources.hpp
+/// What a run will take, checked before it takes it: memory and threads. A scene that cannot fit
+/// is refused up front with the numbers (what needs how much, how much there is), instead of
+/// dying of std::bad_alloc halfway, or after hours, with a half-written file.
+///
+/// Memory available is the least of: the kernel's estimate of what can be allocated without
+/// swapping (/proc/meminfo MemAvailable), the cgroup's limit less its usage (containers), and
+/// the address-space limit (`ulimit -v`) less what the process has mapped. The estimates are
+/// upper-bound models of the big allocations, calibrated by measuring peak memory (see
+/// resources.cpp); they are compared against the available memory with no safety factor, so a
+/// run that passes may still be tight, and one that fails would certainly not have fitted.
+///
+/// Usage:
+///     vibro::io::check_run_resources(scene, threads);   // throws ResourceError with the numbers
+///     const int threads = vibro::io::checked_threads(requested, sweep_units);
+#include "vibro/io/scene.hpp"
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace vibro::io {
+
+/// A run needs more memory or threads than this machine gives: "WHAT needs about X; Y available".
+class ResourceError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Bytes this process may still allocate (see the file comment).
+std::uint64_t available_memory();
+
+/// Throws ResourceError naming `what`, `bytes` and the available memory if bytes exceed it.
+/// `bytes` is a double so that products of huge counts saturate instead of wrapping.
+void require_memory(double bytes, const std::string& what);
+
+/// "1.5 GB", "312 MB", "4.0 kB" (decimal units), "1.2e+15 GB" for absurd sizes.
+std::string bytes_text(double bytes);
+
+/// Peak bytes of yaml-cpp's tree per byte of scene text (measured: a 10⁶-mass chain, 3.9 MB of
+/// text, peaks at 1.4 GB while loading: ≈ 360 bytes per byte; rounded up).
+inline constexpr std::uint64_t kParseBytesPerByte = 400;
+
+/// One line of a run's memory estimate.
+struct MemoryNeed {
+  std::string what;
+  double bytes = 0.0;
+};
+
+/// The large allocations of running `scene` on `threads` threads (sweep points run at once
+/// hold their own engine and recording): the engine's set-up (dense: the n × n system and the
+/// (2n + 3)² flow of the free contact set; modal: the chain's n × n modes), recordings whose size
+/// is known before running (samples, Poincaré points, per-period statistics), and a sweep's
+/// validated point scenes. Events and contact intervals depend on the motion and are not counted.
+std::vector<MemoryNeed> estimate_run_memory(const Scene& scene, int threads);
+
+/// Throws ResourceError if the estimate exceeds available_memory(); the message lists its parts.
+void check_run_resources(const Scene& scene, int threads);
+
+/// The thread count to use for `requested` threads (0: all cores) over `units` independent units
+/// of work: at most `units` (more threads would only wait). Throws ResourceError above
+/// kMaxThreads (the OpenMP runtime aborts or crashes when thread creation fails).
+int checked_threads(int requested, std::size_t units);
+inline constexpr int kMaxThreads = 1024;
+
+}  // namespace vibro::io

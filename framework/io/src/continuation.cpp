@@ -1,0 +1,410 @@
+#include "vibro/io/continuation.hpp"
+
+#include "datasets.hpp"
+
+#include "vibro/io/result_file.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <regex>
+
+namespace vibro::io {
+namespace {
+
+using detail::integers;
+using detail::reals;
+using detail::table;
+
+/// The data D of a built scene's system (parameter.hpp).
+struct Data {
+  Eigen::MatrixXd M, C, K;
+  Eigen::VectorXd F0, Fc, Fs;
+  double omega = 0.0;
+  std::vector<std::array<double, 4>> stops;  // s0, sc, ss, r
+};
+
+Data data_of(const Scene& s) {
+  const LinearSystem& sys = s.system();
+  Data d{sys.mass(), sys.damping(), sys.stiffness(), sys.forcing().constant, sys.forcing().cosine, sys.forcing().sine,
+         sys.forcing().frequency, {}};
+  for (const Stop& st : s.stops) d.stops.push_back({st.s0(), st.s_cos(), st.s_sin(), st.restitution});
+  return d;
+}
+
+/// The largest magnitude of a + b·scale over every entry of the data (for the affinity check:
+/// a = D(p + h) + D(p − h), b = D(p), scale = −2).
+double largest(const Data& a, const Data& b, double scale) {
+  double m = 0.0;
+  auto over = [&](const auto& x, const auto& y) { m = std::max(m, (x + scale * y).cwiseAbs().maxCoeff()); };
+  over(a.M, b.M);
+  over(a.C, b.C);
+  over(a.K, b.K);
+  over(a.F0, b.F0);
+  over(a.Fc, b.Fc);
+  over(a.Fs, b.Fs);
+  m = std::max(m, std::abs(a.omega + scale * b.omega));
+  for (std::size_t j = 0; j < a.stops.size(); ++j)
+    for (int i = 0; i < 4; ++i) m = std::max(m, std::abs(a.stops[j][static_cast<std::size_t>(i)] + scale * b.stops[j][static_cast<std::size_t>(i)]));
+  return m;
+}
+
+SystemDerivative difference(const Data& plus, const Data& minus, double h) {
+  SystemDerivative d;
+  const double k = 1.0 / (2.0 * h);
+  d.mass = (plus.M - minus.M) * k;
+  d.damping = (plus.C - minus.C) * k;
+  d.stiffness = (plus.K - minus.K) * k;
+  d.constant = (plus.F0 - minus.F0) * k;
+  d.cosine = (plus.Fc - minus.Fc) * k;
+  d.sine = (plus.Fs - minus.Fs) * k;
+  d.frequency = (plus.omega - minus.omega) * k;
+  for (std::size_t j = 0; j < plus.stops.size(); ++j)
+    d.stops.push_back({(plus.stops[j][0] - minus.stops[j][0]) * k, (plus.stops[j][1] - minus.stops[j][1]) * k,
+                       (plus.stops[j][2] - minus.stops[j][2]) * k, (plus.stops[j][3] - minus.stops[j][3]) * k});
+  return d;
+}
+
+/// How a path enters the system: the frequency, a stop's phase (closed forms), or affinely
+/// with a constant derivative.
+struct Entry {
+  enum class Kind { frequency, phase, affine } kind = Kind::affine;
+  int stop = -1;
+  SystemDerivative affine;
+};
+
+[[noreturn]] void refuse(const SceneDocument& doc, const std::string& path, const std::string& why) {
+  throw SceneError(doc.file(), 1, 1, path, why);
+}
+
+Entry classify(const SceneDocument& doc, const std::string& path) {
+  Entry e;
+  if (path == "forcing.frequency") {
+    e.kind = Entry::Kind::frequency;
+    return e;
+  }
+  static const std::regex phase(R"(stops\[(\d+)\]\.phase)");
+  std::smatch m;
+  if (std::regex_match(path, m, phase)) {
+    e.kind = Entry::Kind::phase;
+    e.stop = std::stoi(m[1].str());
+    return e;
+  }
+  const double p = doc.get(path);
+  const Data d0 = data_of(doc.build_point());
+  // The largest step that keeps the scene valid on both sides: affine data make the central
+  // difference exact to rounding, ε|D|/h, so the step is taken as large as the scene allows.
+  const double base = p != 0.0 ? std::abs(p) : 1.0;
+  for (double h = 1e-2 * base; h >= 1e-10 * base; h *= 0.1) {
+    Data plus, minus;
+    try {
+      SceneDocument a(doc), b(doc);
+      a.set(path, p + h);
+      b.set(path, p - h);
+      plus = data_of(a.build_point());
+      minus = data_of(b.build_point());
+    } catch (const SceneError&) {
+      continue;
+    } catch (const InvalidInput&) {
+      continue;
+    }
+    const double size = std::max({largest(plus, d0, 0.0), largest(minus, d0, 0.0), 1e-300});
+    Data sum = plus;
+    sum.M += minus.M;
+    sum.C += minus.C;
+    sum.K += minus.K;
+    sum.F0 += minus.F0;
+    sum.Fc += minus.Fc;
+    sum.Fs += minus.Fs;
+    sum.omega += minus.omega;
+    for (std::size_t j = 0; j < sum.stops.size(); ++j)
+      for (std::size_t i = 0; i < 4; ++i) sum.stops[j][i] += minus.stops[j][i];
+    if (largest(sum, d0, -2.0) > 64.0 * std::numeric_limits<double>::epsilon() * size)
+      refuse(doc, path,
+             "enters the system nonlinearly (its second difference does not vanish); continuation needs a value "
+             "that enters M, C, K, the forcing or the stops linearly, forcing.frequency or a stop's phase");
+    e.affine = difference(plus, minus, h);
+    if (e.affine.is_zero())
+      refuse(doc, path,
+             "does not change the system (an initial value or a solver setting?): continue in a value of the "
+             "model, the forcing or the stops");
+    return e;
+  }
+  refuse(doc, path, "cannot be varied on its own around " + number_text(p) +
+                        " (an off-diagonal matrix entry needs its mirror: continue in a model.chain value instead)");
+}
+
+SystemDerivative derivative_at(const Entry& e, const Scene& s) {
+  switch (e.kind) {
+    case Entry::Kind::frequency: return SystemDerivative::frequency_only();
+    case Entry::Kind::phase: {
+      // s(t) = s0 + σ a cos(Ωt + φ): d/dφ of (sc, ss) = (σ a cos φ, −σ a sin φ) is (ss, −sc).
+      SystemDerivative d;
+      d.stops.resize(s.stops.size());
+      const Stop& st = s.stops.at(static_cast<std::size_t>(e.stop));
+      d.stops[static_cast<std::size_t>(e.stop)] = {0.0, st.s_sin(), -st.s_cos(), 0.0};
+      return d;
+    }
+    case Entry::Kind::affine: return e.affine;
+  }
+  return {};
+}
+
+std::vector<Eigen::VectorXd> multipliers_part(const std::vector<BranchPoint>& pts, bool imag) {
+  std::vector<Eigen::VectorXd> out;
+  for (const BranchPoint& p : pts)
+    out.push_back(imag ? Eigen::VectorXd(p.multipliers.values.imag()) : Eigen::VectorXd(p.multipliers.values.real()));
+  return out;
+}
+
+void write_branches(ResultFile& file, const ContinuationResult& r, std::size_t n, std::size_t m, const std::string& path) {
+  std::vector<BranchPoint> all;
+  std::vector<std::int64_t> id, k, stable, zeros, located, iterations, first, count, branch_k, parent;
+  std::vector<std::string> ends;
+  for (std::size_t b = 0; b < r.branches.size(); ++b) {
+    const Branch& br = r.branches[b];
+    first.push_back(static_cast<std::int64_t>(all.size()));
+    count.push_back(static_cast<std::int64_t>(br.points.size()));
+    branch_k.push_back(br.k);
+    parent.push_back(br.parent);
+    ends.push_back(br.end);
+    for (const BranchPoint& p : br.points) {
+      all.push_back(p);
+      id.push_back(static_cast<std::int64_t>(b));
+    }
+  }
+  std::vector<double> p, phase, t0, radius, tangent, residual;
+  std::vector<Eigen::VectorXd> x, v, signature, sticking;
+  for (const BranchPoint& q : all) {
+    sticking.push_back(q.sticking);
+    p.push_back(q.p);
+    phase.push_back(q.phase);
+    t0.push_back(q.t0);
+    k.push_back(q.k);
+    stable.push_back(q.multipliers.stable ? 1 : 0);
+    zeros.push_back(q.multipliers.structural_zeros);
+    radius.push_back(q.multipliers.spectral_radius);
+    tangent.push_back(q.tangent_p);
+    residual.push_back(q.residual);
+    located.push_back(q.located ? 1 : 0);
+    iterations.push_back(q.corrector_iterations);
+    x.push_back(q.x);
+    v.push_back(q.v);
+    Eigen::VectorXd sig(static_cast<Eigen::Index>(3 * m));
+    for (std::size_t j = 0; j < m; ++j) {
+      sig(static_cast<Eigen::Index>(j)) = q.signature.impacts[j];
+      sig(static_cast<Eigen::Index>(m + j)) = q.signature.chatters[j];
+      sig(static_cast<Eigen::Index>(2 * m + j)) = q.signature.phases[j];
+    }
+    signature.push_back(sig);
+  }
+  const std::size_t rows = all.size();
+  std::vector<std::string> columns;
+  for (const char* what : {"impacts", "chatters", "phases"})
+    for (std::size_t j = 0; j < m; ++j) columns.push_back(fmt::format("{} s{}", what, j));
+  Dataset sig = table("signature", signature, 3 * m);
+  sig.labels.emplace_back("columns", columns);
+  file.write_group("branch",
+                   {integers("branch", id), reals("p", p, {rows}), reals("phase", phase, {rows}), reals("t0", t0, {rows}),
+                    table("x", x, n), table("v", v, n), integers("k", k), integers("stable", stable),
+                    reals("spectral_radius", radius, {rows}), integers("structural_zeros", zeros),
+                    table("multipliers_real", multipliers_part(all, false), 2 * n),
+                    table("multipliers_imag", multipliers_part(all, true), 2 * n), sig,
+                    table("sticking_fraction", sticking, m), reals("tangent_p", tangent, {rows}),
+                    reals("residual", residual, {rows}),
+                    integers("located", located), integers("corrector_iterations", iterations)},
+                   {{"parameter", path}});
+  Dataset end_count = integers("count", count);
+  end_count.labels.emplace_back("end", ends);
+  file.write_group("branches", {integers("k", branch_k), integers("parent", parent), integers("first", first), end_count});
+}
+
+void write_bifurcations(ResultFile& file, const ContinuationResult& r, std::size_t n) {
+  std::vector<std::int64_t> kind, stop, branch, smooth, evaluations, k;
+  std::vector<double> p, lo, hi, value, phase, t0;
+  std::vector<Eigen::VectorXd> x, v;
+  std::vector<std::string> notes;
+  for (const Bifurcation& b : r.bifurcations) {
+    kind.push_back(static_cast<std::int64_t>(b.kind));
+    stop.push_back(b.stop);
+    branch.push_back(b.branch);
+    smooth.push_back(b.smooth ? 1 : 0);
+    evaluations.push_back(b.evaluations);
+    k.push_back(b.point.k);
+    p.push_back(b.p);
+    lo.push_back(b.p_low);
+    hi.push_back(b.p_high);
+    value.push_back(std::isfinite(b.value) ? b.value : 0.0);  // meaningful where smooth = 1
+    phase.push_back(b.point.phase);
+    t0.push_back(b.point.t0);
+    x.push_back(b.point.x);
+    v.push_back(b.point.v);
+    notes.push_back(b.note);
+  }
+  const std::size_t rows = r.bifurcations.size();
+  Dataset kinds = integers("kind", kind);
+  kinds.labels.emplace_back("names", bifurcation_kind_names());
+  Dataset notes_on = integers("smooth", smooth);
+  notes_on.labels.emplace_back("notes", notes);
+  file.write_group("bifurcations",
+                   {kinds, reals("p", p, {rows}), reals("p_low", lo, {rows}), reals("p_high", hi, {rows}),
+                    integers("stop", stop), integers("branch", branch), reals("value", value, {rows}), notes_on,
+                    integers("evaluations", evaluations), integers("k", k), reals("phase", phase, {rows}),
+                    reals("t0", t0, {rows}), table("x", x, n), table("v", v, n)});
+}
+
+void write_curves(ResultFile& file, const std::vector<Curve>& curves, const std::string& p1, const std::string& p2) {
+  std::vector<std::int64_t> id, kind, stop;
+  std::vector<double> a, b, value;
+  std::vector<std::string> ends;
+  for (std::size_t c = 0; c < curves.size(); ++c) {
+    ends.push_back(curves[c].end);
+    for (const CurvePoint& q : curves[c].points) {
+      id.push_back(static_cast<std::int64_t>(c));
+      kind.push_back(static_cast<std::int64_t>(curves[c].kind));
+      stop.push_back(curves[c].stop);
+      a.push_back(q.p1);
+      b.push_back(q.p2);
+      value.push_back(std::isfinite(q.value) ? q.value : 0.0);
+    }
+  }
+  const std::size_t rows = id.size();
+  Dataset kinds = integers("kind", kind);
+  kinds.labels.emplace_back("names", bifurcation_kind_names());
+  Dataset curve = integers("curve", id);
+  curve.labels.emplace_back("end", ends);
+  file.write_group("curve", {curve, kinds, integers("stop", stop), reals("p1", a, {rows}), reals("p2", b, {rows}),
+                             reals("value", value, {rows})},
+                   {{"p1", p1}, {"p2", p2}});
+}
+
+}  // namespace
+
+SystemDerivative parameter_derivative(const SceneDocument& doc, const std::string& path) {
+  return derivative_at(classify(doc, path), doc.build_point());
+}
+
+ParameterFamily parameter_family(const SceneDocument& doc, const std::string& path) {
+  const Entry entry = classify(doc, path);
+  return [doc, path, entry](double p) {
+    SceneDocument point(doc);
+    point.set(path, p);
+    const Scene s = point.build_point();
+    return FamilyPoint{s.impact_system(), derivative_at(entry, s)};
+  };
+}
+
+RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  const ContinueSpec& spec = scene.run.continuation;
+  const std::size_t n = static_cast<std::size_t>(scene.dof()), m = scene.stops.size();
+  const ParameterFamily family = parameter_family(doc, spec.path);
+  const double p0 = doc.get(spec.path);
+
+  ContinuationOptions o;
+  o.p_min = spec.p_min;
+  o.p_max = spec.p_max;
+  o.direction = spec.direction;
+  o.period = spec.period;
+  o.phase = spec.phase;
+  o.step = spec.step;
+  o.min_step = spec.min_step;
+  o.max_step = spec.max_step;
+  o.max_points = spec.max_points;
+  o.tolerance = spec.tolerance;
+  o.locate = spec.locate;
+  o.locate_tolerance = spec.locate_tolerance;
+  o.max_doublings = spec.max_doublings;
+  o.solver = scene.solver;
+  o.solver.interrupt = request.interrupt;
+
+  ResultFile file = open_result_file(request, scene, current_meta(1));
+  // The guess: the transient from `initial`, then Newton shooting at p0.
+  const ImpactSystem system = scene.impact_system();
+  const double t_guess = scene.t0 + scene.run.transient_periods * scene.period();
+  Simulator sim(system, o.solver);
+  const RunSummary warm = sim.run(scene.t0, scene.x0, scene.v0, t_guess);
+  if (warm.status != RunStatus::completed)
+    throw SceneError(scene.file, 1, 1, "run.transient_periods",
+                     std::string("the transient before the first orbit stopped early (") + to_string(warm.status) +
+                         "): " + warm.message);
+  auto progress = [&](const Branch& b, const BranchPoint& q) {
+    if (q.located) return;
+    std::fprintf(stderr, "  branch k=%d  %s = %.10f  %-8s  max|mu| = %-10.4g  %s\n", b.k, spec.path.c_str(), q.p,
+                 q.multipliers.stable ? "stable" : "unstable", q.multipliers.spectral_radius, q.signature.text().c_str());
+  };
+  ContinuationResult result;
+  try {
+    result = continue_orbits(family, p0, t_guess, warm.x, warm.v, o, progress);
+  } catch (const InvalidInput& e) {
+    throw SceneError(scene.file, 1, 1, "run.continue", e.what());
+  }
+  std::vector<Curve> curves;
+  if (!spec.curve_path.empty()) {
+    const Entry e1 = classify(doc, spec.path), e2 = classify(doc, spec.curve_path);
+    const PlaneFamily plane = [&doc, &spec, e1, e2](double a, double b) {
+      SceneDocument point(doc);
+      point.set(spec.path, a);
+      point.set(spec.curve_path, b);
+      const Scene s = point.build_point();
+      return PlanePoint{s.impact_system(), derivative_at(e1, s), derivative_at(e2, s)};
+    };
+    CurveOptions co;
+    co.p1_min = spec.p_min;
+    co.p1_max = spec.p_max;
+    co.p2_min = spec.curve_min;
+    co.p2_max = spec.curve_max;
+    co.step = spec.curve_step;
+    co.max_points = spec.curve_max_points;
+    co.branch = o;
+    const double p2 = doc.get(spec.curve_path);
+    for (const Bifurcation& b : result.bifurcations) {
+      const std::string kind = to_string(b.kind);
+      if (!b.smooth || std::find(spec.curve_kinds.begin(), spec.curve_kinds.end(), kind) == spec.curve_kinds.end()) continue;
+      for (int dir : {1, -1}) {
+        co.direction = dir;
+        curves.push_back(follow_curve(plane, b, p2, co));
+        std::fprintf(stderr, "  curve of the %s at %s = %.10f (stop %d), %s: %zu points (%s)\n", kind.c_str(),
+                     spec.path.c_str(), b.p, b.stop, dir > 0 ? "up" : "down", curves.back().points.size(),
+                     curves.back().end.c_str());
+      }
+    }
+  }
+
+  write_branches(file, result, n, m, spec.path);
+  write_bifurcations(file, result, n);
+  if (!spec.curve_path.empty()) write_curves(file, curves, spec.path, spec.curve_path);
+  const bool interrupted = request.interrupt && request.interrupt->load();
+  std::size_t points = 0;
+  for (const Branch& b : result.branches) points += b.points.size();
+  file.set_outcome(interrupted ? "interrupted" : "completed",
+                   interrupted ? "interrupted: the branches end where the interrupt stopped their orbits" : "",
+                   {{"branches", static_cast<std::int64_t>(result.branches.size())},
+                    {"points", static_cast<std::int64_t>(points)},
+                    {"bifurcations", static_cast<std::int64_t>(result.bifurcations.size())},
+                    {"tangent_maps", result.maps}});
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  RunMeta meta = current_meta(1);
+  meta.wall_seconds = wall;
+  file.finish(meta);
+
+  std::string text = fmt::format("Continued {} in [{}, {}]: {} branches, {} points, {} tangent maps, {:.2f} s.\n",
+                                 spec.path, spec.p_min, spec.p_max, result.branches.size(), points, result.maps, wall);
+  for (std::size_t b = 0; b < result.branches.size(); ++b)
+    text += fmt::format("  branch {} (period {}T{}): {}\n", b, result.branches[b].k,
+                        result.branches[b].parent >= 0 ? fmt::format(", from branch {}", result.branches[b].parent) : "",
+                        result.branches[b].end);
+  text += fmt::format("  {:<16} {:>6} {:>18} {:>10} {:>11} {:>7}\n", "bifurcation", "stop", spec.path, "bracket", "value", "branch");
+  for (const Bifurcation& b : result.bifurcations)
+    text += fmt::format("  {:<16} {:>6} {:>18.12f} {:>10.1e} {:>11} {:>7}\n", to_string(b.kind),
+                        b.stop >= 0 ? scene.stops[static_cast<std::size_t>(b.stop)].name : std::string("-"), b.p,
+                        b.p_high - b.p_low, b.smooth ? fmt::format("{:.2e}", b.value) : std::string("(bisected)"), b.branch);
+  text += fmt::format("Results in {}.", file.path());
+  return {interrupted ? 130 : 0, text, request.in_memory ? file.image() : std::vector<char>{}};
+}
+
+}  // namespace vibro::io

@@ -1,0 +1,279 @@
+/// \file bindings.cpp
+/// The compiled part of the Python module `vibro` (pybind11): scene documents, runs into memory
+/// and result images. The public API, with its documentation, is vibro/__init__.py, which wraps
+/// these; docs/python.md is its guide.
+///
+/// Runs release the GIL: the scene is built and run on a worker thread (sweeps then use their
+/// OpenMP threads as `vibro run` does) while the calling thread waits, taking the GIL back every
+/// 50 ms to let Python handle signals (PyErr_CheckSignals). If a handler raises — Ctrl-C's
+/// KeyboardInterrupt — the run's stop flag is raised (SimulatorOptions::interrupt: the engine
+/// stops at its next event), the worker finishes, and the partial result is returned marked
+/// interrupted (vibro/__init__.py raises vibro.Interrupted carrying it); any other exception a
+/// handler raises is re-raised once the worker is done. Signals reach Python's main thread
+/// only, so a run in another thread is stopped by its own flag, never by Ctrl-C.
+#include "vibro/io/result_file.hpp"
+#include "vibro/io/session.hpp"
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <exception>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+namespace py = pybind11;
+using vibro::io::SceneDocument;
+
+namespace {
+
+// --- Errors ---------------------------------------------------------------------------------
+
+PyObject* scene_error_type = nullptr;   // vibro.SceneError(ValueError)
+PyObject* result_error_type = nullptr;  // vibro.ResultError(OSError)
+
+/// SceneError keeps the parts of its message as attributes (file, line, column, path, problem).
+void raise_scene_error(const vibro::io::SceneError& e) {
+  py::object error = py::reinterpret_borrow<py::object>(scene_error_type)(e.what());
+  error.attr("file") = e.file();
+  error.attr("line") = e.line();
+  error.attr("column") = e.column();
+  error.attr("path") = e.path();
+  error.attr("problem") = e.problem();
+  PyErr_SetObject(scene_error_type, error.ptr());
+}
+
+void translate(std::exception_ptr failure) {
+  try {
+    if (failure) std::rethrow_exception(failure);
+  } catch (const vibro::io::SceneError& e) {
+    raise_scene_error(e);
+  } catch (const vibro::io::ResultError& e) {
+    PyErr_SetString(result_error_type, e.what());
+  } catch (const vibro::InvalidInput& e) {
+    PyErr_SetString(PyExc_ValueError, e.what());
+  }
+}
+
+// --- Scenes -----------------------------------------------------------------------------------
+
+py::list to_list(const Eigen::VectorXd& v) {
+  py::list out;
+  for (Eigen::Index i = 0; i < v.size(); ++i) out.append(v(i));
+  return out;
+}
+
+/// What a built scene resolved to, for the Python Scene's properties.
+py::dict describe(const vibro::io::Scene& s) {
+  py::dict d;
+  d["file"] = s.file;
+  d["name"] = s.name;
+  d["dof"] = s.dof();
+  d["frequency"] = s.forcing().frequency;
+  d["period"] = s.period();
+  d["t0"] = s.t0;
+  d["x0"] = to_list(s.x0);
+  d["v0"] = to_list(s.v0);
+  py::list stops;
+  for (const vibro::Stop& stop : vibro::validated_stops(s.stops, s.dof(), s.forcing().frequency)) stops.append(stop.name);
+  d["stops"] = stops;
+  d["engine"] = vibro::io::to_string(s.engine);
+  d["engine_reason"] = s.engine_reason;
+  using Kind = vibro::io::RunSpec::Kind;
+  d["run_kind"] = s.run.kind == Kind::sweep ? "sweep" : s.run.kind == Kind::locate ? "locate" : s.run.kind == Kind::continuation ? "continue" : "simulate";
+  d["transient_periods"] = s.run.transient_periods;
+  d["periods"] = s.run.periods;
+  py::list axes;
+  for (const vibro::io::SweepAxis& a : s.run.axes) axes.append(py::make_tuple(a.path, a.values));
+  d["axes"] = axes;
+  py::dict record;
+  record["events"] = s.record.events;
+  record["contacts"] = s.record.contacts;
+  record["statistics"] = s.record.statistics;
+  record["poincare"] = s.record.poincare;
+  record["samples_per_period"] = s.record.samples_per_period;
+  record["sample_times"] = s.record.sample_times;
+  d["record"] = record;
+  return d;
+}
+
+// --- Runs -------------------------------------------------------------------------------------
+
+/// A run on a worker thread, and what the waiting thread needs to know about it.
+struct Work {
+  std::atomic<bool> stop{false};
+  std::mutex lock;
+  std::condition_variable finished;
+  bool done = false;
+  vibro::io::MemoryRun run;
+  std::exception_ptr failure;
+};
+
+/// Runs `task(work)` on a worker thread with the GIL released; see the file's comment.
+/// Returns whether a signal handler's KeyboardInterrupt stopped it.
+template <class Task>
+bool run_watched(const std::shared_ptr<Work>& work, Task task) {
+  std::thread worker([work, task]() mutable {
+    try {
+      task(*work);
+    } catch (...) {
+      work->failure = std::current_exception();
+    }
+    {
+      const std::lock_guard<std::mutex> hold(work->lock);
+      work->done = true;
+    }
+    work->finished.notify_all();
+  });
+  std::optional<py::error_already_set> raised;  // by a signal handler while the run went on
+  {
+    py::gil_scoped_release release;
+    std::unique_lock<std::mutex> hold(work->lock);
+    while (!work->finished.wait_for(hold, std::chrono::milliseconds(50), [&] { return work->done; })) {
+      if (raised) continue;  // stopping: wait for the engine's next event
+      hold.unlock();
+      {
+        py::gil_scoped_acquire acquire;
+        if (PyErr_CheckSignals() != 0) {
+          raised.emplace();
+          work->stop.store(true);
+        }
+      }
+      hold.lock();
+    }
+  }
+  worker.join();
+  if (raised && !raised->matches(PyExc_KeyboardInterrupt)) throw *raised;
+  if (work->failure && !raised) std::rethrow_exception(work->failure);
+  return raised.has_value();
+}
+
+/// Builds and runs a copy of `doc` (its run.kind) into memory.
+py::tuple run(const SceneDocument& doc, int threads) {
+  auto work = std::make_shared<Work>();
+  const SceneDocument copy(doc);  // the caller may edit its document meanwhile (another thread)
+  const bool interrupted = run_watched(work, [copy, threads](Work& w) {
+    const vibro::io::Scene scene = copy.build();
+    w.run = vibro::io::run_in_memory(copy, scene, {threads, &w.stop});
+  });
+  if (work->failure) std::rethrow_exception(work->failure);  // interrupted before it ran
+  py::bytes image(work->run.image.data(), work->run.image.size());
+  return py::make_tuple(image, work->run.exit_code, work->run.summary, interrupted);
+}
+
+/// Builds `doc` (validates it) with the GIL released: a sweep's check builds every point.
+py::dict check(const SceneDocument& doc) {
+  std::optional<vibro::io::Scene> scene;
+  {
+    py::gil_scoped_release release;
+    scene = doc.build();
+  }
+  return describe(*scene);
+}
+
+// --- Result images ----------------------------------------------------------------------------
+
+/// A result file's bytes and a reader on them.
+class Image {
+ public:
+  explicit Image(std::vector<char> bytes) : bytes_(std::move(bytes)), reader_(bytes_) {}
+  static Image from_bytes(const py::bytes& data) {
+    const std::string_view view(data);
+    return Image(std::vector<char>(view.begin(), view.end()));
+  }
+  static Image load(const std::string& path) { return Image(vibro::io::load_image(path)); }
+
+  std::size_t size() const { return bytes_.size(); }
+  py::bytes bytes() const { return py::bytes(bytes_.data(), bytes_.size()); }
+  void save(const std::string& path, bool overwrite) const { vibro::io::save_image(bytes_, path, overwrite); }
+  std::vector<std::string> objects() const { return reader_.objects(); }
+  bool is_dataset(const std::string& path) const { return reader_.is_dataset(path); }
+
+  /// The dataset as a numpy array of its stored type (f64, i32, i64; strings as str).
+  py::object dataset(const std::string& path) const {
+    const std::vector<std::size_t> shape = reader_.shape(path);
+    const std::vector<py::ssize_t> dims(shape.begin(), shape.end());
+    const std::string type = reader_.type(path);
+    if (type == "f64") return copy_array<double>(reader_.read(path), dims);
+    if (type == "i32") return copy_array<std::int32_t>(reader_.read_integers(path), dims);
+    if (type == "i64") return copy_array<std::int64_t>(reader_.read_integers(path), dims);
+    if (type == "str") return py::module_::import("numpy").attr("array")(reader_.read_strings(path), "str").attr("reshape")(dims);
+    throw vibro::io::ResultError(path + ": a dataset of a type the result files do not use");
+  }
+
+  /// The attributes of a group or dataset: str, list of str, int or float.
+  py::dict attributes(const std::string& object) const {
+    py::dict out;
+    for (const std::string& name : reader_.attributes(object)) {
+      const std::string type = reader_.attribute_type(object, name);
+      if (type == "str") out[name.c_str()] = reader_.attribute_string(object, name);
+      else if (type == "str[]") out[name.c_str()] = reader_.attribute_strings(object, name);
+      else if (type == "i64") out[name.c_str()] = static_cast<std::int64_t>(reader_.attribute_number(object, name));
+      else out[name.c_str()] = reader_.attribute_number(object, name);
+    }
+    return out;
+  }
+
+ private:
+  template <class T, class From>
+  static py::array copy_array(const std::vector<From>& values, const std::vector<py::ssize_t>& dims) {
+    py::array_t<T> out(dims);
+    T* data = out.mutable_data();
+    for (std::size_t i = 0; i < values.size(); ++i) data[i] = static_cast<T>(values[i]);
+    return out;
+  }
+
+  std::vector<char> bytes_;
+  vibro::io::ResultReader reader_;
+};
+
+}  // namespace
+
+PYBIND11_MODULE(_vibro, m) {
+  m.doc() = "Compiled bindings of the vibro package (use `import vibro`; see help(vibro)).";
+  m.attr("__version__") = VIBRO_VERSION;
+
+  scene_error_type = PyErr_NewExceptionWithDoc(
+      "vibro.SceneError",
+      "A malformed scene: the message is the command line's, 'file:line:column: key.path: problem'.\n"
+      "Attributes: file, line, column (0 where there is no position), path, problem.",
+      PyExc_ValueError, nullptr);
+  result_error_type = PyErr_NewExceptionWithDoc(
+      "vibro.ResultError", "A result file that cannot be written or read: 'FILE: /OBJECT: what'.", PyExc_OSError, nullptr);
+  m.attr("SceneError") = py::reinterpret_borrow<py::object>(scene_error_type);
+  m.attr("ResultError") = py::reinterpret_borrow<py::object>(result_error_type);
+  py::register_exception_translator(translate);
+
+  py::class_<SceneDocument>(m, "SceneDocument", "A scene's YAML tree, editable by path (vibro::io::SceneDocument).")
+      .def_static("load", &SceneDocument::load, py::arg("path"), "Reads a scene file.")
+      .def_static("parse", &SceneDocument::parse, py::arg("text"), py::arg("file") = "<string>",
+                  "Parses scene text; `file` names it in messages.")
+      .def("get", &SceneDocument::get, py::arg("path"), "The number at a path.")
+      .def("set", &SceneDocument::set, py::arg("path"), py::arg("value"), "Sets the number at a path.")
+      .def("set_assignment", &SceneDocument::set_assignment, py::arg("assignment"), py::arg("ordinal") = 1,
+           "Applies 'PATH=VALUE' as `vibro run --set` does, with its messages.")
+      .def("replace", &SceneDocument::replace, py::arg("path"), py::arg("yaml"),
+           "Replaces (or adds, or with '' removes) the value at a key path by YAML text.")
+      .def("copy", [](const SceneDocument& d) { return SceneDocument(d); })
+      .def_property_readonly("text", &SceneDocument::text)
+      .def_property_readonly("file", &SceneDocument::file)
+      .def("check", &check, "Builds and validates the scene; returns what it resolved to.")
+      .def("run", &run, py::arg("threads") = 0,
+           "Runs the scene's run.kind into memory: (image bytes, exit code, summary, interrupted).");
+
+  py::class_<Image>(m, "Image", "The bytes of a result file and a reader on them.")
+      .def_static("from_bytes", &Image::from_bytes, py::arg("data"))
+      .def_static("load", &Image::load, py::arg("path"), "Reads a result file.")
+      .def("__len__", &Image::size)
+      .def("bytes", &Image::bytes)
+      .def("save", &Image::save, py::arg("path"), py::arg("overwrite") = false)
+      .def("objects", &Image::objects)
+      .def("is_dataset", &Image::is_dataset, py::arg("path"))
+      .def("dataset", &Image::dataset, py::arg("path"))
+      .def("attributes", &Image::attributes, py::arg("object"));
+}

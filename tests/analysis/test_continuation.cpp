@@ -1,0 +1,305 @@
+/// Tests of continuation and bifurcation location (framework/analysis, continuation.hpp).
+///
+/// The engineered case: the designed 1-DOF impact oscillator of support/designed_orbit.hpp with
+/// its stop s and amplitude A fixed, continued in Ω. Its period-1 impacting orbits solve two
+/// closed-form equations G(u, t*, Ω) = 0, so the fold (∂G/∂(u, t*) singular) and the period
+/// doubling (a multiplier −1 of the closed-form monodromy matrix) are located independently by
+/// Newton on those equations; its non-impacting orbit is the linear response of amplitude
+/// A/√((1 − Ω²)² + c²Ω²), which grazes the stop where that equals s — a quadratic in Ω².
+/// Along Ω ∈ [0.8, 1.45] the branch is: non-impacting, grazing (0.8863), impacting and stable,
+/// period doubling (0.9898), a fold (1.3390), unstable impacting back down to a grazing corner
+/// (1.0975) where the non-impacting branch takes over. The doubled branch grazes and turns at
+/// 0.99021, then doubles again.
+#include "support/analysis_helpers.hpp"
+#include "support/designed_orbit.hpp"
+#include "vibro/continuation.hpp"
+#include "vibro/models/chain.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+namespace {
+
+using Eigen::VectorXd;
+using vibro::test::DesignedOrbit;
+
+/// The designed 1-DOF system (s, A from the orbit at Ω = 1.2) as a family in Ω.
+vibro::ParameterFamily designed_family(const DesignedOrbit& d) {
+  return [d](double omega) {
+    vibro::HarmonicForcing f = vibro::HarmonicForcing::zero(1, omega);
+    f.cosine(0) = d.A;
+    vibro::ImpactSystem sys(vibro::LinearSystem(Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Constant(1, 1, d.c),
+                                                Eigen::MatrixXd::Identity(1, 1), f),
+                            {vibro::Stop::upper(0, d.s, d.r)});
+    return vibro::FamilyPoint{std::move(sys), vibro::SystemDerivative::frequency_only()};
+  };
+}
+
+}  // namespace
+
+
+namespace {
+
+/// Newton on the closed-form equations [G(u, t*, Ω); condition(u, t*, Ω)] = 0 for (u, t*, Ω),
+/// with a central-difference Jacobian (it only steers the iteration: the root is where the
+/// residual, evaluated in closed form, vanishes).
+Eigen::Vector3d solve_closed_form(const DesignedOrbit& d, Eigen::Vector3d y,
+                                  const std::function<double(const DesignedOrbit&, double, double, double)>& condition) {
+  auto F = [&](const Eigen::Vector3d& q) {
+    const Eigen::Vector2d g = d.G(q(0), q(1), q(2));
+    return Eigen::Vector3d(g(0), g(1), condition(d, q(0), q(1), q(2)));
+  };
+  for (int it = 0; it < 50; ++it) {
+    Eigen::Matrix3d J;
+    for (int i = 0; i < 3; ++i) {
+      Eigen::Vector3d h = Eigen::Vector3d::Zero();
+      h(i) = 1e-7;
+      J.col(i) = (F(y + h) - F(y - h)) / 2e-7;
+    }
+    const Eigen::Vector3d step = J.fullPivLu().solve(F(y));
+    y -= step;
+    if (step.cwiseAbs().maxCoeff() < 1e-15) break;
+  }
+  REQUIRE(F(y).cwiseAbs().maxCoeff() < 1e-13);
+  return y;
+}
+
+const vibro::Bifurcation* find(const vibro::ContinuationResult& r, vibro::BifurcationKind kind, double near,
+                               int branch = 0) {
+  const vibro::Bifurcation* best = nullptr;
+  for (const vibro::Bifurcation& b : r.bifurcations)
+    if (b.kind == kind && b.branch == branch && (!best || std::abs(b.p - near) < std::abs(best->p - near))) best = &b;
+  return best;
+}
+
+vibro::ContinuationResult designed_branch() {
+  const DesignedOrbit d(0.125);
+  vibro::ContinuationOptions o;
+  o.p_min = 0.8;
+  o.p_max = 1.45;
+  o.step = 0.02;
+  const double t0 = d.t_star + 0.5 * d.T;
+  const VectorXd z0 = d.state_after_impact(0.5 * d.T);
+  return vibro::continue_orbits(designed_family(d), d.omega, t0, z0.head(1), z0.tail(1), o);
+}
+
+}  // namespace
+
+TEST_CASE("continuation: the designed oscillator's fold, period doubling and two grazings are "
+          "located to 1e-10 of their closed-form values",
+          "[continuation][closed-form]") {
+  const DesignedOrbit d(0.125);
+  const vibro::ContinuationResult r = designed_branch();
+  REQUIRE_FALSE(r.branches.empty());
+  const vibro::Branch& main = r.branches[0];
+  INFO("branch: " << main.end);
+  // The whole range is covered, both ends at the limits, through the fold and the corner.
+  CHECK(main.end.find("reached p_min") != std::string::npos);
+  CHECK(main.end.find("reached p_max") != std::string::npos);
+
+  // Fold: ∂G/∂(u, t*) singular.
+  const Eigen::Vector3d fold = solve_closed_form(d, {0.62, 1.27, 1.339},
+      [](const DesignedOrbit& o, double u, double ts, double w) { return o.dG(u, ts, w).determinant(); });
+  // Period doubling: tr M + 1 + det M = 0.
+  const Eigen::Vector3d pd = solve_closed_form(d, {0.19, 0.42, 0.99}, [](const DesignedOrbit& o, double u, double ts, double w) {
+    const Eigen::Matrix2d M = o.monodromy(u, ts, w);
+    return M.trace() + 1.0 + M.determinant();
+  });
+  // Grazing of the linear response: A² = s² ((1 − Ω²)² + c²Ω²), a quadratic in Ω².
+  const double b = 2.0 - d.c * d.c, disc = std::sqrt(b * b - 4.0 * (1.0 - d.A * d.A / (d.s * d.s)));
+  const double graze_high = std::sqrt(0.5 * (b + disc)), graze_low = std::sqrt(0.5 * (b - disc));
+
+  struct Expect {
+    vibro::BifurcationKind kind;
+    double p;
+  };
+  for (const Expect& e : {Expect{vibro::BifurcationKind::fold, fold(2)}, Expect{vibro::BifurcationKind::period_doubling, pd(2)},
+                          Expect{vibro::BifurcationKind::grazing, graze_high}, Expect{vibro::BifurcationKind::grazing, graze_low}}) {
+    const vibro::Bifurcation* found = find(r, e.kind, e.p);
+    INFO(vibro::to_string(e.kind) << " expected at " << e.p);
+    REQUIRE(found != nullptr);
+    INFO("located at " << found->p << " (bracket " << found->p_low << " … " << found->p_high << ", value " << found->value << ")");
+    CHECK(found->smooth);
+    CHECK(std::abs(found->p - e.p) <= 1e-10);
+    CHECK(found->p_high - found->p_low <= 1e-10);
+    if (e.kind == vibro::BifurcationKind::grazing) CHECK(found->stop == 0);
+  }
+  // Nothing else on the period-1 branch.
+  int on_main = 0;
+  for (const vibro::Bifurcation& b : r.bifurcations) on_main += b.branch == 0;
+  CHECK(on_main == 4);
+  // The test functions vanish at the located points (in their own scales: t_p, the product
+  // Π(1 + μ), the gap in units of s).
+  CHECK(std::abs(find(r, vibro::BifurcationKind::fold, fold(2))->value) < 1e-8);
+  CHECK(std::abs(find(r, vibro::BifurcationKind::period_doubling, pd(2))->value) < 1e-8);
+  CHECK(std::abs(find(r, vibro::BifurcationKind::grazing, graze_low)->value) < 1e-9 * d.s);
+  // Stability along the branch (the order is from p_min up, over the fold and back down):
+  // non-impacting orbits are stable; the impacting ones coming up from the low grazing are
+  // unstable (a multiplier below −1, growing like 1/u towards the grazing) until the period
+  // doubling, stable from there to the fold, unstable (a multiplier above 1) beyond it.
+  for (const vibro::BranchPoint& p : main.points) {
+    if (p.located) continue;
+    INFO("p = " << p.p << ", dp/ds " << p.tangent_p << ", largest multiplier " << p.multipliers.spectral_radius);
+    const bool impacting = p.signature.impacts[0] > 0, rising = p.tangent_p > 0.0;
+    if (!impacting) CHECK(p.multipliers.stable);
+    else if (rising && p.p < pd(2) - 1e-6) CHECK_FALSE(p.multipliers.stable);
+    else if (rising && p.p > pd(2) + 1e-6 && p.p < fold(2) - 1e-6) CHECK(p.multipliers.stable);
+    else if (!rising && p.p < fold(2) - 1e-6) CHECK_FALSE(p.multipliers.stable);
+  }
+}
+
+TEST_CASE("continuation: branch switching at the period doubling gives a period-2 branch whose "
+          "orbits have minimal period 2, it grazes, turns and doubles again",
+          "[continuation][doubling]") {
+  const DesignedOrbit d(0.125);
+  const vibro::ContinuationResult r = designed_branch();
+  REQUIRE(r.branches.size() >= 2);
+  const vibro::Branch& doubled = r.branches[1];
+  CHECK(doubled.k == 2);
+  CHECK(doubled.parent == 0);
+  REQUIRE(doubled.points.size() >= 4);
+  // Its points away from the PD point are genuine period-2 orbits: shooting with k = 2 from one
+  // converges there with minimal period 2.
+  const vibro::BranchPoint& q = doubled.points[3];
+  vibro::ShootingOptions so;
+  so.period = 2;
+  so.phase = q.phase;
+  so.free_section = false;
+  const vibro::ShootingResult s = vibro::shoot(designed_family(d)(q.p).system, so, q.t0, q.x, q.v);
+  REQUIRE(s.converged());
+  CHECK(s.minimal_k == 2);
+  CHECK((vibro::test::stack(s.x, s.v) - vibro::test::stack(q.x, q.v)).cwiseAbs().maxCoeff() < 1e-9);
+  // The doubled branch's grazing corner and its own period doubling.
+  CHECK(find(r, vibro::BifurcationKind::grazing, 0.9902, 1) != nullptr);
+  CHECK(find(r, vibro::BifurcationKind::period_doubling, 0.9762, 1) != nullptr);
+  bool period_four = false;
+  for (const vibro::Branch& b : r.branches) period_four |= b.k == 4;
+  CHECK(period_four);
+}
+
+namespace {
+
+vibro::FamilyPoint paper_at(double omega) {
+  vibro::models::Wagg2004 p;
+  p.frequency = omega;
+  return vibro::FamilyPoint{vibro::models::wagg2004(p), vibro::SystemDerivative::frequency_only()};
+}
+
+}  // namespace
+
+TEST_CASE("continuation: the paper's system near Ω = 0.2637: mass 1 loses an impact per period at "
+          "a grazing corner and the impacting branch folds just above it, in between two stable "
+          "orbits coexist, each attracting a run started on it",
+          "[continuation][wagg2004]") {
+  vibro::models::Wagg2004 p;
+  p.frequency = 0.2634;
+  const vibro::ImpactSystem sys = vibro::models::wagg2004(p);
+  vibro::Simulator sim(sys);
+  const double T = 2.0 * std::numbers::pi / p.frequency;
+  const vibro::RunSummary warm = sim.run(0.0, VectorXd::Zero(2), VectorXd::Zero(2), 200.0 * T);
+  vibro::ContinuationOptions o;
+  o.p_min = 0.2634;
+  o.p_max = 0.2640;
+  o.step = 0.02;
+  const vibro::ContinuationResult r = vibro::continue_orbits(paper_at, p.frequency, 200.0 * T, warm.x, warm.v, o);
+  const vibro::Bifurcation* fold = find(r, vibro::BifurcationKind::fold, 0.26378);
+  const vibro::Bifurcation* graze = find(r, vibro::BifurcationKind::grazing, 0.26373);
+  REQUIRE(fold != nullptr);
+  REQUIRE(graze != nullptr);
+  CHECK(graze->stop == 0);
+  CHECK(graze->smooth);
+  CHECK(graze->p < fold->p);
+  CHECK(std::abs(graze->value) < 1e-12);  // the gap maximum there, length units (L = 0.3)
+  // Between the corner and the fold: the impacting orbit (one impact of mass 1 per period) is
+  // stable below the fold, and the orbit without that impact stable above the corner.
+  const double mid = 0.5 * (graze->p + fold->p);
+  const vibro::BranchPoint* with = nullptr;
+  const vibro::BranchPoint* without = nullptr;
+  for (const vibro::BranchPoint& q : r.branches[0].points) {
+    if (q.located || !q.multipliers.stable) continue;
+    const vibro::BranchPoint*& slot = q.signature.impacts[0] == 1 ? with : without;
+    if (!slot || std::abs(q.p - mid) < std::abs(slot->p - mid)) slot = &q;
+  }
+  REQUIRE(with != nullptr);
+  REQUIRE(without != nullptr);
+  // Both orbits at Ω = mid, by shooting from those branch points; each is stable and a run from
+  // it stays on it for 100 periods (two attractors at one Ω).
+  const vibro::ImpactSystem at_mid = paper_at(mid).system;
+  std::vector<VectorXd> found;
+  for (const vibro::BranchPoint* q : {with, without}) {
+    vibro::ShootingOptions so;
+    so.phase = q->phase;
+    so.free_section = false;
+    const vibro::ShootingResult orbit = vibro::shoot(at_mid, so, q->t0, q->x, q->v);
+    REQUIRE(orbit.converged());
+    CHECK(orbit.multipliers.stable);
+    vibro::Simulator run(at_mid);
+    VectorXd z = vibro::test::stack(orbit.x, orbit.v);
+    z(2) += 1e-7;  // a small push: it must come back
+    const double Tm = 2.0 * std::numbers::pi / mid;
+    const vibro::RunSummary s = run.run(orbit.t0, z.head(2), z.tail(2), orbit.t0 + 100.0 * Tm);
+    CHECK((vibro::test::stack(s.x, s.v) - vibro::test::stack(orbit.x, orbit.v)).cwiseAbs().maxCoeff() < 1e-9);
+    // Compared at phase 0 (the sections may differ).
+    found.push_back(vibro::test::engine_map(at_mid, {}, orbit.t0, vibro::test::stack(orbit.x, orbit.v), Tm * std::ceil(orbit.t0 / Tm + 1.0)));
+  }
+  CHECK((found[0] - found[1]).cwiseAbs().maxCoeff() > 1e-3);  // two different orbits
+}
+
+TEST_CASE("continuation: a grazing point followed in a second parameter stays on the closed-form "
+          "grazing curve A(Ω) = s √((1 − Ω²)² + c²Ω²)",
+          "[continuation][curve]") {
+  const DesignedOrbit d(0.125);
+  // Locate the low grazing (0.8863) in Ω first, on a short stretch of the branch below it.
+  vibro::ContinuationOptions o;
+  o.p_min = 0.85;
+  o.p_max = 0.95;
+  o.step = 0.05;
+  o.max_doublings = 0;
+  const vibro::ParameterFamily fam = designed_family(d);
+  // Start on the non-impacting orbit at Ω = 0.86 (the linear response): a short run from rest.
+  const vibro::FamilyPoint start = fam(0.86);
+  vibro::Simulator sim(start.system);
+  const double T = 2.0 * std::numbers::pi / 0.86;
+  const vibro::RunSummary warm = sim.run(0.0, VectorXd::Zero(1), VectorXd::Zero(1), 100.0 * T);
+  const vibro::ContinuationResult r = vibro::continue_orbits(fam, 0.86, 100.0 * T, warm.x, warm.v, o);
+  const vibro::Bifurcation* graze = find(r, vibro::BifurcationKind::grazing, 0.8863);
+  REQUIRE(graze != nullptr);
+  REQUIRE(graze->smooth);
+  // The plane (Ω, A).
+  const vibro::PlaneFamily plane = [d](double omega, double amplitude) {
+    vibro::HarmonicForcing f = vibro::HarmonicForcing::zero(1, omega);
+    f.cosine(0) = amplitude;
+    vibro::ImpactSystem sys(vibro::LinearSystem(Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Constant(1, 1, d.c),
+                                                Eigen::MatrixXd::Identity(1, 1), f),
+                            {vibro::Stop::upper(0, d.s, d.r)});
+    vibro::SystemDerivative da;
+    da.cosine = VectorXd::Ones(1);
+    return vibro::PlanePoint{std::move(sys), vibro::SystemDerivative::frequency_only(), da};
+  };
+  vibro::CurveOptions co;
+  co.p1_min = 0.7;
+  co.p1_max = 1.0;
+  co.p2_min = 0.8 * d.A;
+  co.p2_max = 1.2 * d.A;
+  co.step = 0.05;
+  co.max_points = 8;
+  co.branch = o;
+  const vibro::Curve curve = vibro::follow_curve(plane, *graze, d.A, co);
+  INFO(curve.end);
+  REQUIRE(curve.points.size() >= 5);
+  double worst = 0.0;
+  for (const vibro::CurvePoint& q : curve.points) {
+    const double w = q.p1;
+    const double exact = d.s * std::sqrt((1.0 - w * w) * (1.0 - w * w) + d.c * d.c * w * w);
+    worst = std::max(worst, std::abs(q.p2 - exact));
+  }
+  // Each curve point is located (to 1e-10 in the line's parameter) on a line across the curve.
+  INFO("curve points " << curve.points.size() << ", worst distance from the closed form " << worst);
+  CHECK(worst <= 1e-9);
+  // It moved along the curve, not on the spot.
+  CHECK(std::abs(curve.points.back().p2 - curve.points.front().p2) > 0.05 * d.A);
+}

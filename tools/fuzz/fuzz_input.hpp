@@ -1,0 +1,52 @@
+#pragma once
+// Shared by the fuzz targets: how a fuzzer's bytes become a scene document.
+//
+// An input is a scene's YAML text; lines at its top of the form "#set PATH=VALUE" are applied as
+// `vibro --set` assignments first (YAML comments, so every scene is also a valid input). Only
+// SceneError may come out: any other exception escapes the target and libFuzzer reports it as a
+// crash, as it does for sanitizer findings.
+#include "vibro/io/scene.hpp"
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace vibro::fuzz {
+
+/// Inputs above this size are skipped: the loader's cost is linear in the text (the scene size
+/// limit against memory is tested in tests/io/test_cli.sh), so larger ones only slow the search.
+inline constexpr std::size_t kMaxInput = 64 * 1024;
+
+/// Grids above this many points are skipped: each point is a validated scene, so a sweep's cost
+/// is linear in its points by design (a 10⁶-point linspace takes seconds, not a hang).
+inline constexpr double kMaxGridPoints = 1000;
+
+/// The document, with the "#set" lines applied; none if the input is skipped or refused.
+inline std::optional<io::SceneDocument> document(const std::uint8_t* data, std::size_t size) {
+  if (size > kMaxInput) return std::nullopt;
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  try {
+    io::SceneDocument doc = io::SceneDocument::parse(text, "fuzz.yaml");
+    std::size_t at = 0;
+    for (int k = 1; text.compare(at, 5, "#set ") == 0; ++k) {
+      const std::size_t end = std::min(text.find('\n', at), text.size());
+      doc.set_assignment(text.substr(at + 5, end - at - 5), k);
+      at = end + 1;
+      if (at >= text.size()) break;
+    }
+    for (const char* grid : {"run.sweep.parameters[0].linspace[2]", "run.sweep.parameters[0].logspace[2]",
+                             "run.sweep.parameters[1].linspace[2]", "run.sweep.parameters[1].logspace[2]",
+                             "run.locate.linspace[2]", "run.locate.logspace[2]"}) {
+      try {
+        if (doc.get(grid) > kMaxGridPoints) return std::nullopt;
+      } catch (const io::SceneError&) {
+      }
+    }
+    return doc;
+  } catch (const io::SceneError&) {
+    return std::nullopt;
+  }
+}
+
+}  // namespace vibro::fuzz

@@ -1,0 +1,84 @@
+// libFuzzer target: `vibro check` and a short run of any scene the loader accepts. The run is
+// cut short on purpose (at most 2 periods, no transient, ≤ 100 samples per period, 2000 events
+// per window, ≤ 16 degrees of freedom and stops, the first point of a sweep) and, as Ctrl-C
+// would, interrupted through SimulatorOptions::interrupt after 2 s of wall time (a stiff scene
+// may legitimately need millions of search steps): what is fuzzed is that every path ends in a
+// status or a SceneError / InvalidInput / ResourceError, never in a crash, a hang (an interrupt
+// not honoured) or a sanitizer report. Build and run: docs/fuzzing.md.
+#include "fuzz_input.hpp"
+
+#include "vibro/io/resources.hpp"
+#include "vibro/io/results.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstddef>
+#include <cstdint>
+#include <mutex>
+#include <thread>
+
+namespace {
+
+/// Raises `flag` after `seconds`, unless destroyed first.
+class Watchdog {
+ public:
+  Watchdog(std::atomic<bool>& flag, double seconds)
+      : thread_([this, &flag, seconds] {
+          std::unique_lock<std::mutex> hold(lock_);
+          if (!wake_.wait_for(hold, std::chrono::duration<double>(seconds), [this] { return done_; }))
+            flag.store(true);
+        }) {}
+  ~Watchdog() {
+    {
+      std::lock_guard<std::mutex> hold(lock_);
+      done_ = true;
+    }
+    wake_.notify_all();
+    thread_.join();
+  }
+  Watchdog(const Watchdog&) = delete;
+  Watchdog& operator=(const Watchdog&) = delete;
+
+ private:
+  std::mutex lock_;
+  std::condition_variable wake_;
+  bool done_ = false;
+  std::thread thread_;
+};
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  using namespace vibro;
+  auto doc = fuzz::document(data, size);
+  if (!doc) return 0;
+  try {
+    io::Scene scene = doc->build();
+    if (scene.dof() > 16 || scene.stops.size() > 16) return 0;
+    if (scene.run.kind == io::RunSpec::Kind::sweep && !scene.run.axes.empty()) {
+      // The first point of the sweep, as the runner builds it.
+      for (const io::SweepAxis& axis : scene.run.axes) doc->set(axis.path, axis.values.front());
+      scene = doc->build_point();
+    }
+    scene.run.transient_periods = 0.0;
+    scene.run.periods = std::min(scene.run.periods, 2.0);
+    scene.record.samples_per_period = std::min(scene.record.samples_per_period, 100);
+    if (scene.record.sample_times.size() > 1000) scene.record.sample_times.resize(1000);
+    scene.solver.max_events = std::min(scene.solver.max_events, 2000L);
+    io::check_run_resources(scene, 1);  // `vibro check`
+    std::atomic<bool> stop{false};
+    scene.solver.interrupt = &stop;
+    const Watchdog watchdog(stop, 2.0);
+    const std::unique_ptr<Engine> engine = io::make_engine(scene);
+    io::Recording rec = io::Recording::for_scene(scene, scene.t0);
+    rec.summary = engine->run(scene.t0, scene.x0, scene.v0, rec.t_end, rec.observers());
+    if (rec.summary.status == RunStatus::completed && !(rec.summary.x.allFinite() && rec.summary.v.allFinite()))
+      __builtin_trap();  // a completed run never ends on a non-finite state
+  } catch (const io::SceneError&) {
+  } catch (const InvalidInput&) {     // an initial state or a time the engine refuses
+  } catch (const io::ResourceError&) {
+  }
+  return 0;
+}
