@@ -14,14 +14,15 @@
 ///    trigger level itself), leaving out samples inside either run's chatter tails (there the
 ///    true motion still bounces with rebound speeds up to r·u while a run that ended the
 ///    chatter holds the stop: an error of the order of u whatever the rule).
-/// --rule selects the chatter rule (vibro::ChatterRule; default second).
+/// --rule selects the chatter rule (vibro::ChatterRule; default second); --trigger sets
+/// solver.trigger for every run but the 1e-13 reference (default: SimulatorOptions' own).
 /// With --reference the tight run is also cross-checked against the independent fine-step RK8
 /// hybrid integrator of tests/support/reference_hybrid.hpp: for every release and every stick
 /// (chatter limit) of the engine, the nearest reference event of the same stop and kind; the
 /// worst |Δt| is printed (it takes seconds: the reference integrates every bounce).
 ///
 /// Usage: bench_engine [--periods P] [--repeat R] [--reference] [--height h]... [--problem a|b|ab]
-///                     [--timing-only] [--rule first|second]
+///                     [--timing-only] [--rule first|second] [--trigger ε]
 ///   (--height may be repeated; default thresholds 1e-6 … 1e-10). --timing-only runs only the
 ///   timed runs (no samples, no reference), e.g. for instruction counts:
 ///     valgrind --tool=callgrind --toggle-collect='vibro::Simulator::run*'
@@ -68,11 +69,13 @@ struct Sampled {
 };
 
 vibro::ChatterRule g_rule = vibro::ChatterRule::second_order;  // --rule
+double g_trigger = 0.0;                                          // --trigger (0: the default)
 
 vibro::SimulatorOptions options_for(double height) {
   vibro::SimulatorOptions o;
   o.chatter_height = height;
   o.chatter_rule = g_rule;
+  if (g_trigger > 0.0 && height > 1e-13) o.trigger = g_trigger;  // the reference keeps the default
   return o;
 }
 
@@ -117,6 +120,27 @@ class WorkProbe final : public vibro::Observer {
   const vibro::Simulator* sim_;
   long last_ = 0;
 };
+
+/// Bounces per chatter sequence: for each chatter limit, the impacts on its stop since that
+/// stop's previous release, stick or chatter limit (or the start of the run); mean and max.
+std::pair<double, long> chatter_bounces(const Sampled& run) {
+  long sequences = 0, total = 0, most = 0;
+  for (std::size_t i = 0; i < run.events.size(); ++i) {
+    const vibro::Event& e = run.events[i];
+    if (e.kind != vibro::EventKind::chatter_limit) continue;
+    long bounces = 0;
+    for (std::size_t k = i; k-- > 0;) {
+      const vibro::Event& b = run.events[k];
+      if (b.stop != e.stop) continue;
+      if (b.kind != vibro::EventKind::impact) break;
+      ++bounces;
+    }
+    ++sequences;
+    total += bounces;
+    most = std::max(most, bounces);
+  }
+  return {sequences > 0 ? static_cast<double>(total) / static_cast<double>(sequences) : 0.0, most};
+}
 
 /// Median and mean guard evaluations per search over a whole run.
 std::pair<double, double> search_work(const vibro::ImpactSystem& scene, double t_end, double height) {
@@ -248,19 +272,21 @@ void study(const char* name, double omega, const Settings& set) {
   std::printf("\n");
   const Sampled tight = sampled_run(scene, t_end, set.periods, 1e-13);
   const Timing tight_time = timed_runs(scene, t_end, 1e-13, std::max(1, set.repeat / 3));
-  std::printf("| chatter_height | µs / period | events / s | impacts | chatters | max state error |\n"
-              "|---|---|---|---|---|---|\n");
+  std::printf("| chatter_height | µs / period | events / s | impacts | chatters | bounces / chatter sequence (mean, max) | max state error |\n"
+              "|---|---|---|---|---|---|---|\n");
   for (double h : set.heights) {
     const Sampled r = sampled_run(scene, t_end, set.periods, h);
     const Timing t = timed_runs(scene, t_end, h, set.repeat);
-    std::printf("| %.0e | %.1f | %.3g | %ld | %ld | %.2e |\n", h, 1e6 * t.median_seconds / set.periods,
-                static_cast<double>(t.events) / t.median_seconds, r.summary.impacts, r.summary.chatters,
+    const auto [bounces, most] = chatter_bounces(r);
+    std::printf("| %.0e | %.1f | %.3g | %ld | %ld | %.1f, %ld | %.2e |\n", h, 1e6 * t.median_seconds / set.periods,
+                static_cast<double>(t.events) / t.median_seconds, r.summary.impacts, r.summary.chatters, bounces, most,
                 state_error(r, tight, t_end));
   }
-  std::printf("| 1e-13 (reference) | %.1f | %.3g | %ld | %ld | 0 |\n",
+  const auto [tight_bounces, tight_most] = chatter_bounces(tight);
+  std::printf("| 1e-13 (reference) | %.1f | %.3g | %ld | %ld | %.1f, %ld | 0 |\n",
               1e6 * tight_time.median_seconds / set.periods,
               static_cast<double>(tight_time.events) / tight_time.median_seconds, tight.summary.impacts,
-              tight.summary.chatters);
+              tight.summary.chatters, tight_bounces, tight_most);
 #ifdef VIBRO_BENCH_WITH_REFERENCE
   if (set.reference) cross_check(scene, t_end, tight);
 #else
@@ -279,6 +305,7 @@ int main(int argc, char** argv) {
     else if (a == "--height" && i + 1 < argc) set.heights.push_back(std::atof(argv[++i]));
     else if (a == "--reference") set.reference = true;
     else if (a == "--timing-only") set.timing_only = true;
+    else if (a == "--trigger" && i + 1 < argc) g_trigger = std::atof(argv[++i]);
     else if (a == "--rule" && i + 1 < argc) {
       const std::string r = argv[++i];
       if (r != "first" && r != "second") {
@@ -290,7 +317,7 @@ int main(int argc, char** argv) {
     else if (a == "--problem" && i + 1 < argc) set.problems = argv[++i];
     else {
       std::fprintf(stderr, "usage: bench_engine [--periods P] [--repeat R] [--reference] [--height h]... "
-                         "[--problem a|b|ab] [--timing-only] [--rule first|second]\n");
+                         "[--problem a|b|ab] [--timing-only] [--rule first|second] [--trigger ε]\n");
       return 2;
     }
   }
