@@ -35,6 +35,7 @@ cmake --build "$build" -j2 --target bench_engine work_precision bench_chain vibr
 
 raw="$build/performance_raw"
 mkdir -p "$raw"
+cores=$(nproc --all)  # before OMP_NUM_THREADS=1, which nproc would report
 export OMP_NUM_THREADS=1
 commit=$(git rev-parse --short=12 HEAD)
 dirty=$(git status --porcelain --untracked-files=no | grep -q . && echo " (plus uncommitted changes)" || true)
@@ -63,6 +64,6 @@ echo "report.sh: 4/4 bench_chain" >&2
 wall=$(( $(date +%s) - t0 ))
 load_after=$(uptime | sed 's/.*load average: //')
 python3 tools/bench/report_performance.py --raw "$raw" --out "$out" --commit "$commit$dirty" --cpu "$cpu" \
-  --cores "$(nproc)" --load-before "$load_before" --load-after "$load_after" --date "$started" --wall "$wall" \
+  --cores "$cores" --load-before "$load_before" --load-after "$load_after" --date "$started" --wall "$wall" \
   --allocations "$alloc_status" --work-precision "$root/docs/accuracy-work-precision.md"
 echo "report.sh: wrote $out (${wall} s)" >&2
