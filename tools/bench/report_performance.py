@@ -217,6 +217,11 @@ def main():
       "> 1e-10). The RK ratios follow from the same per-event cost: RK steps of a 2-DOF system are a few "
       "dozen flops, so the framework's margin is the number of steps per event, not the cost of each.")
     p("")
+    p("**Modal contact sets:** a set of k held stops is built by the secular equation on the free chain's modes "
+      "(src/secular.hpp: O(kN) memory, O(kN²) time), so one held stop is near 1 s at N = 10 000 and two take "
+      "about twice that; memory per set is far below the target. The free chain's own set-up (the `set-up s` "
+      "column of bench_chain, LAPACK dstemr on the full tridiagonal chain) is separate and still O(N²).")
+    p("")
     if profile:
         p("## Where (a)'s time goes (`perf record` of `bench_engine --timing-only --problem a --height 1e-9`)")
         p("")
