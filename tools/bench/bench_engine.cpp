@@ -16,10 +16,10 @@
 ///    chatter holds the stop: an error of the order of u whatever the rule).
 /// --rule selects the chatter rule (vibro::ChatterRule; default second); --trigger sets
 /// solver.trigger for every run but the 1e-13 reference (default: SimulatorOptions' own).
-/// With --reference the tight run is also cross-checked against the independent fine-step RK8
-/// hybrid integrator of tests/support/reference_hybrid.hpp: for every release and every stick
-/// (chatter limit) of the engine, the nearest reference event of the same stop and kind; the
-/// worst |Δt| is printed (it takes seconds: the reference integrates every bounce).
+/// With --reference every run (each threshold and the 1e-13 one) is also cross-checked against
+/// the independent fine-step RK8 hybrid integrator of tests/support/reference_hybrid.hpp: for
+/// every release and every stick (chatter limit) of the engine, the nearest reference event of
+/// the same stop and kind; worst and median |Δt|/T (the reference takes about a second).
 ///
 /// Usage: bench_engine [--periods P] [--repeat R] [--reference] [--height h]... [--problem a|b|ab]
 ///                     [--timing-only] [--rule first|second] [--trigger ε]
@@ -204,9 +204,11 @@ double state_error(const Sampled& run, const Sampled& ref, double t_end) {
 }
 
 #ifdef VIBRO_BENCH_WITH_REFERENCE
-/// Worst |Δt| between the engine's releases / sticks (chatter limits) and the reference's nearest
-/// event of the same stop and kind.
-void cross_check(const vibro::ImpactSystem& scene, double t_end, const Sampled& tight) {
+/// Chatter-limit (stick) and release times of each run against the independent RK8 hybrid
+/// reference: for every release and every stick (chatter limit) of the engine, the nearest
+/// reference event of the same stop and kind; worst and median |Δt|/T per run.
+void cross_check(const vibro::ImpactSystem& scene, double t_end, double period,
+                 const std::vector<std::pair<std::string, const Sampled*>>& runs) {
   using namespace vibro::test;
   ReferenceHybridOptions o;
   o.stick_velocity = 1e-7L;
@@ -214,31 +216,31 @@ void cross_check(const vibro::ImpactSystem& scene, double t_end, const Sampled& 
   const double start = thread_seconds();
   ref.run(0.0L, VectorL::Zero(scene.dof()), VectorL::Zero(scene.dof()), static_cast<long double>(t_end));
   const double seconds = thread_seconds() - start;
-  double release = 0.0, stick = 0.0;
-  long releases = 0, sticks = 0;
-  for (const vibro::Event& e : tight.events) {
-    const bool is_release = e.kind == vibro::EventKind::release;
-    const bool is_stick = e.kind == vibro::EventKind::chatter_limit || e.kind == vibro::EventKind::stick;
-    if (!is_release && !is_stick) continue;
-    double best = std::numeric_limits<double>::infinity();
-    for (const ReferenceEvent& r : ref.events) {
-      if (r.stop != e.stop) continue;
-      if (is_release && r.kind != ReferenceEventKind::release) continue;
-      if (is_stick && r.kind != ReferenceEventKind::stick) continue;
-      const double t_ref = static_cast<double>(is_stick ? r.t_limit : r.t);
-      best = std::min(best, std::abs(t_ref - e.t));
+  std::printf("\nagainst the independent RK8 hybrid reference (tests/support/reference_hybrid.hpp, %.1f s): |Δt|/T of "
+              "the nearest reference event of the same stop and kind\n\n"
+              "| chatter_height | sticks / chatter limits | worst | median | releases | worst |\n|---|---|---|---|---|---|\n",
+              seconds);
+  for (const auto& [name, run] : runs) {
+    std::vector<double> stick, release;
+    for (const vibro::Event& e : run->events) {
+      const bool is_release = e.kind == vibro::EventKind::release;
+      const bool is_stick = e.kind == vibro::EventKind::chatter_limit || e.kind == vibro::EventKind::stick;
+      if (!is_release && !is_stick) continue;
+      double best = std::numeric_limits<double>::infinity();
+      for (const ReferenceEvent& r : ref.events) {
+        if (r.stop != e.stop) continue;
+        if (is_release && r.kind != ReferenceEventKind::release) continue;
+        if (is_stick && r.kind != ReferenceEventKind::stick) continue;
+        const double t_ref = static_cast<double>(is_stick ? r.t_limit : r.t);
+        best = std::min(best, std::abs(t_ref - e.t) / period);
+      }
+      (is_release ? release : stick).push_back(best);
     }
-    if (is_release) {
-      release = std::max(release, best);
-      ++releases;
-    } else {
-      stick = std::max(stick, best);
-      ++sticks;
-    }
+    std::sort(stick.begin(), stick.end());
+    std::sort(release.begin(), release.end());
+    std::printf("| %s | %zu | %.2e | %.2e | %zu | %.2e |\n", name.c_str(), stick.size(), stick.empty() ? 0.0 : stick.back(),
+                stick.empty() ? 0.0 : stick[stick.size() / 2], release.size(), release.empty() ? 0.0 : release.back());
   }
-  std::printf("\ncross-check of the 1e-13 run against the RK8 hybrid reference (%.1f s): "
-              "%ld releases, worst |dt| %.2e; %ld sticks/chatter limits, worst |dt| %.2e\n",
-              seconds, releases, release, sticks, stick);
 }
 #endif
 
@@ -274,8 +276,11 @@ void study(const char* name, double omega, const Settings& set) {
   const Timing tight_time = timed_runs(scene, t_end, 1e-13, std::max(1, set.repeat / 3));
   std::printf("| chatter_height | µs / period | events / s | impacts | chatters | bounces / chatter sequence (mean, max) | max state error |\n"
               "|---|---|---|---|---|---|---|\n");
+  std::vector<Sampled> kept;
+  kept.reserve(set.heights.size());
   for (double h : set.heights) {
-    const Sampled r = sampled_run(scene, t_end, set.periods, h);
+    kept.push_back(sampled_run(scene, t_end, set.periods, h));
+    const Sampled& r = kept.back();
     const Timing t = timed_runs(scene, t_end, h, set.repeat);
     const auto [bounces, most] = chatter_bounces(r);
     std::printf("| %.0e | %.1f | %.3g | %ld | %ld | %.1f, %ld | %.2e |\n", h, 1e6 * t.median_seconds / set.periods,
@@ -288,7 +293,16 @@ void study(const char* name, double omega, const Settings& set) {
               static_cast<double>(tight_time.events) / tight_time.median_seconds, tight.summary.impacts,
               tight.summary.chatters, tight_bounces, tight_most);
 #ifdef VIBRO_BENCH_WITH_REFERENCE
-  if (set.reference) cross_check(scene, t_end, tight);
+  if (set.reference) {
+    std::vector<std::pair<std::string, const Sampled*>> runs;
+    char name[32];
+    for (std::size_t i = 0; i < set.heights.size(); ++i) {
+      std::snprintf(name, sizeof name, "%.0e", set.heights[i]);
+      runs.emplace_back(name, &kept[i]);
+    }
+    runs.emplace_back("1e-13", &tight);
+    cross_check(scene, t_end, 2.0 * std::numbers::pi / omega, runs);
+  }
 #else
   if (set.reference) std::printf("(--reference: built without tests/support; not available)\n");
 #endif
