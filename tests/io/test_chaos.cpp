@@ -320,3 +320,38 @@ run:
   CHECK(e[0] >= e[1]);
   CHECK(e[0] < 0.0);
 }
+
+TEST_CASE("a lyapunov grid without follow runs every point from the initial state, in parallel",
+          "[runner][lyapunov]") {
+  const std::string text = kChain + R"(
+run:
+  kind: lyapunov
+  transient_periods: 100
+  lyapunov:
+    path: forcing.frequency
+    values: [1.66, 1.70, 1.77]
+    follow: false
+    transient: 100
+    align: 20
+    periods: 200
+)";
+  const ResultReader r = run_file(text, "lyapunov_parallel");
+  const std::vector<double> e = r.read("/lyapunov/exponents");
+  const std::vector<std::int64_t> finite = r.read_integers("/lyapunov/finite");
+  SceneDocument at(SceneDocument::parse(text, "lyapunov_parallel.yaml"));
+  LyapunovOptions o;
+  o.transient = 200;  // run.transient_periods + transient at every point
+  o.align = 20;
+  o.periods = 200;
+  const std::vector<double> grid{1.66, 1.70, 1.77};
+  for (std::size_t g = 0; g < grid.size(); ++g) {
+    at.set("forcing.frequency", grid[g]);
+    const Scene s = at.build_point();
+    const LyapunovResult want = lyapunov_spectrum(s.impact_system(), s.solver, 0.0, s.x0, s.v0, o);
+    for (std::size_t i = 0; i < 4; ++i) {
+      const double w = want.exponents(static_cast<Eigen::Index>(i));
+      CHECK(finite.at(g * 4 + i) == (std::isfinite(w) ? 1 : 0));
+      CHECK(e.at(g * 4 + i) == (std::isfinite(w) ? w : 0.0));
+    }
+  }
+}

@@ -958,16 +958,20 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       if (!(f.frequency > 0.0))
         r.fail(rn["kind"], "run.kind", "Lyapunov exponents are averaged over forcing periods: they need a forcing frequency > 0 (forcing.frequency)");
       if (ly) {
-        r.expect_map(ly, "run.lyapunov", {"count", "transient", "align", "periods", "path", "linspace", "logspace", "values"});
+        r.expect_map(ly, "run.lyapunov", {"count", "transient", "align", "periods", "follow", "path", "linspace", "logspace", "values"});
         if (ly["count"]) l.count = static_cast<int>(r.integer(ly["count"], "run.lyapunov.count", 0, 2 * static_cast<long>(n)));
         if (ly["transient"]) l.transient = r.integer(ly["transient"], "run.lyapunov.transient", 0, 100000000);
         if (ly["align"]) l.align = r.integer(ly["align"], "run.lyapunov.align", 0, 100000000);
         if (ly["periods"]) l.periods = r.integer(ly["periods"], "run.lyapunov.periods", 1, 100000000);
         if (ly["path"] || ly["linspace"] || ly["logspace"] || ly["values"]) {
-          run.axes.push_back(parse_axis(ly, "run.lyapunov", {}, {"count", "transient", "align", "periods"}));
+          run.axes.push_back(parse_axis(ly, "run.lyapunov", {}, {"count", "transient", "align", "periods", "follow"}));
           monotonic(ly, "run.lyapunov");
           check_values(run.axes[0], ly, "run.lyapunov");
           l.along = true;
+        }
+        if (ly["follow"]) {
+          l.follow = r.boolean(ly["follow"], "run.lyapunov.follow");
+          if (!l.along) r.fail(ly["follow"], "run.lyapunov.follow", "only with a grid (run.lyapunov.path and its values)");
         }
       }
     }

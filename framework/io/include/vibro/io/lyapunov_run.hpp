@@ -15,8 +15,10 @@
 ///         linspace: [1.70, 1.80, 101]
 ///
 /// Along a parameter each grid point starts from the state the previous one ended in (the
-/// attractor is followed, in the order the grid is given), so the points run in order; the time
-/// restarts at initial.time at every point. Structural exponents (stops held: −∞ exactly) are
+/// attractor is followed, in the order the grid is given), so the points run in order; with
+/// `follow: false` every point starts from the initial state (run.transient_periods + transient
+/// periods) and the points run in parallel (OpenMP), written in grid order. The time restarts at
+/// initial.time at every point. Structural exponents (stops held: −∞ exactly) are
 /// written as 0 with `finite` 0 (HDF5 files hold finite values only). Dense engine only.
 /// Layout of /lyapunov: docs/results.md.
 #include "vibro/io/runner.hpp"

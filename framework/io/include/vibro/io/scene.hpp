@@ -130,6 +130,7 @@ struct LyapunovSpec {
   long align = 50;         ///< periods the frame turns onto the leading directions
   long periods = 1000;     ///< periods averaged
   bool along = false;      ///< a parameter grid is given (run.axes[0])
+  bool follow = true;      ///< along a grid: each point from the previous one's end (else from initial, in parallel)
 };
 
 struct RunSpec {
