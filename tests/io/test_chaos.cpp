@@ -17,6 +17,7 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <numeric>
@@ -354,4 +355,25 @@ run:
       CHECK(e.at(g * 4 + i) == (std::isfinite(w) ? w : 0.0));
     }
   }
+}
+
+TEST_CASE("an interrupted basin is written with its points not run labelled -3 and exit code 130",
+          "[runner][basin]") {
+  const SceneDocument doc = SceneDocument::parse(kBasin, "basin_stopped.yaml");
+  const Scene scene = doc.build();
+  const std::string out = temp_path("basin_stopped.h5");
+  std::filesystem::remove(out);
+  std::atomic<bool> stop{true};  // raised before the run: no point runs
+  RunRequest request;
+  request.output = out;
+  request.threads = 2;
+  request.interrupt = &stop;
+  const RunReport report = run_scene(doc, scene, request);
+  CAPTURE(report.summary);
+  CHECK(report.exit_code == 130);
+  const ResultReader r(out);
+  CHECK(r.attribute_string("/meta", "status") == "interrupted");
+  const auto label = r.read_integers("/basin/label");
+  CHECK(std::count(label.begin(), label.end(), -3) == 100);
+  CHECK(r.read_integers("/attractors/period").empty());
 }

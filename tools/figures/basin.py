@@ -5,12 +5,12 @@
 Draws the label image over the two varied scene values (rows: /basin/p1, columns: /basin/p2),
 one colour per attractor with a legend giving its period and share of the grid, grey for the
 points that did not converge within the scene's period budget (chaotic, quasi-periodic or slow)
-and black for runs that stopped early. Where both varied values are components of the initial
+black for runs that stopped early and white for starts not run (an interrupted basin). Where both varied values are components of the initial
 state (initial.x[i], initial.v[i]) the attractors' stroboscopic points are marked, projected onto
 the plane (their other components differ from the grid's starts, so a mark need not lie in its
 own colour).
 
-Checks (the script fails if one does not hold): every label is −2, −1 or an attractor's index;
+Checks (the script fails if one does not hold): every label is −3, −2, −1 or an attractor's index;
 the attractors' cell counts add up to the labelled points.
 
 Writes OUTDIR/basin.png and OUTDIR/basin.pdf.
@@ -53,14 +53,14 @@ def main():
         omega = 2 * np.pi / float(f["scene"].attrs["period"])
         wall = float(f["meta"].attrs.get("wall_time", np.nan))
     n_att = len(period)
-    if label.min() < -2 or label.max() >= n_att:
-        fail(f"labels outside [-2, {n_att - 1}]")
+    if label.min() < -3 or label.max() >= n_att:
+        fail(f"labels outside [-3, {n_att - 1}]")
     for k in range(n_att):
         if np.count_nonzero(label == k) != cells[k]:
             fail(f"attractor {k}: {np.count_nonzero(label == k)} labelled points, /attractors/cells says {cells[k]}")
 
-    colours = ["black", "0.75"] + [ATTRACTOR_COLOURS[k % len(ATTRACTOR_COLOURS)] for k in range(n_att)]
-    image = label + 2  # −2 → 0 (black), −1 → 1 (grey), k → k + 2
+    colours = ["white", "black", "0.75"] + [ATTRACTOR_COLOURS[k % len(ATTRACTOR_COLOURS)] for k in range(n_att)]
+    image = label + 3  # −3 → 0 (white), −2 → 1 (black), −1 → 2 (grey), k → k + 3
     fig, ax = plt.subplots(figsize=(5.2, 4.4))
     dx = (p2[-1] - p2[0]) / max(len(p2) - 1, 1) / 2
     dy = (p1[-1] - p1[0]) / max(len(p1) - 1, 1) / 2
@@ -70,16 +70,16 @@ def main():
     total = label.size
     for k in range(n_att):
         share = 100.0 * cells[k] / total
-        handles.append(Patch(color=colours[k + 2], label=f"attractor {k}: period {period[k]} ({share:.1f} %)"))
+        handles.append(Patch(color=colours[k + 3], label=f"attractor {k}: period {period[k]} ({share:.1f} %)"))
         rows = slice(first[k], first[k] + period[k])
         c1 = state_component(path1, ax_[rows], av_[rows])
         c2 = state_component(path2, ax_[rows], av_[rows])
         if c1 is not None and c2 is not None:
-            ax.plot(c2, c1, "o", ms=5, mfc=colours[k + 2], mec="black", mew=0.8)
-    for code, text in ((-1, "not converged"), (-2, "stopped early")):
+            ax.plot(c2, c1, "o", ms=5, mfc=colours[k + 3], mec="black", mew=0.8)
+    for code, text in ((-1, "not converged"), (-2, "stopped early"), (-3, "not run (interrupted)")):
         n = np.count_nonzero(label == code)
         if n:
-            handles.append(Patch(color=colours[code + 2], label=f"{text} ({100.0 * n / total:.1f} %)"))
+            handles.append(Patch(facecolor=colours[code + 3], edgecolor="0.5", label=f"{text} ({100.0 * n / total:.1f} %)"))
     ax.legend(handles=handles, loc="upper right", framealpha=0.9)
     ax.set_xlabel(path2)
     ax.set_ylabel(path1)

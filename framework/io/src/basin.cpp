@@ -16,6 +16,7 @@
 #include <mpi.h>
 #endif
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -35,6 +36,7 @@ using detail::reals;
 
 constexpr std::int64_t kNotConverged = -1;
 constexpr std::int64_t kStoppedEarly = -2;
+constexpr std::int64_t kNotRun = -3;  ///< the run was interrupted before this point
 /// A period-k repeat counts only if no proper divisor q of k repeats to kDistinct × tolerance
 /// (as in orbit.cpp: a period-1 orbit approached with a multiplier near −1 passes k = 2 first).
 constexpr double kDistinct = 1e3;
@@ -47,8 +49,8 @@ struct Attractor {
 
 /// What one grid point's run ended on.
 struct PointResult {
-  enum class Outcome : std::int64_t { matched = 0, found = 1, not_converged = 2, stopped = 3 };
-  Outcome outcome = Outcome::not_converged;
+  enum class Outcome : std::int64_t { matched = 0, found = 1, not_converged = 2, stopped = 3, not_run = 4 };
+  Outcome outcome = Outcome::not_run;
   long periods = 0;
   int attractor = -1;  ///< matched: the catalogue index
   Attractor orbit;     ///< found: the new attractor
@@ -303,6 +305,8 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
     } else if (r.outcome == PointResult::Outcome::not_converged) {
       label[g] = kNotConverged;
       ++not_converged;
+    } else if (r.outcome == PointResult::Outcome::not_run) {
+      label[g] = kNotRun;
     } else {
       label[g] = kStoppedEarly;
       ++stopped;
@@ -328,7 +332,8 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
   labels.shape = {n1, n2};
   labels.labels.emplace_back("codes", std::vector<std::string>{
                                           "-1: not converged within run.basin.max_periods (chaotic, quasi-periodic or slow)",
-                                          "-2: the run stopped early (/meta message)"});
+                                          "-2: the run stopped early (/meta message)",
+                                          "-3: not run (the basin was interrupted)"});
   Dataset used = integers("periods_used", periods);
   used.shape = {n1, n2};
   const double mean_periods = static_cast<double>(periods_total) / static_cast<double>(total);
@@ -343,7 +348,7 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
 
   const bool interrupted = request.interrupt && request.interrupt->load();
   file->set_outcome(interrupted ? "interrupted" : stopped ? "points_stopped_early" : "completed",
-                    interrupted ? "interrupted: points after it were not run (label -2 or 0 periods)" : message,
+                    interrupted ? "interrupted: the points not run are labelled -3, those cut short -2" : message,
                     {{"points", static_cast<std::int64_t>(total)},
                      {"attractors", static_cast<std::int64_t>(catalogue.size())},
                      {"points_not_converged", not_converged},
@@ -363,6 +368,8 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
   if (not_converged > 0)
     text += fmt::format("  {} points not converged within {} periods (label -1)\n", not_converged, spec.max_periods);
   if (stopped > 0) text += fmt::format("  {} points stopped early (label -2): {}\n", stopped, message);
+  const auto not_run = std::count(label.begin(), label.end(), kNotRun);
+  if (not_run > 0) text += fmt::format("  {} points not run: interrupted (label -3)\n", not_run);
   text += fmt::format("Results in {}.", file->path());
   return {interrupted ? 130 : stopped ? 1 : 0, text, request.in_memory ? file->image() : std::vector<char>{}};
 }

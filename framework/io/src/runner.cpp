@@ -937,9 +937,21 @@ RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunReque
   // Under MPI only sweeps and basins are split across the processes; any other run is rank 0's alone.
   if (scene.run.kind != RunSpec::Kind::sweep && scene.run.kind != RunSpec::Kind::basin && world().first != 0) return {};
   if (scene.run.kind == RunSpec::Kind::sweep) return run_sweep(doc, scene, request);
-  if (scene.run.kind == RunSpec::Kind::basin && !request.resume) return run_basin(doc, scene, request);
-  if (scene.run.kind == RunSpec::Kind::diagram && !request.resume) return run_diagram(doc, scene, request);
-  if (scene.run.kind == RunSpec::Kind::lyapunov && !request.resume) return run_lyapunov(doc, scene, request);
+  const RunSpec::Kind kind = scene.run.kind;
+  if ((kind == RunSpec::Kind::basin || kind == RunSpec::Kind::diagram || kind == RunSpec::Kind::lyapunov) &&
+      !request.resume) {
+    // Long runs: SIGINT/SIGTERM stop them at the next event (a basin takes no new points) and
+    // their file is written with what was done, status interrupted, exit code 130.
+    RunRequest stoppable = request;
+    std::optional<InterruptGuard> guard;  // signals are the caller's when it gives its own flag
+    if (!stoppable.interrupt) {
+      guard.emplace();
+      stoppable.interrupt = &g_interrupted;
+    }
+    return kind == RunSpec::Kind::basin     ? run_basin(doc, scene, stoppable)
+           : kind == RunSpec::Kind::diagram ? run_diagram(doc, scene, stoppable)
+                                            : run_lyapunov(doc, scene, stoppable);
+  }
   if (scene.run.kind == RunSpec::Kind::locate && !request.resume) return run_locate(doc, scene, request);
   if (scene.run.kind == RunSpec::Kind::continuation && !request.resume) return run_continuation(doc, scene, request);
   if (request.resume)
