@@ -344,7 +344,7 @@ class BranchRunner {
         // step over it in p (the orbit on the far side is found by Newton at fixed p).
         // An event drifting into the section faster than the margin allows makes the map jump
         // within the step: move the section further from it (once per stall) and go on.
-        if (h < 1e-2 * o_.max_step && !resection_tried) {
+        if (h < 1e-2 * o_.max_step && !resection_tried && !near_nonsmooth(cur)) {
           resection_tried = true;
           if (std::optional<Node> moved = resection(cur, kSectionMargin)) {
             cur = std::move(*moved);
