@@ -79,6 +79,10 @@ for path in sys.argv[1:]:
             print(names[int(kind[i])], repr(float(p2[i])), repr(float(p1[i])))
 EOF
 )
+status=0
 $py tools/figures/two_parameter.py --build "$build" "$d/rising_curve.h5" "$d/grazing_curve.h5" "${checks[@]}" "$out" |
-  tee "$out/two_parameter.txt"
+  tee "$out/two_parameter.txt" || status=$?
 echo "Figures in $out (PNG and PDF), results and logs in $d." >&2
+# A check that does not hold is reported (CHECK FAILED in two_parameter.txt), never hidden.
+[ "$status" -eq 0 ] || echo "run_continuation_examples: a two-parameter check failed (see $out/two_parameter.txt)" >&2
+exit "$status"

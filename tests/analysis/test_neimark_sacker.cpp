@@ -23,6 +23,7 @@
 
 #include <cmath>
 #include <complex>
+#include <iomanip>
 #include <numbers>
 #include <optional>
 
@@ -169,7 +170,8 @@ TEST_CASE("continuation: a two-mass impact oscillator's branch loses and regains
   REQUIRE(ns.size() == 2);
   if (ns[0]->p > ns[1]->p) std::swap(ns[0], ns[1]);
   for (auto [found, expected] : {std::pair{ns[0], ns_low}, std::pair{ns[1], ns_high}}) {
-    INFO("expected at " << expected << ", located at " << found->p << " (bracket " << found->p_low << " … "
+    INFO(std::setprecision(15) << "expected at " << expected << ", located at " << found->p << " (difference "
+                                << found->p - expected << ", bracket " << found->p_low << " … "
                         << found->p_high << ", value " << found->value << ")");
     CHECK(found->smooth);
     CHECK(std::abs(found->p - expected) <= 1e-10);
