@@ -678,9 +678,12 @@ class BranchRunner {
     std::vector<Good> g{{good.e.p, f(good), good}};
     double toward = bad.e.p;
     const VectorXd along = good.t;
-    // The zero lies within the bracket or, at a corner, a little beyond one of its ends; a
-    // secant that leads further has left the orbit family between the two points.
-    const double reach = 2.0 * std::abs(bad.e.p - good.e.p);
+    // The zero lies within the bracket or, at a corner, beyond one of its ends: after a jump from
+    // the unstable side of a fold onto the branch without the impact, the corner lies below both
+    // points by a few times their distance (the paper's system at A1 = 0.4939: 2.6 ×, where a
+    // reach of 2 × left only a bisection between two branches). A secant that leads further has
+    // left the orbit family.
+    const double reach = 8.0 * std::abs(bad.e.p - good.e.p);
     const double lo = std::min(good.e.p, bad.e.p) - reach, hi = std::max(good.e.p, bad.e.p) + reach;
     const bool doubled = c_.k > o_.period;
     for (int it = 0; it < 60; ++it) {
