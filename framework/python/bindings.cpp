@@ -84,8 +84,7 @@ py::dict describe(const vibro::io::Scene& s) {
   d["stops"] = stops;
   d["engine"] = vibro::io::to_string(s.engine);
   d["engine_reason"] = s.engine_reason;
-  using Kind = vibro::io::RunSpec::Kind;
-  d["run_kind"] = s.run.kind == Kind::sweep ? "sweep" : s.run.kind == Kind::locate ? "locate" : s.run.kind == Kind::continuation ? "continue" : "simulate";
+  d["run_kind"] = vibro::io::to_string(s.run.kind);
   d["transient_periods"] = s.run.transient_periods;
   d["periods"] = s.run.periods;
   py::list axes;

@@ -14,6 +14,8 @@ CASE is one of
            made), then finished with `mpirun … vibro run --resume` — a plain sweep and a 2-D
            followed one cut in the middle of a row (rank 0 sends the row's state to the others);
            the result equals one uninterrupted process;
+  basin    a run.kind: basin (Ω = 1.2, two coexisting orbits) on 2 processes × 1 thread against
+           one process on 2 threads;
   errors   bad input and a stale OUT.partial under MPI: exit code 2, one message (from rank 0),
            no file, no hang.
 
@@ -76,6 +78,25 @@ SWEEPS = {
     follow: true
 """,
 }
+
+BASIN = """\
+# The paper's system at Ω = 1.2: a period-2 and a period-1 orbit coexist (experiments/chaos/).
+name: mpi-basin
+model:
+  chain: {masses: [1, 1], springs: [1], dampers: [0.1], left_wall: {spring: 1, damper: 0.1}}
+forcing: {frequency: 1.2, cosine: [0.5, 0]}
+stops:
+  - {mass: 0, side: lower, position: -0.3, restitution: 0.7, name: s1}
+  - {mass: 1, side: upper, position: 0.1, restitution: 0.7, name: s2}
+initial: {x: [0, 0], v: [0, 0]}
+run:
+  kind: basin
+  basin:
+    parameters:
+      - {path: "initial.x[0]", linspace: [-0.29, 0.6, 9]}
+      - {path: "initial.v[0]", linspace: [-0.6, 0.6, 7]}
+    seed_stride: 4
+"""
 
 
 def fail(message):
@@ -159,7 +180,7 @@ def write_scene(work, key):
 
 def main():
     parser = argparse.ArgumentParser()
-    parser.add_argument("case", choices=["plain", "follow", "resume", "errors"])
+    parser.add_argument("case", choices=["plain", "follow", "resume", "basin", "errors"])
     parser.add_argument("--vibro", required=True)
     parser.add_argument("--driver", required=True)
     parser.add_argument("--mpirun", required=True)
@@ -219,6 +240,17 @@ def main():
             with h5py.File(many, "r") as f:
                 if int(f["/meta"].attrs["resumed"]) != 1:
                     fail(f"{key}: /meta resumed = {f['/meta'].attrs['resumed']} after --resume")
+    elif o.case == "basin":
+        scene = os.path.join(work, "basin.yaml")
+        with open(scene, "w") as f:
+            f.write(BASIN)
+        one, many = os.path.join(work, "basin-one.h5"), os.path.join(work, "basin-many.h5")
+        reference(scene, one)
+        expect(mpirun + [o.vibro, "run", scene, "-o", many, "--threads", "1"], "mpirun basin", 0)
+        compare(one, many, "basin, 2 processes × 1 thread", 2, 1)
+        with h5py.File(one, "r") as f:
+            if f["attractors/period"].shape[0] != 2:
+                fail(f"basin: {f['attractors/period'].shape[0]} attractors, expected 2")
     elif o.case == "errors":
         scene = write_scene(work, "plain")
         out = os.path.join(work, "out.h5")

@@ -108,3 +108,34 @@ def test_keyword_runs_equal_the_scene_that_says_the_same(tmp_path, cli):
     # The scene's text and file name are those of the scene each was given; all else is equal.
     assert differences(tmp_path / "python.h5", tmp_path / "cli.h5",
                        {("/scene", "yaml"), ("/scene", "file")}) == []
+
+
+BASIN = PAPER.replace("frequency: 0.255", "frequency: 1.2") + """\
+run:
+  kind: basin
+  basin:
+    parameters:
+      - {path: "initial.x[0]", linspace: [-0.29, 0.6, 6]}
+      - {path: "initial.v[0]", linspace: [-0.6, 0.6, 5]}
+    seed_stride: 3
+"""
+DIAGRAM = PAPER + """\
+run:
+  kind: diagram
+  transient_periods: 50
+  diagram: {path: forcing.frequency, values: [0.255, 0.26, 0.27], transient: 20, points: 4, max_period: 2}
+"""
+LYAPUNOV = PAPER + """\
+run:
+  kind: lyapunov
+  lyapunov: {path: forcing.frequency, values: [0.255, 0.26], transient: 20, align: 5, periods: 20}
+"""
+
+
+def test_chaos_run_kinds_equal_the_command(tmp_path, cli):
+    """run.kind: basin, diagram and lyapunov through vibro.run() (issue 16)."""
+    for text, groups in ((BASIN, {"basin", "attractors"}), (DIAGRAM, {"diagram"}), (LYAPUNOV, {"lyapunov"})):
+        result = check_same(tmp_path, cli, text, 2, threads=2)
+        assert groups <= set(result.groups)
+        for name in ("cli.h5", "python.h5"):
+            (tmp_path / name).unlink()

@@ -3,8 +3,7 @@ located bifurcation, and the orbits that coexist where the branch folds.
 
 (a) each stop's sticking fraction along the branch, stable parts solid and unstable parts dashed,
     located bifurcations marked (▲ rising, ● grazing, ◆ fold, ■ phase/chatter change, ✕ other);
-(b) the largest Floquet multiplier |μ| (log scale; |μ| = 1 dotted): stability along the branch;
-(c), (d) zooms on the two stretches where the branch folds (Ω ≈ 0.2574–0.2594, where mass 1's
+(b), (c) zooms on the two stretches where the branch folds (Ω ≈ 0.2574–0.2594, where mass 1's
     bounces after its split sticking phase vanish one by one at grazings, each with a fold, and
     Ω ≈ 0.2637, where mass 1 loses an impact per period);
 and a second figure with the two stable orbits that coexist between the grazing corner and the
@@ -13,6 +12,9 @@ from its branch point, then drawn over two periods; the script fails if they do 
 
     vibro run experiments/wagg2004/continuation.yaml -o continuation.h5
     python3 tools/figures/continuation.py continuation.h5 experiments/wagg2004/continuation.yaml BUILD_DIR OUTDIR
+
+Any other scene's branch: `continuation.py --name NAME FILE.h5 SCENE.yaml BUILD_DIR OUTDIR` draws (a),
+its largest multiplier over the whole range and a zoom on the stretch with the most bifurcations.
 """
 import os
 import sys
@@ -128,11 +130,30 @@ def coexistence(build, scene_file, outdir, b, bi, param, scene):
     print(f"coexisting stable orbits at Omega = {omega:.9f}: {out}")
 
 
+def densest_window(bi, lo, hi):
+    """The stretch of a tenth of [lo, hi] holding the most located bifurcations."""
+    width = 0.1 * (hi - lo)
+    ps = np.sort(np.asarray(bi["p"]))
+    if len(ps) == 0:
+        return lo, lo + width
+    counts = [np.count_nonzero((ps >= p) & (ps <= p + width)) for p in ps]
+    start = ps[int(np.argmax(counts))]
+    pad = 0.1 * width
+    return start - pad, start + width - pad
+
+
 def main():
     a = sys.argv[1:]
+    name = None
+    if len(a) >= 2 and a[0] == "--name":
+        name, a = a[1], a[2:]
     if len(a) != 4:
-        c.fail("usage: continuation.py CONTINUATION.h5 SCENE.yaml BUILD_DIR OUTDIR")
+        c.fail("usage: continuation.py [--name NAME] CONTINUATION.h5 SCENE.yaml BUILD_DIR OUTDIR")
     path, scene_file, build, outdir = a
+    # The paper's system (two masses, stops s1 and s2) gets its two fold stretches zoomed and its
+    # coexisting orbits drawn; any other scene (--name) its branch, its largest multiplier over
+    # the whole range and a zoom on the stretch with the most bifurcations.
+    paper = name is None
     os.makedirs(outdir, exist_ok=True)
     b, bi, scene, param = read(path)
     if not np.all(b["residual"] < 1e-8):
@@ -151,18 +172,21 @@ def main():
     ax_a.set(xlabel="Ω", ylabel="sticking fraction of the period",
              title="(a) the branch in Ω: stable solid, unstable dashed; ▲ rising, ○ grazing, ◆ fold, ■ phase/chatter change")
     ax_a.legend(loc="upper left")
-    for ax, (lo, hi), tag in ((ax_c, (0.2573, 0.2595), "(c)"), (ax_d, (0.26365, 0.26385), "(d)")):
+    lo_all, hi_all = float(np.min(b["p"])), float(np.max(b["p"]))
+    windows = ((0.2573, 0.2595), (0.26365, 0.26385)) if paper else ((lo_all, hi_all), densest_window(bi, lo_all, hi_all))
+    for ax, (lo, hi), tag in zip((ax_c, ax_d), windows, ("(b)", "(c)")):
         sel = (b["p"] >= lo) & (b["p"] <= hi)
         draw_branch(ax, {k: v[sel] for k, v in b.items()}, radius[sel], "k")
         mark(ax, bi, {k: v[sel] for k, v in b.items()}, None, lambda k: radius[sel][k], xlim=(lo, hi))
         ax.axhline(1.0, color="grey", lw=0.6, ls=":")
         ax.set(yscale="log", xlim=(lo, hi), xlabel="Ω", ylabel="largest |μ|",
-               title=f"{tag} largest Floquet multiplier, Ω ∈ [{lo}, {hi}]")
+               title=f"{tag} largest Floquet multiplier, Ω ∈ [{lo:.5g}, {hi:.5g}]")
         ax.ticklabel_format(axis="x", useOffset=False)
         ax.xaxis.set_major_locator(plt.MaxNLocator(4))
     fig.tight_layout()
-    print(f"branch: {len(b['p'])} points, {len(bi['p'])} bifurcations: {c.save(fig, outdir, 'continuation')}")
-    coexistence(build, scene_file, outdir, b, bi, param, scene)
+    print(f"branch: {len(b['p'])} points, {len(bi['p'])} bifurcations: {c.save(fig, outdir, name or 'continuation')}")
+    if paper:
+        coexistence(build, scene_file, outdir, b, bi, param, scene)
 
 
 if __name__ == "__main__":

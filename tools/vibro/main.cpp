@@ -46,10 +46,7 @@ std::string resolved(const vibro::io::Scene& s) {
                      r.samples_per_period ? fmt::format("{} per period", r.samples_per_period)
                                           : fmt::format("{} times", r.sample_times.size()));
   out += fmt::format("  run: {}, transient {:g} periods, recorded {:g} periods\n",
-                     s.run.kind == vibro::io::RunSpec::Kind::sweep    ? "sweep"
-                     : s.run.kind == vibro::io::RunSpec::Kind::locate ? "locate"
-                     : s.run.kind == vibro::io::RunSpec::Kind::continuation ? "continue"
-                                                                      : "simulate",
+                     vibro::io::to_string(s.run.kind),
                      s.run.transient_periods, s.run.periods);
   for (const auto& a : s.run.axes)
     out += fmt::format("  sweep {}: {} values from {:.12g} to {:.12g}{}\n", a.path, a.values.size(),

@@ -1,5 +1,7 @@
 #include "vibro/continuation.hpp"
 
+#include "section.hpp"
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -19,6 +21,12 @@ using Eigen::MatrixXd;
 using Eigen::VectorXd;
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
+/// When the steps stall with an event within this fraction of T of the section (an impact drifting
+/// through it with p makes the map over kT jump), continuation moves its section. Only then:
+/// moving it whenever an event came near (tried at 1 % and 5 % of T) lost folds of the paper's
+/// branch, since the guard against steps landing back on the branch cannot compare states across
+/// sections and is reset at each move.
+constexpr double kSectionMargin = 0.01;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 VectorXd stacked(const VectorXd& x, const VectorXd& v) {
@@ -27,44 +35,71 @@ VectorXd stacked(const VectorXd& x, const VectorXd& v) {
   return z;
 }
 
-/// Per stop, its events in order; impacts in runs that end in a chatter limit belong to that
-/// chatter sequence (their number depends on the chatter rule's threshold, not on the orbit).
+/// Per stop, its events in order, with the impacts that belong to a chatter sequence told apart
+/// from the free ones (a sequence's number of resolved bounces depends on the chatter rule's
+/// threshold, not on the orbit; a free impact appearing or vanishing is a grazing).
+/// A run of impacts of one stop ends at its next release, stick or chatter limit; a run ending in
+/// a chatter limit holds its sequence from the impact after its longest flight on (the flights
+/// measured from the event that opened the run: a sequence's flights shrink towards the limit, a
+/// free bounce before it is separated from it by a longer flight); the impacts before that are
+/// free. The orbit is closed: the events are taken cyclically, the run still open at the end of
+/// the window continuing into the one that opens it, so the counts do not depend on where the
+/// section cuts the orbit.
 struct StopEvents {
   std::vector<ImpactRecord> free_impacts;  ///< impacts outside chatter sequences
   int chatters = 0, phases = 0;
 };
 
 std::vector<StopEvents> per_stop(const TangentMap& m, std::size_t stops) {
-  std::vector<StopEvents> out(stops);
-  std::vector<std::vector<std::size_t>> run(stops);  // indices into m.impacts of the open run
-  std::size_t next_impact = 0;
-  auto flush = [&](std::size_t j, bool caught) {
-    if (!caught)
-      for (std::size_t i : run[j]) out[j].free_impacts.push_back(m.impacts[i]);
-    run[j].clear();
+  struct Item {
+    double t;
+    EventKind kind;
+    std::size_t impact;  ///< index into m.impacts (impacts only)
   };
+  std::vector<std::vector<Item>> items(stops);
+  std::size_t next_impact = 0;
   for (const Event& e : m.events) {
     const auto j = static_cast<std::size_t>(e.stop);
-    if (j >= stops) continue;
-    switch (e.kind) {
-      case EventKind::impact:
-        if (next_impact < m.impacts.size()) run[j].push_back(next_impact++);
-        break;
-      case EventKind::chatter_limit:
-        flush(j, true);
-        ++out[j].chatters;
-        ++out[j].phases;
-        break;
-      case EventKind::stick:
-        flush(j, false);
-        ++out[j].phases;
-        break;
-      case EventKind::release:
-        flush(j, false);
-        break;
-    }
+    const bool impact = e.kind == EventKind::impact;
+    const std::size_t index = impact && next_impact < m.impacts.size() ? next_impact++ : m.impacts.size();
+    if (j >= stops || (impact && index == m.impacts.size())) continue;
+    items[j].push_back({e.t, e.kind, index});
   }
-  for (std::size_t j = 0; j < stops; ++j) flush(j, false);
+  const double span = m.t1 - m.t0;
+  std::vector<StopEvents> out(stops);
+  for (std::size_t j = 0; j < stops; ++j) {
+    std::vector<Item>& it = items[j];
+    // Rotate so that the events start just after the last closing event, one orbit earlier.
+    std::size_t last_close = it.size();
+    for (std::size_t i = 0; i < it.size(); ++i)
+      if (it[i].kind != EventKind::impact) last_close = i;
+    if (last_close < it.size()) {
+      for (std::size_t i = last_close + 1; i < it.size(); ++i) it[i].t -= span;
+      std::rotate(it.begin(), it.begin() + static_cast<std::ptrdiff_t>(last_close + 1), it.end());
+    }
+    double opened = it.empty() ? m.t0 : it.back().t - span;  // the closing event before the first
+    std::vector<const Item*> run;
+    for (const Item& e : it) {
+      if (e.kind == EventKind::impact) {
+        run.push_back(&e);
+        continue;
+      }
+      std::size_t first_caught = run.size();  // stick, release: every impact of the run is free
+      if (e.kind == EventKind::chatter_limit && !run.empty()) {
+        double longest = -1.0, before = opened;
+        for (std::size_t i = 0; i < run.size(); ++i) {
+          if (run[i]->t - before > longest) longest = run[i]->t - before, first_caught = i;
+          before = run[i]->t;
+        }
+      }
+      for (std::size_t i = 0; i < first_caught; ++i) out[j].free_impacts.push_back(m.impacts[run[i]->impact]);
+      run.clear();
+      opened = e.t;
+      if (e.kind == EventKind::chatter_limit) ++out[j].chatters;
+      if (e.kind != EventKind::release) ++out[j].phases;
+    }
+    for (const Item* e : run) out[j].free_impacts.push_back(m.impacts[e->impact]);  // no closing event at all
+  }
   return out;
 }
 
@@ -289,7 +324,7 @@ class BranchRunner {
     cur.t = c_.tangent(cur.e, t);
     double h = std::min(std::max(o_.step, o_.min_step), o_.max_step);
     double last_dp = h * c_.P;
-    bool jump_tried = false;
+    bool jump_tried = false, resection_tried = false;
     std::vector<VectorXd> trail{c_.scaled(cur.e)};  // the points of this half, scaled
     while (static_cast<int>(branch.points.size()) < o_.max_points) {
       int iterations = 0;
@@ -307,6 +342,16 @@ class BranchRunner {
         // Across a grazing or a rising the branch has a corner and the map's derivative blows up
         // on one side: arclength steps shrink towards it. Past a few halvings near such a point,
         // step over it in p (the orbit on the far side is found by Newton at fixed p).
+        // An event drifting into the section faster than the margin allows makes the map jump
+        // within the step: move the section further from it (once per stall) and go on.
+        if (h < 1e-2 * o_.max_step && !resection_tried && !near_nonsmooth(cur)) {
+          resection_tried = true;
+          if (std::optional<Node> moved = resection(cur, kSectionMargin)) {
+            cur = std::move(*moved);
+            trail.assign(1, c_.scaled(cur.e));  // the states of the old section are not comparable
+            continue;
+          }
+        }
         std::optional<Node> jumped;
         if (h < 1e-3 * o_.max_step && !jump_tried && near_nonsmooth(cur)) {
           jump_tried = true;
@@ -375,7 +420,7 @@ class BranchRunner {
       last_dp = std::max(std::abs(next.e.p - cur.e.p), 1e-9 * c_.P);
       trail.push_back(c_.scaled(next.e));
       cur = std::move(next);
-      jump_tried = false;
+      jump_tried = resection_tried = false;
       if (iterations <= 3) h = std::min(1.5 * h, o_.max_step);
       else if (iterations >= 6) h = std::max(0.6 * h, o_.min_step);
     }
@@ -474,6 +519,51 @@ class BranchRunner {
       record(BifurcationKind::rising, rise, cur, beyond, branch_index, f, Mode::one_sided,
              same_counts(cur.b.signature, j, &Signature::phases), note);
     }
+  }
+
+  /// The branch's section moved into the middle of the longest stretch of cur's orbit free of
+  /// events and held phases, if an event has come within margin·T of it (events drift with p; an
+  /// impact crossing the section makes the map over kT jump, and a section on a held stop is not
+  /// free). The state there is cur's orbit at the new time; the tangent is carried to it by the
+  /// tangent map of the stretch between and the section's own motion with Ω, so the orientation
+  /// along the branch survives a move at a fold. nullopt (the section unchanged) when no move is
+  /// needed or none is better.
+  std::optional<Node> resection(const Node& cur, double margin) {
+    const TangentMap& g = cur.e.map;
+    const double T = kTwoPi / cur.e.omega, clearance = detail::section_clearance(g);
+    if (clearance >= margin * T) return std::nullopt;
+    const auto [mid, half] = detail::free_section(g);
+    if (half <= clearance || mid <= cur.e.t0) return std::nullopt;
+    const Index n = c_.n_, N = 2 * n;
+    const FamilyPoint fp = c_.family_(cur.e.p);
+    LinearisationOptions lo;
+    lo.parameter = fp.derivative;
+    const TangentMap m = linearise(fp.system, o_.solver, cur.e.t0, cur.e.z.head(n), cur.e.z.tail(n), mid, lo);
+    ++result_.maps;
+    if (m.summary.status != RunStatus::completed) return std::nullopt;
+    // z'(p) = φ(t'(p); t0(p), z(p), p) with t0 = θ/Ω and t' = θ'/Ω (θ' = Ω·mid, unwrapped).
+    const double w = cur.e.omega, dw = fp.derivative.frequency, theta_mid = w * mid;
+    const double dt0 = -c_.theta / (w * w) * dw, dt1 = -theta_mid / (w * w) * dw;
+    const VectorXd Pp = m.parameter + m.rate_end * dt1 - m.jacobian * (m.rate_start * dt0);
+    const VectorXd d = c_.D();
+    VectorXd along(N + 1);
+    along.head(N) = (m.jacobian * d.cwiseProduct(cur.t.head(N)) + Pp * (c_.P * cur.t(N))).cwiseQuotient(d);
+    along(N) = cur.t(N);
+    along.normalize();
+    const double old_theta = c_.theta;
+    c_.theta = std::fmod(theta_mid, kTwoPi);
+    VectorXd y(N + 1);
+    y << stacked(m.x1, m.v1).cwiseQuotient(d), cur.e.p / c_.P;
+    Node moved;
+    int iterations = 0;
+    moved.e = c_.correct(y, along, &iterations);  // a polish: it starts on the orbit
+    if (!moved.e.ok || std::abs(moved.e.p - cur.e.p) > 1e-6 * c_.P) {
+      c_.theta = old_theta;
+      return std::nullopt;
+    }
+    moved.t = c_.tangent(moved.e, along);
+    moved.b = c_.point(moved.e, moved.t, iterations);
+    return moved;
   }
 
   void append(Branch& branch, const Node& n) {
@@ -588,9 +678,12 @@ class BranchRunner {
     std::vector<Good> g{{good.e.p, f(good), good}};
     double toward = bad.e.p;
     const VectorXd along = good.t;
-    // The zero lies within the bracket or, at a corner, a little beyond one of its ends; a
-    // secant that leads further has left the orbit family between the two points.
-    const double reach = 2.0 * std::abs(bad.e.p - good.e.p);
+    // The zero lies within the bracket or, at a corner, beyond one of its ends: after a jump from
+    // the unstable side of a fold onto the branch without the impact, the corner lies below both
+    // points by a few times their distance (the paper's system at A1 = 0.4939: 2.6 ×, where a
+    // reach of 2 × left only a bisection between two branches). A secant that leads further has
+    // left the orbit family.
+    const double reach = 8.0 * std::abs(bad.e.p - good.e.p);
     const double lo = std::min(good.e.p, bad.e.p) - reach, hi = std::max(good.e.p, bad.e.p) + reach;
     const bool doubled = c_.k > o_.period;
     for (int it = 0; it < 60; ++it) {
@@ -948,6 +1041,7 @@ ContinuationResult continue_orbits(const ParameterFamily& family, double p0, dou
   forward.k = backward.k = c.k;
   runner.append(forward, s0);
   runner.follow(s0, s0.t, forward, 0, 0, &doublings);
+  c.theta = s0.b.phase;  // the forward half may have moved the section
   runner.follow(s0, -s0.t, backward, 0, 0, &doublings);
   Branch whole;
   whole.k = c.k;
@@ -973,7 +1067,7 @@ ContinuationResult continue_orbits(const ParameterFamily& family, double p0, dou
     const int depth = static_cast<int>(std::log2(static_cast<double>(result.branches[static_cast<std::size_t>(parent)].k) /
                                                  options.period)) + 1;
     Continuer child(family, options, n, stops, result);
-    child.theta = c.theta;
+    child.theta = at.b.phase;  // the section where the doubling was found
     child.k = 2 * result.branches[static_cast<std::size_t>(parent)].k;
     child.L = c.L;
     child.V = c.V;

@@ -1,5 +1,7 @@
 #include "vibro/shooting.hpp"
 
+#include "section.hpp"
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -155,36 +157,18 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
   double t_section = theta / omega + T * std::ceil((t_guess - theta / omega) / T);
   VectorXd z = advance(t_guess, stacked(x, v), t_section);
   if (options.free_section) {
-    // Where is the guess free over one period? Move the section into the longest free stretch
-    // if a stop is held at it or an event falls within 1e-6 T of it.
+    // Where is the guess free over one period? Move the section into the middle of the longest
+    // stretch free of events and held phases (section.hpp) if a stop is held at it or an event
+    // falls within 1e-6 T of it.
     LinearisationOptions probe;
     probe.jacobian = false;
     probe.features = true;
     const TangentMap g = linearise(system, options.solver, t_section, z.head(n), z.tail(n), t_section + k * T, probe);
-    bool near_event = g.starts_held;
-    for (const Event& e : g.events)
-      near_event |= std::abs(e.t - t_section) < 1e-6 * T || std::abs(e.t - (t_section + k * T)) < 1e-6 * T;
-    for (const HeldPhase& p : g.phases) near_event |= p.t_end >= t_section + k * T;
-    if (near_event && g.summary.status == RunStatus::completed) {
-      // Free stretches: complement of the held phases within [t_section, t_section + kT].
-      std::vector<std::pair<double, double>> held;
-      for (const HeldPhase& p : g.phases) held.push_back({p.t_start, p.t_end});
-      std::sort(held.begin(), held.end());
-      double best_len = 0.0, best_mid = t_section, cursor = t_section;
-      auto consider = [&](double a, double b) {
-        if (b - a > best_len) {
-          best_len = b - a;
-          best_mid = 0.5 * (a + b);
-        }
-      };
-      for (const auto& [a, b] : held) {
-        consider(cursor, std::max(cursor, a));
-        cursor = std::max(cursor, b);
-      }
-      consider(cursor, t_section + k * T);
-      if (best_len > 0.0 && best_mid != t_section) {
-        z = advance(t_section, z, best_mid);
-        t_section = best_mid;
+    if (g.summary.status == RunStatus::completed && detail::section_clearance(g) < 1e-6 * T) {
+      const double mid = detail::free_section(g).first;
+      if (mid > t_section) {
+        z = advance(t_section, z, mid);
+        t_section = mid;
         theta = std::fmod(omega * t_section, 2.0 * std::numbers::pi);
       }
     }

@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -39,5 +40,15 @@ inline Dataset table(std::string name, const std::vector<Eigen::VectorXd>& rows,
 
 /// A limit that may not exist: "none" is −1 in the file (the limits it stands for are ≥ 0).
 inline double or_none(double value) { return std::isfinite(value) ? value : -1.0; }
+
+/// Completes /meta (wall time since `start`, threads) and renames the file into place; returns the
+/// wall time in seconds. Call set_outcome() first.
+inline double finish_run(ResultFile& file, int threads, std::chrono::steady_clock::time_point start) {
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  RunMeta meta = current_meta(threads);
+  meta.wall_seconds = wall;
+  file.finish(meta);
+  return wall;
+}
 
 }  // namespace vibro::io::detail

@@ -1245,10 +1245,7 @@ struct ResultFile::Impl {
     store.set_text("/scene", "file", scene.file);
     store.set_text("/scene", "name", scene.name);
     store.set_text("/scene", "run_kind",
-                   scene.run.kind == RunSpec::Kind::sweep    ? "sweep"
-                   : scene.run.kind == RunSpec::Kind::locate ? "locate"
-                   : scene.run.kind == RunSpec::Kind::continuation ? "continue"
-                                                             : "simulate");
+                   to_string(scene.run.kind));
     store.set_real("/scene", "period", scene.period());
     for (const auto& [name, value] : scene_numbers(scene)) store.set_real("/scene", name, value);
     for (const Column& c : scene_columns(scene)) {

@@ -1,9 +1,14 @@
 #include "vibro/io/runner.hpp"
 #include "vibro/io/continuation.hpp"
 #include "vibro/io/locate.hpp"
+#include "vibro/io/basin.hpp"
+#include "vibro/io/diagram.hpp"
+#include "vibro/io/lyapunov_run.hpp"
 
 #include "vibro/io/resources.hpp"
 #include "vibro/io/result_file.hpp"
+
+#include "mpi_world.hpp"
 
 #include <fmt/format.h>
 #ifdef _OPENMP
@@ -462,21 +467,7 @@ int thread_count(const RunRequest& request, const SweepPlan& plan) {
 }
 
 
-/// Rank and size of MPI_COMM_WORLD if MPI is running, else 0 and 1.
-std::pair<int, int> world() {
-#ifdef VIBRO_WITH_MPI
-  int initialized = 0, finalized = 0;
-  MPI_Initialized(&initialized);
-  MPI_Finalized(&finalized);
-  if (initialized && !finalized) {
-    int rank = 0, size = 1;
-    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-    MPI_Comm_size(MPI_COMM_WORLD, &size);
-    return {rank, size};
-  }
-#endif
-  return {0, 1};
-}
+using detail::world;
 
 #ifdef VIBRO_WITH_MPI
 RunReport run_sweep_mpi(const SweepPlan& plan, const Scene& scene, const RunRequest& request, int threads,
@@ -948,9 +939,24 @@ ResultFile open_result_file(const RunRequest& request, const Scene& scene, const
 
 RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
   check_run_resources(scene, checked_threads(request.threads, std::numeric_limits<std::size_t>::max()));  // before any file or allocation
-  // Under MPI only sweeps are split across the processes; any other run is rank 0's alone.
-  if (scene.run.kind != RunSpec::Kind::sweep && world().first != 0) return {};
+  // Under MPI only sweeps and basins are split across the processes; any other run is rank 0's alone.
+  if (scene.run.kind != RunSpec::Kind::sweep && scene.run.kind != RunSpec::Kind::basin && world().first != 0) return {};
   if (scene.run.kind == RunSpec::Kind::sweep) return run_sweep(doc, scene, request);
+  const RunSpec::Kind kind = scene.run.kind;
+  if ((kind == RunSpec::Kind::basin || kind == RunSpec::Kind::diagram || kind == RunSpec::Kind::lyapunov) &&
+      !request.resume) {
+    // Long runs: SIGINT/SIGTERM stop them at the next event (a basin takes no new points) and
+    // their file is written with what was done, status interrupted, exit code 130.
+    RunRequest stoppable = request;
+    std::optional<InterruptGuard> guard;  // signals are the caller's when it gives its own flag
+    if (!stoppable.interrupt) {
+      guard.emplace();
+      stoppable.interrupt = &g_interrupted;
+    }
+    return kind == RunSpec::Kind::basin     ? run_basin(doc, scene, stoppable)
+           : kind == RunSpec::Kind::diagram ? run_diagram(doc, scene, stoppable)
+                                            : run_lyapunov(doc, scene, stoppable);
+  }
   if (scene.run.kind == RunSpec::Kind::locate && !request.resume) return run_locate(doc, scene, request);
   if (scene.run.kind == RunSpec::Kind::continuation && !request.resume) return run_continuation(doc, scene, request);
   if (request.resume)
@@ -989,3 +995,23 @@ ProcessGroup::~ProcessGroup() {
 }
 
 }  // namespace vibro::io
+
+namespace vibro::io::detail {
+
+/// Rank and size of MPI_COMM_WORLD if MPI is running, else 0 and 1.
+std::pair<int, int> world() {
+#ifdef VIBRO_WITH_MPI
+  int initialized = 0, finalized = 0;
+  MPI_Initialized(&initialized);
+  MPI_Finalized(&finalized);
+  if (initialized && !finalized) {
+    int rank = 0, size = 1;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    return {rank, size};
+  }
+#endif
+  return {0, 1};
+}
+
+}  // namespace vibro::io::detail

@@ -314,6 +314,19 @@ std::unique_ptr<vibro::Engine> make_engine(const Scene& scene) {
   return std::make_unique<DenseEngine>(scene.impact_system(), scene.solver);
 }
 
+const char* to_string(RunSpec::Kind kind) {
+  switch (kind) {
+    case RunSpec::Kind::sweep: return "sweep";
+    case RunSpec::Kind::locate: return "locate";
+    case RunSpec::Kind::continuation: return "continue";
+    case RunSpec::Kind::basin: return "basin";
+    case RunSpec::Kind::diagram: return "diagram";
+    case RunSpec::Kind::lyapunov: return "lyapunov";
+    case RunSpec::Kind::simulate: break;
+  }
+  return "simulate";
+}
+
 const char* to_string(EngineKind engine) { return engine == EngineKind::modal ? "modal" : "dense"; }
 
 const char* to_string(EngineChoice choice) {
@@ -889,17 +902,107 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     }
   };
   if (const YAML::Node rn = root["run"]) {
-    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep", "locate", "continue"});
+    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep", "locate", "continue", "basin", "diagram", "lyapunov"});
     if (rn["kind"]) {
-      const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate", "continue"});
+      const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate", "continue", "basin", "diagram", "lyapunov"});
       run.kind = kind == "sweep"      ? RunSpec::Kind::sweep
                  : kind == "locate"   ? RunSpec::Kind::locate
                  : kind == "continue" ? RunSpec::Kind::continuation
+                 : kind == "basin"    ? RunSpec::Kind::basin
+                 : kind == "diagram"  ? RunSpec::Kind::diagram
+                 : kind == "lyapunov" ? RunSpec::Kind::lyapunov
                                       : RunSpec::Kind::simulate;
     }
     if (rn["transient_periods"]) run.transient_periods = r.number_in(rn["transient_periods"], "run.transient_periods", 0, 1e9, "a number of periods ≥ 0");
     if (rn["periods"]) run.periods = r.number_in(rn["periods"], "run.periods", 1e-12, 1e9, "a number of periods > 0");
-    const YAML::Node sw = rn["sweep"], lc = rn["locate"], ct = rn["continue"];
+    const YAML::Node sw = rn["sweep"], lc = rn["locate"], ct = rn["continue"], bs = rn["basin"];
+    if (run.kind == RunSpec::Kind::basin && !bs)
+      r.fail(rn, "run.basin", "missing: run.kind: basin needs run.basin.parameters (two scene values and their grids)");
+    if (run.kind != RunSpec::Kind::basin && bs) r.fail(bs, "run.basin", "only for run.kind: basin");
+    const YAML::Node dg = rn["diagram"], ly = rn["lyapunov"];
+    if (run.kind == RunSpec::Kind::diagram && !dg)
+      r.fail(rn, "run.diagram", "missing: run.kind: diagram needs run.diagram (path and grid)");
+    if (run.kind != RunSpec::Kind::diagram && dg) r.fail(dg, "run.diagram", "only for run.kind: diagram");
+    if (run.kind != RunSpec::Kind::lyapunov && ly) r.fail(ly, "run.lyapunov", "only for run.kind: lyapunov");
+    // A grid along which a run follows its attractor: at least two values, strictly monotonic.
+    auto monotonic = [&](const YAML::Node& node, const std::string& path) {
+      const auto& v = run.axes[0].values;
+      if (v.size() < 2) r.fail(node, path, "expected at least two grid values");
+      for (std::size_t i = 1; i < v.size(); ++i)
+        if (!((v[i] - v[i - 1]) * (v[1] - v[0]) > 0.0))
+          r.fail(node, path, "the grid must be strictly increasing or decreasing (value " + std::to_string(i) + ")");
+    };
+    if (dg && check_sweep) {
+      DiagramSpec& d = run.diagram;
+      run.axes.push_back(parse_axis(dg, "run.diagram", {}, {"transient", "points", "directions", "max_period", "tolerance"}));
+      monotonic(dg, "run.diagram");
+      if (dg["transient"]) d.transient = r.integer(dg["transient"], "run.diagram.transient", 0, 100000000);
+      if (dg["points"]) d.points = static_cast<int>(r.integer(dg["points"], "run.diagram.points", 1, 100000));
+      if (dg["directions"]) {
+        const std::string dir = r.choice(dg["directions"], "run.diagram.directions", {"both", "up", "down"});
+        d.up = dir != "down";
+        d.down = dir != "up";
+      }
+      if (dg["max_period"]) d.max_period = static_cast<int>(r.integer(dg["max_period"], "run.diagram.max_period", 1, 50000));
+      if (2 * d.max_period > d.points)
+        r.fail(dg["max_period"] ? dg["max_period"] : dg, "run.diagram.max_period",
+               "expected at most points / 2 = " + std::to_string(d.points / 2) +
+                   " (a period k is recognised on 2k recorded points)");
+      if (dg["tolerance"]) d.tolerance = r.number_in(dg["tolerance"], "run.diagram.tolerance", 1e-15, 0.1, "a relative tolerance in [1e-15, 0.1]");
+      check_values(run.axes[0], dg, "run.diagram");
+      if (!(f.frequency > 0.0))
+        r.fail(rn["kind"], "run.kind", "a diagram records stroboscopic points: it needs a forcing frequency > 0 (forcing.frequency)");
+    }
+    if (check_sweep && run.kind == RunSpec::Kind::lyapunov) {
+      LyapunovSpec& l = run.lyapunov;
+      if (!(f.frequency > 0.0))
+        r.fail(rn["kind"], "run.kind", "Lyapunov exponents are averaged over forcing periods: they need a forcing frequency > 0 (forcing.frequency)");
+      if (ly) {
+        r.expect_map(ly, "run.lyapunov", {"count", "transient", "align", "periods", "follow", "path", "linspace", "logspace", "values"});
+        if (ly["count"]) l.count = static_cast<int>(r.integer(ly["count"], "run.lyapunov.count", 0, 2 * static_cast<long>(n)));
+        if (ly["transient"]) l.transient = r.integer(ly["transient"], "run.lyapunov.transient", 0, 100000000);
+        if (ly["align"]) l.align = r.integer(ly["align"], "run.lyapunov.align", 0, 100000000);
+        if (ly["periods"]) l.periods = r.integer(ly["periods"], "run.lyapunov.periods", 1, 100000000);
+        if (ly["path"] || ly["linspace"] || ly["logspace"] || ly["values"]) {
+          run.axes.push_back(parse_axis(ly, "run.lyapunov", {}, {"count", "transient", "align", "periods", "follow"}));
+          monotonic(ly, "run.lyapunov");
+          check_values(run.axes[0], ly, "run.lyapunov");
+          l.along = true;
+        }
+        if (ly["follow"]) {
+          l.follow = r.boolean(ly["follow"], "run.lyapunov.follow");
+          if (!l.along) r.fail(ly["follow"], "run.lyapunov.follow", "only with a grid (run.lyapunov.path and its values)");
+        }
+      }
+    }
+    if (bs && check_sweep) {
+      BasinSpec& b = run.basin;
+      r.expect_map(bs, "run.basin", {"parameters", "max_period", "max_periods", "tolerance", "match", "seed_stride"});
+      const YAML::Node ps = bs["parameters"];
+      if (!ps || !ps.IsSequence() || ps.size() != 2)
+        r.fail(ps ? ps : bs, "run.basin.parameters",
+               "expected a list of two parameters (the image's rows and columns), found " + (ps ? describe(ps) : std::string("nothing")));
+      for (std::size_t a = 0; a < 2; ++a)
+        run.axes.push_back(parse_axis(ps[a], "run.basin.parameters[" + std::to_string(a) + "]", run.axes, {}));
+      if (bs["max_period"]) b.max_period = static_cast<int>(r.integer(bs["max_period"], "run.basin.max_period", 1, 64));
+      if (bs["max_periods"]) b.max_periods = r.integer(bs["max_periods"], "run.basin.max_periods", 2, 100000000);
+      if (b.max_periods < b.max_period + 1)
+        r.fail(bs["max_periods"] ? bs["max_periods"] : bs, "run.basin.max_periods",
+               "expected at least max_period + 1 = " + std::to_string(b.max_period + 1) +
+                   " periods (a period-k orbit is recognised after k + 1)");
+      if (bs["tolerance"]) b.tolerance = r.number_in(bs["tolerance"], "run.basin.tolerance", 1e-15, 1e-2, "a relative tolerance in [1e-15, 1e-2]");
+      if (bs["match"]) b.match = r.number_in(bs["match"], "run.basin.match", 1e-15, 1e-1, "a relative distance in [1e-15, 0.1]");
+      if (b.match < b.tolerance)
+        r.fail(bs["match"] ? bs["match"] : bs, "run.basin.match",
+               "must not be below run.basin.tolerance (" +
+                   (bs["tolerance"] ? bs["tolerance"].Scalar() : number_text(b.tolerance)) +
+                   "): a run that repeats within the tolerance must also match its attractor");
+      if (bs["seed_stride"]) b.seed_stride = static_cast<int>(r.integer(bs["seed_stride"], "run.basin.seed_stride", 1, 1000000));
+      for (std::size_t a = 0; a < 2; ++a)
+        check_values(run.axes[a], ps[a], "run.basin.parameters[" + std::to_string(a) + "]");
+      if (!(f.frequency > 0.0))
+        r.fail(rn["kind"], "run.kind", "a basin compares stroboscopic points: it needs a forcing frequency > 0 (forcing.frequency)");
+    }
     if (run.kind == RunSpec::Kind::continuation && !ct)
       r.fail(rn, "run.continue", "missing: run.kind: continue needs run.continue (path and range)");
     if (run.kind != RunSpec::Kind::continuation && ct) r.fail(ct, "run.continue", "only for run.kind: continue");
@@ -1059,6 +1162,10 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
              std::to_string(kModalAutomaticMinimumDof) + ")";
   }
 
+  if (check_sweep && run.kind == RunSpec::Kind::lyapunov && engine == EngineKind::modal)
+    r.fail(root["run"]["kind"], "run.kind",
+           "Lyapunov exponents run on the dense engine (their tangent maps are dense), and this scene resolves to the "
+           "modal engine (" + reason + "): set solver.engine: dense");
   if (check_sweep && run.kind == RunSpec::Kind::continuation && engine == EngineKind::modal)
     r.fail(root["run"]["kind"], "run.kind",
            "continuation runs on the dense engine (its tangent maps are dense), and this scene resolves to the modal "

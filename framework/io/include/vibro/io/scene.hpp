@@ -102,8 +102,39 @@ struct ContinueSpec {
   std::vector<std::string> curve_kinds{"grazing", "rising"};
 };
 
+/// run.kind: basin — basins of attraction over a 2-D grid of two scene values (usually initial
+/// state components), each run stopped as soon as it has converged (vibro/io/basin.hpp).
+struct BasinSpec {
+  int max_period = 8;        ///< periods kT looked for: k = 1 … max_period
+  long max_periods = 1000;   ///< forcing periods per grid point, at most ("not converged" after)
+  double tolerance = 1e-8;   ///< |z_n − z_{n−k}| (relative to L and V) that makes a new attractor
+  double match = 1e-5;       ///< |z_n − a_j| that puts a run on a known attractor's point a_j
+  int seed_stride = 16;      ///< every seed_stride-th point of both axes runs first (the seeds)
+};
+
+/// run.kind: diagram — a brute-force bifurcation diagram: the attractor followed along one
+/// parameter up and/or down, its stroboscopic points, period and impacts (vibro/io/diagram.hpp).
+struct DiagramSpec {
+  long transient = 100;        ///< periods run at every point after the first (from the previous end)
+  int points = 32;             ///< P: stroboscopic points recorded per grid point
+  bool up = true, down = true; ///< directions: increasing, decreasing parameter
+  int max_period = 16;         ///< least period k looked for among the P points (2k ≤ P)
+  double tolerance = 1e-6;     ///< |z_i − z_{i−k}| relative to L, V for every recorded i
+};
+
+/// run.kind: lyapunov — the Lyapunov spectrum (vibro/lyapunov.hpp) at the scene's values or
+/// along a parameter, each point from the previous one's end (vibro/io/lyapunov_run.hpp).
+struct LyapunovSpec {
+  int count = 0;           ///< the p largest exponents; 0: all 2n
+  long transient = 100;    ///< periods before each point's frame starts (first point: also run.transient_periods)
+  long align = 50;         ///< periods the frame turns onto the leading directions
+  long periods = 1000;     ///< periods averaged
+  bool along = false;      ///< a parameter grid is given (run.axes[0])
+  bool follow = true;      ///< along a grid: each point from the previous one's end (else from initial, in parallel)
+};
+
 struct RunSpec {
-  enum class Kind { simulate, sweep, locate, continuation };
+  enum class Kind { simulate, sweep, locate, continuation, basin, diagram, lyapunov };
   Kind kind = Kind::simulate;
   double transient_periods = 0.0;  ///< simulated, not recorded
   double periods = 1.0;            ///< recorded forcing periods (or time units when Ω = 0)
@@ -111,9 +142,16 @@ struct RunSpec {
   std::vector<SweepAxis> axes;
   LocateSpec locate;
   ContinueSpec continuation;  ///< run.kind: continue
+  BasinSpec basin;            ///< run.kind: basin (its two axes are `axes`)
+  DiagramSpec diagram;        ///< run.kind: diagram (its axis is axes[0])
+  LyapunovSpec lyapunov;      ///< run.kind: lyapunov (a grid, if any, is axes[0])
   bool follow = false;   ///< each point starts from the previous point's final state
   bool reverse = false;  ///< walk the grid from its last point to its first
 };
+
+/// The run kind as the scene file spells it ("simulate", "sweep", "locate", "continue", "basin",
+/// "diagram", "lyapunov").
+const char* to_string(RunSpec::Kind kind);
 
 /// The engine that runs a scene: the dense Simulator (any M, C, K) or the modal chain engine
 /// (vibro/modal.hpp: M diagonal, K tridiagonal, C = αM + βK; O(n) per event).

@@ -1,0 +1,181 @@
+#include "vibro/io/diagram.hpp"
+
+#include "datasets.hpp"
+
+#include "vibro/io/result_file.hpp"
+
+#include <fmt/format.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <exception>
+#include <mutex>
+#include <numeric>
+
+namespace vibro::io {
+namespace {
+
+using detail::integers;
+using detail::reals;
+
+/// One direction's record, indexed like the sorted grid.
+struct Branch {
+  std::vector<double> x, v;            ///< m × P × n
+  std::vector<std::int64_t> k, reached;
+  std::vector<double> impacts;         ///< per period, mean over the P recorded periods
+  std::string message;                 ///< why a run stopped early (empty: none did)
+};
+
+/// The least k ≤ max_period for which every recorded z_i repeats z_{i−k}; 0 if none.
+std::int64_t least_period(const std::vector<Eigen::VectorXd>& z, int max_period, double tolerance, double L,
+                          double V) {
+  const std::size_t P = z.size();
+  const Eigen::Index n = z.front().size() / 2;
+  for (std::size_t k = 1; k <= static_cast<std::size_t>(max_period) && 2 * k <= P; ++k) {
+    bool repeats = true;
+    for (std::size_t i = k; i < P && repeats; ++i) {
+      const Eigen::VectorXd d = (z[i] - z[i - k]).cwiseAbs();
+      repeats = d.head(n).maxCoeff() <= tolerance * L && d.tail(n).maxCoeff() <= tolerance * V;
+    }
+    if (repeats) return static_cast<std::int64_t>(k);
+  }
+  return 0;
+}
+
+/// Follows the attractor through the grid values `order` (indices into the sorted grid).
+void follow(const SceneDocument& doc, const Scene& scene, const std::vector<double>& grid,
+            const std::vector<std::size_t>& order, const RunRequest& request, Branch& out) {
+  const DiagramSpec& spec = scene.run.diagram;
+  const std::string& path = scene.run.axes[0].path;
+  const std::size_t m = grid.size(), P = static_cast<std::size_t>(spec.points);
+  const Eigen::Index n = scene.dof();
+  out.x.assign(m * P * static_cast<std::size_t>(n), 0.0);
+  out.v.assign(out.x.size(), 0.0);
+  out.k.assign(m, 0);
+  out.reached.assign(m, 0);
+  out.impacts.assign(m, 0.0);
+  SceneDocument point(doc);
+  Eigen::VectorXd x = scene.x0, v = scene.v0;
+  long transient = static_cast<long>(std::ceil(scene.run.transient_periods));
+  for (const std::size_t g : order) {
+    point.set(path, grid[g]);
+    Scene built = point.build_point();
+    built.solver.interrupt = request.interrupt;
+    const std::unique_ptr<Engine> engine = make_engine(built);
+    const double T = built.period(), t0 = built.t0;
+    RunSummary s;
+    s.status = RunStatus::completed;
+    if (transient > 0) {
+      s = engine->run(t0, x, v, t0 + static_cast<double>(transient) * T);
+      x = s.x;
+      v = s.v;
+    }
+    std::vector<Eigen::VectorXd> z;
+    long impacts = 0;
+    const double t1 = t0 + static_cast<double>(transient) * T;
+    double L = 1.0, V = 1.0;
+    for (std::size_t i = 1; i <= P && s.status == RunStatus::completed; ++i) {
+      s = engine->run(t1 + static_cast<double>(i - 1) * T, x, v, t1 + static_cast<double>(i) * T);
+      x = s.x;
+      v = s.v;
+      impacts += s.impacts;
+      L = s.length_scale;
+      V = s.velocity_scale;
+      Eigen::VectorXd zi(2 * n);
+      zi << x, v;
+      z.push_back(zi);
+    }
+    if (s.status != RunStatus::completed) {
+      out.message = fmt::format("at {} = {:.12g}: {}", path, grid[g], s.message);
+      return;
+    }
+    for (std::size_t i = 0; i < P; ++i)
+      for (Eigen::Index j = 0; j < n; ++j) {
+        const std::size_t at = (g * P + i) * static_cast<std::size_t>(n) + static_cast<std::size_t>(j);
+        out.x[at] = z[i](j);
+        out.v[at] = z[i](n + j);
+      }
+    out.k[g] = least_period(z, spec.max_period, spec.tolerance, L, V);
+    out.impacts[g] = static_cast<double>(impacts) / static_cast<double>(P);
+    out.reached[g] = 1;
+    transient = spec.transient;
+  }
+}
+
+}  // namespace
+
+RunReport run_diagram(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  const SweepAxis& axis = scene.run.axes.at(0);
+  const DiagramSpec& spec = scene.run.diagram;
+  std::vector<double> grid = axis.values;
+  std::sort(grid.begin(), grid.end());
+  const std::size_t m = grid.size(), P = static_cast<std::size_t>(spec.points), n = static_cast<std::size_t>(scene.dof());
+  std::vector<std::size_t> up(m);
+  std::iota(up.begin(), up.end(), std::size_t{0});
+  std::vector<std::size_t> down(up.rbegin(), up.rend());
+  std::vector<std::pair<std::string, const std::vector<std::size_t>*>> directions;
+  if (spec.up) directions.emplace_back("up", &up);
+  if (spec.down) directions.emplace_back("down", &down);
+
+  ResultFile file = open_result_file(request, scene, current_meta(request.threads));
+  std::vector<Branch> branches(directions.size());
+  std::exception_ptr failure;
+  std::mutex lock;
+  int threads = 1;
+#ifdef _OPENMP
+  if (request.threads > 0) omp_set_num_threads(request.threads);
+  threads = std::min<int>(omp_get_max_threads(), static_cast<int>(directions.size()));
+#pragma omp parallel for schedule(static, 1) num_threads(threads)
+#endif
+  for (std::size_t d = 0; d < directions.size(); ++d) {
+    try {
+      follow(doc, scene, grid, *directions[d].second, request, branches[d]);
+    } catch (...) {
+      const std::lock_guard<std::mutex> hold(lock);
+      if (!failure) failure = std::current_exception();
+    }
+  }
+  if (failure) std::rethrow_exception(failure);
+
+  std::vector<Dataset> datasets{reals("parameter", grid, {m})};
+  std::string message, names;
+  long not_periodic = 0, not_reached = 0;
+  for (std::size_t d = 0; d < directions.size(); ++d) {
+    const std::string& dir = directions[d].first;
+    const Branch& b = branches[d];
+    datasets.push_back(reals("x_" + dir, b.x, {m, P, n}));
+    datasets.push_back(reals("v_" + dir, b.v, {m, P, n}));
+    datasets.push_back(integers("k_" + dir, b.k));
+    datasets.push_back(reals("impacts_" + dir, b.impacts, {m}));
+    datasets.push_back(integers("reached_" + dir, b.reached));
+    names += (names.empty() ? "" : " ") + dir;
+    for (std::size_t g = 0; g < m; ++g) {
+      if (!b.reached[g]) ++not_reached;
+      else if (b.k[g] == 0) ++not_periodic;
+    }
+    if (message.empty() && !b.message.empty()) message = dir + ": " + b.message;
+  }
+  file.write_group("diagram", datasets, {{"parameter", axis.path}, {"directions", names}});
+  const bool interrupted = request.interrupt && request.interrupt->load();
+  file.set_outcome(interrupted ? "interrupted" : not_reached ? "points_stopped_early" : "completed",
+                   interrupted ? "interrupted: the points after it were not reached" : message,
+                   {{"points", static_cast<std::int64_t>(m * directions.size())},
+                    {"points_not_periodic", not_periodic},
+                    {"points_not_reached", not_reached}});
+  const double wall = detail::finish_run(file, threads, wall_start);
+
+  std::string text = fmt::format("Diagram of {} over {} .. {} ({} values, {} directions: {}; {} points recorded "
+                                 "each) on {} threads in {:.2f} s: {} points not periodic (k ≤ {})",
+                                 axis.path, grid.front(), grid.back(), m, directions.size(), names, P, threads, wall,
+                                 not_periodic, spec.max_period);
+  if (not_reached > 0) text += fmt::format(", {} not reached ({})", not_reached, message);
+  text += fmt::format(".\nResults in {}.", file.path());
+  return {interrupted ? 130 : not_reached ? 1 : 0, text, request.in_memory ? file.image() : std::vector<char>{}};
+}
+
+}  // namespace vibro::io

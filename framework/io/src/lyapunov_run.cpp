@@ -1,0 +1,129 @@
+#include "vibro/io/lyapunov_run.hpp"
+
+#include "datasets.hpp"
+
+#include "vibro/io/result_file.hpp"
+#include "vibro/lyapunov.hpp"
+
+#include <fmt/format.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <exception>
+#include <mutex>
+
+namespace vibro::io {
+
+RunReport run_lyapunov(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
+  using detail::integers;
+  using detail::reals;
+  const auto wall_start = std::chrono::steady_clock::now();
+  const LyapunovSpec& spec = scene.run.lyapunov;
+  const std::string path = spec.along ? scene.run.axes.at(0).path : std::string();
+  const std::vector<double> grid = spec.along ? scene.run.axes.at(0).values : std::vector<double>{0.0};
+  const std::size_t m = grid.size();
+  const std::size_t p = static_cast<std::size_t>(spec.count > 0 ? spec.count : 2 * scene.dof());
+
+  ResultFile file = open_result_file(request, scene, current_meta(1));
+  std::vector<double> exponents(m * p, 0.0), sums(m, 0.0);
+  std::vector<std::int64_t> finite(m * p, 0), structural(m, 0), reached(m, 0), dimension(m, 0);
+  std::vector<std::string> messages(m);
+  const long first_transient = static_cast<long>(std::ceil(scene.run.transient_periods));
+  // One grid point from (x, v): its spectrum into row g; false if its run stopped early.
+  auto compute = [&](SceneDocument& point, std::size_t g, bool first, Eigen::VectorXd& x, Eigen::VectorXd& v) {
+    if (spec.along) point.set(path, grid[g]);
+    Scene built = spec.along ? point.build_point() : scene;
+    built.solver.interrupt = request.interrupt;
+    LyapunovOptions options;
+    options.count = spec.count;
+    options.transient = spec.transient + (first ? first_transient : 0);
+    options.align = spec.align;
+    options.periods = spec.periods;
+    const LyapunovResult r = lyapunov_spectrum(built.impact_system(), built.solver, built.t0, x, v, options);
+    if (r.status != RunStatus::completed) {
+      messages[g] = spec.along ? fmt::format("at {} = {:.12g}: {}", path, grid[g], r.message) : r.message;
+      return false;
+    }
+    for (std::size_t i = 0; i < p; ++i) {
+      const double e = r.exponents(static_cast<Eigen::Index>(i));
+      finite[g * p + i] = std::isfinite(e) ? 1 : 0;
+      exponents[g * p + i] = std::isfinite(e) ? e : 0.0;
+      if (std::isfinite(e)) sums[g] += e;
+    }
+    structural[g] = r.structural;
+    dimension[g] = static_cast<std::int64_t>(r.least_free_dimension);
+    reached[g] = 1;
+    x = r.x_end;
+    v = r.v_end;
+    return true;
+  };
+  int threads = 1;
+  if (spec.follow || !spec.along) {
+    SceneDocument point(doc);
+    Eigen::VectorXd x = scene.x0, v = scene.v0;
+    for (std::size_t g = 0; g < m; ++g)
+      if (!compute(point, g, g == 0, x, v)) break;
+  } else {
+    // Independent points (each from the scene's initial state): in parallel, written in grid order.
+    std::exception_ptr failure;
+    std::mutex lock;
+#ifdef _OPENMP
+    if (request.threads > 0) omp_set_num_threads(request.threads);
+    threads = omp_get_max_threads();
+#pragma omp parallel
+#endif
+    {
+      SceneDocument point(doc);
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
+#endif
+      for (std::size_t g = 0; g < m; ++g) {
+        try {
+          Eigen::VectorXd x = scene.x0, v = scene.v0;
+          (void)compute(point, g, true, x, v);
+        } catch (...) {
+          const std::lock_guard<std::mutex> hold(lock);
+          if (!failure) failure = std::current_exception();
+        }
+      }
+    }
+    if (failure) std::rethrow_exception(failure);
+  }
+  std::string message;
+  for (const std::string& text : messages)
+    if (message.empty()) message = text;
+
+  std::vector<Dataset> datasets{reals("exponents", exponents, {m, p}), integers("finite", finite),
+                                integers("structural", structural), integers("free_dimension", dimension),
+                                reals("sum", sums, {m}), integers("reached", reached)};
+  datasets[1].shape = {m, p};
+  if (spec.along) datasets.insert(datasets.begin(), reals("parameter", grid, {m}));
+  file.write_group("lyapunov", datasets,
+                   {{"parameter", path}, {"period", fmt::format("{:.17g}", scene.period())},
+                    {"units", "per unit time (divide by Omega / (2 pi) for per forcing period)"}});
+  long not_reached = 0;
+  for (std::int64_t r : reached) not_reached += r ? 0 : 1;
+  const bool interrupted = request.interrupt && request.interrupt->load();
+  file.set_outcome(interrupted ? "interrupted" : not_reached ? "points_stopped_early" : "completed",
+                   interrupted ? "interrupted: the points after it were not reached" : message,
+                   {{"points", static_cast<std::int64_t>(m)}, {"points_not_reached", not_reached}});
+  const double wall = detail::finish_run(file, threads, wall_start);
+
+  std::string text;
+  if (spec.along) {
+    text = fmt::format("Lyapunov spectra ({} exponents) along {} over {} points in {:.2f} s.", p, path, m, wall);
+  } else {
+    text = fmt::format("Lyapunov spectrum ({} periods averaged, {:.2f} s):", spec.periods, wall);
+    for (std::size_t i = 0; i < p; ++i)
+      text += finite[i] ? fmt::format(" {:.6g}", exponents[i]) : std::string(" -inf");
+  }
+  if (not_reached > 0) text += fmt::format(" {} points not reached ({}).", not_reached, message);
+  text += fmt::format("\nResults in {}.", file.path());
+  return {interrupted ? 130 : not_reached ? 1 : 0, text, request.in_memory ? file.image() : std::vector<char>{}};
+}
+
+}  // namespace vibro::io

@@ -1,0 +1,11 @@
+#pragma once
+// Private to vibro_io: the processes of an MPI run, for the run kinds that split their work
+// across them (run.kind: sweep in runner.cpp, basin in basin.cpp).
+#include <utility>
+
+namespace vibro::io::detail {
+
+/// Rank and size of MPI_COMM_WORLD if MPI is running, else 0 and 1.
+std::pair<int, int> world();
+
+}  // namespace vibro::io::detail
