@@ -185,8 +185,30 @@ def main():
         ax.xaxis.set_major_locator(plt.MaxNLocator(4))
     fig.tight_layout()
     print(f"branch: {len(b['p'])} points, {len(bi['p'])} bifurcations: {c.save(fig, outdir, name or 'continuation')}")
+    check_grazings(build, path)
     if paper:
         coexistence(build, scene_file, outdir, b, bi, param, scene)
+
+
+def check_grazings(build, path):
+    """Every located grazing's orbit, run for one period from its state with the vibro Python
+    module, must come within 1e-9 (× its stop's position scale) of its stop in free flight: the
+    orbit touches the stop there (two_parameter.nearest_approach, an independent sampling)."""
+    sys.path.insert(0, os.path.join(build, "python"))
+    import vibro
+    import two_parameter
+    with h5py.File(path, "r") as f:
+        names = [n.decode() if isinstance(n, bytes) else n for n in f["bifurcations/kind"].attrs["names"]]
+        for i in range(len(f["bifurcations/p"])):
+            if names[int(f["bifurcations/kind"][i])] != "grazing" or not f["bifurcations/smooth"][i]:
+                continue
+            if f["scene/stop_kind"].attrs["names"][int(f["scene/stop_kind"][int(f["bifurcations/stop"][i])])] in (b"between", "between"):
+                continue
+            gap, scale = two_parameter.nearest_approach(vibro, f, i)
+            p = f["bifurcations/p"][i]
+            print(f"grazing at Ω = {p:.10f}: its orbit comes within {abs(gap):.1e} of the stop in free flight")
+            if abs(gap) > 1e-9 * max(scale, 1e-3):
+                c.fail(f"the grazing located at Ω = {p:.10f} stays {gap:.1e} from its stop: not a grazing")
 
 
 if __name__ == "__main__":
