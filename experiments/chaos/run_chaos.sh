@@ -11,7 +11,7 @@
 #   bash experiments/chaos/run_chaos.sh [BUILD_DIR] [OUT_DIR] [bench]
 #
 # BUILD_DIR defaults to build/release, OUT_DIR to docs/figures/chaos (PNG and PDF; result files in
-# OUT_DIR/data, which git ignores). About 2 minutes on 2 cores, 3 with `bench`.
+# OUT_DIR/data, which git ignores). About a minute on 2 cores, 1.5 with `bench`.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 build=${1:-build/release}

@@ -15,7 +15,7 @@
 #   bash experiments/examples/run_continuation_examples.sh [BUILD_DIR] [OUT_DIR]
 #
 # BUILD_DIR defaults to build/release, OUT_DIR to docs/figures/continuation (PNG and PDF; result
-# files in OUT_DIR/data). About five minutes on 2 cores; the time of each run is printed.
+# files in OUT_DIR/data). About 80 s on 2 cores; the time of each run is printed.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 build=${1:-build/release}
