@@ -153,6 +153,19 @@ EOF
     rm run.txt
     files_are l.h5.partial long.yaml
     ;;
+  signal_in_continue)  # was: locate and continue ignored SIGTERM's flag, leaving a .partial behind
+    # Steps of 1e-7 over the whole range: hours of continuation, ended only by the signal.
+    sed -e 's/^    max_step: .*/    max_step: 1e-7\n    max_points: 1000000/' -e 's/^    step: .*/    step: 1e-7/' \
+      "$(dirname "$fig2")/continuation.yaml" > cont.yaml
+    "$vibro" run cont.yaml -o c.h5 2> run.txt > /dev/null &
+    pid=$!
+    for _ in $(seq 600); do [ -e c.h5.partial ] && break; sleep 0.1; done
+    sleep 1
+    stop $pid TERM
+    [ $code -eq 130 ] || fail "exit code $code after SIGTERM: $(tail -3 run.txt)"
+    rm run.txt
+    files_are c.h5 cont.yaml  # the file, written with what was done, status interrupted
+    ;;
   full_disk)  # was: the sweep printed the error, then segfaulted in HDF5's exit handler (139)
     small_sweep ", samples: {per_period: 2000}" 8 > sweep.yaml
     cp "$fig2" scene.yaml

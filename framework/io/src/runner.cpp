@@ -943,7 +943,8 @@ RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunReque
   if (scene.run.kind != RunSpec::Kind::sweep && scene.run.kind != RunSpec::Kind::basin && world().first != 0) return {};
   if (scene.run.kind == RunSpec::Kind::sweep) return run_sweep(doc, scene, request);
   const RunSpec::Kind kind = scene.run.kind;
-  if ((kind == RunSpec::Kind::basin || kind == RunSpec::Kind::diagram || kind == RunSpec::Kind::lyapunov) &&
+  if ((kind == RunSpec::Kind::basin || kind == RunSpec::Kind::diagram || kind == RunSpec::Kind::lyapunov ||
+       kind == RunSpec::Kind::locate || kind == RunSpec::Kind::continuation) &&
       !request.resume) {
     // Long runs: SIGINT/SIGTERM stop them at the next event (a basin takes no new points) and
     // their file is written with what was done, status interrupted, exit code 130.
@@ -953,12 +954,14 @@ RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunReque
       guard.emplace();
       stoppable.interrupt = &g_interrupted;
     }
-    return kind == RunSpec::Kind::basin     ? run_basin(doc, scene, stoppable)
-           : kind == RunSpec::Kind::diagram ? run_diagram(doc, scene, stoppable)
-                                            : run_lyapunov(doc, scene, stoppable);
+    switch (kind) {
+      case RunSpec::Kind::basin: return run_basin(doc, scene, stoppable);
+      case RunSpec::Kind::diagram: return run_diagram(doc, scene, stoppable);
+      case RunSpec::Kind::lyapunov: return run_lyapunov(doc, scene, stoppable);
+      case RunSpec::Kind::locate: return run_locate(doc, scene, stoppable);
+      default: return run_continuation(doc, scene, stoppable);
+    }
   }
-  if (scene.run.kind == RunSpec::Kind::locate && !request.resume) return run_locate(doc, scene, request);
-  if (scene.run.kind == RunSpec::Kind::continuation && !request.resume) return run_continuation(doc, scene, request);
   if (request.resume)
     throw SceneError(scene.file, 1, 1, "run.kind", "--resume continues an interrupted sweep; this scene is not a sweep");
   return run_simulation(scene, request);
