@@ -207,7 +207,10 @@ void gather(std::vector<PointResult>& results, const std::vector<std::size_t>& p
 
 RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
   const auto wall_start = std::chrono::steady_clock::now();
-  const auto [rank, ranks] = detail::world();
+  // Named variables, not a structured binding: lambdas below capture them, which clang 14 (the
+  // sanitize preset's compiler) does not allow for bindings.
+  const auto this_world = detail::world();
+  const int rank = this_world.first, ranks = this_world.second;
   const SweepAxis& rows = scene.run.axes.at(0);
   const SweepAxis& cols = scene.run.axes.at(1);
   const BasinSpec& spec = scene.run.basin;
