@@ -49,6 +49,7 @@ void EventWorkspace::reserve(Eigen::Index m) {
   const auto capacity = static_cast<std::size_t>(m);
   for (ContactSet* set : {&candidates, &chatter, &slow, &test, &held, &all, &next, &scratch_set})
     set->reserve(capacity);
+  candidates.reserve(2 * capacity);  // appended to before its repeats are removed
   for (Eigen::VectorXd* vec : {&g_before, &g_after, &g_now, &hold_force, &forces, &q, &impulse, &gn, &rhs})
     vec->resize(m);
   G.resize(m, m);
@@ -153,9 +154,13 @@ bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, cons
       emit({t, j, EventKind::impact, w.g_before(j), w.g_after(j), 0.0});
       ++summary.impacts;
     }
+    // Appended, then sorted and made unique: contains() is a binary search, and a check against
+    // the vector while it is being appended to (unsorted) let a stop in twice, past the
+    // workspace's size (found by fuzz_run: Eigen head() past the end of the force vector).
     for (int j : all)
-      if (w.g_after(j) >= -rules.v_contact && !contains(candidates, j)) candidates.push_back(j);
+      if (w.g_after(j) >= -rules.v_contact) candidates.push_back(j);
     std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
   }
   ContactSet& next = w.next;
   auto forces = w.forces.head(static_cast<Eigen::Index>(candidates.size()));

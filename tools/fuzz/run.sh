@@ -18,7 +18,7 @@ targets=("$@")
 build=build/sanitize
 work=$build/fuzz
 mkdir -p "$work/seeds"
-find experiments tests/io/malformed -name '*.yaml' -size -64k -exec cp {} "$work/seeds/" \;
+find experiments tests/io/malformed tools/fuzz/regressions -name '*.yaml' -size -64k -exec cp {} "$work/seeds/" \;
 status=0
 for target in "${targets[@]}"; do
   corpus=$work/corpus-$target
