@@ -538,34 +538,93 @@ void ChainModes::to_physical(double t, const Eigen::Ref<const Eigen::VectorXd>& 
   v.array() *= inv_sqrt_mass_.array();
 }
 
+void ChainModes::tangent_to_modal(const Eigen::Ref<const Eigen::MatrixXd>& y, Eigen::Ref<Eigen::MatrixXd> u,
+                                  Workspace& work) const {
+  const Eigen::Index k = y.cols();
+  if (implicit_) {
+    const Implicit& im = *implicit_;
+    const Eigen::Index N = im.free->dof();
+    Eigen::Map<Eigen::MatrixXd> spread = work.matrix(4, N, k), modal = work.matrix(5, N, k);
+    im.spread(y, spread);
+    modal.noalias() = im.free->q_.transpose() * spread;
+    im.down(modal, u, work);
+    return;
+  }
+  u.noalias() = q_.transpose() * (sqrt_mass_.asDiagonal() * y);
+}
+
+void ChainModes::tangent_to_physical(const Eigen::Ref<const Eigen::MatrixXd>& u, Eigen::Ref<Eigen::MatrixXd> y,
+                                     Workspace& work) const {
+  const Eigen::Index k = u.cols();
+  if (implicit_) {
+    const Implicit& im = *implicit_;
+    const Eigen::Index N = im.free->dof();
+    Eigen::Map<Eigen::MatrixXd> modal = work.matrix(5, N, k), full = work.matrix(4, N, k);
+    im.up(u, modal, work);
+    full.noalias() = im.free->q_ * modal;
+    im.gather(full, y);
+    return;
+  }
+  y.noalias() = inv_sqrt_mass_.asDiagonal() * (q_ * u);
+}
+
+void ChainModes::propagator(Eigen::Index k, double tau, double* ec, double* es) const {
+  const double sg = sigma_(k), w2 = omega2_(k), r = root_(k);
+  if (regime_(k) > 0) {
+    const double e = std::exp(-sg * tau);
+    *ec = e * std::cos(r * tau);
+    *es = e * std::sin(r * tau) / r;
+  } else if (regime_(k) < 0) {
+    // Rates σ ∓ r; the slow one written without cancellation (σ - r = ω²/(σ + r)).
+    const double e1 = std::exp(-(w2 / (sg + r)) * tau), e2 = std::exp(-(sg + r) * tau);
+    *ec = 0.5 * (e1 + e2);
+    *es = r * tau < 0.5 ? e2 * std::expm1(2.0 * r * tau) / (2.0 * r) : (e1 - e2) / (2.0 * r);
+  } else {
+    const double e = std::exp(-sg * tau);
+    *ec = e;
+    *es = e * tau;
+  }
+}
+
 void ChainModes::advance(double tau, const Eigen::Ref<const Eigen::VectorXd>& u,
                          const Eigen::Ref<const Eigen::VectorXd>& ud,
                          Eigen::Ref<Eigen::VectorXd> u_out, Eigen::Ref<Eigen::VectorXd> ud_out,
                          double* bound) const {
   const Eigen::Index n = dof();
   for (Eigen::Index k = 0; k < n; ++k) {
-    const double sg = sigma_(k), w2 = omega2_(k), r = root_(k);
+    const double sg = sigma_(k), w2 = omega2_(k);
     double ec, es;  // e^{-στ} C(τ), e^{-στ} S(τ)
-    if (regime_(k) > 0) {
-      const double e = std::exp(-sg * tau);
-      ec = e * std::cos(r * tau);
-      es = e * std::sin(r * tau) / r;
-    } else if (regime_(k) < 0) {
-      // Rates σ ∓ r; the slow one written without cancellation (σ - r = ω²/(σ + r)).
-      const double e1 = std::exp(-(w2 / (sg + r)) * tau), e2 = std::exp(-(sg + r) * tau);
-      ec = 0.5 * (e1 + e2);
-      es = r * tau < 0.5 ? e2 * std::expm1(2.0 * r * tau) / (2.0 * r) : (e1 - e2) / (2.0 * r);
-    } else {
-      const double e = std::exp(-sg * tau);
-      ec = e;
-      es = e * tau;
-    }
+    propagator(k, tau, &ec, &es);
     const double u0 = u(k), v0 = ud(k);
     const double u1 = ec * u0 + es * (v0 + sg * u0);
     const double v1 = ec * v0 - es * (sg * v0 + w2 * u0);
     u_out(k) = u1;
     ud_out(k) = v1;
     if (bound) bound[k] = (2.0 * sg + omega_(k)) * std::sqrt(v1 * v1 + w2 * u1 * u1);
+  }
+}
+
+void ChainModes::mode_propagator(Eigen::Index k, double tau, double p[4]) const {
+  const double sg = sigma_(k), w2 = omega2_(k);
+  double ec, es;
+  propagator(k, tau, &ec, &es);
+  p[0] = ec + es * sg;
+  p[1] = es;
+  p[2] = -es * w2;
+  p[3] = ec - es * sg;
+}
+
+void ChainModes::advance_columns(double tau, Eigen::Ref<Eigen::MatrixXd> u, Eigen::Ref<Eigen::MatrixXd> ud) const {
+  const Eigen::Index n = dof();
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const double sg = sigma_(k), w2 = omega2_(k);
+    double ec, es;
+    propagator(k, tau, &ec, &es);
+    for (Eigen::Index c = 0; c < u.cols(); ++c) {
+      const double u0 = u(k, c), v0 = ud(k, c);
+      u(k, c) = ec * u0 + es * (v0 + sg * u0);
+      ud(k, c) = ec * v0 - es * (sg * v0 + w2 * u0);
+    }
   }
 }
 

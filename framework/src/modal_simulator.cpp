@@ -992,6 +992,7 @@ const ModalContactMode* ModalChainSimulator::mode_for(const ContactSet& set, std
 ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
                                          const Eigen::VectorXd& v0, double t_end,
                                          const std::vector<Observer*>& observers) {
+  ++runs_started_;
   const ChainModes& md = *modes_;
   const BandedChain& ch = md.chain();
   const Eigen::Index n = md.dof();
@@ -1240,6 +1241,55 @@ void ModalSegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref
   if (mode_->modes) mode_->modes->advance(t - t_begin(), sim_->segment_u(), sim_->segment_ud(), u, ud);
   Buffers buffers(sim_->modes().dof());  // observers' own scratch (they may allocate)
   to_physical(*mode_, sim_->modes().frequency(), t, u, ud, x, v, buffers);
+}
+
+ModalSegmentState ModalSegmentView::keep() const {
+  return {*sim_, *mode_, t_begin(), sim_->segment_u(), sim_->segment_ud()};
+}
+
+void ModalSegmentState::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const {
+  const Eigen::Index nr = mode_->size();
+  Eigen::VectorXd u(nr), ud(nr);
+  if (mode_->modes) mode_->modes->advance(t - t_begin_, u_, ud_, u, ud);
+  Buffers buffers(sim_->modes().dof());
+  to_physical(*mode_, sim_->modes().frequency(), t, u, ud, x, v, buffers);
+}
+
+void ModalSegmentState::rows(double t, const std::vector<Eigen::Index>& masses, Eigen::VectorXd& x,
+                             Eigen::VectorXd& v) const {
+  const ModalContactMode& md = *mode_;
+  const double W = sim_->modes().frequency(), c = std::cos(W * t), s = std::sin(W * t);
+  const auto k = static_cast<Eigen::Index>(masses.size());
+  x.resize(k);
+  v.resize(k);
+  std::vector<Eigen::Index> coordinates;
+  for (Eigen::Index l : masses) {
+    const Eigen::Index r = md.coordinate[static_cast<std::size_t>(l)];
+    if (r >= 0) coordinates.push_back(r);
+  }
+  Eigen::MatrixXd phi;
+  Eigen::VectorXd q, qd;
+  if (md.modes && !coordinates.empty()) {
+    const ChainModes& m = *md.modes;
+    const Eigen::Index nr = md.size();
+    q.resize(nr);
+    qd.resize(nr);
+    m.advance(t - t_begin_, u_, ud_, q, qd);
+    q += m.particular_constant() + m.particular_cosine() * c + m.particular_sine() * s;
+    qd += W * (m.particular_sine() * c - m.particular_cosine() * s);
+    phi = m.phi_rows(coordinates);
+  }
+  Eigen::Index next = 0;
+  for (Eigen::Index i = 0; i < k; ++i) {
+    const Eigen::Index l = masses[static_cast<std::size_t>(i)];
+    x(i) = md.o0(l) + md.oc(l) * c + md.os(l) * s;
+    v(i) = W * (md.os(l) * c - md.oc(l) * s);
+    if (md.coordinate[static_cast<std::size_t>(l)] >= 0) {
+      x(i) += phi.row(next).dot(q);
+      v(i) += phi.row(next).dot(qd);
+      ++next;
+    }
+  }
 }
 
 double ModalSegmentView::force(Eigen::Index a, double t) const {

@@ -3,6 +3,7 @@
 // event loop against the dense Simulator on chains of 10 and 50 masses, the certified
 // detection of near-grazing impacts, chatter, sticking and release against the dense Simulator,
 // and the refusals (non-proportional damping, rigid-body modes, unsupported contact sets).
+#include "support/chains.hpp"
 #include "vibro/flow.hpp"
 #include "vibro/observers.hpp"
 #include "vibro/modal.hpp"
@@ -25,14 +26,7 @@ using vibro::ChainModes;
 using vibro::ModalChainSimulator;
 using vibro::Stop;
 
-/// A uniform chain m = k = 1 tied to a left wall, C = βK, driven by A cos Ωt on mass 0.
-BandedChain uniform_chain(int n, double beta, double amplitude, double frequency) {
-  std::vector<double> masses(static_cast<std::size_t>(n), 1.0), springs(static_cast<std::size_t>(n - 1), 1.0);
-  std::vector<double> dampers(springs.size(), beta);
-  vibro::HarmonicForcing f = vibro::HarmonicForcing::zero(n, frequency);
-  f.cosine(0) = amplitude;
-  return BandedChain::from_links(masses, springs, dampers, 1.0, beta, 0.0, 0.0, f);
-}
+using vibro::test::uniform_chain;
 
 double max_relative(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   return (a - b).cwiseAbs().maxCoeff() / std::max(1.0, b.cwiseAbs().maxCoeff());

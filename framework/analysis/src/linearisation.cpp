@@ -1,6 +1,7 @@
 #include "vibro/linearisation.hpp"
 
 #include "mechanics.hpp"
+#include "transition.hpp"
 #include "vibro/contact.hpp"
 #include "vibro/flow.hpp"
 
@@ -46,11 +47,6 @@ MatrixXd derivative(const MatD& a) {
   return out;
 }
 
-ContactSet set_union(const ContactSet& a, const ContactSet& b) {
-  ContactSet out;
-  std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
-  return out;
-}
 bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
 
 /// Upper bound of h over [a, b] from its ends, its end slopes and B ≥ |h''| (Taylor, as in
@@ -163,7 +159,8 @@ class TangentRecorder final : public Observer {
   TangentRecorder(const ImpactSystem& system, const SimulatorOptions& solver,
                   const LinearisationOptions& options, TangentMap& out)
       : system_(system), solver_(solver), options_(options), out_(out), n_(system.dof()),
-        mech_(system), mech0_(system), frame_(options.directions.size() > 0) {
+        mech_(system), mech0_(system), frame_(options.directions.size() > 0),
+        phases_(out.phases, system.stop_count()) {
     if (options.parameter) mechp_ = std::make_unique<Mechanics<Dual>>(system, &*options.parameter);
   }
 
@@ -187,7 +184,7 @@ class TangentRecorder final : public Observer {
       first_ = false;
       out_.starts_held = !S.empty();
       held_ = S;
-      for (int j : S) open_phase(j, tb);
+      for (int j : S) phases_.open(j, tb);
     } else if (pending_) {
       finish_transition(vb, S);
     }
@@ -218,8 +215,7 @@ class TangentRecorder final : public Observer {
     out_.x1 = xe_;
     out_.v1 = ve_;
     if (last_mode_) out_.rate_end = rate(*last_mode_, te_, xe_, ve_);
-    for (std::size_t j = 0; j < open_.size(); ++j)
-      if (open_[j] >= 0) out_.phases[static_cast<std::size_t>(open_[j])].t_end = t;
+    phases_.end(t);
     const Index N2 = 2 * n_;
     out_.free_dimension = min_dim_;
     if (frame_) {
@@ -377,24 +373,9 @@ class TangentRecorder final : public Observer {
     double rate = 0.0;
   };
 
-  /// The impulse LCP's active set over S ∪ I at (v, t), as the engine solves it.
   ContactSet impulse_set(const ContactSet& held, const ContactSet& impacting, const ContactSet& caught,
                          const VectorXd& v, double t) const {
-    const ContactSet all = set_union(held, impacting);
-    if (impacting.empty() || all.empty()) return {};
-    const MatrixXd W = mech_.normals(all);
-    const MatrixXd G = W.transpose() * mech_.mass_inverse(W);
-    VectorXd q(static_cast<Index>(all.size()));
-    for (std::size_t a = 0; a < all.size(); ++a) {
-      const int j = all[a];
-      const bool rests = contains(held, j) || contains(caught, j);
-      q(static_cast<Index>(a)) = (1.0 + (rests ? 0.0 : mech_.restitution(j))) * mech_.gap_rate(j, v, t);
-    }
-    const VectorXd impulse = solve_lcp(G, q);
-    ContactSet A;
-    for (std::size_t a = 0; a < all.size(); ++a)
-      if (impulse(static_cast<Index>(a)) > 0.0) A.push_back(all[a]);
-    return A;
+    return detail::impulse_set(mech_, held, impacting, caught, v, t);
   }
 
   /// The saltation of one resolution (`rule`) at (x, v⁻, t), with the guard of stop `guard`
@@ -455,25 +436,13 @@ class TangentRecorder final : public Observer {
   void finish_transition(const VectorXd& vp, const ContactSet& held_after) {
     pending_ = false;
     const double t = te_;
-    ContactSet impacting, caught, released;
-    for (const Event& e : events_) {
-      if (e.kind == EventKind::impact) impacting.push_back(e.stop);
-      if (e.kind == EventKind::chatter_limit) caught.push_back(e.stop);
-      if (e.kind == EventKind::release) released.push_back(e.stop);
-    }
-    for (ContactSet* s : {&impacting, &caught, &released}) {
-      std::sort(s->begin(), s->end());
-      s->erase(std::unique(s->begin(), s->end()), s->end());
-    }
-    SaltationRecord rec;
-    rec.t = t;
-    rec.held_before = held_;
-    rec.impacting = impacting;
-    rec.caught = caught;
-    rec.released = released;
-    rec.held_after = held_after;
+    const detail::Transition tr = detail::classify(events_);
+    const ContactSet& impacting = tr.impacting;
+    const ContactSet& caught = tr.caught;
+    const ContactSet& released = tr.released;
+    SaltationRecord rec = detail::record_of(t, held_, tr, held_after);
     if (options_.features) {
-      phases_at(t, held_, held_after);
+      phases_.change(t, held_, held_after);
       Mode& before = mode_for(held_);
       const VectorXd a = rate(before, t, xe_, ve_).tail(n_);
       for (int j : impacting)
@@ -495,8 +464,8 @@ class TangentRecorder final : public Observer {
       rec.simultaneous = true;
       rec.guard_stop = impacting.front();
       rec.impact = true;
-      const Jump forward = in_sequence(impacting, caught, held_after, vp, t, false);
-      const Jump backward = in_sequence(impacting, caught, held_after, vp, t, true);
+      const Jump forward = in_sequence(tr, held_after, vp, t, false);
+      const Jump backward = in_sequence(tr, held_after, vp, t, true);
       rec.order_spread = (forward.S - backward.S).norm() / std::max(forward.S.norm(), 1e-300);
       if (rec.order_spread > 1e-8 && !out_.non_smooth) {
         out_.non_smooth = true;
@@ -516,33 +485,18 @@ class TangentRecorder final : public Observer {
 
   /// Simultaneous impacts taken one at a time (index order, or reversed), each with its own
   /// guard; the last lands in the engine's post-event state.
-  Jump in_sequence(const ContactSet& impacting, const ContactSet& caught, const ContactSet& held_after,
-                   const VectorXd& vp, double t, bool reverse) {
-    ContactSet order = impacting;
-    if (reverse) std::reverse(order.begin(), order.end());
-    ContactSet held = held_;
-    VectorXd v = ve_;
+  Jump in_sequence(const detail::Transition& tr, const ContactSet& held_after, const VectorXd& vp, double t,
+                   bool reverse) {
     Jump total;
     total.S = MatrixXd::Identity(2 * n_, 2 * n_);
     if (mechp_) total.sp = VectorXd::Zero(2 * n_);
     total.rate = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < order.size(); ++i) {
-      const int j = order[i];
-      const ContactSet one{j};
-      ContactSet caught_j;
-      if (contains(caught, j)) caught_j = one;
-      ContactSet next = held;
-      if (contains(held_after, j)) next = set_union(held, one);
-      const bool last = i + 1 == order.size();
-      if (last) next = held_after;
-      const ResetRule rule{held, one, caught_j, impulse_set(held, one, caught_j, v, t), next, solver_.chatter_rule};
-      const VectorXd v_next = last ? vp : mech_.reset_velocity(rule, xe_, v, t);
-      const Jump step = jump(rule, j, true, xe_, v, v_next, t);
+    for (const detail::SequenceStep& s :
+         detail::impact_sequence(mech_, held_, tr, held_after, xe_, ve_, vp, t, solver_.chatter_rule, reverse)) {
+      const Jump step = jump(s.rule, s.stop, true, xe_, s.v_before, s.v_after, t);
       total.S = step.S * total.S;
       if (mechp_) total.sp = step.S * total.sp + step.sp;
       total.rate = std::min(total.rate, step.rate);
-      held = next;
-      v = v_next;
     }
     return total;
   }
@@ -601,25 +555,6 @@ class TangentRecorder final : public Observer {
     }
   }
 
-  void open_phase(int j, double t) {
-    if (open_.size() < system_.stop_count()) open_.assign(system_.stop_count(), -1);
-    open_[static_cast<std::size_t>(j)] = static_cast<long>(out_.phases.size());
-    out_.phases.push_back({j, t, t, false});
-  }
-
-  void phases_at(double t, const ContactSet& before, const ContactSet& after) {
-    if (open_.size() < system_.stop_count()) open_.assign(system_.stop_count(), -1);
-    for (int j : before)
-      if (!contains(after, j) && open_[static_cast<std::size_t>(j)] >= 0) {
-        HeldPhase& p = out_.phases[static_cast<std::size_t>(open_[static_cast<std::size_t>(j)])];
-        p.t_end = t;
-        p.closed = true;  // a stop leaves the held set only by a release (of its own or an impulse's)
-        open_[static_cast<std::size_t>(j)] = -1;
-      }
-    for (int j : after)
-      if (!contains(before, j)) open_phase(j, t);
-  }
-
   /// Tangent vectors are carried: the whole Jacobian, or the given directions.
   bool carries() const { return options_.jacobian || frame_; }
 
@@ -646,7 +581,7 @@ class TangentRecorder final : public Observer {
   const Mode* last_mode_ = nullptr;
   double last_tb_ = 0.0;
   VectorXd last_zb_;
-  std::vector<long> open_;
+  detail::PhaseBook phases_;
 };
 
 }  // namespace

@@ -36,6 +36,7 @@
 // rounding only and is zero along the exact map).
 #include "dual.hpp"
 #include "vibro/contact.hpp"
+#include "vibro/modal.hpp"
 #include "vibro/parameter.hpp"
 #include "vibro/simulator.hpp"
 #include "vibro/stops.hpp"
@@ -44,6 +45,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
+#include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -89,23 +93,26 @@ class Mechanics {
     Fs_ = seed(f.sine, d.sine);
     omega_ = make(f.frequency, d.frequency);
     llt_.compute(M_);
-    for (std::size_t j = 0; j < m_; ++j) {
-      const Stop& s = system.stops()[j];
-      const StopDerivative ds = d.stops.empty() ? StopDerivative{} : d.stops[j];
-      SparseNormal w;
-      w.i = s.mass;
-      if (s.kind == Stop::Kind::between) {
-        w.k = s.other;
-        w.b = -1.0;
-      } else if (s.kind == Stop::Kind::lower) {
-        w.a = -1.0;
-      }
-      normals_.push_back(w);
-      s0_.push_back(make(s.s0(), ds.offset));
-      sc_.push_back(make(s.s_cos(), ds.cosine));
-      ss_.push_back(make(s.s_sin(), ds.sine));
-      r_.push_back(make(s.restitution, ds.restitution));
-    }
+    add_stops(system.stops(), d);
+  }
+
+  /// A chain of the modal engine (modal.hpp) in its banded form: M diagonal, K tridiagonal,
+  /// C = αM + βK, so that every operation the resets and the contact forces need is O(n) and
+  /// nothing n × n is stored (chains of 10 000 masses). The generator and the force rows, which
+  /// are dense by nature, are not available on this form (the modal tangent map does not use them).
+  Mechanics(const BandedChain& chain, const std::vector<Stop>& stops)
+      : n_(chain.dof()), m_(stops.size()), banded_(true) {
+    const SystemDerivative zero;
+    mass_ = seed(chain.mass, Eigen::VectorXd());
+    k_diagonal_ = seed(chain.stiffness_diagonal, Eigen::VectorXd());
+    k_off_ = seed(chain.stiffness_off, Eigen::VectorXd());
+    alpha_ = make(chain.rayleigh_mass, 0.0);
+    beta_ = make(chain.rayleigh_stiffness, 0.0);
+    F0_ = seed(chain.forcing.constant, Eigen::VectorXd());
+    Fc_ = seed(chain.forcing.cosine, Eigen::VectorXd());
+    Fs_ = seed(chain.forcing.sine, Eigen::VectorXd());
+    omega_ = make(chain.forcing.frequency, 0.0);
+    add_stops(stops, zero);
   }
 
   Eigen::Index dof() const { return n_; }
@@ -160,11 +167,31 @@ class Mechanics {
     }
     return W;
   }
-  MatT<T> mass_inverse(const MatT<T>& y) const { return llt_.solve(y); }
-  VecT<T> mass_inverse(const VecT<T>& y) const { return llt_.solve(y); }
+  MatT<T> mass_inverse(const MatT<T>& y) const {
+    if (banded_) return MatT<T>(mass_.cwiseInverse().asDiagonal() * y);
+    return llt_.solve(y);
+  }
+  VecT<T> mass_inverse(const VecT<T>& y) const {
+    if (banded_) return y.cwiseQuotient(mass_);
+    return llt_.solve(y);
+  }
+  /// K y.
+  VecT<T> stiffness_times(const VecT<T>& y) const {
+    if (!banded_) return K_ * y;
+    VecT<T> out = k_diagonal_.cwiseProduct(y);
+    for (Eigen::Index i = 0; i + 1 < n_; ++i) {
+      out(i) += k_off_(i) * y(i + 1);
+      out(i + 1) += k_off_(i) * y(i);
+    }
+    return out;
+  }
 
   /// M⁻¹ (f − C v − K x).
   VecT<T> free_acceleration(const VecT<T>& x, const VecT<T>& v, const T& t) const {
+    if (banded_) {
+      const VecT<T> Cv = alpha_ * mass_.cwiseProduct(v) + beta_ * stiffness_times(v);
+      return mass_inverse(VecT<T>(forcing(t) - Cv - stiffness_times(x)));
+    }
     return llt_.solve(VecT<T>(forcing(t) - C_ * v - K_ * x));
   }
 
@@ -183,6 +210,7 @@ class Mechanics {
 
   /// a_free = B z with B = M⁻¹ [−K, −C, Fc, Fs, F0] (n × (2n + 3); columns x, v, cos, sin, 1).
   MatT<T> free_rows() const {
+    require_dense("free_rows");
     MatT<T> X(n_, 2 * n_ + 3);
     X << -K_, -C_, Fc_, Fs_, F0_;
     return mass_inverse(X);
@@ -259,7 +287,7 @@ class Mechanics {
         const T r = restitution(j);
         const T w0 = r * gap_rate(j, v, t);
         const T D = -(2.0 / 3.0) * w0 * w0 * w0 / (A * A * (T(1.0) - r * r * r));
-        v2 -= mass_inverse(VecT<T>(K_ * qj)) * (D / Gjj);
+        v2 -= mass_inverse(stiffness_times(qj)) * (D / Gjj);
       }
     }
     if (rule.held_after.empty()) return v2;
@@ -305,14 +333,68 @@ class Mechanics {
     return G.partialPivLu().solve(q);
   }
 
+  void require_dense(const char* what) const {
+    if (banded_) throw std::logic_error(std::string("Mechanics::") + what + " needs the dense form");
+  }
+
+  void add_stops(const std::vector<Stop>& stops, const SystemDerivative& d) {
+    for (std::size_t j = 0; j < m_; ++j) {
+      const Stop& s = stops[j];
+      const StopDerivative ds = d.stops.empty() ? StopDerivative{} : d.stops[j];
+      SparseNormal w;
+      w.i = s.mass;
+      if (s.kind == Stop::Kind::between) {
+        w.k = s.other;
+        w.b = -1.0;
+      } else if (s.kind == Stop::Kind::lower) {
+        w.a = -1.0;
+      }
+      normals_.push_back(w);
+      s0_.push_back(make(s.s0(), ds.offset));
+      sc_.push_back(make(s.s_cos(), ds.cosine));
+      ss_.push_back(make(s.s_sin(), ds.sine));
+      r_.push_back(make(s.restitution, ds.restitution));
+    }
+  }
+
   Eigen::Index n_;
   std::size_t m_;
-  MatT<T> M_, C_, K_;
+  bool banded_ = false;
+  MatT<T> M_, C_, K_;          // dense form
+  VecT<T> mass_, k_diagonal_, k_off_;  // banded form
+  T alpha_ = T(0.0), beta_ = T(0.0);
   VecT<T> F0_, Fc_, Fs_;
   T omega_;
   Eigen::LLT<MatT<T>> llt_;
   std::vector<SparseNormal> normals_;
   std::vector<T> s0_, sc_, ss_, r_;
 };
+
+inline ContactSet set_union(const ContactSet& a, const ContactSet& b) {
+  ContactSet out;
+  std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
+  return out;
+}
+
+/// The impulse LCP's active set A ⊂ S ∪ I at (v, t), as the engine solves it (the ResetRule's
+/// `impulse`): restitution 0 for held and caught stops.
+inline ContactSet impulse_set(const Mechanics<double>& mech, const ContactSet& held, const ContactSet& impacting,
+                              const ContactSet& caught, const Eigen::VectorXd& v, double t) {
+  const ContactSet all = set_union(held, impacting);
+  if (impacting.empty() || all.empty()) return {};
+  const Eigen::MatrixXd W = mech.normals(all);
+  const Eigen::MatrixXd G = W.transpose() * mech.mass_inverse(W);
+  Eigen::VectorXd q(static_cast<Eigen::Index>(all.size()));
+  for (std::size_t a = 0; a < all.size(); ++a) {
+    const int j = all[a];
+    const bool rests = Mechanics<double>::contains(held, j) || Mechanics<double>::contains(caught, j);
+    q(static_cast<Eigen::Index>(a)) = (1.0 + (rests ? 0.0 : mech.restitution(j))) * mech.gap_rate(j, v, t);
+  }
+  const Eigen::VectorXd impulse = solve_lcp(G, q);
+  ContactSet A;
+  for (std::size_t a = 0; a < all.size(); ++a)
+    if (impulse(static_cast<Eigen::Index>(a)) > 0.0) A.push_back(all[a]);
+  return A;
+}
 
 }  // namespace vibro::detail

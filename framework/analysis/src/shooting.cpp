@@ -1,12 +1,15 @@
 #include "vibro/shooting.hpp"
 
+#include "krylov.hpp"
 #include "section.hpp"
+#include "vibro/modal_tangent.hpp"
 
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <string>
 
@@ -37,46 +40,217 @@ struct Evaluation {
   bool ok = false;
   std::string why;
   TangentMap map;
+  std::shared_ptr<ModalTangent> tangent;  // the modal engine's map as an operator
   double residual = std::numeric_limits<double>::infinity();
 };
 
-Evaluation evaluate(const ImpactSystem& system, const SimulatorOptions& solver, double t0, const VectorXd& z,
-                    double t1, const LinearisationOptions& o) {
-  const Index n = system.dof();
-  Evaluation e;
-  try {
-    e.map = linearise(system, solver, t0, z.head(n), z.tail(n), t1, o);
-  } catch (const InvalidInput& err) {
-    e.why = err.what();
-    return e;
-  }
-  if (e.map.summary.status != RunStatus::completed) {
-    e.why = std::string("the run stopped early (") + to_string(e.map.summary.status) + "): " + e.map.summary.message;
-    return e;
-  }
-  e.ok = true;
-  e.residual = periodicity_residual(e.map);
-  return e;
-}
-
 /// The scaled Newton step of F(z) = P(z) − z at an evaluation: (D⁻¹ (J − I) D) δ = −D⁻¹ F,
-/// Δ = D δ, D = diag(L, V); returns δ and the matrix's reciprocal condition (0 if singular).
+/// Δ = D δ, D = diag(L, V). `rcond`: the matrix's reciprocal condition (dense; 0 if singular),
+/// or 1 when GMRES reached its tolerance and 0 when it did not (matrix-free).
 struct NewtonStep {
   VectorXd delta, scale;
   double rcond = 0.0;
+  std::string why;  // when rcond is 0
 };
-NewtonStep newton_step(const TangentMap& m, const VectorXd& z) {
-  const Index n = m.x0.size();
-  NewtonStep s;
-  s.scale = scales(n, m.summary.length_scale, m.summary.velocity_scale);
-  const VectorXd F = stacked(m.x1, m.v1) - z;
-  const MatrixXd A = s.scale.cwiseInverse().asDiagonal() * (m.jacobian - MatrixXd::Identity(2 * n, 2 * n)) *
-                     s.scale.asDiagonal();
-  const Eigen::FullPivLU<MatrixXd> lu(A);
-  s.rcond = lu.isInvertible() ? lu.rcond() : 0.0;
-  if (s.rcond > 0.0) s.delta = lu.solve(VectorXd(-F.cwiseQuotient(s.scale)));
-  return s;
-}
+
+/// What shooting needs of an engine: plain runs, maps, Newton steps and multipliers. The dense
+/// engine forms J (linearisation.hpp) and solves with LU; the modal engine applies J to vectors
+/// (modal_tangent.hpp) and solves by GMRES, its multipliers by Arnoldi (krylov.hpp).
+class Backend {
+ public:
+  virtual ~Backend() = default;
+  virtual Index dof() const = 0;
+  virtual double frequency() const = 0;
+  /// The state at `to` from z at `from`; throws InvalidInput if the run stops early.
+  VectorXd advance(double from, const VectorXd& z, double to) {
+    const RunSummary s = run(from, z, to);
+    if (s.status != RunStatus::completed)
+      throw InvalidInput("shooting: the guess's run stopped early (" + std::string(to_string(s.status)) + "): " + s.message);
+    return stacked(s.x, s.v);
+  }
+  /// The events and held phases over [t0, t1] (for the choice of section).
+  virtual TangentMap probe(double t0, const VectorXd& z, double t1) = 0;
+  virtual Evaluation evaluate(double t0, const VectorXd& z, double t1) = 0;
+  virtual NewtonStep newton_step(const Evaluation& e, const VectorXd& z) = 0;
+  virtual FloquetMultipliers multipliers(const Evaluation& e, int k) = 0;
+  /// `e` made usable again after other runs: a modal record is valid only until the engine's
+  /// next run (modal_tangent.hpp), so the modal backend evaluates again; a dense map is kept.
+  virtual Evaluation refresh(Evaluation e, double /*t0*/, const VectorXd& /*z*/, double /*t1*/) { return e; }
+  int products = 0;  // J·v products (matrix-free)
+
+ protected:
+  virtual RunSummary run(double from, const VectorXd& z, double to) = 0;
+  /// A step with the scales D = diag(L, V) of the map's run.
+  static NewtonStep scaled_step(const TangentMap& m) {
+    NewtonStep s;
+    s.scale = scales(m.x0.size(), m.summary.length_scale, m.summary.velocity_scale);
+    return s;
+  }
+  /// Completes an evaluation from its map (ok, why, residual).
+  static Evaluation finish(Evaluation e) {
+    if (e.map.summary.status != RunStatus::completed) {
+      e.why = std::string("the run stopped early (") + to_string(e.map.summary.status) + "): " + e.map.summary.message;
+      return e;
+    }
+    e.ok = true;
+    e.residual = periodicity_residual(e.map);
+    return e;
+  }
+};
+
+class DenseBackend final : public Backend {
+ public:
+  DenseBackend(const ImpactSystem& system, const SimulatorOptions& solver, const LinearisationOptions& o)
+      : system_(system), solver_(solver), options_(o) {
+    options_.jacobian = true;
+  }
+  Index dof() const override { return system_.dof(); }
+  double frequency() const override { return system_.system().forcing().frequency; }
+  TangentMap probe(double t0, const VectorXd& z, double t1) override {
+    LinearisationOptions probe;
+    probe.jacobian = false;
+    probe.features = true;
+    return linearise(system_, solver_, t0, z.head(dof()), z.tail(dof()), t1, probe);
+  }
+  Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
+    Evaluation e;
+    try {
+      e.map = linearise(system_, solver_, t0, z.head(dof()), z.tail(dof()), t1, options_);
+    } catch (const InvalidInput& err) {
+      e.why = err.what();
+      return e;
+    }
+    return finish(std::move(e));
+  }
+  NewtonStep newton_step(const Evaluation& e, const VectorXd& z) override {
+    const TangentMap& m = e.map;
+    const Index n = m.x0.size();
+    NewtonStep s = scaled_step(m);
+    const VectorXd F = stacked(m.x1, m.v1) - z;
+    const MatrixXd A = s.scale.cwiseInverse().asDiagonal() * (m.jacobian - MatrixXd::Identity(2 * n, 2 * n)) *
+                       s.scale.asDiagonal();
+    const Eigen::FullPivLU<MatrixXd> lu(A);
+    s.rcond = lu.isInvertible() ? lu.rcond() : 0.0;
+    if (s.rcond > 0.0) s.delta = lu.solve(VectorXd(-F.cwiseQuotient(s.scale)));
+    return s;
+  }
+  FloquetMultipliers multipliers(const Evaluation& e, int k) override { return floquet_multipliers(e.map, k); }
+
+ protected:
+  RunSummary run(double from, const VectorXd& z, double to) override {
+    Simulator sim(system_, solver_);
+    return sim.run(from, z.head(dof()), z.tail(dof()), to);
+  }
+
+ private:
+  const ImpactSystem& system_;
+  SimulatorOptions solver_;
+  LinearisationOptions options_;
+};
+
+class ModalBackend final : public Backend {
+ public:
+  ModalBackend(ModalEngine& engine, const KrylovOptions& krylov) : engine_(engine), krylov_(krylov) {}
+  Index dof() const override { return engine_.simulator().modes().dof(); }
+  double frequency() const override { return engine_.frequency(); }
+  TangentMap probe(double t0, const VectorXd& z, double t1) override {
+    return ModalTangent(engine_, t0, z.head(dof()), z.tail(dof()), t1).map();
+  }
+  Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
+    Evaluation e;
+    try {
+      e.tangent = std::make_shared<ModalTangent>(engine_, t0, z.head(dof()), z.tail(dof()), t1);
+    } catch (const InvalidInput& err) {
+      e.why = err.what();
+      return e;
+    }
+    e.map = e.tangent->map();
+    return finish(std::move(e));
+  }
+  NewtonStep newton_step(const Evaluation& e, const VectorXd& z) override {
+    const TangentMap& m = e.map;
+    const Index n = m.x0.size();
+    NewtonStep s = scaled_step(m);
+    // In the free chain's modal coordinates (ModalTangent::apply_modal: O(N) per free flight and
+    // free-flight impact). D = diag(L, V) commutes with Φ̃ = diag(Φ, Φ), so the scaled step is
+    // δ = Φ̃ δ_modal.
+    //
+    // Preconditioned on the right by the free chain's own monodromy: between impacts the modes
+    // do not interact, so J_free (no stop) is block diagonal in these coordinates — one 2 × 2
+    // propagator per mode over kT — and a free-flight impact changes the map by a rank-2 term.
+    // Hence (J − I)(J_free − I)⁻¹ = I + (a term of rank ≤ 2 × impacts, plus what held phases
+    // add) and GMRES needs about that many products whatever N is (unpreconditioned, restarted
+    // GMRES stalled at N = 4000 on the lightly damped low modes; measured in
+    // tools/bench/bench_modal_shooting). A mode whose free multiplier is 1 (no damping, ω kT ∈ 2πℤ)
+    // is left unpreconditioned.
+    const VectorXd F = e.tangent->modal_coordinates(stacked(m.x1, m.v1) - z);
+    const VectorXd D = s.scale;
+    const ChainModes& modes = engine_.simulator().modes();
+    Eigen::MatrixXd inverse(n, 4);  // rows: (P_k − I)⁻¹ of mode k, row-major
+    for (Index k = 0; k < n; ++k) {
+      double p[4];
+      modes.mode_propagator(k, m.t1 - m.t0, p);
+      const double a = p[0] - 1.0, b = p[1], c = p[2], d = p[3] - 1.0, det = a * d - b * c;
+      if (std::abs(det) > 1e-12 * (std::abs(a * d) + std::abs(b * c)) && det != 0.0) inverse.row(k) << d / det, -b / det, -c / det, a / det;
+      else inverse.row(k) << 1.0, 0.0, 0.0, 1.0;
+    }
+    auto precondition = [&](const VectorXd& q) -> VectorXd {
+      VectorXd y = D.cwiseProduct(q), w(2 * n);
+      for (Index k = 0; k < n; ++k) {
+        w(k) = inverse(k, 0) * y(k) + inverse(k, 1) * y(n + k);
+        w(n + k) = inverse(k, 2) * y(k) + inverse(k, 3) * y(n + k);
+      }
+      return w.cwiseQuotient(D);
+    };
+    const detail::Product A = [&](const VectorXd& q) -> VectorXd {
+      const VectorXd pq = precondition(q);
+      return VectorXd(e.tangent->apply_modal(D.cwiseProduct(pq))).cwiseQuotient(D) - pq;
+    };
+    const detail::GmresResult g =
+        detail::gmres(A, -F.cwiseQuotient(D), krylov_.gmres_tolerance, krylov_.max_dimension, krylov_.max_products);
+    products += g.products;
+    if (g.converged) {
+      s.rcond = 1.0;
+      s.delta = e.tangent->physical_coordinates(precondition(g.x));
+    } else {
+      s.why = "GMRES reached a relative residual of " + text(g.relative_residual) + " after " +
+              std::to_string(g.products) + " products (tolerance " + text(krylov_.gmres_tolerance) + ")";
+    }
+    return s;
+  }
+  Evaluation refresh(Evaluation /*e*/, double t0, const VectorXd& z, double t1) override {
+    return evaluate(t0, z, t1);
+  }
+  FloquetMultipliers multipliers(const Evaluation& e, int k) override {
+    const Index n2 = 2 * dof();
+    const detail::Product J = [&](const VectorXd& q) -> VectorXd { return e.tangent->apply_modal(q); };
+    const detail::ArnoldiResult a = detail::arnoldi(J, n2, krylov_.multipliers, krylov_.max_dimension, krylov_.arnoldi_tolerance);
+    FloquetMultipliers f;
+    f.products = a.products;
+    f.leading_only = true;
+    f.values = a.values;
+    f.spectral_radius = a.values.size() ? std::abs(a.values(0)) : 0.0;
+    f.converged = a.converged;
+    const double tol = krylov_.arnoldi_tolerance * std::max(1.0, f.spectral_radius);
+    while (f.converged_count < a.residuals.size() && a.residuals(f.converged_count) <= tol) ++f.converged_count;
+    f.ritz_residual = a.residuals.size() ? a.residuals(0) : 0.0;
+    f.stable = f.converged_count >= 1 && f.spectral_radius < 1.0;
+    f.rate = std::pow(f.spectral_radius, 1.0 / k);
+    return f;
+  }
+
+ protected:
+  RunSummary run(double from, const VectorXd& z, double to) override {
+    return engine_.run(from, z.head(dof()), z.tail(dof()), to);
+  }
+
+ private:
+  ModalEngine& engine_;
+  KrylovOptions krylov_;
+};
+
+ShootingResult shoot_with(Backend& backend, const ShootingOptions& options, double t_guess, const VectorXd& x,
+                          const VectorXd& v);
 
 }  // namespace
 
@@ -131,43 +305,59 @@ FloquetMultipliers floquet_multipliers(const TangentMap& m, int k) {
 ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options, double t_guess,
                      const VectorXd& x, const VectorXd& v, const LinearisationOptions& options_map) {
   options.validate();
-  const Index n = system.dof();
-  const double omega = system.system().forcing().frequency;
+  DenseBackend backend(system, options.solver, options_map);
+  return shoot_with(backend, options, t_guess, x, v);
+}
+
+ShootingResult shoot(ModalEngine& engine, const ShootingOptions& options, double t_guess, const VectorXd& x,
+                     const VectorXd& v, const KrylovOptions& krylov) {
+  options.validate();
+  krylov.validate();
+  ModalBackend backend(engine, krylov);
+  ShootingResult out = shoot_with(backend, options, t_guess, x, v);
+  out.krylov_products = backend.products;
+  return out;
+}
+
+void KrylovOptions::validate() const {
+  if (multipliers < 1) throw InvalidInput("krylov.multipliers = " + std::to_string(multipliers) + ": must be ≥ 1");
+  if (max_dimension < 2) throw InvalidInput("krylov.max_dimension = " + std::to_string(max_dimension) + ": must be ≥ 2");
+  if (max_products < 1) throw InvalidInput("krylov.max_products = " + std::to_string(max_products) + ": must be ≥ 1");
+  if (!(gmres_tolerance > 0.0) || !(gmres_tolerance < 1.0))
+    throw InvalidInput("krylov.gmres_tolerance = " + text(gmres_tolerance) + ": must be in (0, 1)");
+  if (!(arnoldi_tolerance > 0.0) || !(arnoldi_tolerance < 1.0))
+    throw InvalidInput("krylov.arnoldi_tolerance = " + text(arnoldi_tolerance) + ": must be in (0, 1)");
+}
+
+namespace {
+
+ShootingResult shoot_with(Backend& backend, const ShootingOptions& options, double t_guess, const VectorXd& x,
+                          const VectorXd& v) {
+  const Index n = backend.dof();
+  const double omega = backend.frequency();
   if (!(omega > 0.0)) throw InvalidInput("shooting: the forcing frequency must be > 0 (the orbit's period is 2π/Ω)");
   if (x.size() != n || v.size() != n)
     throw InvalidInput("shooting: the guess has " + std::to_string(x.size()) + " and " + std::to_string(v.size()) +
                        " entries, expected " + std::to_string(n));
   const double T = 2.0 * std::numbers::pi / omega;
   const int k = options.period;
-  LinearisationOptions lo = options_map;
-  lo.jacobian = true;
 
   ShootingResult out;
   out.k = k;
   // The section: phase θ, first reached after the guess time; then moved to [0, T).
   double theta = std::fmod(options.phase, 2.0 * std::numbers::pi);
   if (theta < 0.0) theta += 2.0 * std::numbers::pi;
-  auto advance = [&](double from, const VectorXd& z, double to) {
-    Simulator sim(system, options.solver);
-    const RunSummary s = sim.run(from, z.head(n), z.tail(n), to);
-    if (s.status != RunStatus::completed)
-      throw InvalidInput("shooting: the guess's run stopped early (" + std::string(to_string(s.status)) + "): " + s.message);
-    return stacked(s.x, s.v);
-  };
   double t_section = theta / omega + T * std::ceil((t_guess - theta / omega) / T);
-  VectorXd z = advance(t_guess, stacked(x, v), t_section);
+  VectorXd z = backend.advance(t_guess, stacked(x, v), t_section);
   if (options.free_section) {
     // Where is the guess free over one period? Move the section into the middle of the longest
     // stretch free of events and held phases (section.hpp) if a stop is held at it or an event
     // falls within 1e-6 T of it.
-    LinearisationOptions probe;
-    probe.jacobian = false;
-    probe.features = true;
-    const TangentMap g = linearise(system, options.solver, t_section, z.head(n), z.tail(n), t_section + k * T, probe);
+    const TangentMap g = backend.probe(t_section, z, t_section + k * T);
     if (g.summary.status == RunStatus::completed && detail::section_clearance(g) < 1e-6 * T) {
       const double mid = detail::free_section(g).first;
       if (mid > t_section) {
-        z = advance(t_section, z, mid);
+        z = backend.advance(t_section, z, mid);
         t_section = mid;
         theta = std::fmod(omega * t_section, 2.0 * std::numbers::pi);
       }
@@ -180,7 +370,7 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
   out.t0 = t0;
   const double t1 = t0 + k * T;
 
-  Evaluation cur = evaluate(system, options.solver, t0, z, t1, lo);
+  Evaluation cur = backend.evaluate(t0, z, t1);
   if (!cur.ok) {
     out.status = ShootingStatus::map_failed;
     out.message = "the map cannot be evaluated at the guess: " + cur.why;
@@ -191,12 +381,12 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
   out.residuals.push_back(cur.residual);
   double radius = options.trust_radius;
   for (int it = 0; it < options.max_iterations && cur.residual > options.tolerance; ++it) {
-    const NewtonStep ns = newton_step(cur.map, z);
+    const NewtonStep ns = backend.newton_step(cur, z);
     const VectorXd& D = ns.scale;
     if (ns.rcond < 1e-14) {
       out.status = ShootingStatus::singular;
-      out.message = "J − I is singular at iteration " + std::to_string(it) + " (rcond " + text(ns.rcond) +
-                    ", residual " + text(cur.residual) +
+      out.message = "J − I is singular at iteration " + std::to_string(it) + " (" +
+                    (ns.why.empty() ? "rcond " + text(ns.rcond) : ns.why) + ", residual " + text(cur.residual) +
                     "): a multiplier is 1 (a fold) — continue in a parameter instead";
       break;
     }
@@ -208,7 +398,7 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
     std::string why;
     for (int halving = 0; halving < 12; ++halving, step *= 0.5) {
       const VectorXd trial = z + D.cwiseProduct(delta * step);
-      Evaluation next = evaluate(system, options.solver, t0, trial, t1, lo);
+      Evaluation next = backend.evaluate(t0, trial, t1);
       if (!next.ok) {
         why = next.why;
         continue;
@@ -227,6 +417,7 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
       out.status = ShootingStatus::not_converged;
       out.message = "no acceptable step at iteration " + std::to_string(it + 1) + " (residual " + text(cur.residual) +
                     "; 12 halvings of the Newton step: " + why + ")";
+      cur = backend.refresh(std::move(cur), t0, z, t1);
       break;
     }
     out.residuals.push_back(cur.residual);
@@ -235,14 +426,16 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
   if (cur.residual <= options.tolerance && out.status == ShootingStatus::not_converged) {
     // Polish: one more Newton step (quadratic convergence takes the residual from the tolerance
     // to rounding), kept only if it lowers the residual.
-    const NewtonStep ns = newton_step(cur.map, z);
+    const NewtonStep ns = backend.newton_step(cur, z);
     if (ns.rcond > 0.0) {
       const VectorXd trial = z + ns.scale.cwiseProduct(ns.delta);
-      Evaluation next = evaluate(system, options.solver, t0, trial, t1, lo);
+      Evaluation next = backend.evaluate(t0, trial, t1);
       if (next.ok && next.residual < cur.residual) {
         z = trial;
         cur = std::move(next);
         out.residuals.push_back(cur.residual);
+      } else {
+        cur = backend.refresh(std::move(cur), t0, z, t1);
       }
     }
   }
@@ -254,11 +447,13 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
   if (cur.residual <= options.tolerance) {
     out.status = ShootingStatus::converged;
     out.message.clear();
+    // The multipliers first: the runs below end the validity of a modal record.
+    out.multipliers = backend.multipliers(cur, k);
     // The least period dividing k on which the orbit already closes.
     out.minimal_k = k;
     for (int d = 1; d < k; ++d) {
       if (k % d != 0) continue;
-      const VectorXd zd = advance(t0, z, t0 + d * T);
+      const VectorXd zd = backend.advance(t0, z, t0 + d * T);
       const double r = std::max((zd.head(n) - z.head(n)).cwiseAbs().maxCoeff() / out.length_scale,
                                 (zd.tail(n) - z.tail(n)).cwiseAbs().maxCoeff() / out.velocity_scale);
       if (r <= 1e3 * options.tolerance) {
@@ -266,7 +461,6 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
         break;
       }
     }
-    out.multipliers = floquet_multipliers(cur.map, k);
   } else if (out.status == ShootingStatus::not_converged && out.message.empty()) {
     out.message = "not converged after " + std::to_string(options.max_iterations) + " iterations (residual " +
                   text(cur.residual) + " > tolerance " + text(options.tolerance) + ")";
@@ -274,5 +468,7 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
   out.map = std::move(cur.map);
   return out;
 }
+
+}  // namespace
 
 }  // namespace vibro

@@ -229,14 +229,29 @@ class ChainModes {
                    const Eigen::Ref<const Eigen::VectorXd>& ud, Eigen::Ref<Eigen::VectorXd> x,
                    Eigen::Ref<Eigen::VectorXd> v, Workspace& work) const;
 
+  /// The linear parts of to_modal and to_physical on k columns at once, without the particular
+  /// solution: U = Φ⁻¹ Y and Y = Φ U (Φ⁻¹ = Φᵀ M). For tangent vectors, whose flow is the
+  /// homogeneous one (analysis/modal_tangent.hpp). O(n² k).
+  void tangent_to_modal(const Eigen::Ref<const Eigen::MatrixXd>& y, Eigen::Ref<Eigen::MatrixXd> u,
+                        Workspace& work) const;
+  void tangent_to_physical(const Eigen::Ref<const Eigen::MatrixXd>& u, Eigen::Ref<Eigen::MatrixXd> y,
+                           Workspace& work) const;
+
   /// Advances every mode's homogeneous part by τ ≥ 0: (u, ud) → (u_out, ud_out). O(n).
   /// If `bound` is non-empty it receives (2σ_k + ω_k)·√(ud² + ω² u²) at τ (see the header).
   void advance(double tau, const Eigen::Ref<const Eigen::VectorXd>& u,
                const Eigen::Ref<const Eigen::VectorXd>& ud, Eigen::Ref<Eigen::VectorXd> u_out,
                Eigen::Ref<Eigen::VectorXd> ud_out, double* bound = nullptr) const;
+  /// Mode k's homogeneous propagator over τ: (u, u')(τ) = P (u, u')(0), P 2 × 2 (row-major:
+  /// p[0] p[1] / p[2] p[3]).
+  void mode_propagator(Eigen::Index k, double tau, double p[4]) const;
+  /// The same on k columns at once (tangent vectors; each mode's propagator evaluated once). O(n k).
+  void advance_columns(double tau, Eigen::Ref<Eigen::MatrixXd> u, Eigen::Ref<Eigen::MatrixXd> ud) const;
 
  private:
   struct Implicit;
+  /// e^{-στ} C(τ) and e^{-στ} S(τ) of mode k (see the header).
+  void propagator(Eigen::Index k, double tau, double* ec, double* es) const;
   /// Regimes, rates and the particular solution from ω² and the modal forcing (both routes).
   void finish(const Eigen::VectorXd& p0, const Eigen::VectorXd& pc, const Eigen::VectorXd& ps);
 
@@ -314,6 +329,29 @@ struct ModalContactMode {
 
 class ModalChainSimulator;
 
+/// A segment's motion kept beyond the observer's callback (ModalSegmentView::keep): the contact
+/// set's modes and the homogeneous modal state at the segment's start, O(n_r) to keep. Valid while
+/// the simulator's cache holds the set (until its next run). For the analysis layer, which needs
+/// the state at a segment's end only at some events, and then sometimes only a few masses.
+class ModalSegmentState {
+ public:
+  ModalSegmentState() = default;
+  ModalSegmentState(const ModalChainSimulator& sim, const ModalContactMode& mode, double t_begin,
+                    Eigen::VectorXd u, Eigen::VectorXd ud)
+      : sim_(&sim), mode_(&mode), t_begin_(t_begin), u_(std::move(u)), ud_(std::move(ud)) {}
+  const ModalContactMode& mode() const { return *mode_; }
+  /// The full state at t. O(N n_r).
+  void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const;
+  /// x and v of the given masses only. O(n_r) per mass.
+  void rows(double t, const std::vector<Eigen::Index>& masses, Eigen::VectorXd& x, Eigen::VectorXd& v) const;
+
+ private:
+  const ModalChainSimulator* sim_ = nullptr;
+  const ModalContactMode* mode_ = nullptr;
+  double t_begin_ = 0.0;
+  Eigen::VectorXd u_, ud_;
+};
+
 /// The modal engine's segment for observers (observers.hpp): every observer of the dense engine
 /// works unchanged. A full state costs O(N n_r) (the modes' basis change), a force O(n_r).
 class ModalSegmentView final : public SegmentView {
@@ -323,6 +361,11 @@ class ModalSegmentView final : public SegmentView {
       : SegmentView(t_begin, t_end), sim_(&sim), mode_(&mode) {}
   Eigen::Index dof() const override;
   const ContactSet& active() const override { return mode_->stuck; }
+  /// The contact set's modal form and the simulator (valid during the observer's callback).
+  const ModalContactMode& mode() const { return *mode_; }
+  const ModalChainSimulator& simulator() const { return *sim_; }
+  /// This segment's motion, kept (see ModalSegmentState). O(n_r).
+  ModalSegmentState keep() const;
   void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const override;
   double force(Eigen::Index a, double t) const override;
   Minimum force_minimum(Eigen::Index a) const override;
@@ -353,10 +396,14 @@ class ModalChainSimulator {
 
   const ChainModes& modes() const { return *modes_; }
   const std::vector<Stop>& stops() const { return stops_; }
+  const ModalSimulatorOptions& options() const { return options_; }
   /// Seconds spent building the free chain's stop rows Φᵀw_j (O(N) per stop), in the constructor.
   double stop_setup_seconds() const { return stop_setup_seconds_; }
   /// Sticking subsystems currently held in the cache.
   std::size_t cached_modes() const;
+  /// Runs started so far: a record that points into the cache (analysis/modal_tangent.hpp) is
+  /// valid only until the next run, which may drop a contact set it refers to.
+  long runs_started() const { return runs_started_; }
   /// The modal form of contact set `set` (sorted stop indices), built now if not cached (for
   /// inspection and benchmarks; runs build what they visit). Throws InvalidInput naming the
   /// stops if the set cannot be reduced.
@@ -380,6 +427,7 @@ class ModalChainSimulator {
   std::vector<Stop> stops_;
   ModalSimulatorOptions options_;
   double stop_setup_seconds_ = 0.0;
+  long runs_started_ = 0;
   std::unique_ptr<Cache> cache_;
   double seg_t0_ = 0.0, force_tolerance_ = 1e-13;
   // The segment's homogeneous modal state: storage for the free chain's N modes, the current

@@ -36,6 +36,7 @@
 ///     vibro::ShootingOptions o;                     // period 1, section at phase 0
 ///     vibro::ShootingResult r = vibro::shoot(system, o, t_guess, x_guess, v_guess);
 ///     if (r.converged()) … r.x, r.v, r.multipliers.values, r.multipliers.stable …
+#include "vibro/engine.hpp"
 #include "vibro/linearisation.hpp"
 
 #include <string>
@@ -58,11 +59,31 @@ struct ShootingOptions {
 /// The Floquet multipliers of an orbit of period kT.
 struct FloquetMultipliers {
   /// All 2n: the non-structural ones by decreasing modulus, then the structural zeros (exact 0).
+  /// With `leading_only` (Arnoldi, modal engine): only the leading ones, by decreasing modulus.
   Eigen::VectorXcd values;
   int structural_zeros = 0;
   double spectral_radius = 0.0;  ///< max |μ| over the non-structural ones
-  bool stable = false;           ///< spectral_radius < 1
+  bool stable = false;           ///< spectral_radius < 1 (with leading_only: and the first converged)
   double rate = 0.0;             ///< spectral_radius^(1/k): contraction per forcing period
+  bool leading_only = false;     ///< values are the leading Ritz values of Arnoldi
+  bool converged = true;         ///< Arnoldi: every value's residual ≤ its tolerance
+  /// Arnoldi: how many of the leading values (from the first on) have converged. The leading
+  /// ones outside the bulk of nearly free modes converge first; the verdict needs only the first.
+  int converged_count = 0;
+  double ritz_residual = 0.0;    ///< Arnoldi: the first value's residual estimate
+  long products = 0;             ///< Arnoldi: J·v products used
+};
+
+/// Matrix-free shooting on the modal engine (long chains): GMRES for the Newton steps and
+/// Arnoldi for the leading multipliers, both on products with the tangent map
+/// (modal_tangent.hpp), so nothing 2N × 2N is formed.
+struct KrylovOptions {
+  int multipliers = 6;              ///< how many leading multipliers Arnoldi computes
+  int max_dimension = 200;          ///< Krylov space size (GMRES restart, Arnoldi's largest)
+  int max_products = 2000;          ///< per GMRES solve
+  double gmres_tolerance = 1e-10;   ///< relative residual of each Newton step's linear solve
+  double arnoldi_tolerance = 1e-10; ///< a Ritz value's residual, relative to max(1, |μ_1|)
+  void validate() const;            ///< throws InvalidInput naming the field
 };
 
 /// The multipliers of the map `m` over k periods (from its reduced map).
@@ -87,6 +108,7 @@ struct ShootingResult {
   TangentMap map;                  ///< over kT from (t0, x, v): Jacobian, events, features
   FloquetMultipliers multipliers;  ///< valid when converged
   double length_scale = 0.0, velocity_scale = 0.0;
+  long krylov_products = 0;        ///< J·v products of GMRES (modal engine; Arnoldi's: multipliers.products)
 };
 
 /// Newton shooting from the guess (t_guess, x, v) (see the file comment). `options_map` says what
@@ -95,6 +117,14 @@ struct ShootingResult {
 ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options, double t_guess,
                      const Eigen::VectorXd& x, const Eigen::VectorXd& v,
                      const LinearisationOptions& options_map = {});
+
+/// Newton–Krylov shooting on the modal engine (long chains; see KrylovOptions): the same
+/// procedure, section choice, trust region and reports as above, with the Newton steps solved by
+/// GMRES (a step whose solve does not reach its tolerance ends the shooting as `singular`, with
+/// GMRES's residual in the message) and the leading multipliers by Arnoldi (`leading_only`;
+/// the result's map has no Jacobian). options.solver is not used: the engine has its own settings.
+ShootingResult shoot(ModalEngine& engine, const ShootingOptions& options, double t_guess,
+                     const Eigen::VectorXd& x, const Eigen::VectorXd& v, const KrylovOptions& krylov = {});
 
 /// max(|Δx|∞/L, |Δv|∞/V) of the map's end state against its start.
 double periodicity_residual(const TangentMap& m);

@@ -1,0 +1,568 @@
+#include "vibro/modal_tangent.hpp"
+
+#include "mechanics.hpp"
+#include "transition.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <variant>
+
+namespace vibro {
+namespace {
+
+using detail::Dual;
+using detail::Mechanics;
+using detail::ResetRule;
+using Eigen::Index;
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+using VecD = detail::VecT<Dual>;
+
+
+VecD seeded(const Eigen::Ref<const VectorXd>& value, const Eigen::Ref<const VectorXd>& direction) {
+  VecD out(value.size());
+  for (Index i = 0; i < value.size(); ++i) out(i) = Dual(value(i), direction(i));
+  return out;
+}
+VectorXd derivative(const VecD& a) {
+  VectorXd out(a.size());
+  for (Index i = 0; i < a.size(); ++i) out(i) = a(i).d;
+  return out;
+}
+
+/// A segment: the homogeneous flow of one contact set over τ.
+struct Flight {
+  const ModalContactMode* mode = nullptr;
+  double tau = 0.0;
+};
+
+/// One guard's saltation at (x, v⁻, t), applied to vectors (see the header):
+///     δx⁺ = δx + jump_x s,   δv⁺ = R_z(δx, δv) + jump_v s,   s = (h_z·δz) / ḣ⁻.
+struct Salt {
+  ResetRule rule;
+  int guard = -1;        // -1: no guard (a reset without a crossing)
+  bool impact = false;   // the guard is a gap (else −λ of a held stop)
+  double t = 0.0, rate = 0.0;
+  VectorXd x, vm;
+  VectorXd jump;         // f⁺ − R_z f⁻ − R_t (2n)
+};
+
+/// The event at one instant: its guards in sequence.
+struct Jump {
+  std::vector<Salt> salts;
+};
+
+/// An impact in free flight after which the stop leaves (no stop held before or after, no
+/// chatter): applied in the free chain's modal coordinates (u, u'), O(N) per column, as the
+/// engine applies the impact itself. With φ = Φᵀw_j (Φ⁻¹M⁻¹w_j = Φᵀw_j, G = wᵀM⁻¹w = |φ|²), the
+/// impulse Λ = (1 + r) g'⁻/G, g'⁻ = ḣ⁻ the approach speed and g''⁻ the gap's acceleration
+/// before, the saltation of the header becomes
+///     δu'  ← δu' − φ (1 + r)/G · φᵀδu'                     (R_z: the Newton law)
+///     s = φᵀδu / g'⁻,   δu ← δu − φ Λ s,   δu' ← δu' + (2σ∘φ Λ + φ (1 + r) g''⁻/G) s,
+/// since v⁺ − v⁻ = −M⁻¹wΛ, a⁺ − a⁻ = M⁻¹CM⁻¹wΛ (Φ⁻¹M⁻¹CM⁻¹w = (α + βω²)∘φ = 2σ∘φ for
+/// C = αM + βK) and R_z a⁻ + R_t = a⁻ − M⁻¹w (1 + r) g''⁻/G. (Without an impulse, Λ = 0 and the
+/// map is the identity.) The general path gives the same to rounding (test_modal_tangent.cpp).
+struct FreeImpact {
+  VectorXd phi;            // Φᵀw_j
+  double newton = 0.0;     // (1 + r)/G, 0 without an impulse
+  double rate = 0.0;       // g'⁻
+  double impulse = 0.0;    // Λ
+  double curvature = 0.0;  // (1 + r) g''⁻ / G (0 without an impulse)
+};
+
+using Op = std::variant<Flight, Jump, FreeImpact>;
+
+}  // namespace
+
+struct ModalTangent::Record {
+  Record(const BandedChain& chain, const std::vector<Stop>& stops) : mech(chain, stops), dual(chain, stops) {}
+  Mechanics<double> mech;
+  Mechanics<Dual> dual;
+  std::vector<Op> ops;
+  const ChainModes* free = nullptr;      // the free chain's modes (the modal coordinates of FreeImpact)
+  bool modal_events = true;              // free-flight impacts as FreeImpact (else the general path)
+  std::size_t split = 0;                 // ops [0, split) and [split, end): J = J₂ J₁ (see fill_jacobian)
+  const ModalContactMode* split_mode = nullptr;
+  mutable ChainModes::Workspace work;
+
+  /// The contact force of held stop `guard` along (δx, δv, δt) at (x, v, t): −h_z·δz (release guard).
+  double force_derivative(const ContactSet& held, int guard, const VectorXd& x, const VectorXd& v, double t,
+                          const Eigen::Ref<const VectorXd>& dx, const Eigen::Ref<const VectorXd>& dv, double dt) const {
+    const auto a = static_cast<Index>(std::lower_bound(held.begin(), held.end(), guard) - held.begin());
+    return dual.forces(held, seeded(x, dx), seeded(v, dv), Dual(t, dt))(a).d;
+  }
+
+  /// h_z·δz of a salt.
+  double guard_derivative(const Salt& s, const Eigen::Ref<const VectorXd>& dx, const Eigen::Ref<const VectorXd>& dv) const {
+    if (s.guard < 0) return 0.0;
+    if (s.impact) {
+      const detail::SparseNormal& w = mech.normal(s.guard);
+      return w.a * dx(w.i) + (w.k >= 0 ? w.b * dx(w.k) : 0.0);
+    }
+    return -force_derivative(s.rule.held_before, s.guard, s.x, s.vm, s.t, dx, dv, 0.0);
+  }
+
+  void apply(const Salt& s, Eigen::Ref<MatrixXd> D) const {
+    const Index n = mech.dof();
+    for (Index c = 0; c < D.cols(); ++c) {
+      const VectorXd dx = D.col(c).head(n), dv = D.col(c).tail(n);
+      const double sc = s.guard >= 0 && s.rate != 0.0 ? guard_derivative(s, dx, dv) / s.rate : 0.0;
+      const VectorXd rv = derivative(dual.reset_velocity(s.rule, seeded(s.x, dx), seeded(s.vm, dv), Dual(s.t)));
+      D.col(c).head(n) = dx + s.jump.head(n) * sc;
+      D.col(c).tail(n) = rv + s.jump.tail(n) * sc;
+    }
+  }
+
+  void apply(const Jump& j, Eigen::Ref<MatrixXd> D) const {
+    for (const Salt& s : j.salts) apply(s, D);
+  }
+
+  /// A free-flight impact on modal columns [δu; δu'] (see FreeImpact).
+  void apply_modal(const FreeImpact& f, Eigen::Ref<MatrixXd> U) const {
+    const Index n = f.phi.size();
+    const VectorXd two_sigma_phi = 2.0 * free->decay().cwiseProduct(f.phi);
+    for (Index c = 0; c < U.cols(); ++c) {
+      auto u = U.col(c).head(n);
+      auto ud = U.col(c).tail(n);
+      const double s = f.phi.dot(u) / f.rate;
+      if (f.newton != 0.0) ud -= f.phi * (f.newton * f.phi.dot(ud));
+      u -= f.phi * (f.impulse * s);
+      ud += (two_sigma_phi * f.impulse + f.phi * f.curvature) * s;
+    }
+  }
+
+  /// Columns between physical (δx; δv) and the free chain's modal coordinates (δu; δu').
+  void to_modal(Eigen::Ref<MatrixXd> D) const {
+    const Index n = mech.dof(), p = D.cols();
+    MatrixXd Y(n, 2 * p), U(n, 2 * p);
+    Y << D.topRows(n), D.bottomRows(n);
+    free->tangent_to_modal(Y, U, work);
+    D.topRows(n) = U.leftCols(p);
+    D.bottomRows(n) = U.rightCols(p);
+  }
+  void to_physical(Eigen::Ref<MatrixXd> D) const {
+    const Index n = mech.dof(), p = D.cols();
+    MatrixXd U(n, 2 * p), Y(n, 2 * p);
+    U << D.topRows(n), D.bottomRows(n);
+    free->tangent_to_physical(U, Y, work);
+    D.topRows(n) = Y.leftCols(p);
+    D.bottomRows(n) = Y.rightCols(p);
+  }
+
+  /// The homogeneous flow of a segment on the columns of D (see the header).
+  void apply(const Flight& f, Eigen::Ref<MatrixXd> D) const {
+    const ModalContactMode& md = *f.mode;
+    const Index n = mech.dof(), nr = md.size(), p = D.cols();
+    if (nr == 0) {  // every mass prescribed
+      D.setZero();
+      return;
+    }
+    const VectorXd& mass = mass_of_chain;
+    MatrixXd Y = MatrixXd::Zero(nr, 2 * p);  // [δy | δy']
+    for (Index r = 0; r < nr; ++r) {
+      double sm = 0.0;
+      for (Index l = md.first[static_cast<std::size_t>(r)]; l <= md.last[static_cast<std::size_t>(r)]; ++l) {
+        Y.row(r).head(p) += mass(l) * D.row(l);
+        Y.row(r).tail(p) += mass(l) * D.row(n + l);
+        sm += mass(l);
+      }
+      Y.row(r) /= sm;
+    }
+    MatrixXd U(nr, 2 * p);
+    md.modes->tangent_to_modal(Y, U, work);
+    md.modes->advance_columns(f.tau, U.leftCols(p), U.rightCols(p));
+    md.modes->tangent_to_physical(U, Y, work);
+    for (Index l = 0; l < n; ++l) {
+      const Index r = md.coordinate[static_cast<std::size_t>(l)];
+      if (r >= 0) {
+        D.row(l) = Y.row(r).head(p);
+        D.row(n + l) = Y.row(r).tail(p);
+      } else {
+        D.row(l).setZero();
+        D.row(n + l).setZero();
+      }
+    }
+  }
+
+  VectorXd mass_of_chain;
+};
+
+namespace {
+
+/// Records the run: segments and events as ops of ModalTangent::Record, and the TangentMap's
+/// descriptive parts (as linearisation.cpp's TangentRecorder does for the dense engine).
+class Recorder final : public Observer {
+ public:
+  Recorder(ModalTangent::Record& record, const ModalChainSimulator& sim, TangentMap& out)
+      : rec_(record), sim_(sim), out_(out), n_(sim.modes().dof()), phases_(out.phases, sim.stops().size()) {}
+
+  void begin(const RunContext& /*run*/, double /*t0*/) override {
+    min_dim_ = 2 * n_;
+    least_rate_ = std::numeric_limits<double>::infinity();
+  }
+
+  // The state at a segment's end is needed only at events, and for a free-flight impact only at
+  // the impacting masses and their neighbours: the segment is kept (O(n_r)) and asked later, so a
+  // record costs O(N) per free-flight segment rather than a full O(N²) basis change.
+  void segment(const SegmentView& view) override {
+    const auto* mv = dynamic_cast<const ModalSegmentView*>(&view);
+    if (!mv) throw std::logic_error("ModalTangent: a segment not of the modal engine");
+    const double tb = view.t_begin(), te = view.t_end();
+    const ContactSet& S = view.active();
+    if (first_) {
+      first_ = false;
+      VectorXd xb(n_), vb(n_);
+      view.state(tb, xb, vb);
+      out_.starts_held = !S.empty();
+      held_ = S;
+      for (int j : S) phases_.open(j, tb);
+      out_.rate_start = rate(S, tb, xb, vb);
+    } else if (pending_) {
+      finish_transition(view, S);
+    }
+    rec_.ops.emplace_back(Flight{&mv->mode(), te - tb});
+    const Index dim = 2 * mv->mode().size();
+    if (dim < min_dim_) {
+      min_dim_ = dim;
+      rec_.split = rec_.ops.size();
+      rec_.split_mode = &mv->mode();
+    }
+    last_ = mv->keep();
+    te_ = te;
+    pending_ = true;
+    events_.clear();
+  }
+
+  void event(const Event& e) override {
+    events_.push_back(e);
+    out_.events.push_back(e);
+  }
+
+  void end(double t) override {
+    if (!events_.empty()) out_.ends_at_event = true;
+    out_.t1 = t;
+    if (first_) return;  // no segment
+    out_.x1.resize(n_);
+    out_.v1.resize(n_);
+    last_.state(te_, out_.x1, out_.v1);
+    out_.rate_end = rate(held_, te_, out_.x1, out_.v1);  // held_: the last segment's set
+    phases_.end(t);
+    out_.free_dimension = min_dim_;
+    out_.least_guard_rate = least_rate_;
+  }
+
+ private:
+  VectorXd rate(const ContactSet& S, double t, const VectorXd& x, const VectorXd& v) const {
+    VectorXd f(2 * n_);
+    f << v, rec_.mech.acceleration(S, x, v, t);
+    return f;
+  }
+
+  /// The saltation of one resolution at (x, v⁻, t) with the guard of stop `guard`, landing in v⁺.
+  Salt salt(const ResetRule& rule, int guard, bool impact, const VectorXd& x, const VectorXd& vm,
+            const VectorXd& vp, double t) const {
+    Salt s;
+    s.rule = rule;
+    s.guard = guard;
+    s.impact = impact;
+    s.t = t;
+    s.x = x;
+    s.vm = vm;
+    const VectorXd fm = rate(rule.held_before, t, x, vm), fp = rate(rule.held_after, t, x, vp);
+    // c = R_z f⁻ + R_t: the reset along the flow.
+    VectorXd c(2 * n_);
+    c.head(n_) = fm.head(n_);
+    c.tail(n_) = derivative(rec_.dual.reset_velocity(rule, seeded(x, fm.head(n_)), seeded(vm, fm.tail(n_)), Dual(t, 1.0)));
+    s.jump = fp - c;
+    if (guard >= 0 && impact) {
+      s.rate = rec_.mech.gap_rate(guard, vm, t);
+    } else if (guard >= 0) {
+      s.rate = -rec_.force_derivative(rule.held_before, guard, x, vm, t, fm.head(n_), fm.tail(n_), 1.0);
+    }
+    return s;
+  }
+
+  void finish_transition(const SegmentView& next, const ContactSet& held_after) {
+    pending_ = false;
+    const double t = te_;
+    const detail::Transition tr = detail::classify(events_);
+    const ContactSet& impacting = tr.impacting;
+    const ContactSet& caught = tr.caught;
+    const ContactSet& released = tr.released;
+    SaltationRecord record = detail::record_of(t, held_, tr, held_after);
+    phases_.change(t, held_, held_after);
+
+    const bool free_flight_impact = held_.empty() && held_after.empty() && impacting.size() == 1 && caught.empty() &&
+                                    released.empty();
+    if (rec_.modal_events && free_flight_impact) {
+      record.guard_stop = impacting.front();
+      record.impact = true;
+      rec_.ops.emplace_back(free_impact(impacting.front(), t));
+      record.guard_rate = std::get<FreeImpact>(rec_.ops.back()).rate;
+      least_rate_ = std::min(least_rate_, record.guard_rate);
+      out_.saltations.push_back(record);
+      return;
+    }
+    xe_.resize(n_);
+    ve_.resize(n_);
+    last_.state(t, xe_, ve_);
+    VectorXd xb(n_), vp(n_);
+    next.state(next.t_begin(), xb, vp);
+    Jump jump;
+    if (impacting.size() <= 1) {
+      const ResetRule rule{held_, impacting, caught,
+                           detail::impulse_set(rec_.mech, held_, impacting, caught, ve_, t), held_after,
+                           rule_};
+      const bool impact = !impacting.empty();
+      const int guard = impact ? impacting.front() : (released.empty() ? -1 : released.front());
+      record.guard_stop = guard;
+      record.impact = impact;
+      jump.salts.push_back(salt(rule, guard, impact, xe_, ve_, vp, t));
+      record.guard_rate = jump.salts.back().rate;
+    } else {
+      record.simultaneous = true;
+      record.guard_stop = impacting.front();
+      record.impact = true;
+      jump = in_sequence(tr, held_after, vp, t, false);
+      const Jump backward = in_sequence(tr, held_after, vp, t, true);
+      record.order_spread = spread(jump, backward);
+      if (record.order_spread > 1e-8 && !out_.non_smooth) {
+        out_.non_smooth = true;
+        out_.non_smooth_reason = "simultaneous impacts at t = " + number_text(t) +
+                                 " whose order changes the tangent map (relative difference " +
+                                 number_text(record.order_spread) + ")";
+      }
+      record.guard_rate = std::numeric_limits<double>::infinity();
+      for (const Salt& s : jump.salts) record.guard_rate = std::min(record.guard_rate, s.rate);
+    }
+    if (record.impact) least_rate_ = std::min(least_rate_, record.guard_rate);
+    out_.saltations.push_back(record);
+    rec_.ops.emplace_back(std::move(jump));
+    held_ = held_after;
+  }
+
+  /// A free-flight impact of stop j at the pending event (see FreeImpact), from the kept segment's
+  /// state at the impacting masses and their neighbours (K is tridiagonal): O(N).
+  FreeImpact free_impact(int j, double t) const {
+    const detail::SparseNormal& w = rec_.mech.normal(j);
+    const BandedChain& ch = sim_.modes().chain();
+    std::vector<Index> masses;
+    for (Index l : {w.i, w.k})
+      if (l >= 0)
+        for (Index m = std::max<Index>(l - 1, 0); m <= std::min<Index>(l + 1, n_ - 1); ++m) masses.push_back(m);
+    VectorXd x, v;
+    last_.rows(t, masses, x, v);
+    auto at = [&](const VectorXd& y, Index l) {
+      return y(std::find(masses.begin(), masses.end(), l) - masses.begin());
+    };
+    const double W = sim_.modes().frequency(), c = std::cos(W * t), s = std::sin(W * t);
+    auto stiffness = [&](const VectorXd& y, Index l) {  // (K y)_l
+      double out = ch.stiffness_diagonal(l) * at(y, l);
+      if (l > 0) out += ch.stiffness_off(l - 1) * at(y, l - 1);
+      if (l + 1 < n_) out += ch.stiffness_off(l) * at(y, l + 1);
+      return out;
+    };
+    auto acceleration = [&](Index l) {  // M⁻¹ (f − C v − K x), C = αM + βK
+      const double f = ch.forcing.constant(l) + ch.forcing.cosine(l) * c + ch.forcing.sine(l) * s;
+      return (f - ch.rayleigh_mass * ch.mass(l) * at(v, l) - ch.rayleigh_stiffness * stiffness(v, l) - stiffness(x, l)) /
+             ch.mass(l);
+    };
+    auto along = [&](auto&& value) { return w.a * value(w.i) + (w.k >= 0 ? w.b * value(w.k) : 0.0); };
+    FreeImpact f;
+    f.phi = w.a * rec_.free->phi_row(w.i);
+    if (w.k >= 0) f.phi += w.b * rec_.free->phi_row(w.k);
+    const double G = w.a * w.a / ch.mass(w.i) + (w.k >= 0 ? w.b * w.b / ch.mass(w.k) : 0.0);
+    f.rate = along([&](Index l) { return at(v, l); }) - rec_.mech.stop_position(j, t, 1);
+    const double r = rec_.mech.restitution(j);
+    // The impulse LCP of one stop (as detail::impulse_set solves it): active iff its impulse > 0.
+    const bool impulse = solve_lcp(Eigen::MatrixXd::Constant(1, 1, G), VectorXd::Constant(1, (1.0 + r) * f.rate))(0) > 0.0;
+    if (impulse) {
+      const double g2 = along(acceleration) - rec_.mech.stop_position(j, t, 2);
+      f.newton = (1.0 + r) / G;
+      f.impulse = (1.0 + r) * f.rate / G;
+      f.curvature = (1.0 + r) * g2 / G;
+    }
+    return f;
+  }
+
+  /// Simultaneous impacts one at a time (index order or reversed), as linearisation.cpp.
+  Jump in_sequence(const detail::Transition& tr, const ContactSet& held_after, const VectorXd& vp, double t,
+                   bool reverse) const {
+    Jump out;
+    for (const detail::SequenceStep& s :
+         detail::impact_sequence(rec_.mech, held_, tr, held_after, xe_, ve_, vp, t, rule_, reverse))
+      out.salts.push_back(salt(s.rule, s.stop, true, xe_, s.v_before, s.v_after, t));
+    return out;
+  }
+
+  /// ‖A d − B d‖ / ‖A d‖ over fixed test vectors d (the dense map compares the matrices).
+  double spread(const Jump& a, const Jump& b) const {
+    MatrixXd D(2 * n_, 4);
+    for (Index i = 0; i < D.rows(); ++i)
+      for (Index c = 0; c < 4; ++c) D(i, c) = std::sin(1.0 + 0.7 * static_cast<double>(i) + 1.3 * static_cast<double>(c));
+    MatrixXd Da = D, Db = D;
+    for (const Salt& s : a.salts) rec_.apply(s, Da);
+    for (const Salt& s : b.salts) rec_.apply(s, Db);
+    return (Da - Db).norm() / std::max(Da.norm(), 1e-300);
+  }
+
+ public:
+  ChatterRule rule_ = ChatterRule::second_order;
+
+ private:
+  ModalTangent::Record& rec_;
+  const ModalChainSimulator& sim_;
+  TangentMap& out_;
+  Index n_;
+  bool first_ = true, pending_ = false;
+  ContactSet held_;
+  ModalSegmentState last_;  // the segment before the pending event
+  VectorXd xe_, ve_;        // its end state (general events only)
+  double te_ = 0.0;
+  std::vector<Event> events_;
+  Index min_dim_ = 0;
+  double least_rate_ = 0.0;
+  detail::PhaseBook phases_;
+};
+
+}  // namespace
+
+ModalTangent::ModalTangent(ModalEngine& engine, double t0, const VectorXd& x0, const VectorXd& v0, double t1,
+                           bool modal_events)
+    : sim_(&engine.simulator()), n_(engine.simulator().modes().dof()) {
+  ModalChainSimulator& sim = engine.simulator();
+  record_ = std::make_unique<Record>(sim.modes().chain(), sim.stops());
+  record_->mass_of_chain = sim.modes().chain().mass;
+  record_->free = &sim.modes();
+  record_->modal_events = modal_events;
+  map_.t0 = t0;
+  map_.x0 = x0;
+  map_.v0 = v0;
+  Recorder recorder(*record_, sim, map_);
+  recorder.rule_ = sim.options().chatter_rule;
+  const ModalRunSummary s = sim.run(t0, x0, v0, t1, {&recorder});
+  map_.summary = s;
+  run_ = sim.runs_started();
+  if (map_.summary.velocity_scale > 0.0) map_.least_guard_rate /= map_.summary.velocity_scale;
+  if (map_.x1.size() == 0) {  // a run without a segment (t1 = t0)
+    map_.t1 = t1;
+    map_.x1 = x0;
+    map_.v1 = v0;
+  }
+}
+
+ModalTangent::~ModalTangent() = default;
+
+void ModalTangent::apply_range(std::size_t from, std::size_t to, MatrixXd& D, bool modal_in, bool modal_out) const {
+  if (map_.summary.status != RunStatus::completed)
+    throw std::logic_error("ModalTangent: the run did not complete (" + std::string(to_string(map_.summary.status)) +
+                           "); its tangent map is not defined");
+  if (sim_->runs_started() != run_)
+    throw std::logic_error("ModalTangent: the engine has run again since this record (its contact sets may be gone)");
+  const Record& r = *record_;
+  // The columns stay in the free chain's modal coordinates through free flights and free-flight
+  // impacts (O(N) each) and go to physical ones only for the other events and contact sets.
+  bool modal = modal_in;
+  auto want = [&](bool in_modal) {
+    if (in_modal && !modal) r.to_modal(D);
+    if (!in_modal && modal) r.to_physical(D);
+    modal = in_modal;
+  };
+  for (std::size_t i = from; i < to; ++i) {
+    const Op& op = r.ops[i];
+    if (const auto* f = std::get_if<Flight>(&op)) {
+      if (f->mode->stuck.empty()) {
+        want(true);
+        r.free->advance_columns(f->tau, D.topRows(n_), D.bottomRows(n_));
+      } else {
+        want(false);
+        r.apply(*f, D);
+      }
+    } else if (const auto* impact = std::get_if<FreeImpact>(&op)) {
+      want(true);
+      r.apply_modal(*impact, D);
+    } else {
+      want(false);
+      r.apply(std::get<Jump>(op), D);
+    }
+  }
+  want(modal_out);
+}
+
+MatrixXd ModalTangent::through(const MatrixXd& directions, bool modal) const {
+  if (directions.rows() != 2 * n_)
+    throw InvalidInput("modal tangent: directions have " + std::to_string(directions.rows()) +
+                       " rows, expected 2n = " + std::to_string(2 * n_));
+  MatrixXd D = directions;
+  apply_range(0, record_->ops.size(), D, modal, modal);
+  return D;
+}
+
+MatrixXd ModalTangent::apply(const MatrixXd& directions) const { return through(directions, false); }
+
+MatrixXd ModalTangent::apply_modal(const MatrixXd& directions) const { return through(directions, true); }
+
+MatrixXd ModalTangent::modal_coordinates(const MatrixXd& physical) const {
+  MatrixXd D = physical;
+  record_->to_modal(D);
+  return D;
+}
+
+MatrixXd ModalTangent::physical_coordinates(const MatrixXd& modal) const {
+  MatrixXd D = modal;
+  record_->to_physical(D);
+  return D;
+}
+
+void ModalTangent::fill_jacobian(TangentMap& out) const {
+  const Index N2 = 2 * n_;
+  out.jacobian = apply(MatrixXd::Identity(N2, N2));
+  if (map_.free_dimension >= N2 || !record_->split_mode) {
+    out.reduced = out.jacobian;
+    out.lift = MatrixXd::Identity(N2, N2);
+    return;
+  }
+  // J = J₂ J₁ split after the first segment of least dimension; B an orthonormal basis of that
+  // set's tangent space: x = T y, so the columns of T normalised (disjoint groups) and the same
+  // for v. reduced = Bᵀ J₁ J₂ B shares J's non-zero eigenvalues (linearisation.hpp).
+  const ModalContactMode& md = *record_->split_mode;
+  const Index nr = md.size();
+  MatrixXd B = MatrixXd::Zero(N2, 2 * nr);
+  for (Index r = 0; r < nr; ++r) {
+    const Index first = md.first[static_cast<std::size_t>(r)], last = md.last[static_cast<std::size_t>(r)];
+    const double w = 1.0 / std::sqrt(static_cast<double>(last - first + 1));
+    for (Index l = first; l <= last; ++l) {
+      B(l, r) = w;
+      B(n_ + l, nr + r) = w;
+    }
+  }
+  MatrixXd L = B;
+  apply_range(record_->split, record_->ops.size(), L, false, false);  // J₂ B
+  out.lift = L;
+  apply_range(0, record_->split, L, false, false);                     // J₁ J₂ B
+  out.reduced = B.transpose() * L;
+}
+
+TangentMap linearise(ModalEngine& engine, double t0, const VectorXd& x0, const VectorXd& v0, double t1,
+                     const LinearisationOptions& options) {
+  if (options.parameter)
+    throw InvalidInput("linearisation: parameter derivatives are not available on the modal engine (use the dense engine)");
+  if (options.features)
+    throw InvalidInput("linearisation: features (gap peaks, force dips) are not available on the modal engine");
+  const Index n2 = 2 * engine.simulator().modes().dof();
+  if (options.directions.size() > 0 && options.directions.rows() != n2)
+    throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +
+                       " rows, expected 2n = " + std::to_string(n2));
+  ModalTangent tangent(engine, t0, x0, v0, t1);
+  TangentMap out = tangent.map();
+  if (out.summary.status != RunStatus::completed) return out;
+  if (options.directions.size() > 0) out.products = tangent.apply(options.directions);
+  else if (options.jacobian) tangent.fill_jacobian(out);
+  return out;
+}
+
+}  // namespace vibro

@@ -1,0 +1,287 @@
+/// Tests of the modal engine's matrix-free tangent map (analysis/modal_tangent.hpp):
+///  * against the dense engine's tangent map (linearisation.hpp, itself tested against long-double
+///    finite differences and closed forms) on the same chains, through impacts, chatter, sticking
+///    and release, on both routes to a contact set's modes (tridiagonal and secular);
+///  * against central finite differences of the modal engine's own map;
+///  * the reduced map (structural zeros) and the record's validity.
+#include "support/chains.hpp"
+#include "support/analysis_helpers.hpp"
+#include "vibro/modal_tangent.hpp"
+#include "vibro/shooting.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <numbers>
+#include <vector>
+
+namespace {
+
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+using vibro::BandedChain;
+using vibro::Stop;
+using vibro::test::stack;
+
+using vibro::test::uniform_chain;
+
+/// A state of the run from rest at a time t0 ≥ `after` in free flight, at least `clearance` from
+/// every event and outside every held phase (a map from a held start is one-sided; see the header).
+struct FreeStart {
+  double t0 = 0.0;
+  VectorXd x, v;
+};
+FreeStart free_start(const vibro::ImpactSystem& scene, double after, double before, double clearance) {
+  const auto n = scene.dof();
+  vibro::LinearisationOptions o;
+  o.jacobian = false;
+  o.features = true;
+  const VectorXd zero = VectorXd::Zero(n);
+  const vibro::TangentMap m = vibro::linearise(scene, {}, 0.0, zero, zero, before, o);
+  REQUIRE(m.summary.status == vibro::RunStatus::completed);
+  std::vector<std::pair<double, double>> busy;
+  for (const auto& e : m.events) busy.push_back({e.t, e.t});
+  for (const auto& p : m.phases) busy.push_back({p.t_start, p.t_end});
+  for (double t = after; t < before; t += 0.01 * clearance) {
+    bool ok = true;
+    for (const auto& [a, b] : busy) ok = ok && (t < a - clearance || t > b + clearance);
+    if (!ok) continue;
+    vibro::Simulator sim(scene);
+    const auto s = sim.run(0.0, zero, zero, t);
+    return {t, s.x, s.v};
+  }
+  FAIL("no free start found");
+  return {};
+}
+
+struct Compared {
+  double jacobian = 0.0;     // max |J_modal − J_dense| / max |J_dense|
+  double end_state = 0.0;    // relative
+  long impacts = 0, sticks = 0, releases = 0;
+  vibro::TangentMap dense, modal;
+};
+
+Compared compare(const BandedChain& chain, const std::vector<Stop>& stops, double periods, double span,
+                 const vibro::ModalSimulatorOptions& options = {}) {
+  const double T = 2.0 * std::numbers::pi / chain.forcing.frequency;
+  const vibro::ImpactSystem scene(chain.dense(), stops);
+  const FreeStart s = free_start(scene, periods * T, (periods + 2.0) * T, 0.02 * T);
+  Compared out;
+  out.dense = vibro::linearise(scene, {}, s.t0, s.x, s.v, s.t0 + span * T);
+  REQUIRE(out.dense.summary.status == vibro::RunStatus::completed);
+  vibro::ModalEngine engine(chain, stops, options);
+  out.modal = vibro::linearise(engine, s.t0, s.x, s.v, s.t0 + span * T);
+  INFO(out.modal.summary.message);
+  REQUIRE(out.modal.summary.status == vibro::RunStatus::completed);
+  REQUIRE(out.modal.events.size() == out.dense.events.size());
+  for (std::size_t e = 0; e < out.dense.events.size(); ++e) {
+    REQUIRE(out.modal.events[e].kind == out.dense.events[e].kind);
+    REQUIRE(out.modal.events[e].stop == out.dense.events[e].stop);
+  }
+  out.jacobian = (out.modal.jacobian - out.dense.jacobian).cwiseAbs().maxCoeff() /
+                 out.dense.jacobian.cwiseAbs().maxCoeff();
+  out.end_state = (stack(out.modal.x1, out.modal.v1) - stack(out.dense.x1, out.dense.v1)).cwiseAbs().maxCoeff() /
+                  std::max(1.0, stack(out.dense.x1, out.dense.v1).cwiseAbs().maxCoeff());
+  out.impacts = out.dense.summary.impacts;
+  out.sticks = out.dense.summary.sticks;
+  out.releases = out.dense.summary.releases;
+  return out;
+}
+
+/// Non-zero eigenvalues of a reduced map by decreasing modulus.
+Eigen::VectorXcd sorted_eigenvalues(const MatrixXd& reduced) {
+  Eigen::VectorXcd mu = reduced.eigenvalues();
+  std::sort(mu.data(), mu.data() + mu.size(), [](auto a, auto b) { return std::abs(a) > std::abs(b); });
+  return mu;
+}
+
+}  // namespace
+
+// Both maps are exact to rounding: the engines' trajectories agree to ~1e-13 per event
+// (tests/framework/test_modal.cpp), and each map is a product of flow propagators (exact on both,
+// ~1e-14) and saltation matrices whose entries carry 1/ḣ⁻ (impact speeds here ≥ 1e-2 V, so an
+// event-time difference of 1e-13 moves them by ≤ 1e-11 relative). Over a few dozen events with
+// |J| up to ~10², 1e-8 of max |J| is a bound with two orders of margin over what rounding gives,
+// while a wrong saltation term (a missing time-shift term, the wrong vector field, the wrong
+// projection) changes entries at the 1e-2 level or more.
+TEST_CASE("modal tangent map: equals the dense engine's through impacts, chatter, sticking and release",
+          "[modal_tangent]") {
+  const double tol = 1e-8;
+  SECTION("6 masses, a chattering stop into sticking and a second stop (tridiagonal route)") {
+    const BandedChain chain = uniform_chain(6, 0.05, 0.6, 0.35);
+    const Compared c = compare(chain, {Stop::upper(0, 0.3, 0.6), Stop::lower(3, -0.2, 0.8)}, 3.0, 1.0);
+    CHECK(c.impacts > 5);
+    CHECK(c.sticks >= 1);
+    CHECK(c.releases >= 1);
+    CHECK(c.end_state <= tol);
+    CHECK(c.jacobian <= tol);
+    // The map loses rank while the stop holds: the same structural zeros, the same multipliers.
+    CHECK(c.modal.free_dimension == c.dense.free_dimension);
+    REQUIRE(c.modal.free_dimension < 12);
+    const Eigen::VectorXcd a = sorted_eigenvalues(c.modal.reduced), b = sorted_eigenvalues(c.dense.reduced);
+    REQUIRE(a.size() == b.size());
+    CHECK((a - b).cwiseAbs().maxCoeff() <= tol * std::max(1.0, std::abs(b(0))));
+  }
+  SECTION("7 masses, plastic stops on a moving stop and between neighbours, the secular route") {
+    const BandedChain chain = uniform_chain(7, 0.05, 0.7, 0.4);
+    vibro::ModalSimulatorOptions o;
+    o.contact_modes = vibro::TridiagonalSolver::secular;
+    const Compared c = compare(chain, {Stop::upper(1, 0.25, 0.0), Stop::between(3, 4, 0.15, 0.0)}, 3.0, 1.5, o);
+    CHECK(c.impacts > 0);
+    CHECK(c.sticks >= 1);
+    CHECK(c.end_state <= tol);
+    CHECK(c.jacobian <= tol);
+  }
+}
+
+// Central differences of the modal engine's own map along random directions: error
+// O(h² |∂³φ|) + O(ε |φ| / h); with h = 1e-6 (relative to the state's scales) both are ~1e-10 to
+// 1e-9 of |J d| here, so 1e-6 is a wide bound that still catches any wrong term (≥ 1e-3).
+TEST_CASE("modal tangent map: products equal central differences of the modal engine's map", "[modal_tangent]") {
+  const BandedChain chain = uniform_chain(8, 0.05, 0.6, 0.35);
+  const std::vector<Stop> stops{Stop::upper(0, 0.3, 0.8), Stop::lower(5, -0.15, 0.7)};
+  const double T = 2.0 * std::numbers::pi / chain.forcing.frequency;
+  const vibro::ImpactSystem scene(chain.dense(), stops);
+  const FreeStart s = free_start(scene, 3.0 * T, 5.0 * T, 0.02 * T);
+  vibro::ModalEngine engine(chain, stops, {});
+  const vibro::ModalTangent tangent(engine, s.t0, s.x, s.v, s.t0 + T);
+  REQUIRE(tangent.map().summary.status == vibro::RunStatus::completed);
+  const long impacts = tangent.map().summary.impacts;
+  REQUIRE(impacts > 0);
+  const MatrixXd D = MatrixXd::Random(16, 3);
+  const VectorXd scale = vibro::test::state_scale(8, tangent.map().summary.length_scale, tangent.map().summary.velocity_scale);
+  const double h = 1e-6;
+  for (int c = 0; c < 3; ++c) {
+    const VectorXd d = D.col(c).cwiseProduct(scale);
+    const VectorXd z = stack(s.x, s.v);
+    auto map = [&](const VectorXd& z0) {
+      vibro::ModalEngine e(chain, stops, {});
+      const auto r = e.run(s.t0, z0.head(8), z0.tail(8), s.t0 + T);
+      REQUIRE(r.status == vibro::RunStatus::completed);
+      REQUIRE(r.impacts == impacts);
+      return stack(r.x, r.v);
+    };
+    const VectorXd fd = (map(z + h * d) - map(z - h * d)) / (2.0 * h);
+    const VectorXd exact = tangent.apply(d);
+    INFO("direction " << c);
+    CHECK((fd - exact).cwiseAbs().maxCoeff() <= 1e-6 * exact.cwiseAbs().maxCoeff());
+  }
+}
+
+// The free-flight fast path (impacts applied in modal coordinates, ModalTangent's FreeImpact) and
+// the general path (every event in physical coordinates, by dual numbers) are two derivations of
+// the same map: they agree to rounding of the O(N²) basis changes, ~1e-14 of |J d|; 1e-11 leaves
+// margin and catches any wrong term of the fast path's formula (each is O(1) of |J d|).
+TEST_CASE("modal tangent map: free-flight impacts in modal coordinates equal the general path", "[modal_tangent]") {
+  const BandedChain chain = uniform_chain(40, 0.05, 0.6, 0.35);
+  const std::vector<Stop> stops{Stop::upper(0, 0.3, 0.8), Stop::lower(5, -0.15, 0.7), Stop::upper(30, 0.1, 0.5)};
+  const VectorXd zero = VectorXd::Zero(40);
+  vibro::ModalEngine engine(chain, stops, {});
+  const auto warm = engine.run(0.0, zero, zero, 40.0);
+  REQUIRE(warm.status == vibro::RunStatus::completed);
+  const MatrixXd D = MatrixXd::Random(80, 4);
+  MatrixXd fast, general;
+  long impacts = 0;
+  {
+    const vibro::ModalTangent t(engine, 40.0, warm.x, warm.v, 60.0, true);
+    fast = t.apply(D);
+    impacts = t.map().summary.impacts;
+    CHECK((t.physical_coordinates(t.apply_modal(t.modal_coordinates(D))) - fast).cwiseAbs().maxCoeff() <=
+          1e-11 * fast.cwiseAbs().maxCoeff());
+  }
+  {
+    const vibro::ModalTangent t(engine, 40.0, warm.x, warm.v, 60.0, false);
+    general = t.apply(D);
+  }
+  CHECK(impacts >= 3);
+  CHECK((fast - general).cwiseAbs().maxCoeff() <= 1e-11 * general.cwiseAbs().maxCoeff());
+}
+
+TEST_CASE("modal tangent map: a record refuses to be used after the engine ran again", "[modal_tangent]") {
+  const BandedChain chain = uniform_chain(4, 0.05, 0.6, 0.35);
+  vibro::ModalEngine engine(chain, {Stop::upper(0, 0.3, 0.8)}, {});
+  const VectorXd zero = VectorXd::Zero(4);
+  const vibro::ModalTangent tangent(engine, 0.0, zero, zero, 5.0);
+  CHECK(tangent.apply(MatrixXd::Identity(8, 1)).size() == 8);
+  engine.run(0.0, zero, zero, 1.0);
+  CHECK_THROWS_AS(tangent.apply(MatrixXd::Identity(8, 1)), std::logic_error);
+  CHECK_THROWS_AS(vibro::linearise(engine, 0.0, zero, zero, 1.0, [] {
+                    vibro::LinearisationOptions o;
+                    o.features = true;
+                    return o;
+                  }()),
+                  vibro::InvalidInput);
+}
+
+namespace {
+
+/// The chain of `n` masses above with mass-proportional damping α added (C = αM + βK), so that
+/// every mode decays at least like e^{−αt/2} and periodic orbits are reached in a few periods.
+BandedChain damped_chain(int n, double alpha, double beta, double amplitude, double frequency) {
+  BandedChain c = uniform_chain(n, beta, amplitude, frequency);
+  c.rayleigh_mass = alpha;
+  return c;
+}
+
+struct ShotPair {
+  vibro::ShootingResult dense, modal;
+};
+
+/// Both shootings from the same guess (a run of `periods` from rest).
+ShotPair shoot_both(const BandedChain& chain, const std::vector<Stop>& stops, double periods, int k = 1) {
+  const double T = 2.0 * std::numbers::pi / chain.forcing.frequency;
+  const auto n = chain.dof();
+  const VectorXd zero = VectorXd::Zero(n);
+  const vibro::ImpactSystem scene(chain.dense(), stops);
+  vibro::Simulator sim(scene);
+  const auto g = sim.run(0.0, zero, zero, periods * T);
+  REQUIRE(g.status == vibro::RunStatus::completed);
+  vibro::ShootingOptions o;
+  o.period = k;
+  ShotPair out;
+  out.dense = vibro::shoot(scene, o, periods * T, g.x, g.v);
+  vibro::ModalEngine engine(chain, stops, {});
+  out.modal = vibro::shoot(engine, o, periods * T, g.x, g.v);
+  return out;
+}
+
+}  // namespace
+
+// Newton–Krylov shooting on the modal engine finds the orbit dense shooting finds, and Arnoldi's
+// leading multipliers are the dense Jacobian's leading eigenvalues. Both orbits satisfy the same
+// periodicity tolerance 1e-11 (of L, V) on maps that agree to ~1e-13, so the states agree to the
+// tolerance times the conditioning of J − I (≤ 10² here): 1e-8 of L and V. The multipliers are
+// eigenvalues of matrices equal to 1e-8 relative (above), well separated from each other
+// (the real ones checked below: gaps ≥ 1e-3), so they agree to 1e-8 as well; Arnoldi's own tolerance is 1e-10.
+TEST_CASE("modal engine: Newton–Krylov shooting and Arnoldi multipliers equal dense shooting", "[modal_tangent]") {
+  SECTION("10 masses, two impacting stops, period 1") {
+    const BandedChain chain = damped_chain(10, 0.05, 0.02, 0.6, 0.5);
+    const ShotPair p = shoot_both(chain, {Stop::upper(0, 0.5, 0.8), Stop::lower(4, -0.12, 0.7)}, 6.0);
+    INFO(p.dense.message << " / " << p.modal.message);
+    REQUIRE(p.dense.converged());
+    REQUIRE(p.modal.converged());
+    CHECK(p.modal.map.summary.impacts > 0);
+    const double L = p.dense.length_scale, V = p.dense.velocity_scale;
+    CHECK((p.modal.x - p.dense.x).cwiseAbs().maxCoeff() <= 1e-8 * L);
+    CHECK((p.modal.v - p.dense.v).cwiseAbs().maxCoeff() <= 1e-8 * V);
+    const auto& md = p.modal.multipliers;
+    const auto& dd = p.dense.multipliers;
+    CHECK(md.leading_only);
+    CHECK(md.converged);
+    REQUIRE(md.values.size() == 6);
+    for (Eigen::Index i = 0; i < md.values.size(); ++i) {
+      INFO("multiplier " << i << ": " << md.values(i) << " vs " << dd.values(i));
+      // A complex pair may come in either order.
+      CHECK(std::min(std::abs(md.values(i) - dd.values(i)), std::abs(md.values(i) - std::conj(dd.values(i)))) <= 1e-8);
+      if (i > 0 && std::abs(dd.values(i).imag()) < 1e-12) {  // the gaps the tolerance relies on
+        CHECK(std::abs(std::abs(dd.values(i)) - std::abs(dd.values(i - 1))) >= 1e-3);
+      }
+    }
+    CHECK(md.stable == dd.stable);
+    CHECK(p.modal.krylov_products > 0);
+  }
+}
