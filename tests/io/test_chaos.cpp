@@ -322,6 +322,45 @@ run:
   CHECK(e[0] < 0.0);
 }
 
+// The same scene on both engines: the modal engine's matrix-free frames give the dense engine's
+// spectrum (unit masses: the same numbers up to the maps' rounding; library test in
+// tests/analysis/test_modal_tangent.cpp, where the 1e-9 is justified).
+TEST_CASE("a lyapunov run on the modal engine writes the dense engine's spectrum", "[runner][lyapunov]") {
+  auto scene = [](const std::string& engine) {
+    return std::string(R"(
+model:
+  chain:
+    masses: [1, 1, 1, 1, 1, 1]
+    springs: [1, 1, 1, 1, 1]
+    dampers: [0.05, 0.05, 0.05, 0.05, 0.05]
+    left_wall: {spring: 1, damper: 0.05}
+forcing:
+  frequency: 0.35
+  cosine: [0.6, 0, 0, 0, 0, 0]
+stops:
+  - {mass: 0, side: upper, position: 0.3, restitution: 0.6}
+  - {mass: 3, side: lower, position: -0.2, restitution: 0.8}
+initial:
+  x: [0, 0, 0, 0, 0, 0]
+  v: [0, 0, 0, 0, 0, 0]
+solver:
+  engine: )") + engine + R"(
+run:
+  kind: lyapunov
+  lyapunov: {transient: 3, align: 2, periods: 6}
+)";
+  };
+  const ResultReader dense = run_file(scene("dense"), "lyapunov_dense");
+  const ResultReader modal = run_file(scene("modal"), "lyapunov_modal");
+  CHECK(modal.attribute_string("/meta", "engine") == "modal");
+  const std::vector<double> a = dense.read("/lyapunov/exponents"), b = modal.read("/lyapunov/exponents");
+  REQUIRE(a.size() == 12);
+  REQUIRE(b.size() == a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) CHECK(std::abs(a[i] - b[i]) <= 1e-9);
+  CHECK(dense.read_integers("/lyapunov/finite") == modal.read_integers("/lyapunov/finite"));
+  CHECK(dense.read_integers("/lyapunov/structural") == modal.read_integers("/lyapunov/structural"));
+}
+
 TEST_CASE("a lyapunov grid without follow runs every point from the initial state, in parallel",
           "[runner][lyapunov]") {
   const std::string text = kChain + R"(

@@ -1,8 +1,11 @@
 #include "vibro/lyapunov.hpp"
 
+#include "vibro/modal_tangent.hpp"
+
 #include <Eigen/QR>
 
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numbers>
 
@@ -15,12 +18,28 @@ void LyapunovOptions::validate() const {
   if (history_every < 0) throw InvalidInput("lyapunov.history_every must be ≥ 0");
 }
 
-LyapunovResult lyapunov_spectrum(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
-                                 const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
-                                 const LyapunovOptions& options) {
+namespace {
+
+/// One forcing period from (t, x, v) with the frame Q: the run and J·Q.
+struct Period {
+  RunSummary summary;
+  double t1 = 0.0;
+  Eigen::VectorXd x1, v1;
+  Eigen::MatrixXd products;
+  Eigen::Index free_dimension = 0;
+};
+using Runner = std::function<RunSummary(double, const Eigen::VectorXd&, const Eigen::VectorXd&, double)>;
+using Stepper =
+    std::function<Period(double, const Eigen::VectorXd&, const Eigen::VectorXd&, double, const Eigen::MatrixXd&)>;
+
+/// The QR method of the file comment, on any engine's periods.
+/// `frame` (2n × p, orthonormal columns): the first frame Q, as a function of p (default: the
+/// first p unit vectors).
+LyapunovResult spectrum(Eigen::Index n, double omega, const Runner& run, const Stepper& step, double t0,
+                        const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, const LyapunovOptions& options,
+                        const std::function<Eigen::MatrixXd(Eigen::Index)>& frame = {}) {
   options.validate();
-  const Eigen::Index n = system.dof(), n2 = 2 * n;
-  const double omega = system.system().forcing().frequency;
+  const Eigen::Index n2 = 2 * n;
   if (!(omega > 0.0)) throw InvalidInput("lyapunov: the forcing frequency must be > 0 (exponents are averaged per period)");
   if (options.count > n2)
     throw InvalidInput("lyapunov.count = " + std::to_string(options.count) + ": at most 2n = " + std::to_string(n2));
@@ -29,11 +48,10 @@ LyapunovResult lyapunov_spectrum(const ImpactSystem& system, const SimulatorOpti
 
   LyapunovResult out;
   out.period = T;
-  Simulator sim(system, solver);
   double t = t0;
   Eigen::VectorXd x = x0, v = v0;
   if (options.transient > 0) {
-    const RunSummary s = sim.run(t, x, v, t + options.transient * T);
+    const RunSummary s = run(t, x, v, t + options.transient * T);
     if (s.status != RunStatus::completed) {
       out.status = s.status;
       out.message = "transient: " + s.message;
@@ -41,15 +59,12 @@ LyapunovResult lyapunov_spectrum(const ImpactSystem& system, const SimulatorOpti
     }
     t = s.t, x = s.x, v = s.v;
   }
-  Eigen::MatrixXd Q = Eigen::MatrixXd::Identity(n2, p);
+  Eigen::MatrixXd Q = frame ? frame(p) : Eigen::MatrixXd::Identity(n2, p);
   Eigen::VectorXd sums = Eigen::VectorXd::Zero(p);
   Eigen::Index least = n2;
-  LinearisationOptions lo;
-  lo.jacobian = false;
   const long total = options.align + options.periods;
   for (long k = 0; k < total; ++k) {
-    lo.directions = Q;
-    const TangentMap m = linearise(system, solver, t, x, v, t + T, lo);
+    const Period m = step(t, x, v, t + T, Q);
     if (m.summary.status != RunStatus::completed) {
       out.status = m.summary.status;
       out.message = m.summary.message;
@@ -79,6 +94,65 @@ LyapunovResult lyapunov_spectrum(const ImpactSystem& system, const SimulatorOpti
   out.x_end = x;
   out.v_end = v;
   return out;
+}
+
+Period period_of(const TangentMap& m, Eigen::MatrixXd products) {
+  return {m.summary, m.t1, m.x1, m.v1, std::move(products), m.free_dimension};
+}
+
+}  // namespace
+
+LyapunovResult lyapunov_spectrum(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
+                                 const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                                 const LyapunovOptions& options) {
+  Simulator sim(system, solver);
+  const Runner run = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, double t1) {
+    return sim.run(t, x, v, t1);
+  };
+  const Stepper step = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, double t1,
+                           const Eigen::MatrixXd& Q) {
+    LinearisationOptions lo;
+    lo.jacobian = false;
+    lo.directions = Q;
+    TangentMap m = linearise(system, solver, t, x, v, t1, lo);
+    return period_of(m, std::move(m.products));
+  };
+  return spectrum(system.dof(), system.system().forcing().frequency, run, step, t0, x0, v0, options);
+}
+
+LyapunovResult lyapunov_spectrum(ModalEngine& engine, double t0, const Eigen::VectorXd& x0,
+                                 const Eigen::VectorXd& v0, const LyapunovOptions& options) {
+  const Runner run = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, double t1) -> RunSummary {
+    return engine.run(t, x, v, t1);
+  };
+  const Stepper step = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, double t1,
+                           const Eigen::MatrixXd& Q) {
+    const ModalTangent tangent(engine, t, x, v, t1);
+    const TangentMap& m = tangent.map();
+    if (m.summary.status != RunStatus::completed) return period_of(m, {});
+    return period_of(m, tangent.apply_modal(Q));
+  };
+  // The dense engine's first frame (the first p unit vectors of (x, v)) in modal coordinates,
+  // made orthonormal: for unit masses Φ̃⁻¹ is orthogonal and both engines then carry the same
+  // frame, up to that fixed rotation.
+  const ChainModes& modes = engine.simulator().modes();
+  const auto frame = [&](Eigen::Index p) {
+    const Eigen::Index n = modes.dof();
+    const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(2 * n, p);
+    Eigen::MatrixXd Y(n, 2 * p), U(n, 2 * p);
+    Y << I.topRows(n), I.bottomRows(n);
+    ChainModes::Workspace work;
+    modes.tangent_to_modal(Y, U, work);
+    Eigen::MatrixXd F(2 * n, p);
+    F << U.leftCols(p), U.rightCols(p);
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(F);
+    Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(2 * n, p);
+    const Eigen::MatrixXd R = qr.matrixQR().topRows(p);
+    for (Eigen::Index i = 0; i < p; ++i)
+      if (R(i, i) < 0.0) Q.col(i) = -Q.col(i);
+    return Q;
+  };
+  return spectrum(modes.dof(), engine.frequency(), run, step, t0, x0, v0, options, frame);
 }
 
 }  // namespace vibro

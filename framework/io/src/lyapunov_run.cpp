@@ -3,6 +3,7 @@
 #include "datasets.hpp"
 
 #include "vibro/io/result_file.hpp"
+#include "vibro/engine.hpp"
 #include "vibro/lyapunov.hpp"
 
 #include <fmt/format.h>
@@ -13,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <exception>
 #include <mutex>
 
@@ -43,7 +45,13 @@ RunReport run_lyapunov(const SceneDocument& doc, const Scene& scene, const RunRe
     options.transient = spec.transient + (first ? first_transient : 0);
     options.align = spec.align;
     options.periods = spec.periods;
-    const LyapunovResult r = lyapunov_spectrum(built.impact_system(), built.solver, built.t0, x, v, options);
+    LyapunovResult r;
+    if (built.engine == EngineKind::modal) {  // matrix-free frames on the modal engine
+      const std::unique_ptr<Engine> engine = make_engine(built);
+      r = lyapunov_spectrum(dynamic_cast<ModalEngine&>(*engine), built.t0, x, v, options);
+    } else {
+      r = lyapunov_spectrum(built.impact_system(), built.solver, built.t0, x, v, options);
+    }
     if (r.status != RunStatus::completed) {
       messages[g] = spec.along ? fmt::format("at {} = {:.12g}: {}", path, grid[g], r.message) : r.message;
       return false;

@@ -1162,10 +1162,6 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
              std::to_string(kModalAutomaticMinimumDof) + ")";
   }
 
-  if (check_sweep && run.kind == RunSpec::Kind::lyapunov && engine == EngineKind::modal)
-    r.fail(root["run"]["kind"], "run.kind",
-           "Lyapunov exponents run on the dense engine (their tangent maps are dense), and this scene resolves to the "
-           "modal engine (" + reason + "): set solver.engine: dense");
   if (check_sweep && run.kind == RunSpec::Kind::continuation && engine == EngineKind::modal)
     r.fail(root["run"]["kind"], "run.kind",
            "continuation runs on the dense engine (its tangent maps are dense), and this scene resolves to the modal "

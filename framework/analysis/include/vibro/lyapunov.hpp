@@ -27,6 +27,7 @@
 ///     vibro::LyapunovOptions o;  o.transient = 100;  o.periods = 2000;
 ///     vibro::LyapunovResult r = vibro::lyapunov_spectrum(system, solver, 0.0, x0, v0, o);
 ///     // r.exponents (per unit time, −inf for the structural ones)
+#include "vibro/engine.hpp"
 #include "vibro/linearisation.hpp"
 
 #include <string>
@@ -62,5 +63,13 @@ struct LyapunovResult {
 LyapunovResult lyapunov_spectrum(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
                                  const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                                  const LyapunovOptions& options = {});
+
+/// The same on the modal engine (long chains): the frame is carried by the matrix-free tangent
+/// map of modal_tangent.hpp in the free chain's modal coordinates (O(N p) per free flight and
+/// free-flight impact instead of O(N² p)). Exponents do not depend on the (fixed) coordinates
+/// the frame lives in; for unit masses the two engines' frames are the same up to an orthogonal
+/// change of basis, and their spectra agree to rounding (tests/analysis/test_modal_tangent.cpp).
+LyapunovResult lyapunov_spectrum(ModalEngine& engine, double t0, const Eigen::VectorXd& x0,
+                                 const Eigen::VectorXd& v0, const LyapunovOptions& options = {});
 
 }  // namespace vibro
