@@ -285,6 +285,23 @@ TEST_CASE("modal engine: Newton–Krylov shooting and Arnoldi multipliers equal 
     CHECK(md.stable == dd.stable);
     CHECK(p.modal.krylov_products > 0);
   }
+  SECTION("6 masses, an orbit that chatters into sticking and releases every period") {
+    const BandedChain chain = damped_chain(6, 0.05, 0.05, 0.6, 0.35);
+    const ShotPair p = shoot_both(chain, {Stop::upper(0, 0.3, 0.6), Stop::lower(3, -0.2, 0.8)}, 8.0);
+    INFO(p.dense.message << " / " << p.modal.message);
+    REQUIRE(p.dense.converged());
+    REQUIRE(p.modal.converged());
+    CHECK(p.modal.map.summary.sticks >= 1);
+    CHECK(p.modal.map.summary.chatters >= 1);
+    const double L = p.dense.length_scale, V = p.dense.velocity_scale;
+    CHECK((p.modal.x - p.dense.x).cwiseAbs().maxCoeff() <= 1e-8 * L);
+    CHECK((p.modal.v - p.dense.v).cwiseAbs().maxCoeff() <= 1e-8 * V);
+    const auto& md = p.modal.multipliers;
+    const auto& dd = p.dense.multipliers;
+    REQUIRE(md.converged_count >= 1);
+    CHECK(std::abs(md.spectral_radius - dd.spectral_radius) <= 1e-8);
+    CHECK(md.stable == dd.stable);
+  }
 }
 
 // Lyapunov spectra on both engines. For unit masses the modal coordinates are an orthogonal change
