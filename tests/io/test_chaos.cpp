@@ -3,7 +3,7 @@
 // on (find_periodic_orbit, a tighter tolerance, no early stop), the attractors are periodic
 // orbits, the file is the same for any number of threads, runs stop early, and points that never
 // settle are labelled as such.
-// diagram and lyapunov: the files hold what the engine and the library give when called directly
+// diagram, lyapunov and orbit: the files hold what the engine and the library give when called directly
 // (to the bit), the detected periods are the orbits' (a period doubling, hysteresis between the
 // up and down sweeps), and chaos has a positive exponent.
 #include "vibro/io/basin.hpp"
@@ -11,6 +11,7 @@
 #include "vibro/io/scene.hpp"
 #include "vibro/lyapunov.hpp"
 #include "vibro/orbit.hpp"
+#include "vibro/shooting.hpp"
 
 #include "support/temp_dir.hpp"
 
@@ -20,6 +21,7 @@
 #include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <numbers>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -415,4 +417,87 @@ TEST_CASE("an interrupted basin is written with its points not run labelled -3 a
   const auto label = r.read_integers("/basin/label");
   CHECK(std::count(label.begin(), label.end(), -3) == 100);
   CHECK(r.read_integers("/attractors/period").empty());
+}
+
+namespace {
+
+/// A chain of ten unit masses (dampers 0.2, the wall too), 0.5 cos 0.3t on mass 0, stops under
+/// mass 0 and above mass 9 (bench_continuation's chain): a stable period-1 orbit with impacts.
+std::string orbit_scene(const std::string& engine, const std::string& orbit = "{period: 1}") {
+  return R"(
+model:
+  chain:
+    masses: [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]
+    springs: [1, 1, 1, 1, 1, 1, 1, 1, 1]
+    dampers: [0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2]
+    left_wall: {spring: 1, damper: 0.2}
+forcing:
+  frequency: 0.3
+  cosine: [0.5, 0, 0, 0, 0, 0, 0, 0, 0, 0]
+stops:
+  - {mass: 0, side: lower, position: -0.3, restitution: 0.7}
+  - {mass: 9, side: upper, position: 0.5, restitution: 0.7}
+initial:
+  x: [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]
+  v: [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]
+solver:
+  engine: )" + engine + R"(
+run:
+  kind: orbit
+  transient_periods: 5
+  orbit: )" + orbit + "\n";
+}
+
+}  // namespace
+
+// The file holds what the library's shooting gives from the same guess (dense engine: the same
+// calls, so the same numbers to rounding of the output, 1e-14); the modal engine's Newton–Krylov
+// orbit and leading multiplier equal those to 1e-9 (library test: 1e-8 of L, V on other chains,
+// tests/analysis/test_modal_tangent.cpp; here L ≈ 0.6, V ≈ 0.2).
+TEST_CASE("an orbit run writes the library's periodic orbit and multipliers, on both engines", "[runner][orbit]") {
+  const ResultReader dense = run_file(orbit_scene("dense"), "orbit_dense");
+  const ResultReader modal = run_file(orbit_scene("modal"), "orbit_modal");
+  const SceneDocument doc = SceneDocument::parse(orbit_scene("dense"), "orbit.yaml");
+  const Scene scene = doc.build();
+  const vibro::ImpactSystem system = scene.impact_system();
+  vibro::Simulator sim(system, scene.solver);
+  const double T = 2.0 * std::numbers::pi / 0.3;
+  const auto guess = sim.run(0.0, scene.x0, scene.v0, 5.0 * T);
+  vibro::ShootingOptions o;
+  o.solver = scene.solver;
+  const vibro::ShootingResult want = vibro::shoot(system, o, guess.t, guess.x, guess.v);
+  REQUIRE(want.converged());
+  CHECK(dense.attribute_string("/orbit", "status") == "converged");
+  CHECK(modal.attribute_string("/orbit", "status") == "converged");
+  CHECK(modal.attribute_string("/orbit", "leading_only") == "true");
+  const std::vector<double> xd = dense.read("/orbit/x"), xm = modal.read("/orbit/x"), vm = modal.read("/orbit/v");
+  REQUIRE(xd.size() == 10);
+  for (std::size_t i = 0; i < 10; ++i) {
+    CHECK(std::abs(xd[i] - want.x(static_cast<Eigen::Index>(i))) <= 1e-14);
+    CHECK(std::abs(xm[i] - want.x(static_cast<Eigen::Index>(i))) <= 1e-9);
+    CHECK(std::abs(vm[i] - want.v(static_cast<Eigen::Index>(i))) <= 1e-9);
+  }
+  const std::vector<double> re = dense.read("/orbit/multipliers_real"), im = dense.read("/orbit/multipliers_imag");
+  REQUIRE(re.size() == 20);
+  CHECK(std::hypot(re[0], im[0]) == Approx(want.multipliers.spectral_radius).epsilon(1e-14));
+  CHECK(std::abs(std::stod(modal.attribute_string("/orbit", "spectral_radius")) - want.multipliers.spectral_radius) <= 1e-9);
+  CHECK(modal.read("/orbit/multipliers_real").size() == 6);
+  CHECK(dense.attribute_string("/orbit", "stable") == (want.multipliers.stable ? "true" : "false"));
+}
+
+TEST_CASE("an orbit run that does not converge writes its last iterate and why, exit 1", "[runner][orbit]") {
+  // Two Newton iterations cannot reach 1e-11 from a 5-period guess (four are needed).
+  const SceneDocument doc = SceneDocument::parse(orbit_scene("dense", "{period: 1, max_iterations: 2}"), "orbit_nc.yaml");
+  const std::string out = temp_path("orbit_nc.h5");
+  RunRequest request;
+  request.output = out;
+  const RunReport report = run_scene(doc, doc.build(), request);
+  CHECK(report.exit_code == 1);
+  CHECK_THAT(report.summary, Catch::Contains("No periodic orbit"));
+  const ResultReader r(out);
+  CHECK(r.attribute_string("/meta", "status") == "not_converged");
+  CHECK(r.attribute_string("/orbit", "status") == "not converged");
+  CHECK(r.read("/orbit/x").size() == 10);
+  CHECK(r.read("/orbit/multipliers_real").empty());
+  CHECK(r.read("/orbit/residuals").size() == 3);
 }

@@ -4,6 +4,7 @@
 #include "vibro/io/basin.hpp"
 #include "vibro/io/diagram.hpp"
 #include "vibro/io/lyapunov_run.hpp"
+#include "vibro/io/orbit_run.hpp"
 
 #include "vibro/io/resources.hpp"
 #include "vibro/io/result_file.hpp"
@@ -944,7 +945,7 @@ RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunReque
   if (scene.run.kind == RunSpec::Kind::sweep) return run_sweep(doc, scene, request);
   const RunSpec::Kind kind = scene.run.kind;
   if ((kind == RunSpec::Kind::basin || kind == RunSpec::Kind::diagram || kind == RunSpec::Kind::lyapunov ||
-       kind == RunSpec::Kind::locate || kind == RunSpec::Kind::continuation) &&
+       kind == RunSpec::Kind::locate || kind == RunSpec::Kind::continuation || kind == RunSpec::Kind::orbit) &&
       !request.resume) {
     // Long runs: SIGINT/SIGTERM stop them at the next event (a basin takes no new points) and
     // their file is written with what was done, status interrupted, exit code 130.
@@ -958,6 +959,7 @@ RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunReque
       case RunSpec::Kind::basin: return run_basin(doc, scene, stoppable);
       case RunSpec::Kind::diagram: return run_diagram(doc, scene, stoppable);
       case RunSpec::Kind::lyapunov: return run_lyapunov(doc, scene, stoppable);
+      case RunSpec::Kind::orbit: return run_orbit(doc, scene, stoppable);
       case RunSpec::Kind::locate: return run_locate(doc, scene, stoppable);
       default: return run_continuation(doc, scene, stoppable);
     }

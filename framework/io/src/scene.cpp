@@ -322,6 +322,7 @@ const char* to_string(RunSpec::Kind kind) {
     case RunSpec::Kind::basin: return "basin";
     case RunSpec::Kind::diagram: return "diagram";
     case RunSpec::Kind::lyapunov: return "lyapunov";
+    case RunSpec::Kind::orbit: return "orbit";
     case RunSpec::Kind::simulate: break;
   }
   return "simulate";
@@ -902,15 +903,16 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     }
   };
   if (const YAML::Node rn = root["run"]) {
-    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep", "locate", "continue", "basin", "diagram", "lyapunov"});
+    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep", "locate", "continue", "basin", "diagram", "lyapunov", "orbit"});
     if (rn["kind"]) {
-      const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate", "continue", "basin", "diagram", "lyapunov"});
+      const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate", "continue", "basin", "diagram", "lyapunov", "orbit"});
       run.kind = kind == "sweep"      ? RunSpec::Kind::sweep
                  : kind == "locate"   ? RunSpec::Kind::locate
                  : kind == "continue" ? RunSpec::Kind::continuation
                  : kind == "basin"    ? RunSpec::Kind::basin
                  : kind == "diagram"  ? RunSpec::Kind::diagram
                  : kind == "lyapunov" ? RunSpec::Kind::lyapunov
+                 : kind == "orbit"    ? RunSpec::Kind::orbit
                                       : RunSpec::Kind::simulate;
     }
     if (rn["transient_periods"]) run.transient_periods = r.number_in(rn["transient_periods"], "run.transient_periods", 0, 1e9, "a number of periods ≥ 0");
@@ -924,6 +926,18 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       r.fail(rn, "run.diagram", "missing: run.kind: diagram needs run.diagram (path and grid)");
     if (run.kind != RunSpec::Kind::diagram && dg) r.fail(dg, "run.diagram", "only for run.kind: diagram");
     if (run.kind != RunSpec::Kind::lyapunov && ly) r.fail(ly, "run.lyapunov", "only for run.kind: lyapunov");
+    if (const YAML::Node ob = rn["orbit"]) {
+      if (run.kind != RunSpec::Kind::orbit) r.fail(ob, "run.orbit", "only for run.kind: orbit");
+      r.expect_map(ob, "run.orbit", {"period", "phase", "tolerance", "max_iterations", "multipliers"});
+      OrbitSpec& o = run.orbit;
+      if (ob["period"]) o.period = static_cast<int>(r.integer(ob["period"], "run.orbit.period", 1, 1024));
+      if (ob["phase"]) o.phase = r.number_in(ob["phase"], "run.orbit.phase", -1e3, 1e3, "a phase in radians");
+      if (ob["tolerance"]) o.tolerance = r.number_in(ob["tolerance"], "run.orbit.tolerance", 1e-15, 1e-4, "a relative tolerance in [1e-15, 1e-4]");
+      if (ob["max_iterations"]) o.max_iterations = static_cast<int>(r.integer(ob["max_iterations"], "run.orbit.max_iterations", 1, 1000));
+      if (ob["multipliers"]) o.multipliers = static_cast<int>(r.integer(ob["multipliers"], "run.orbit.multipliers", 1, 100));
+    }
+    if (run.kind == RunSpec::Kind::orbit && !(f.frequency > 0.0))
+      r.fail(rn["kind"], "run.kind", "a periodic orbit's period is 2π/Ω: it needs a forcing frequency > 0 (forcing.frequency)");
     // A grid along which a run follows its attractor: at least two values, strictly monotonic.
     auto monotonic = [&](const YAML::Node& node, const std::string& path) {
       const auto& v = run.axes[0].values;

@@ -19,7 +19,8 @@
 /// `follow: false` every point starts from the initial state (run.transient_periods + transient
 /// periods) and the points run in parallel (OpenMP), written in grid order. The time restarts at
 /// initial.time at every point. Structural exponents (stops held: −∞ exactly) are
-/// written as 0 with `finite` 0 (HDF5 files hold finite values only). Dense engine only.
+/// written as 0 with `finite` 0 (HDF5 files hold finite values only). Both engines (on the modal
+/// one the frame is carried matrix-free in modal coordinates, analysis/modal_tangent.hpp).
 /// Layout of /lyapunov: docs/results.md.
 #include "vibro/io/runner.hpp"
 

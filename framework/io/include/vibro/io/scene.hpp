@@ -133,8 +133,19 @@ struct LyapunovSpec {
   bool follow = true;      ///< along a grid: each point from the previous one's end (else from initial, in parallel)
 };
 
+/// run.kind: orbit — one periodic orbit by Newton shooting from the state after
+/// run.transient_periods (vibro/shooting.hpp), with its Floquet multipliers; on the modal engine
+/// by Newton–Krylov with the leading multipliers by Arnoldi.
+struct OrbitSpec {
+  int period = 1;              ///< k: the orbit repeats after kT
+  double phase = 0.0;          ///< section phase θ, radians
+  double tolerance = 1e-11;    ///< max(|Δx|∞/L, |Δv|∞/V)
+  int max_iterations = 40;
+  int multipliers = 6;         ///< modal engine: the leading ones (dense: all 2n)
+};
+
 struct RunSpec {
-  enum class Kind { simulate, sweep, locate, continuation, basin, diagram, lyapunov };
+  enum class Kind { simulate, sweep, locate, continuation, basin, diagram, lyapunov, orbit };
   Kind kind = Kind::simulate;
   double transient_periods = 0.0;  ///< simulated, not recorded
   double periods = 1.0;            ///< recorded forcing periods (or time units when Ω = 0)
@@ -145,11 +156,12 @@ struct RunSpec {
   BasinSpec basin;            ///< run.kind: basin (its two axes are `axes`)
   DiagramSpec diagram;        ///< run.kind: diagram (its axis is axes[0])
   LyapunovSpec lyapunov;      ///< run.kind: lyapunov (a grid, if any, is axes[0])
+  OrbitSpec orbit;            ///< run.kind: orbit
   bool follow = false;   ///< each point starts from the previous point's final state
   bool reverse = false;  ///< walk the grid from its last point to its first
 };
 
-/// The run kind as the scene file spells it ("simulate", "sweep", "locate", "continue", "basin",
+/// The run kind as the scene file spells it ("simulate", "sweep", "locate", "continue", "basin", "orbit",
 /// "diagram", "lyapunov").
 const char* to_string(RunSpec::Kind kind);
 

@@ -1,0 +1,105 @@
+#include "vibro/io/orbit_run.hpp"
+
+#include "datasets.hpp"
+
+#include "vibro/engine.hpp"
+#include "vibro/io/result_file.hpp"
+#include "vibro/shooting.hpp"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <numbers>
+#include <vector>
+
+namespace vibro::io {
+
+RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunRequest& request) {
+  using detail::integers;
+  using detail::reals;
+  const auto wall_start = std::chrono::steady_clock::now();
+  const OrbitSpec& spec = scene.run.orbit;
+  Scene built = scene;
+  built.solver.interrupt = request.interrupt;
+  const std::unique_ptr<Engine> engine = make_engine(built);
+  ResultFile file = open_result_file(request, scene, current_meta(1));
+
+  // The guess: where run.transient_periods from `initial` lead.
+  const double T = 2.0 * std::numbers::pi / scene.forcing().frequency;
+  const RunSummary guess = engine->run(scene.t0, scene.x0, scene.v0, scene.t0 + scene.run.transient_periods * T);
+  ShootingOptions o;
+  o.period = spec.period;
+  o.phase = spec.phase;
+  o.tolerance = spec.tolerance;
+  o.max_iterations = spec.max_iterations;
+  o.solver = built.solver;
+  ShootingResult r;
+  const bool interrupted_guess = guess.status == RunStatus::interrupted;
+  if (guess.status != RunStatus::completed) {
+    r.status = ShootingStatus::map_failed;
+    r.message = std::string("the guess's run stopped early (") + to_string(guess.status) + "): " + guess.message;
+    r.x = guess.x;
+    r.v = guess.v;
+  } else if (auto* modal = dynamic_cast<ModalEngine*>(engine.get())) {
+    KrylovOptions k;
+    k.multipliers = spec.multipliers;
+    r = shoot(*modal, o, guess.t, guess.x, guess.v, k);
+  } else {
+    r = shoot(scene.impact_system(), o, guess.t, guess.x, guess.v);
+  }
+  const bool interrupted = interrupted_guess || (request.interrupt && request.interrupt->load());
+
+  const FloquetMultipliers& f = r.multipliers;
+  std::vector<double> re, im;
+  if (r.converged())
+    for (Eigen::Index i = 0; i < f.values.size(); ++i) {
+      re.push_back(f.values(i).real());
+      im.push_back(f.values(i).imag());
+    }
+  auto values = [](const Eigen::VectorXd& a) { return std::vector<double>(a.data(), a.data() + a.size()); };
+  std::vector<Dataset> datasets{reals("x", values(r.x), {static_cast<std::size_t>(r.x.size())}),
+                                reals("v", values(r.v), {static_cast<std::size_t>(r.v.size())}),
+                                reals("residuals", r.residuals, {r.residuals.size()}),
+                                reals("multipliers_real", re, {re.size()}),
+                                reals("multipliers_imag", im, {im.size()})};
+  auto number = [](double v) { return fmt::format("{:.17g}", v); };
+  file.write_group("orbit", datasets,
+                   {{"status", to_string(r.status)},
+                    {"message", r.message},
+                    {"t0", number(r.t0)},
+                    {"phase", number(r.phase)},
+                    {"period", std::to_string(spec.period)},
+                    {"minimal_period", std::to_string(r.converged() ? r.minimal_k : 0)},
+                    {"residual", number(r.residual)},
+                    {"iterations", std::to_string(r.iterations)},
+                    {"stable", r.converged() && f.stable ? "true" : "false"},
+                    {"spectral_radius", number(f.spectral_radius)},
+                    {"structural_zeros", std::to_string(f.structural_zeros)},
+                    {"leading_only", f.leading_only ? "true" : "false"},
+                    {"converged_multipliers", std::to_string(f.leading_only ? f.converged_count : static_cast<int>(f.values.size()))},
+                    {"krylov_products", std::to_string(r.krylov_products + f.products)}});
+  const std::string status = interrupted ? "interrupted" : r.converged() ? "completed" : "not_converged";
+  file.set_outcome(status, r.converged() ? std::string() : r.message,
+                   {{"iterations", static_cast<std::int64_t>(r.iterations)}});
+  const double wall = detail::finish_run(file, 1, wall_start);
+
+  std::string text;
+  if (r.converged()) {
+    text = fmt::format("Periodic orbit of period {}T (least period {}T) in {} Newton iterations, residual {:.2g}, "
+                       "{:.2f} s; largest |multiplier| {:.10g}: {}.",
+                       spec.period, r.minimal_k, r.iterations, r.residual, wall, f.spectral_radius,
+                       f.stable ? "stable" : "unstable");
+    if (f.leading_only)
+      text += fmt::format(" (modal engine: {} leading multipliers by Arnoldi, {} converged; {} J·v products.)",
+                          f.values.size(), f.converged_count, r.krylov_products + f.products);
+  } else {
+    text = fmt::format("No periodic orbit: {} ({:.2f} s).", r.message, wall);
+  }
+  text += fmt::format("\nResults in {}.", file.path());
+  return {interrupted ? 130 : r.converged() ? 0 : 1, text, request.in_memory ? file.image() : std::vector<char>{}};
+}
+
+}  // namespace vibro::io
