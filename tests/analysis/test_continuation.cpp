@@ -331,3 +331,65 @@ TEST_CASE("continuation: a flight that starts at a release has no gap peak at it
   CHECK(largest < -4e-4);
   CHECK(largest > -6e-4);
 }
+
+namespace {
+
+/// The three-mass chain of experiments/examples/three_mass_continuation.yaml at Ω.
+vibro::FamilyPoint three_mass_at(double omega) {
+  vibro::models::Chain c;
+  c.masses = {1.0, 1.0, 1.0};
+  c.springs = {1.0, 1.0};
+  c.dampers = {0.1, 0.1};
+  c.left_spring = 1.0;
+  c.left_damper = 0.1;
+  c.force_cosine = {0.5, 0.0, 0.0};
+  c.frequency = omega;
+  vibro::ImpactSystem sys(vibro::models::build_chain(c), {vibro::Stop::lower(0, -0.3, 0.7), vibro::Stop::upper(2, 0.1, 0.7)});
+  return vibro::FamilyPoint{std::move(sys), vibro::SystemDerivative::frequency_only()};
+}
+
+}  // namespace
+
+TEST_CASE("continuation: past a grazing corner whose two parts lie on the same side in Ω, the branch "
+          "leaves the corner (the three-mass chain at Ω ≈ 0.180626, where it once walked back into it "
+          "and stopped)",
+          "[continuation][three-mass]") {
+  // The orbit with three free impacts of s3 per period, stable at Ω = 0.180566 (a point of the
+  // scene's branch, kept to 17 digits: shooting from it converges at once). Up from it the branch
+  // folds at 0.1807322 and comes back down, unstable, to the grazing of s3 at 0.1806264, where
+  // the orbit with two impacts takes over and rises in Ω, stable. The step that crosses the corner
+  // lands on that orbit between the last three-impact point and the grazing in Ω: oriented along
+  // the step in Ω, its tangent pointed back into the grazing, where no orbit lies beyond.
+  const double p0 = 0.18056607808771738;
+  VectorXd x(3), v(3);
+  x << 0.31211263810559026, 0.15632541169677808, 0.09021442517545247;
+  v << 0.10377505196359062, 0.0595516096713064, 0.061648112483887615;
+  vibro::ContinuationOptions o;
+  o.p_min = 0.1805;
+  o.p_max = 0.1810;
+  o.step = 0.01;
+  o.max_step = 0.02;
+  o.parameter_scale = 0.025;  // the scene's range, so that the steps are the scene's
+  const auto start = std::chrono::steady_clock::now();
+  const vibro::ContinuationResult r = vibro::continue_orbits(three_mass_at, p0, 0.0, x, v, o);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  REQUIRE_FALSE(r.branches.empty());
+  const vibro::Branch& b = r.branches[0];
+  INFO("branch: " << b.end << " (" << seconds << " s)");
+  CHECK(b.end.find("reached p_min") != std::string::npos);
+  CHECK(b.end.find("reached p_max") != std::string::npos);
+  const vibro::Bifurcation* fold = find(r, vibro::BifurcationKind::fold, 0.1807322);
+  const vibro::Bifurcation* graze = find(r, vibro::BifurcationKind::grazing, 0.1806264);
+  REQUIRE(fold != nullptr);
+  REQUIRE(graze != nullptr);
+  CHECK(std::abs(fold->p - 0.180732192) < 1e-8);
+  CHECK(graze->stop == 1);
+  CHECK(graze->smooth);
+  CHECK(std::abs(graze->p - 0.180626398) < 1e-8);
+  // Beyond the corner: two impacts of s3, stable, Ω rising to the limit.
+  const vibro::BranchPoint& last = b.points.back();
+  CHECK(last.p == Approx(o.p_max).margin(1e-12));
+  CHECK(last.signature.impacts[1] == 2);
+  CHECK(last.multipliers.stable);
+  CHECK(last.tangent_p > 0.0);
+}

@@ -27,6 +27,9 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 /// branch, since the guard against steps landing back on the branch cannot compare states across
 /// sections and is reset at each move.
 constexpr double kSectionMargin = 0.01;
+/// An event within this fraction of T of the section is on it (shooting.cpp's test): the map over
+/// kT jumps right there, whatever else the orbit is near.
+constexpr double kSectionOnEvent = 1e-6;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 VectorXd stacked(const VectorXd& x, const VectorXd& v) {
@@ -155,6 +158,11 @@ class Continuer {
   VectorXd scaled(const Eval& e) const {
     VectorXd y(2 * n_ + 1);
     y << e.z.cwiseQuotient(D()), e.p / P;
+    return y;
+  }
+  VectorXd scaled(const BranchPoint& b) const {
+    VectorXd y(2 * n_ + 1);
+    y << stacked(b.x, b.v).cwiseQuotient(D()), b.p / P;
     return y;
   }
 
@@ -344,11 +352,21 @@ class BranchRunner {
         // step over it in p (the orbit on the far side is found by Newton at fixed p).
         // An event drifting into the section faster than the margin allows makes the map jump
         // within the step: move the section further from it (once per stall) and go on.
-        if (h < 1e-2 * o_.max_step && !resection_tried && !near_nonsmooth(cur)) {
+        // Near a grazing or a rising the jump comes first (it keeps the section, and with it the
+        // guard against landing back on the branch); once it has failed, or landed on the part
+        // already followed, an event on the section is the cause left. (The three-mass chain of
+        // experiments/examples at Ω ≈ 0.18446: an impact of s3 reaches the section on the
+        // unstable side of a fold, where every orbit found at fixed p is the stable one; and
+        // near_nonsmooth holds all along that branch, whose chatter bounces are slow.)
+        const bool on_event =
+            detail::section_clearance(cur.e.map) < kSectionOnEvent * kTwoPi / cur.e.omega;
+        if (h < 1e-2 * o_.max_step && !resection_tried && (!near_nonsmooth(cur) || (jump_tried && on_event))) {
           resection_tried = true;
+          const double old_theta = c_.theta;
           if (std::optional<Node> moved = resection(cur, kSectionMargin)) {
             cur = std::move(*moved);
-            trail.assign(1, c_.scaled(cur.e));  // the states of the old section are not comparable
+            carry(trail, old_theta);
+            trail.push_back(c_.scaled(cur.e));
             continue;
           }
         }
@@ -369,8 +387,8 @@ class BranchRunner {
         h = std::clamp(std::abs(next.e.p - cur.e.p) / c_.P, o_.min_step, o_.max_step);
       } else {
         // Oriented along cur's tangent on a smooth stretch; where the step crossed a grazing or
-        // a rising (the events changed) the branch may turn back in p at the corner, and the
-        // new tangent points away from it: along the step in p.
+        // a rising (the events changed) the branch may turn back in p at the corner: for now
+        // along the step in p, and examine() turns it away from the point it locates there.
         next.b = c_.point(next.e, cur.t, iterations);
         VectorXd along = cur.t;
         if (!(next.b.signature == cur.b.signature)) {
@@ -564,6 +582,38 @@ class BranchRunner {
     moved.t = c_.tangent(moved.e, along);
     moved.b = c_.point(moved.e, moved.t, iterations);
     return moved;
+  }
+
+  /// The trail's points (scaled, at the section phase old_theta) carried to the branch's section
+  /// now, each by a run of its own orbit from the old section time to the new one, so that the
+  /// guard against steps landing back on the branch still sees the part followed before a move
+  /// (reset instead, it let a jump from the unstable side of a fold land on the stable side
+  /// already followed and retrace it). The last point (cur, in the old section) is dropped: the
+  /// caller appends its moved state. A point whose run fails is dropped too.
+  void carry(std::vector<VectorXd>& trail, double old_theta) const {
+    const Index n = c_.n_, N = 2 * n;
+    const VectorXd d = c_.D();
+    double turn = std::fmod(c_.theta - old_theta, kTwoPi);
+    if (turn < 0.0) turn += kTwoPi;
+    std::vector<VectorXd> carried;
+    for (std::size_t i = 0; i + 1 < trail.size(); ++i) {
+      const double p = trail[i](N) * c_.P;
+      const FamilyPoint fp = c_.family_(p);
+      const double w = fp.system.system().forcing().frequency;
+      const VectorXd z = trail[i].head(N).cwiseProduct(d);
+      Simulator sim(fp.system, o_.solver);
+      RunSummary r;
+      try {
+        r = sim.run(old_theta / w, z.head(n), z.tail(n), (old_theta + turn) / w);
+      } catch (const InvalidInput&) {
+        continue;
+      }
+      if (r.status != RunStatus::completed) continue;
+      VectorXd y(N + 1);
+      y << stacked(r.x, r.v).cwiseQuotient(d), trail[i](N);
+      carried.push_back(std::move(y));
+    }
+    trail = std::move(carried);
   }
 
   void append(Branch& branch, const Node& n) {
@@ -800,7 +850,7 @@ class BranchRunner {
     result_.bifurcations.push_back(bif);
   }
 
-  void examine(const Node& a, const Node& b, int branch_index, int depth,
+  void examine(const Node& a, Node& b, int branch_index, int depth,
                std::vector<std::pair<Node, int>>* doublings) {
     const std::size_t stops = a.b.signature.impacts.size();
     // Fold: the tangent's p component changes sign on a smooth stretch. Across a change of the
@@ -876,10 +926,36 @@ class BranchRunner {
       record(BifurcationKind::other, -1, a, b, branch_index, {}, Mode::bisection,
              [sig](const Node& n) { return n.b.signature == sig; }, "event signature changed: " + sa.text() + " → " + sb.text());
     }
-    if (turns)
+    point_away(a, b, first_new);
+    if (a.t(a.t.size() - 1) * b.t(b.t.size() - 1) < 0.0)
       for (std::size_t i = first_new; i < result_.bifurcations.size(); ++i)
         result_.bifurcations[i].note += std::string(result_.bifurcations[i].note.empty() ? "" : "; ") +
                                         "the branch turns back in p here (a corner)";
+  }
+
+  /// The part of the branch beyond a grazing or a rising leaves the non-smooth point: b's tangent
+  /// is turned to point away from the nearest of the points located between a and b (from
+  /// result_.bifurcations[first] on) by solving their condition. The orientation b had, along
+  /// the step in p, is right where the step crossed the point in p, but at a corner whose two
+  /// parts lie on the same side in p, a step that lands between a and the point in p turns b
+  /// back into it (the three-mass chain of experiments/examples at Ω ≈ 0.18063: the branch with
+  /// one impact of s3 fewer was followed down into the grazing until the steps gave out).
+  /// Unchanged where nothing was located smoothly (bisected changes, locate off), or where b
+  /// lies on the point (within 1e-3 of the step: the chord's direction is then rounding).
+  void point_away(const Node& a, Node& b, std::size_t first) const {
+    const VectorXd yb = c_.scaled(b.e);
+    VectorXd chord;
+    for (std::size_t i = first; i < result_.bifurcations.size(); ++i) {
+      const Bifurcation& f = result_.bifurcations[i];
+      if (!f.smooth) continue;
+      const VectorXd from_point = yb - c_.scaled(f.point);
+      if (chord.size() == 0 || from_point.norm() < chord.norm()) chord = from_point;
+    }
+    if (chord.size() == 0 || chord.norm() <= 1e-3 * (yb - c_.scaled(a.e)).norm()) return;
+    if (b.t.dot(chord) < 0.0) {
+      b.t = -b.t;
+      b.b.tangent_p = b.t(b.t.size() - 1);
+    }
   }
 
   static std::function<bool(const Node&)> same_counts(const Signature& s, std::size_t j,

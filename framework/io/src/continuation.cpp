@@ -291,10 +291,17 @@ SystemDerivative parameter_derivative(const SceneDocument& doc, const std::strin
 ParameterFamily parameter_family(const SceneDocument& doc, const std::string& path) {
   const Entry entry = classify(doc, path);
   return [doc, path, entry](double p) {
-    SceneDocument point(doc);
-    point.set(path, p);
-    const Scene s = point.build_point();
-    return FamilyPoint{s.impact_system(), derivative_at(entry, s)};
+    // A value the scene rejects (a corrector's Newton step can reach Ω < 0 near a grazing, where
+    // the map's Jacobian is nearly singular) is no system at p: InvalidInput, which continuation
+    // takes as "no orbit there" and answers with a shorter step, rather than the end of the run.
+    try {
+      SceneDocument point(doc);
+      point.set(path, p);
+      const Scene s = point.build_point();
+      return FamilyPoint{s.impact_system(), derivative_at(entry, s)};
+    } catch (const SceneError& e) {
+      throw InvalidInput(e.what());
+    }
   };
 }
 

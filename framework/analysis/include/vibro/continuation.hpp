@@ -64,7 +64,9 @@
 
 namespace vibro {
 
-/// The system at one value of the parameter and the derivative of its data there.
+/// The system at one value of the parameter and the derivative of its data there. A family
+/// throws InvalidInput where p gives no valid system (Ω ≤ 0, a negative mass …): continuation
+/// takes that as no orbit there, like a run that fails.
 struct FamilyPoint {
   ImpactSystem system;
   SystemDerivative derivative;
