@@ -483,6 +483,7 @@ TEST_CASE("an orbit run writes the library's periodic orbit and multipliers, on 
   CHECK(std::abs(std::stod(modal.attribute_string("/orbit", "spectral_radius")) - want.multipliers.spectral_radius) <= 1e-9);
   CHECK(modal.read("/orbit/multipliers_real").size() == 6);
   CHECK(dense.attribute_string("/orbit", "stable") == (want.multipliers.stable ? "true" : "false"));
+  CHECK(dense.attribute_string("/orbit", "stability") == (want.multipliers.stable ? "stable" : "unstable"));
 }
 
 TEST_CASE("an orbit run that does not converge writes its last iterate and why, exit 1", "[runner][orbit]") {

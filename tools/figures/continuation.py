@@ -204,9 +204,9 @@ def check_grazings(build, path):
                 continue
             if f["scene/stop_kind"].attrs["names"][int(f["scene/stop_kind"][int(f["bifurcations/stop"][i])])] in (b"between", "between"):
                 continue
-            gap, scale = two_parameter.nearest_approach(vibro, f, i)
+            gap, scale, how = two_parameter.nearest_approach(vibro, f, i)
             p = f["bifurcations/p"][i]
-            print(f"grazing at Ω = {p:.10f}: its orbit comes within {abs(gap):.1e} of the stop in free flight")
+            print(f"grazing at Ω = {p:.10f}: its orbit comes within {abs(gap):.1e} of the stop {how}")
             if abs(gap) > 1e-9 * max(scale, 1e-3):
                 c.fail(f"the grazing located at Ω = {p:.10f} stays {gap:.1e} from its stop: not a grazing")
 

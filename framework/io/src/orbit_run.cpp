@@ -66,6 +66,11 @@ RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunR
                                 reals("multipliers_real", re, {re.size()}),
                                 reals("multipliers_imag", im, {im.size()})};
   auto number = [](double v) { return fmt::format("{:.17g}", v); };
+  // Arnoldi's leading value may not converge (a long chain's nearly free modes crowd the unit
+  // circle): the verdict is then undetermined, not "unstable".
+  const std::string stability = !r.converged() ? "none"
+                                : f.leading_only && f.converged_count == 0 ? "undetermined"
+                                : f.stable ? "stable" : "unstable";
   file.write_group("orbit", datasets,
                    {{"status", to_string(r.status)},
                     {"message", r.message},
@@ -76,6 +81,7 @@ RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunR
                     {"residual", number(r.residual)},
                     {"iterations", std::to_string(r.iterations)},
                     {"stable", r.converged() && f.stable ? "true" : "false"},
+                    {"stability", stability},
                     {"spectral_radius", number(f.spectral_radius)},
                     {"structural_zeros", std::to_string(f.structural_zeros)},
                     {"leading_only", f.leading_only ? "true" : "false"},
@@ -91,7 +97,9 @@ RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunR
     text = fmt::format("Periodic orbit of period {}T (least period {}T) in {} Newton iterations, residual {:.2g}, "
                        "{:.2f} s; largest |multiplier| {:.10g}: {}.",
                        spec.period, r.minimal_k, r.iterations, r.residual, wall, f.spectral_radius,
-                       f.stable ? "stable" : "unstable");
+                       stability == "undetermined"
+                           ? "stability undetermined (Arnoldi's leading value did not converge)"
+                           : stability);
     if (f.leading_only)
       text += fmt::format(" (modal engine: {} leading multipliers by Arnoldi, {} converged; {} J·v products.)",
                           f.values.size(), f.converged_count, r.krylov_products + f.products);
