@@ -982,6 +982,7 @@ const ModalContactMode* ModalChainSimulator::mode_for(const ContactSet& set, std
     if (victim == c.modes.end()) break;
     c.bytes -= victim->second.mode->bytes;
     c.modes.erase(victim);
+    ++modes_dropped_;
   }
   return out;
 }

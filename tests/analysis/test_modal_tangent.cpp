@@ -210,6 +210,18 @@ TEST_CASE("modal tangent map: a record refuses to be used after the engine ran a
   CHECK(tangent.apply(MatrixXd::Identity(8, 1)).size() == 8);
   engine.run(0.0, zero, zero, 1.0);
   CHECK_THROWS_AS(tangent.apply(MatrixXd::Identity(8, 1)), std::logic_error);
+  // A cache too small for the run's contact sets: no map, and why.
+  {
+    const BandedChain c6 = uniform_chain(6, 0.05, 0.7, 0.4);
+    vibro::ModalSimulatorOptions tiny;
+    tiny.mode_cache_bytes = 1.0;  // every new set drops the one before
+    vibro::ModalEngine e(c6, {Stop::upper(1, 0.25, 0.0), Stop::between(3, 4, 0.15, 0.0)}, tiny);
+    const VectorXd z6 = VectorXd::Zero(6);
+    const vibro::ModalTangent t(e, 0.0, z6, z6, 60.0);
+    CHECK(t.map().summary.status == vibro::RunStatus::unsupported);
+    CHECK_THAT(t.map().summary.message, Catch::Contains("mode_cache_bytes"));
+    CHECK_THROWS_AS(t.apply(MatrixXd::Identity(12, 1)), std::logic_error);
+  }
   CHECK_THROWS_AS(vibro::linearise(engine, 0.0, zero, zero, 1.0, [] {
                     vibro::LinearisationOptions o;
                     o.features = true;

@@ -201,6 +201,7 @@ class Recorder final : public Observer {
       : rec_(record), sim_(sim), out_(out), n_(sim.modes().dof()), phases_(out.phases, sim.stops().size()) {}
 
   void begin(const RunContext& /*run*/, double /*t0*/) override {
+    dropped_ = sim_.modes_dropped();
     min_dim_ = 2 * n_;
     least_rate_ = std::numeric_limits<double>::infinity();
   }
@@ -211,6 +212,10 @@ class Recorder final : public Observer {
   void segment(const SegmentView& view) override {
     const auto* mv = dynamic_cast<const ModalSegmentView*>(&view);
     if (!mv) throw std::logic_error("ModalTangent: a segment not of the modal engine");
+    // A contact set dropped from the engine's cache may be the kept segment's: nothing more is
+    // recorded (the map is then refused, see the constructor).
+    if (sim_.modes_dropped() != dropped_) broken_ = true;
+    if (broken_) return;
     const double tb = view.t_begin(), te = view.t_end();
     const ContactSet& S = view.active();
     if (first_) {
@@ -245,7 +250,8 @@ class Recorder final : public Observer {
   void end(double t) override {
     if (!events_.empty()) out_.ends_at_event = true;
     out_.t1 = t;
-    if (first_) return;  // no segment
+    if (sim_.modes_dropped() != dropped_) broken_ = true;
+    if (first_ || broken_) return;  // no segment, or no usable record
     out_.x1.resize(n_);
     out_.v1.resize(n_);
     last_.state(te_, out_.x1, out_.v1);
@@ -418,7 +424,8 @@ class Recorder final : public Observer {
   const ModalChainSimulator& sim_;
   TangentMap& out_;
   Index n_;
-  bool first_ = true, pending_ = false;
+  bool first_ = true, pending_ = false, broken_ = false;
+  long dropped_ = 0;
   ContactSet held_;
   ModalSegmentState last_;  // the segment before the pending event
   VectorXd xe_, ve_;        // its end state (general events only)
@@ -444,14 +451,21 @@ ModalTangent::ModalTangent(ModalEngine& engine, double t0, const VectorXd& x0, c
   map_.v0 = v0;
   Recorder recorder(*record_, sim, map_);
   recorder.rule_ = sim.options().chatter_rule;
+  const long dropped = sim.modes_dropped();
   const ModalRunSummary s = sim.run(t0, x0, v0, t1, {&recorder});
   map_.summary = s;
   run_ = sim.runs_started();
+  if (sim.modes_dropped() != dropped && map_.summary.status == RunStatus::completed) {
+    // The record points into the cache: a set dropped during the run may be one of its segments'.
+    map_.summary.status = RunStatus::unsupported;
+    map_.summary.message = "the tangent map needs every contact set of the run at once, and the engine's cache "
+                           "(solver mode_cache_bytes) dropped one during it: raise the budget";
+  }
   if (map_.summary.velocity_scale > 0.0) map_.least_guard_rate /= map_.summary.velocity_scale;
-  if (map_.x1.size() == 0) {  // a run without a segment (t1 = t0)
-    map_.t1 = t1;
-    map_.x1 = x0;
-    map_.v1 = v0;
+  if (map_.x1.size() == 0) {  // a run without a segment (t1 = t0), or no usable record
+    map_.t1 = s.t;
+    map_.x1 = s.x;
+    map_.v1 = s.v;
   }
 }
 

@@ -404,6 +404,9 @@ class ModalChainSimulator {
   /// Runs started so far: a record that points into the cache (analysis/modal_tangent.hpp) is
   /// valid only until the next run, which may drop a contact set it refers to.
   long runs_started() const { return runs_started_; }
+  /// Contact sets dropped from the cache so far (mode_cache_bytes): a record made during a run
+  /// that dropped one may point to a set that is gone.
+  long modes_dropped() const { return modes_dropped_; }
   /// The modal form of contact set `set` (sorted stop indices), built now if not cached (for
   /// inspection and benchmarks; runs build what they visit). Throws InvalidInput naming the
   /// stops if the set cannot be reduced.
@@ -427,7 +430,7 @@ class ModalChainSimulator {
   std::vector<Stop> stops_;
   ModalSimulatorOptions options_;
   double stop_setup_seconds_ = 0.0;
-  long runs_started_ = 0;
+  long runs_started_ = 0, modes_dropped_ = 0;
   std::unique_ptr<Cache> cache_;
   double seg_t0_ = 0.0, force_tolerance_ = 1e-13;
   // The segment's homogeneous modal state: storage for the free chain's N modes, the current

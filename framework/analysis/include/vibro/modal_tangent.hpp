@@ -28,7 +28,8 @@
 /// peaks, force dips): continuation stays on the dense engine; asking for them throws.
 ///
 /// The record points into the engine's cache of contact sets: it is valid until the engine's
-/// next run (apply() throws std::logic_error after that).
+/// next run (apply() throws std::logic_error after that), and a run during which the cache had to
+/// drop a set (ModalSimulatorOptions::mode_cache_bytes) gives no map (status unsupported, saying so).
 ///
 /// Usage:
 ///     vibro::ModalEngine engine(chain, stops, options);
