@@ -262,6 +262,16 @@ ShotPair shoot_both(const BandedChain& chain, const std::vector<Stop>& stops, do
   return out;
 }
 
+/// Both shootings converged, to the same orbit within 1e-8 of L and V (see the test below).
+void require_same_orbit(const ShotPair& p) {
+  INFO(p.dense.message << " / " << p.modal.message);
+  REQUIRE(p.dense.converged());
+  REQUIRE(p.modal.converged());
+  const double L = p.dense.length_scale, V = p.dense.velocity_scale;
+  CHECK((p.modal.x - p.dense.x).cwiseAbs().maxCoeff() <= 1e-8 * L);
+  CHECK((p.modal.v - p.dense.v).cwiseAbs().maxCoeff() <= 1e-8 * V);
+}
+
 }  // namespace
 
 // Newton–Krylov shooting on the modal engine finds the orbit dense shooting finds, and Arnoldi's
@@ -274,13 +284,8 @@ TEST_CASE("modal engine: Newton–Krylov shooting and Arnoldi multipliers equal 
   SECTION("10 masses, two impacting stops, period 1") {
     const BandedChain chain = damped_chain(10, 0.05, 0.02, 0.6, 0.5);
     const ShotPair p = shoot_both(chain, {Stop::upper(0, 0.5, 0.8), Stop::lower(4, -0.12, 0.7)}, 6.0);
-    INFO(p.dense.message << " / " << p.modal.message);
-    REQUIRE(p.dense.converged());
-    REQUIRE(p.modal.converged());
+    require_same_orbit(p);
     CHECK(p.modal.map.summary.impacts > 0);
-    const double L = p.dense.length_scale, V = p.dense.velocity_scale;
-    CHECK((p.modal.x - p.dense.x).cwiseAbs().maxCoeff() <= 1e-8 * L);
-    CHECK((p.modal.v - p.dense.v).cwiseAbs().maxCoeff() <= 1e-8 * V);
     const auto& md = p.modal.multipliers;
     const auto& dd = p.dense.multipliers;
     CHECK(md.leading_only);
@@ -300,14 +305,9 @@ TEST_CASE("modal engine: Newton–Krylov shooting and Arnoldi multipliers equal 
   SECTION("6 masses, an orbit that chatters into sticking and releases every period") {
     const BandedChain chain = damped_chain(6, 0.05, 0.05, 0.6, 0.35);
     const ShotPair p = shoot_both(chain, {Stop::upper(0, 0.3, 0.6), Stop::lower(3, -0.2, 0.8)}, 8.0);
-    INFO(p.dense.message << " / " << p.modal.message);
-    REQUIRE(p.dense.converged());
-    REQUIRE(p.modal.converged());
+    require_same_orbit(p);
     CHECK(p.modal.map.summary.sticks >= 1);
     CHECK(p.modal.map.summary.chatters >= 1);
-    const double L = p.dense.length_scale, V = p.dense.velocity_scale;
-    CHECK((p.modal.x - p.dense.x).cwiseAbs().maxCoeff() <= 1e-8 * L);
-    CHECK((p.modal.v - p.dense.v).cwiseAbs().maxCoeff() <= 1e-8 * V);
     const auto& md = p.modal.multipliers;
     const auto& dd = p.dense.multipliers;
     REQUIRE(md.converged_count >= 1);
