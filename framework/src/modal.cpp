@@ -317,20 +317,20 @@ void ChainModes::finish(const Eigen::VectorXd& p0, const Eigen::VectorXd& pc, co
   }
   // The periodic particular solution of each mode for the modal forcing p0, pc, ps.
   const double W = chain_.forcing.frequency;
-  c0_ = p0.cwiseQuotient(omega2_);
+  c0_.resize(n);
   cc_.resize(n);
   cs_.resize(n);
   for (Eigen::Index k = 0; k < n; ++k) {
-    const double detune = omega2_(k) - W * W, friction = 2.0 * sigma_(k) * W;
-    const double det = detune * detune + friction * friction;
+    const HarmonicResponse<double> h = harmonic_response(omega2_(k), sigma_(k), W, p0(k), pc(k), ps(k));
     const double scale = std::max(omega2_(k), W * W);
-    if (det <= 1e-24 * scale * scale && (pc(k) != 0.0 || ps(k) != 0.0))
+    if (h.det <= 1e-24 * scale * scale && (pc(k) != 0.0 || ps(k) != 0.0))
       throw InvalidInput("chain: mode " + std::to_string(k) + " (ω = " + number_text(omega_(k)) +
                          ") is in undamped resonance with the forcing (Ω = " + number_text(W) +
                          "): its response grows secularly, which the modal chain engine does not "
                          "represent — use the dense Simulator or add damping");
-    cc_(k) = det > 0.0 ? (detune * pc(k) - friction * ps(k)) / det : 0.0;
-    cs_(k) = det > 0.0 ? (detune * ps(k) + friction * pc(k)) / det : 0.0;
+    c0_(k) = h.c0;
+    cc_(k) = h.cc;
+    cs_(k) = h.cs;
   }
 }
 

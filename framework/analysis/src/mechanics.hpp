@@ -100,19 +100,24 @@ class Mechanics {
   /// C = αM + βK, so that every operation the resets and the contact forces need is O(n) and
   /// nothing n × n is stored (chains of 10 000 masses). The generator and the force rows, which
   /// are dense by nature, are not available on this form (the modal tangent map does not use them).
-  Mechanics(const BandedChain& chain, const std::vector<Stop>& stops)
+  /// `direction` (T = Dual) seeds the forcing, Ω and the stops' data; it must not move M, C or K
+  /// (their derivatives have no banded form here; the caller refuses them).
+  Mechanics(const BandedChain& chain, const std::vector<Stop>& stops, const SystemDerivative* direction = nullptr)
       : n_(chain.dof()), m_(stops.size()), banded_(true) {
     const SystemDerivative zero;
+    const SystemDerivative& d = direction ? *direction : zero;
+    if (moves_matrices(d))
+      throw std::logic_error("Mechanics: the banded form takes no derivative of M, C or K");
     mass_ = seed(chain.mass, Eigen::VectorXd());
     k_diagonal_ = seed(chain.stiffness_diagonal, Eigen::VectorXd());
     k_off_ = seed(chain.stiffness_off, Eigen::VectorXd());
     alpha_ = make(chain.rayleigh_mass, 0.0);
     beta_ = make(chain.rayleigh_stiffness, 0.0);
-    F0_ = seed(chain.forcing.constant, Eigen::VectorXd());
-    Fc_ = seed(chain.forcing.cosine, Eigen::VectorXd());
-    Fs_ = seed(chain.forcing.sine, Eigen::VectorXd());
-    omega_ = make(chain.forcing.frequency, 0.0);
-    add_stops(stops, zero);
+    F0_ = seed(chain.forcing.constant, d.constant);
+    Fc_ = seed(chain.forcing.cosine, d.cosine);
+    Fs_ = seed(chain.forcing.sine, d.sine);
+    omega_ = make(chain.forcing.frequency, d.frequency);
+    add_stops(stops, d);
   }
 
   Eigen::Index dof() const { return n_; }
@@ -135,6 +140,14 @@ class Mechanics {
       case 2: return -omega_ * omega_ * (a * c + b * s);
       default: return omega_ * omega_ * omega_ * (a * s - b * c);
     }
+  }
+
+  /// The forcing's harmonic amplitudes: F0 (h = 0), Fc (h = 1), Fs (h = 2).
+  const VecT<T>& forcing_amplitude(int h) const { return h == 0 ? F0_ : (h == 1 ? Fc_ : Fs_); }
+  /// Stop j's: s0 (h = 0), sc (h = 1), ss (h = 2).
+  const T& stop_amplitude(int j, int h) const {
+    const auto J = static_cast<std::size_t>(j);
+    return h == 0 ? s0_[J] : (h == 1 ? sc_[J] : ss_[J]);
   }
 
   /// f(t) (k = 0) or f'(t) (k = 1).
@@ -188,11 +201,15 @@ class Mechanics {
 
   /// M⁻¹ (f − C v − K x).
   VecT<T> free_acceleration(const VecT<T>& x, const VecT<T>& v, const T& t) const {
+    return acceleration_under(forcing(t), x, v);
+  }
+  /// M⁻¹ (F − C v − K x) for a given force F.
+  VecT<T> acceleration_under(const VecT<T>& F, const VecT<T>& x, const VecT<T>& v) const {
     if (banded_) {
       const VecT<T> Cv = alpha_ * mass_.cwiseProduct(v) + beta_ * stiffness_times(v);
-      return mass_inverse(VecT<T>(forcing(t) - Cv - stiffness_times(x)));
+      return mass_inverse(VecT<T>(F - Cv - stiffness_times(x)));
     }
-    return llt_.solve(VecT<T>(forcing(t) - C_ * v - K_ * x));
+    return llt_.solve(VecT<T>(F - C_ * v - K_ * x));
   }
 
   /// λ_S = G⁻¹ (Wᵀ a_free − s''_S) at (x, v, t).
@@ -301,6 +318,13 @@ class Mechanics {
   }
 
   static bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
+
+  /// True when `d` moves M, C or K (a non-zero entry in one of them).
+  static bool moves_matrices(const SystemDerivative& d) {
+    for (const Eigen::MatrixXd* m : {&d.mass, &d.damping, &d.stiffness})
+      if (m->size() > 0 && !m->isZero(0.0)) return true;
+    return false;
+  }
 
  private:
   static T make(double value, double derivative) {

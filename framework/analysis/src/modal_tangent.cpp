@@ -4,8 +4,10 @@
 #include "transition.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -21,6 +23,7 @@ using Eigen::Index;
 using Eigen::MatrixXd;
 using Eigen::VectorXd;
 using VecD = detail::VecT<Dual>;
+using MatD = detail::MatT<Dual>;
 
 
 VecD seeded(const Eigen::Ref<const VectorXd>& value, const Eigen::Ref<const VectorXd>& direction) {
@@ -33,11 +36,21 @@ VectorXd derivative(const VecD& a) {
   for (Index i = 0; i < a.size(); ++i) out(i) = a(i).d;
   return out;
 }
+VecD constant(const VectorXd& value) { return value.cast<Dual>(); }
 
-/// A segment: the homogeneous flow of one contact set over τ.
+/// Throws InvalidInput for a parameter derivative of the wrong size or one that moves M, C or K:
+/// those move the chain's modes, i.e. the homogeneous flow itself, which the modal map keeps fixed.
+void check_derivative(const SystemDerivative& d, Index n, std::size_t stops) {
+  d.validate(n, stops);
+  if (Mechanics<double>::moves_matrices(d))
+    throw InvalidInput("linearisation: derivatives of the mass, damping or stiffness matrices are not available on "
+                       "the modal engine (they move its modes): use the dense engine");
+}
+
+/// A segment: the homogeneous flow of one contact set over τ = t_end − t_begin.
 struct Flight {
   const ModalContactMode* mode = nullptr;
-  double tau = 0.0;
+  double tau = 0.0, t_begin = 0.0, t_end = 0.0;
 };
 
 /// One guard's saltation at (x, v⁻, t), applied to vectors (see the header):
@@ -72,11 +85,31 @@ struct FreeImpact {
   double rate = 0.0;       // g'⁻
   double impulse = 0.0;    // Λ
   double curvature = 0.0;  // (1 + r) g''⁻ / G (0 without an impulse)
+  int stop = -1;           // j
+  double t = 0.0, delassus = 0.0;  // the impact's time, G = w_jᵀM⁻¹w_j
 };
 
 using Op = std::variant<Flight, Jump, FreeImpact>;
 
+/// The periodic particular solution of one contact set's motion (the held stops' motion plus the
+/// reduced chain's periodic response, modal.hpp) as harmonic amplitudes, p(t) = a0 + ac cos Ωt +
+/// as sin Ωt, in dual numbers (value, derivative along dD): in the free chain's modal coordinates
+/// for the free set (where the record's columns are modal), in physical ones otherwise.
+struct Particular {
+  VecD a0, ac, as;
+};
+
 }  // namespace
+
+/// A parameter column carried through the record (ModalTangent::parameter): the system's data
+/// seeded along dD, the column of D that holds ζ = ∂z/∂p, each contact set's particular solution.
+struct ModalTangent::Sensitivity {
+  Sensitivity(const BandedChain& chain, const std::vector<Stop>& stops, const SystemDerivative& d, Index col)
+      : data(chain, stops, &d), column(col) {}
+  Mechanics<Dual> data;
+  Index column;
+  std::map<const ModalContactMode*, Particular> particular;
+};
 
 struct ModalTangent::Record {
   Record(const BandedChain& chain, const std::vector<Stop>& stops) : mech(chain, stops), dual(chain, stops) {}
@@ -92,8 +125,12 @@ struct ModalTangent::Record {
   /// The contact force of held stop `guard` along (δx, δv, δt) at (x, v, t): −h_z·δz (release guard).
   double force_derivative(const ContactSet& held, int guard, const VectorXd& x, const VectorXd& v, double t,
                           const Eigen::Ref<const VectorXd>& dx, const Eigen::Ref<const VectorXd>& dv, double dt) const {
+    return force_of(dual, held, guard, seeded(x, dx), seeded(v, dv), Dual(t, dt)).d;
+  }
+  static Dual force_of(const Mechanics<Dual>& m, const ContactSet& held, int guard, const VecD& x, const VecD& v,
+                       const Dual& t) {
     const auto a = static_cast<Index>(std::lower_bound(held.begin(), held.end(), guard) - held.begin());
-    return dual.forces(held, seeded(x, dx), seeded(v, dv), Dual(t, dt))(a).d;
+    return m.forces(held, x, v, t)(a);
   }
 
   /// h_z·δz of a salt.
@@ -106,7 +143,10 @@ struct ModalTangent::Record {
     return -force_derivative(s.rule.held_before, s.guard, s.x, s.vm, s.t, dx, dv, 0.0);
   }
 
-  void apply(const Salt& s, Eigen::Ref<MatrixXd> D) const {
+  /// The saltation on the columns of D; with `p`, its column ζ also gets the parameter term
+  /// s_p = R_p + jump h_p / ḣ⁻ (linearisation.hpp), h_p and R_p the guard's and the reset's
+  /// derivatives along dD at the event's (x, v⁻, t).
+  void apply(const Salt& s, Eigen::Ref<MatrixXd> D, const Sensitivity* p) const {
     const Index n = mech.dof();
     for (Index c = 0; c < D.cols(); ++c) {
       const VectorXd dx = D.col(c).head(n), dv = D.col(c).tail(n);
@@ -115,24 +155,144 @@ struct ModalTangent::Record {
       D.col(c).head(n) = dx + s.jump.head(n) * sc;
       D.col(c).tail(n) = rv + s.jump.tail(n) * sc;
     }
+    if (!p) return;
+    auto zeta = D.col(p->column);
+    const VecD x = constant(s.x), vm = constant(s.vm);
+    if (s.guard >= 0 && s.rate != 0.0) {
+      // A gap g = wᵀx − s_j(t) moves by −∂s_j/∂p at fixed x; a release guard −λ_j by −∂λ_j/∂p.
+      const double hp = s.impact ? -p->data.stop_position(s.guard, Dual(s.t)).d
+                                 : -force_of(p->data, s.rule.held_before, s.guard, x, vm, Dual(s.t)).d;
+      zeta += s.jump * (hp / s.rate);
+    }
+    zeta.tail(n) += derivative(p->data.reset_velocity(s.rule, x, vm, Dual(s.t)));
   }
 
-  void apply(const Jump& j, Eigen::Ref<MatrixXd> D) const {
-    for (const Salt& s : j.salts) apply(s, D);
+  void apply(const Jump& j, Eigen::Ref<MatrixXd> D, const Sensitivity* p) const {
+    for (const Salt& s : j.salts) apply(s, D, p);
   }
 
-  /// A free-flight impact on modal columns [δu; δu'] (see FreeImpact).
-  void apply_modal(const FreeImpact& f, Eigen::Ref<MatrixXd> U) const {
+  /// A free-flight impact on modal columns [δu; δu'] (see FreeImpact). With `p`, ζ also gets
+  /// s_p: with h_p = −∂s_j(t)/∂p and κ = ∂Λ/∂p = ∂((1 + r) g'⁻)/∂p / G at fixed (x, v⁻),
+  ///     δu ← δu − φ Λ h_p/g'⁻,   δu' ← δu' + (2σ∘φ Λ + φ (1 + r) g''⁻/G) h_p/g'⁻ − φ κ
+  /// (v⁺ = v⁻ − M⁻¹wΛ, so R_p = −M⁻¹w κ, whose modal coordinates are −φ κ).
+  void apply_modal(const FreeImpact& f, Eigen::Ref<MatrixXd> U, const Sensitivity* p) const {
     const Index n = f.phi.size();
     const VectorXd two_sigma_phi = 2.0 * free->decay().cwiseProduct(f.phi);
+    const VectorXd moved = two_sigma_phi * f.impulse + f.phi * f.curvature;  // a⁺ − R_z a⁻ − R_t
     for (Index c = 0; c < U.cols(); ++c) {
       auto u = U.col(c).head(n);
       auto ud = U.col(c).tail(n);
       const double s = f.phi.dot(u) / f.rate;
       if (f.newton != 0.0) ud -= f.phi * (f.newton * f.phi.dot(ud));
       u -= f.phi * (f.impulse * s);
-      ud += (two_sigma_phi * f.impulse + f.phi * f.curvature) * s;
+      ud += moved * s;
     }
+    if (!p || f.newton == 0.0) return;  // without an impulse the map is the identity
+    const double hp = -p->data.stop_position(f.stop, Dual(f.t)).d;
+    const Dual rate(f.rate, -p->data.stop_position(f.stop, Dual(f.t), 1).d);  // g'⁻ = wᵀv⁻ − s_j'(t)
+    const double kappa = ((1.0 + p->data.restitution(f.stop)) * rate).d / f.delassus;
+    auto zeta = U.col(p->column);
+    zeta.head(n) -= f.phi * (f.impulse * hp / f.rate);
+    zeta.tail(n) += moved * (hp / f.rate) - f.phi * kappa;
+  }
+
+  /// Mass-weighted means of the masses of each reduced coordinate of `md` (rows of `physical`,
+  /// n × p → n_r × p): the M-orthogonal projection onto the set's constraint manifold, as the
+  /// engine projects states. `lift` is its right inverse x = T y (prescribed masses 0).
+  MatrixXd project(const ModalContactMode& md, const Eigen::Ref<const MatrixXd>& physical) const {
+    const Index nr = md.size();
+    MatrixXd Y = MatrixXd::Zero(nr, physical.cols());
+    for (Index r = 0; r < nr; ++r) {
+      double sm = 0.0;
+      for (Index l = md.first[static_cast<std::size_t>(r)]; l <= md.last[static_cast<std::size_t>(r)]; ++l) {
+        Y.row(r) += mass_of_chain(l) * physical.row(l);
+        sm += mass_of_chain(l);
+      }
+      Y.row(r) /= sm;
+    }
+    return Y;
+  }
+  static void lift(const ModalContactMode& md, const Eigen::Ref<const MatrixXd>& Y, Eigen::Ref<MatrixXd> physical) {
+    for (Index l = 0; l < physical.rows(); ++l) {
+      const Index r = md.coordinate[static_cast<std::size_t>(l)];
+      if (r >= 0) physical.row(l) = Y.row(r);
+      else physical.row(l).setZero();
+    }
+  }
+
+  /// The particular solution of `md` (see Particular), built on first use: O(N n_r) for a set.
+  /// The held stops' motion is taken as o = M⁻¹W G⁻¹ s_S(t), one solution of W_Sᵀ o = s_S(t):
+  /// x = T y + o covers the same constraint manifold as the engine's o (any such o does, since
+  /// range T = null W_Sᵀ), and the periodic solution x_p it gives is the same motion. With
+  /// o' = Ω(o_s cos − o_c sin), o'' = −Ω²(o_c cos + o_s sin), the reduced chain is forced by
+  /// Tᵀ(f − M o'' − C o' − K o); its modal amplitudes are Φ_Sᵀ Tᵀ M a = Φ_S⁻¹ (projected a) for
+  /// the harmonic amplitudes a of M⁻¹(f − M o'' − C o' − K o), and each mode answers by
+  /// harmonic_response (modal.hpp) in dual numbers: Ω's derivative enters there and in cos Ωt.
+  const Particular& particular(Sensitivity& p, const ModalContactMode& md) const {
+    const auto found = p.particular.find(&md);
+    if (found != p.particular.end()) return found->second;
+    const Mechanics<Dual>& m = p.data;
+    const Index n = mech.dof(), nr = md.size(), k = static_cast<Index>(md.stuck.size());
+    const Dual W = m.frequency();
+    std::array<VecD, 3> o{VecD::Zero(n), VecD::Zero(n), VecD::Zero(n)};
+    if (k > 0) {
+      const MatD normals = m.normals(md.stuck);
+      const MatD Q = m.mass_inverse(normals);
+      const Eigen::PartialPivLU<MatD> G(MatD(normals.transpose() * Q));
+      for (int h = 0; h < 3; ++h) {
+        VecD s(k);
+        for (Index a = 0; a < k; ++a) s(a) = m.stop_amplitude(md.stuck[static_cast<std::size_t>(a)], h);
+        o[h] = Q * G.solve(s);
+      }
+    }
+    const VecD zero = VecD::Zero(n);
+    const std::array<VecD, 3> a{m.acceleration_under(m.forcing_amplitude(0), o[0], zero),
+                                VecD(m.acceleration_under(m.forcing_amplitude(1), o[1], VecD(W * o[2])) + W * W * o[1]),
+                                VecD(m.acceleration_under(m.forcing_amplitude(2), o[2], VecD(-W * o[1])) + W * W * o[2])};
+    Particular out;
+    VecD* amplitude[3] = {&out.a0, &out.ac, &out.as};
+    MatrixXd A(n, 6);  // values, then derivatives
+    for (int h = 0; h < 3; ++h) {
+      for (Index i = 0; i < n; ++i) {
+        A(i, h) = a[h](i).v;
+        A(i, 3 + h) = a[h](i).d;
+      }
+      *amplitude[h] = o[h];
+    }
+    if (nr > 0) {
+      const ChainModes& modes = *md.modes;
+      MatrixXd U(nr, 6), C(nr, 6);
+      const MatrixXd Y = md.stuck.empty() ? A : project(md, A);
+      modes.tangent_to_modal(Y, U, work);
+      for (Index i = 0; i < nr; ++i) {
+        const HarmonicResponse<Dual> r =
+            harmonic_response(modes.omega_squared()(i), modes.decay()(i), W, Dual(U(i, 0), U(i, 3)),
+                              Dual(U(i, 1), U(i, 4)), Dual(U(i, 2), U(i, 5)));
+        const Dual c[3] = {r.c0, r.cc, r.cs};
+        for (int h = 0; h < 3; ++h) {
+          C(i, h) = c[h].v;
+          C(i, 3 + h) = c[h].d;
+        }
+      }
+      MatrixXd X = C;  // the free set stays in modal coordinates (o = 0 there)
+      if (!md.stuck.empty()) {
+        MatrixXd Yp(nr, 6);
+        modes.tangent_to_physical(C, Yp, work);
+        X.resize(n, 6);
+        lift(md, Yp, X);
+      }
+      for (int h = 0; h < 3; ++h)
+        for (Index i = 0; i < X.rows(); ++i) (*amplitude[h])(i) += Dual(X(i, h), X(i, 3 + h));
+    }
+    return p.particular.emplace(&md, std::move(out)).first->second;
+  }
+
+  /// ∂(p, p')/∂p of a particular solution at t, times `sign`, added to the column ζ.
+  static void add_particular(const Particular& pt, const Dual& W, double t, double sign, Eigen::Ref<VectorXd> zeta) {
+    const Index n = pt.a0.size();
+    const Dual c = cos(W * Dual(t)), s = sin(W * Dual(t));
+    zeta.head(n) += sign * derivative(VecD(pt.a0 + pt.ac * c + pt.as * s));
+    zeta.tail(n) += sign * derivative(VecD(W * (pt.as * c - pt.ac * s)));
   }
 
   /// Columns between physical (δx; δv) and the free chain's modal coordinates (δu; δu').
@@ -161,31 +321,14 @@ struct ModalTangent::Record {
       D.setZero();
       return;
     }
-    const VectorXd& mass = mass_of_chain;
-    MatrixXd Y = MatrixXd::Zero(nr, 2 * p);  // [δy | δy']
-    for (Index r = 0; r < nr; ++r) {
-      double sm = 0.0;
-      for (Index l = md.first[static_cast<std::size_t>(r)]; l <= md.last[static_cast<std::size_t>(r)]; ++l) {
-        Y.row(r).head(p) += mass(l) * D.row(l);
-        Y.row(r).tail(p) += mass(l) * D.row(n + l);
-        sm += mass(l);
-      }
-      Y.row(r) /= sm;
-    }
+    MatrixXd Y(nr, 2 * p);  // [δy | δy']
+    Y << project(md, D.topRows(n)), project(md, D.bottomRows(n));
     MatrixXd U(nr, 2 * p);
     md.modes->tangent_to_modal(Y, U, work);
     md.modes->advance_columns(f.tau, U.leftCols(p), U.rightCols(p));
     md.modes->tangent_to_physical(U, Y, work);
-    for (Index l = 0; l < n; ++l) {
-      const Index r = md.coordinate[static_cast<std::size_t>(l)];
-      if (r >= 0) {
-        D.row(l) = Y.row(r).head(p);
-        D.row(n + l) = Y.row(r).tail(p);
-      } else {
-        D.row(l).setZero();
-        D.row(n + l).setZero();
-      }
-    }
+    lift(md, Y.leftCols(p), D.topRows(n));
+    lift(md, Y.rightCols(p), D.bottomRows(n));
   }
 
   VectorXd mass_of_chain;
@@ -229,7 +372,7 @@ class Recorder final : public Observer {
     } else if (pending_) {
       finish_transition(view, S);
     }
-    rec_.ops.emplace_back(Flight{&mv->mode(), te - tb});
+    rec_.ops.emplace_back(Flight{&mv->mode(), te - tb, tb, te});
     const Index dim = 2 * mv->mode().size();
     if (dim < min_dim_) {
       min_dim_ = dim;
@@ -379,9 +522,12 @@ class Recorder final : public Observer {
     };
     auto along = [&](auto&& value) { return w.a * value(w.i) + (w.k >= 0 ? w.b * value(w.k) : 0.0); };
     FreeImpact f;
+    f.stop = j;
+    f.t = t;
     f.phi = w.a * rec_.free->phi_row(w.i);
     if (w.k >= 0) f.phi += w.b * rec_.free->phi_row(w.k);
     const double G = w.a * w.a / ch.mass(w.i) + (w.k >= 0 ? w.b * w.b / ch.mass(w.k) : 0.0);
+    f.delassus = G;
     f.rate = along([&](Index l) { return at(v, l); }) - rec_.mech.stop_position(j, t, 1);
     const double r = rec_.mech.restitution(j);
     // The impulse LCP of one stop (as detail::impulse_set solves it): active iff its impulse > 0.
@@ -411,8 +557,8 @@ class Recorder final : public Observer {
     for (Index i = 0; i < D.rows(); ++i)
       for (Index c = 0; c < 4; ++c) D(i, c) = std::sin(1.0 + 0.7 * static_cast<double>(i) + 1.3 * static_cast<double>(c));
     MatrixXd Da = D, Db = D;
-    for (const Salt& s : a.salts) rec_.apply(s, Da);
-    for (const Salt& s : b.salts) rec_.apply(s, Db);
+    for (const Salt& s : a.salts) rec_.apply(s, Da, nullptr);
+    for (const Salt& s : b.salts) rec_.apply(s, Db, nullptr);
     return (Da - Db).norm() / std::max(Da.norm(), 1e-300);
   }
 
@@ -471,7 +617,8 @@ ModalTangent::ModalTangent(ModalEngine& engine, double t0, const VectorXd& x0, c
 
 ModalTangent::~ModalTangent() = default;
 
-void ModalTangent::apply_range(std::size_t from, std::size_t to, MatrixXd& D, bool modal_in, bool modal_out) const {
+void ModalTangent::apply_range(std::size_t from, std::size_t to, MatrixXd& D, bool modal_in, bool modal_out,
+                               Sensitivity* p) const {
   if (map_.summary.status != RunStatus::completed)
     throw std::logic_error("ModalTangent: the run did not complete (" + std::string(to_string(map_.summary.status)) +
                            "); its tangent map is not defined");
@@ -489,19 +636,22 @@ void ModalTangent::apply_range(std::size_t from, std::size_t to, MatrixXd& D, bo
   for (std::size_t i = from; i < to; ++i) {
     const Op& op = r.ops[i];
     if (const auto* f = std::get_if<Flight>(&op)) {
-      if (f->mode->stuck.empty()) {
-        want(true);
-        r.free->advance_columns(f->tau, D.topRows(n_), D.bottomRows(n_));
-      } else {
-        want(false);
-        r.apply(*f, D);
-      }
+      // A flight maps z to z_p(t_end) + J_h (z − z_p(t_begin)), z_p the set's particular solution
+      // and J_h its homogeneous flow (independent of Ω, the forcing and the stops' data): along
+      // dD, ζ ← J_h (ζ − ∂z_p(t_begin)/∂p) + ∂z_p(t_end)/∂p.
+      const bool free_set = f->mode->stuck.empty();
+      want(free_set);
+      const Particular* pt = p ? &r.particular(*p, *f->mode) : nullptr;
+      if (pt) Record::add_particular(*pt, p->data.frequency(), f->t_begin, -1.0, D.col(p->column));
+      if (free_set) r.free->advance_columns(f->tau, D.topRows(n_), D.bottomRows(n_));
+      else r.apply(*f, D);
+      if (pt) Record::add_particular(*pt, p->data.frequency(), f->t_end, 1.0, D.col(p->column));
     } else if (const auto* impact = std::get_if<FreeImpact>(&op)) {
       want(true);
-      r.apply_modal(*impact, D);
+      r.apply_modal(*impact, D, p);
     } else {
       want(false);
-      r.apply(std::get<Jump>(op), D);
+      r.apply(std::get<Jump>(op), D, p);
     }
   }
   want(modal_out);
@@ -517,6 +667,14 @@ MatrixXd ModalTangent::through(const MatrixXd& directions, bool modal) const {
 }
 
 MatrixXd ModalTangent::apply(const MatrixXd& directions) const { return through(directions, false); }
+
+VectorXd ModalTangent::parameter(const SystemDerivative& derivative) const {
+  check_derivative(derivative, n_, sim_->stops().size());
+  Sensitivity p(sim_->modes().chain(), sim_->stops(), derivative, 0);
+  MatrixXd zeta = MatrixXd::Zero(2 * n_, 1);  // ζ(t0) = 0: the start is fixed
+  apply_range(0, record_->ops.size(), zeta, false, false, &p);
+  return zeta.col(0);
+}
 
 MatrixXd ModalTangent::apply_modal(const MatrixXd& directions) const { return through(directions, true); }
 
@@ -564,7 +722,7 @@ void ModalTangent::fill_jacobian(TangentMap& out) const {
 TangentMap linearise(ModalEngine& engine, double t0, const VectorXd& x0, const VectorXd& v0, double t1,
                      const LinearisationOptions& options) {
   if (options.parameter)
-    throw InvalidInput("linearisation: parameter derivatives are not available on the modal engine (use the dense engine)");
+    check_derivative(*options.parameter, engine.simulator().modes().dof(), engine.simulator().stops().size());
   if (options.features)
     throw InvalidInput("linearisation: features (gap peaks, force dips) are not available on the modal engine");
   const Index n2 = 2 * engine.simulator().modes().dof();
@@ -576,6 +734,7 @@ TangentMap linearise(ModalEngine& engine, double t0, const VectorXd& x0, const V
   if (out.summary.status != RunStatus::completed) return out;
   if (options.directions.size() > 0) out.products = tangent.apply(options.directions);
   else if (options.jacobian) tangent.fill_jacobian(out);
+  if (options.parameter) out.parameter = tangent.parameter(*options.parameter);
   return out;
 }
 

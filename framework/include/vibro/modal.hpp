@@ -159,6 +159,30 @@ struct ChainReduction {
 /// True when this build can use LAPACK's dstemr.
 bool lapack_available();
 
+/// The periodic response q = c0 + cc cos Ωt + cs sin Ωt of one mode,
+///     q'' + 2σ q' + ω² q = p0 + pc cos Ωt + ps sin Ωt:
+/// c0 = p0/ω² and, with d = ω² − Ω², e = 2σΩ and det = d² + e²,
+///     cc = (d pc − e ps)/det,   cs = (d ps + e pc)/det
+/// (0 when det = 0, an undamped resonance, which ChainModes refuses unless the mode is not forced).
+/// Written once for double (ChainModes) and for dual numbers (the derivative of the particular
+/// solution along Ω and the forcing, analysis/modal_tangent.cpp).
+template <class T>
+struct HarmonicResponse {
+  T c0, cc, cs, det;
+};
+template <class T>
+HarmonicResponse<T> harmonic_response(double omega2, double sigma, const T& frequency, const T& p0, const T& pc,
+                                      const T& ps) {
+  const T detune = omega2 - frequency * frequency, friction = 2.0 * sigma * frequency;
+  const T det = detune * detune + friction * friction;
+  HarmonicResponse<T> out{p0 / omega2, T(0.0), T(0.0), det};
+  if (det > 0.0) {
+    out.cc = (detune * pc - friction * ps) / det;
+    out.cs = (detune * ps + friction * pc) / det;
+  }
+  return out;
+}
+
 /// The free chain's modes and each mode's exact flow. Immutable after construction.
 class ChainModes {
  public:

@@ -21,11 +21,27 @@
 /// fields of the sets before and after. Simultaneous impacts are taken one at a time (index
 /// order); their order's effect is measured on fixed test vectors (TangentMap::non_smooth).
 ///
+/// **Parameter derivatives** (parameter(): ζ = ∂z/∂p at fixed t0, t1 along a SystemDerivative dD
+/// that moves Ω, the forcing or the stops' data). None of these moves the homogeneous flow J_h of a
+/// contact set (its modes depend on M, K, α, β only), so a flight from t_b to t_e, which maps z to
+/// z_p(t_e) + J_h (z − z_p(t_b)) with z_p the set's periodic particular solution (the held stops'
+/// motion plus the reduced chain's periodic response), gives
+///     ζ ← J_h (ζ − ∂z_p(t_b)/∂p) + ∂z_p(t_e)/∂p,
+/// exactly, with ∂z_p/∂p from the same per-mode harmonic response as the engine's (modal.hpp,
+/// harmonic_response) in dual numbers: O(N) per flight once a set's amplitudes are known (O(N n_r)
+/// per set and parameter). An event adds s_p = R_p + (f⁺ − R_z f⁻ − R_t) h_p / ḣ⁻ (linearisation.hpp),
+/// h_p and R_p again by dual numbers through the same reset and guard code, seeded along dD.
+/// M, C or K derivatives would move the modes themselves and are refused (InvalidInput).
+///
 /// **Differences from the dense linearisation.** (1) A run that starts with a stop held has a
 /// one-sided map at t0: here directions off the constraint manifold are projected onto it at t0
 /// (the dense map lets them drift); maps that start in free flight agree to rounding
-/// (tests/analysis/test_modal_tangent.cpp). (2) No parameter derivatives and no features (gap
-/// peaks, force dips): continuation stays on the dense engine; asking for them throws.
+/// (tests/analysis/test_modal_tangent.cpp); the parameter derivative of a run starting held
+/// likewise includes the projection of the start onto the moved manifold. (2) Parameter
+/// derivatives only along Ω, the forcing and the stops' data (offsets, harmonic motion,
+/// restitution), equal to the dense ones to rounding (≤ 7e-13 relative in the tests); mass, damping and stiffness
+/// derivatives are refused (dense engine). (3) No features (gap peaks, force dips): asking for
+/// them throws.
 ///
 /// The record points into the engine's cache of contact sets: it is valid until the engine's
 /// next run (apply() throws std::logic_error after that), and a run during which the cache had to
@@ -35,6 +51,7 @@
 ///     vibro::ModalEngine engine(chain, stops, options);
 ///     vibro::ModalTangent tangent(engine, t0, x0, v0, t0 + T);
 ///     Eigen::MatrixXd Jd = tangent.apply(d);          // 2N × p
+///     Eigen::VectorXd dz = tangent.parameter(vibro::SystemDerivative::frequency_only());  // ∂z1/∂Ω
 ///     vibro::TangentMap m = tangent.map();            // end state, events, saltations …
 #include "vibro/engine.hpp"
 #include "vibro/linearisation.hpp"
@@ -64,6 +81,13 @@ class ModalTangent {
 
   /// J·D for D of 2N rows (unscaled x, v).
   Eigen::MatrixXd apply(const Eigen::MatrixXd& directions) const;
+  /// ∂(x1, v1)/∂p at fixed t0, t1 along dD (TangentMap::parameter of linearisation.hpp), exactly,
+  /// for a dD that leaves the chain's homogeneous dynamics alone: Ω, the forcing, every stop's
+  /// offset, harmonic motion and restitution. Throws InvalidInput for a dD of the wrong size or
+  /// one that moves M, C or K (the dense engine has those). Costs one more column's pass of the
+  /// record plus, per contact set of the run, its particular solution's derivative (O(N n_r)).
+  /// One record serves any number of parameters.
+  Eigen::VectorXd parameter(const SystemDerivative& derivative) const;
   /// The same map in the free chain's modal coordinates (δu; δu') = Φ̃⁻¹ (δx; δv), Φ̃ = diag(Φ, Φ):
   /// Φ̃⁻¹ J Φ̃ D. Free flights and free-flight impacts cost O(N) per column there; the basis
   /// changes (O(N²) per column) are paid only around events with stops held, where the engine
@@ -76,14 +100,17 @@ class ModalTangent {
   /// zeros): O(N²) memory. For chains of up to a few thousand masses.
   void fill_jacobian(TangentMap& out) const;
 
-  struct Record;  ///< what the run left (defined in modal_tangent.cpp only)
+  struct Record;       ///< what the run left (defined in modal_tangent.cpp only)
+  struct Sensitivity;  ///< a parameter column's data (likewise)
 
  private:
   /// The whole record on D, in physical or modal coordinates; checks D's size.
   Eigen::MatrixXd through(const Eigen::MatrixXd& directions, bool modal) const;
   /// Ops [from, to) of the record applied to D in place; D's columns in modal coordinates on the
-  /// way in / out where asked.
-  void apply_range(std::size_t from, std::size_t to, Eigen::MatrixXd& D, bool modal_in, bool modal_out) const;
+  /// way in / out where asked. With `p`, column p->column is a parameter sensitivity ζ and also
+  /// gets the affine terms of each flight and event.
+  void apply_range(std::size_t from, std::size_t to, Eigen::MatrixXd& D, bool modal_in, bool modal_out,
+                   Sensitivity* p = nullptr) const;
 
   const ModalChainSimulator* sim_;
   long run_ = 0;
@@ -93,8 +120,9 @@ class ModalTangent {
 };
 
 /// linearise() on the modal engine: the map over [t0, t1] with J (options.jacobian, directions
-/// empty) or the products J·directions. Throws InvalidInput for a parameter derivative or
-/// features (dense engine only) and for directions of the wrong size.
+/// empty) or the products J·directions, and ∂z1/∂p for options.parameter (see parameter()).
+/// Throws InvalidInput for a parameter derivative that moves M, C or K or has the wrong size,
+/// for features (dense engine only) and for directions of the wrong size.
 TangentMap linearise(ModalEngine& engine, double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                      double t1, const LinearisationOptions& options = {});
 
