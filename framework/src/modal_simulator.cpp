@@ -1025,6 +1025,7 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
   const double dt_simultaneous = sc.dt_simultaneous, window = sc.window;
   const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end), T);
   force_tolerance_ = eps_force;
+  gap_tolerance_ = eps_gap;
 
   ModalRunSummary summary;
   summary.warnings = std::move(warnings);
@@ -1301,22 +1302,29 @@ double ModalSegmentView::force(Eigen::Index a, double t) const {
   return -value;
 }
 
-std::vector<Minimum> ModalSegmentView::force_local_minima(Eigen::Index a) const {
-  // Guards λ' and -λ' (the force row is h = -λ = P u + D u' + harmonic; with u'' = -2σu' - ω²u,
-  // h' = (-D∘ω²)·u + (P - 2D∘σ)·u' + harmonic'). An interior minimum is λ' crossing 0 upwards,
-  // a maximum -λ' crossing upwards; the search alternates between them, one armed at a time
-  // (the other's trigger is +∞), as DenseSegmentView::force_local_minima.
-  const ModalGuards& g = mode_->guards;
-  const Eigen::Index row = mode_->gap_rows + a, nr = mode_->size();
-  const double W = sim_->modes().frequency();
+namespace {
+
+/// The interior local maxima of guard `row` of `mode` in (from, to) for the homogeneous state (u0, ud0)
+/// at t0 (ModalSegmentState::guard_local_maxima). Guards −h' and h' (h = P u + D u' + harmonic; with
+/// u'' = −2σu' − ω²u, h' = (−D∘ω²)·u + (P − 2D∘σ)·u' + harmonic'; gaps have D = 0). A maximum is −h'
+/// crossing 0 upwards, a minimum h' crossing upwards; the search alternates between them, one armed
+/// at a time (the other's trigger is +∞), as DenseSegmentView::force_local_minima.
+std::vector<Minimum> guard_maxima(const ModalChainSimulator& sim, const ModalContactMode& mode, double t0,
+                                  const Eigen::Ref<const Eigen::VectorXd>& u0,
+                                  const Eigen::Ref<const Eigen::VectorXd>& ud0, Eigen::Index row, double from,
+                                  double to, double tolerance) {
+  const ModalGuards& g = mode.guards;
+  const Eigen::Index nr = mode.size(), first_d = g.rows() - g.D.rows();
+  const double W = sim.modes().frequency();
   ModalGuards slope;
   slope.P.resize(2, nr);
   slope.D.resize(2, nr);
   if (nr > 0) {
-    const Eigen::VectorXd& w2 = mode_->modes->omega_squared();
-    const Eigen::VectorXd& sg = mode_->modes->decay();
-    const Eigen::RowVectorXd d_row = g.D.row(a);
-    slope.P.row(0) = d_row.cwiseProduct(w2.transpose());                                   // λ' = -h'
+    const Eigen::VectorXd& w2 = mode.modes->omega_squared();
+    const Eigen::VectorXd& sg = mode.modes->decay();
+    const Eigen::RowVectorXd d_row =
+        row >= first_d ? Eigen::RowVectorXd(g.D.row(row - first_d)) : Eigen::RowVectorXd::Zero(nr);
+    slope.P.row(0) = d_row.cwiseProduct(w2.transpose());                                   // −h'
     slope.D.row(0) = -(g.P.row(row) - 2.0 * d_row.cwiseProduct(sg.transpose()));
   }
   slope.P.row(1) = -slope.P.row(0);
@@ -1329,31 +1337,58 @@ std::vector<Minimum> ModalSegmentView::force_local_minima(Eigen::Index a) const 
 
   long evaluations = 0;
   ModalChainSimulator::Search s(W, &evaluations, nr);
-  const double span = t_end() - t_begin();
-  const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(t_end()));
-  s.reset(mode_->modes, slope, t_begin(), sim_->segment_u(), sim_->segment_ud(), resolution);
+  const double start = from - t0, span = to - t0;
+  const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(to));
+  s.reset(mode.modes, slope, t0, u0, ud0, resolution);
   ModalChainSimulator::Search::Point& p0 = s.point(0);
-  s.evaluate(0.0, p0);
-  const double top = std::max(W, mode_->modes ? mode_->modes->omega().maxCoeff() : 0.0);
-  // As DenseSegmentView: the force trigger ε_F scaled to a slope (× 1e-3 × the fastest rate).
-  const double eps = std::max(1e-13 * std::abs(p0.h(0)), sim_->force_tolerance() * 1e-3 * std::max(top, 1e-300));
+  s.evaluate(start, p0);
+  const double top = std::max(W, mode.modes ? mode.modes->omega().maxCoeff() : 0.0);
+  // As DenseSegmentView: the trigger scaled to a slope (× 1e-3 × the fastest rate).
+  const double eps = std::max(1e-13 * std::abs(p0.h(0)), tolerance * 1e-3 * std::max(top, 1e-300));
   const double step = top > 0.0 ? 1.0 / top : std::max(span, 1e-300);
   const double inf = std::numeric_limits<double>::infinity();
   std::vector<Minimum> out;
-  bool seek_min = p0.h(0) <= 0.0;
-  double from = 0.0;
-  for (int guard = 0; from < span && guard < 10000; ++guard) {
+  bool seek_max = p0.h(0) <= 0.0;
+  double at = start;
+  Buffers buffers(nr);
+  for (int guard = 0; at < span && guard < 10000; ++guard) {
     Eigen::VectorXd trigger(2);
-    trigger << (seek_min ? eps : inf), (seek_min ? inf : eps);
-    s.start(trigger, from);
+    trigger << (seek_max ? eps : inf), (seek_max ? inf : eps);
+    s.start(trigger, at);
     double tau = span;
     int which = -1;
     if (!s.first(span, step, &tau, &which) || tau >= span) break;
-    if (seek_min && tau > 0.0) out.push_back({force(a, t_begin() + tau), t_begin() + tau});
-    from = std::max(tau, from) + resolution;
-    seek_min = !seek_min;
+    if (seek_max && tau > start) {
+      const double t = t0 + tau;
+      double value, rate;
+      guard_at(mode, W, t0, u0, ud0, t - t0, row, &value, &rate, buffers);
+      out.push_back({value, t});
+    }
+    at = std::max(tau, at) + resolution;
+    seek_max = !seek_max;
   }
   return out;
+}
+
+}  // namespace
+
+std::vector<Minimum> ModalSegmentView::force_local_minima(Eigen::Index a) const {
+  std::vector<Minimum> out = guard_maxima(*sim_, *mode_, t_begin(), sim_->segment_u(), sim_->segment_ud(),
+                                          mode_->gap_rows + a, t_begin(), t_end(), sim_->force_tolerance());
+  for (Minimum& m : out) m.value = -m.value;  // λ = −h
+  return out;
+}
+
+std::vector<Minimum> ModalSegmentState::guard_local_maxima(Eigen::Index row, double from, double to,
+                                                           double tolerance) const {
+  return guard_maxima(*sim_, *mode_, t_begin_, u_, ud_, row, from, to, tolerance);
+}
+
+double ModalSegmentState::guard(Eigen::Index row, double t) const {
+  double value, rate;
+  Buffers buffers(mode_->size());
+  guard_at(*mode_, sim_->modes().frequency(), t_begin_, u_, ud_, t - t_begin_, row, &value, &rate, buffers);
+  return value;
 }
 
 Minimum ModalSegmentView::force_minimum(Eigen::Index a) const {

@@ -511,17 +511,12 @@ class TangentRecorder final : public Observer {
     for (Index j = 0; j < ms; ++j) {
       if (contains(mode.set, static_cast<int>(j))) continue;
       SignChanges peaks(seg, ms + j, 1.0, resolution);
-      // A flight that starts on the stop (a release) starts with the gap rate zero up to
-      // rounding, and a sign change of that rounding in its first instants is not a maximum of
-      // the flight: the gap there has not moved from its start by more than rounding of the
-      // flight's own size. Such a "peak" (value ~1e-16, ~4e-8 into a flight of 6.7 in the paper's
-      // system, with both engines) posed as a grazing: the largest gap peak is the grazing test
-      // function, and it was ~0 there whatever the free bounces did.
+      // Not a peak: a rounding sign change at the start of a flight from the stop (transition.hpp).
       const double g_start = seg.value(j, 0.0);
       const double size = std::max({std::abs(g_start), std::abs(seg.value(j, 0.5 * tau)), std::abs(seg.value(j, tau))});
       for (double s : peaks.in(0.0, tau)) {
         const double g = seg.value(j, s);
-        if (s <= 1e-6 * tau && std::abs(g - g_start) <= 1e-9 * size) continue;
+        if (detail::flight_start_artifact(s, tau, g, g_start, size)) continue;
         out_.gap_peaks.push_back({static_cast<int>(j), tb + s, g});
       }
     }

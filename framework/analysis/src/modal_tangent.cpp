@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -85,6 +86,7 @@ struct FreeImpact {
   double rate = 0.0;       // g'⁻
   double impulse = 0.0;    // Λ
   double curvature = 0.0;  // (1 + r) g''⁻ / G (0 without an impulse)
+  double acceleration = 0.0;  // g''⁻
   int stop = -1;           // j
   double t = 0.0, delassus = 0.0;  // the impact's time, G = w_jᵀM⁻¹w_j
 };
@@ -340,8 +342,10 @@ namespace {
 /// descriptive parts (as linearisation.cpp's TangentRecorder does for the dense engine).
 class Recorder final : public Observer {
  public:
-  Recorder(ModalTangent::Record& record, const ModalChainSimulator& sim, TangentMap& out)
-      : rec_(record), sim_(sim), out_(out), n_(sim.modes().dof()), phases_(out.phases, sim.stops().size()) {}
+  Recorder(ModalTangent::Record& record, const ModalChainSimulator& sim, TangentMap& out,
+           const LinearisationOptions& options)
+      : rec_(record), sim_(sim), out_(out), n_(sim.modes().dof()), phases_(out.phases, sim.stops().size()),
+        features_(options.features), window_(options.past_release_window) {}
 
   void begin(const RunContext& /*run*/, double /*t0*/) override {
     dropped_ = sim_.modes_dropped();
@@ -383,6 +387,7 @@ class Recorder final : public Observer {
     te_ = te;
     pending_ = true;
     events_.clear();
+    if (features_ && te > tb) features(tb, te);
   }
 
   void event(const Event& e) override {
@@ -409,6 +414,44 @@ class Recorder final : public Observer {
     VectorXd f(2 * n_);
     f << v, rec_.mech.acceleration(S, x, v, t);
     return f;
+  }
+
+  /// The features of the kept segment over [tb, te] (linearisation.hpp, as the dense recorder finds
+  /// them): the interior maxima of the gaps of the stops not held, the interior minima of the held
+  /// stops' forces (maxima of their guards −λ), each by the certified search on the modal guards.
+  void features(double tb, double te) {
+    const ModalContactMode& md = last_.mode();
+    const double tau = te - tb;
+    for (Index row = 0; row < md.gap_rows; ++row) {
+      const int j = md.watched[static_cast<std::size_t>(row)];
+      const double g_start = last_.guard(row, tb);
+      const double size =
+          std::max({std::abs(g_start), std::abs(last_.guard(row, tb + 0.5 * tau)), std::abs(last_.guard(row, te))});
+      for (const Minimum& peak : last_.guard_local_maxima(row, tb, te, sim_.gap_tolerance())) {
+        if (detail::flight_start_artifact(peak.tau - tb, tau, peak.value, g_start, size)) continue;
+        out_.gap_peaks.push_back({j, peak.tau, peak.value});
+      }
+    }
+    for (std::size_t a = 0; a < md.stuck.size(); ++a)
+      for (const Minimum& dip : last_.guard_local_maxima(md.gap_rows + static_cast<Index>(a), tb, te,
+                                                          sim_.force_tolerance()))
+        out_.force_dips.push_back({md.stuck[a], dip.tau, -dip.value, false});
+  }
+
+  /// After a release, the held flow of the segment before continued past it to its next interior
+  /// force minimum, within window_ periods.
+  void past_release(const ContactSet& released) {
+    if (!features_ || released.empty() || window_ <= 0.0) return;
+    const ModalContactMode& md = last_.mode();
+    const double omega = sim_.modes().frequency();
+    const double to = te_ + window_ * (omega > 0.0 ? 2.0 * std::numbers::pi / omega : 1.0);
+    for (int j : released) {
+      const auto it = std::lower_bound(md.stuck.begin(), md.stuck.end(), j);
+      if (it == md.stuck.end() || *it != j) continue;
+      const std::vector<Minimum> found =
+          last_.guard_local_maxima(md.gap_rows + (it - md.stuck.begin()), te_, to, sim_.force_tolerance());
+      if (!found.empty()) out_.force_dips.push_back({j, found.front().tau, -found.front().value, true});
+    }
   }
 
   /// The saltation of one resolution at (x, v⁻, t) with the guard of stop `guard`, landing in v⁺.
@@ -451,14 +494,23 @@ class Recorder final : public Observer {
       record.guard_stop = impacting.front();
       record.impact = true;
       rec_.ops.emplace_back(free_impact(impacting.front(), t));
-      record.guard_rate = std::get<FreeImpact>(rec_.ops.back()).rate;
+      const FreeImpact& f = std::get<FreeImpact>(rec_.ops.back());
+      record.guard_rate = f.rate;
       least_rate_ = std::min(least_rate_, record.guard_rate);
       out_.saltations.push_back(record);
+      if (features_) out_.impacts.push_back({f.stop, t, f.rate, f.acceleration});
       return;
     }
     xe_.resize(n_);
     ve_.resize(n_);
     last_.state(t, xe_, ve_);
+    if (features_) {
+      const VectorXd a = rec_.mech.acceleration(held_, xe_, ve_, t);
+      for (int j : impacting)
+        out_.impacts.push_back({j, t, rec_.mech.gap_rate(j, ve_, t),
+                                rec_.mech.normal_dot(j, a) - rec_.mech.stop_position(j, t, 2)});
+    }
+    past_release(released);
     VectorXd xb(n_), vp(n_);
     next.state(next.t_begin(), xb, vp);
     Jump jump;
@@ -532,11 +584,11 @@ class Recorder final : public Observer {
     const double r = rec_.mech.restitution(j);
     // The impulse LCP of one stop (as detail::impulse_set solves it): active iff its impulse > 0.
     const bool impulse = solve_lcp(Eigen::MatrixXd::Constant(1, 1, G), VectorXd::Constant(1, (1.0 + r) * f.rate))(0) > 0.0;
+    f.acceleration = along(acceleration) - rec_.mech.stop_position(j, t, 2);
     if (impulse) {
-      const double g2 = along(acceleration) - rec_.mech.stop_position(j, t, 2);
       f.newton = (1.0 + r) / G;
       f.impulse = (1.0 + r) * f.rate / G;
-      f.curvature = (1.0 + r) * g2 / G;
+      f.curvature = (1.0 + r) * f.acceleration / G;
     }
     return f;
   }
@@ -580,12 +632,18 @@ class Recorder final : public Observer {
   Index min_dim_ = 0;
   double least_rate_ = 0.0;
   detail::PhaseBook phases_;
+  bool features_ = false;
+  double window_ = 0.0;  // past_release_window (periods)
 };
 
 }  // namespace
 
 ModalTangent::ModalTangent(ModalEngine& engine, double t0, const VectorXd& x0, const VectorXd& v0, double t1,
                            bool modal_events)
+    : ModalTangent(engine, t0, x0, v0, t1, LinearisationOptions{}, modal_events) {}
+
+ModalTangent::ModalTangent(ModalEngine& engine, double t0, const VectorXd& x0, const VectorXd& v0, double t1,
+                           const LinearisationOptions& options, bool modal_events)
     : sim_(&engine.simulator()), n_(engine.simulator().modes().dof()) {
   ModalChainSimulator& sim = engine.simulator();
   record_ = std::make_unique<Record>(sim.modes().chain(), sim.stops());
@@ -595,7 +653,7 @@ ModalTangent::ModalTangent(ModalEngine& engine, double t0, const VectorXd& x0, c
   map_.t0 = t0;
   map_.x0 = x0;
   map_.v0 = v0;
-  Recorder recorder(*record_, sim, map_);
+  Recorder recorder(*record_, sim, map_, options);
   recorder.rule_ = sim.options().chatter_rule;
   const long dropped = sim.modes_dropped();
   const ModalRunSummary s = sim.run(t0, x0, v0, t1, {&recorder});
@@ -723,13 +781,11 @@ TangentMap linearise(ModalEngine& engine, double t0, const VectorXd& x0, const V
                      const LinearisationOptions& options) {
   if (options.parameter)
     check_derivative(*options.parameter, engine.simulator().modes().dof(), engine.simulator().stops().size());
-  if (options.features)
-    throw InvalidInput("linearisation: features (gap peaks, force dips) are not available on the modal engine");
   const Index n2 = 2 * engine.simulator().modes().dof();
   if (options.directions.size() > 0 && options.directions.rows() != n2)
     throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +
                        " rows, expected 2n = " + std::to_string(n2));
-  ModalTangent tangent(engine, t0, x0, v0, t1);
+  ModalTangent tangent(engine, t0, x0, v0, t1, options);
   TangentMap out = tangent.map();
   if (out.summary.status != RunStatus::completed) return out;
   if (options.directions.size() > 0) out.products = tangent.apply(options.directions);

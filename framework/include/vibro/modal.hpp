@@ -368,6 +368,14 @@ class ModalSegmentState {
   void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const;
   /// x and v of the given masses only. O(n_r) per mass.
   void rows(double t, const std::vector<Eigen::Index>& masses, Eigen::VectorXd& x, Eigen::VectorXd& v) const;
+  /// The interior local maxima of guard `row` of the set (ModalGuards: the gap of a stop not held,
+  /// or −λ of a held stop) in (from, to), from ≥ the segment's start (to may lie beyond its end:
+  /// the same flow continued), by the certified search of the events on the guard's slope, armed
+  /// at max(1e-13 |h'(from)|, 1e-3 × `tolerance` × the fastest rate): {value h, absolute time}.
+  /// O(n_r) per evaluation.
+  std::vector<Minimum> guard_local_maxima(Eigen::Index row, double from, double to, double tolerance) const;
+  /// Guard `row`'s value at t (as above, t may lie beyond the segment's end). O(n_r).
+  double guard(Eigen::Index row, double t) const;
 
  private:
   const ModalChainSimulator* sim_ = nullptr;
@@ -440,8 +448,9 @@ class ModalChainSimulator {
   double segment_start() const { return seg_t0_; }
   Eigen::Ref<const Eigen::VectorXd> segment_u() const { return u0_.head(nr_); }
   Eigen::Ref<const Eigen::VectorXd> segment_ud() const { return ud0_.head(nr_); }
-  /// The run's force trigger ε_F = trigger·F (for force minima).
+  /// The run's force trigger ε_F = trigger·F (for force minima) and gap trigger ε_g = trigger·L.
   double force_tolerance() const { return force_tolerance_; }
+  double gap_tolerance() const { return gap_tolerance_; }
 
   class Search;  // the certified crossing search (modal_simulator.cpp)
 
@@ -456,7 +465,7 @@ class ModalChainSimulator {
   double stop_setup_seconds_ = 0.0;
   long runs_started_ = 0, modes_dropped_ = 0;
   std::unique_ptr<Cache> cache_;
-  double seg_t0_ = 0.0, force_tolerance_ = 1e-13;
+  double seg_t0_ = 0.0, force_tolerance_ = 1e-13, gap_tolerance_ = 1e-13;
   // The segment's homogeneous modal state: storage for the free chain's N modes, the current
   // mode's nr_ of them in use (so that changing modes allocates nothing).
   Eigen::VectorXd u0_, ud0_;

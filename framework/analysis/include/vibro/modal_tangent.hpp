@@ -39,9 +39,12 @@
 /// (tests/analysis/test_modal_tangent.cpp); the parameter derivative of a run starting held
 /// likewise includes the projection of the start onto the moved manifold. (2) Parameter
 /// derivatives only along Ω, the forcing and the stops' data (offsets, harmonic motion,
-/// restitution), equal to the dense ones to rounding (≤ 7e-13 relative in the tests); mass, damping and stiffness
-/// derivatives are refused (dense engine). (3) No features (gap peaks, force dips): asking for
-/// them throws.
+/// restitution), equal to the dense ones to rounding (≤ 7e-13 relative in the tests); mass,
+/// damping and stiffness derivatives are refused (dense engine). (3) Features (options.features:
+/// gap peaks, force dips with those past a release, impacts; phases always) are found by the
+/// engine's certified search on the modal guards' slopes (ModalSegmentState::guard_local_maxima)
+/// rather than on the dense flow's rows: the same extrema, to ≤ 4e-12 of T, L, F in the tests
+/// (impact speeds and accelerations ≤ 2e-11, late in chatter sequences).
 ///
 /// The record points into the engine's cache of contact sets: it is valid until the engine's
 /// next run (apply() throws std::logic_error after that), and a run during which the cache had to
@@ -70,6 +73,11 @@ class ModalTangent {
   /// tests of the free-flight fast path, see below).
   ModalTangent(ModalEngine& engine, double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
                bool modal_events = true);
+  /// The same, with the features options.features asks for (gap peaks, force dips, within
+  /// options.past_release_window, impacts: TangentMap; phases are always recorded); the other
+  /// options are for linearise() and ignored here.
+  ModalTangent(ModalEngine& engine, double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
+               const LinearisationOptions& options, bool modal_events = true);
   ~ModalTangent();
   ModalTangent(const ModalTangent&) = delete;
   ModalTangent& operator=(const ModalTangent&) = delete;
@@ -121,8 +129,9 @@ class ModalTangent {
 
 /// linearise() on the modal engine: the map over [t0, t1] with J (options.jacobian, directions
 /// empty) or the products J·directions, and ∂z1/∂p for options.parameter (see parameter()).
-/// Throws InvalidInput for a parameter derivative that moves M, C or K or has the wrong size,
-/// for features (dense engine only) and for directions of the wrong size.
+/// With options.features, the features of linearisation.hpp (gap peaks, force dips, impacts).
+/// Throws InvalidInput for a parameter derivative that moves M, C or K or has the wrong size and
+/// for directions of the wrong size.
 TangentMap linearise(ModalEngine& engine, double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                      double t1, const LinearisationOptions& options = {});
 
