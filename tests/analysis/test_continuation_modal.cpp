@@ -8,6 +8,13 @@
 /// ~1e-13 relative (tests/analysis/test_modal_tangent.cpp: trajectories, Jacobians and parameter
 /// derivatives), so both runs take the same steps and differ only by that rounding, amplified by
 /// the conditioning of the corrector's bordered system.
+///
+/// The scenario: six unit masses, C = 0.05 M + 0.05 K, driven by 0.6 cos Ωt on mass 0, a stop
+/// above mass 0 (r = 0.6) that the orbit chatters into and is held by once per period, and one
+/// below mass 3 (r = 0.8) hit four times per period. Continued in Ω over [0.3578, 0.3592] (dense
+/// engine: 72 points, 355 maps, ~0.9 CPU s): stable up to a fold at Ω ≈ 0.358971, unstable beyond
+/// it back down to a grazing corner of stop 0 at Ω ≈ 0.358385 (there the free impact before the
+/// chatter vanishes), then stable without that impact up to the limit.
 #include "support/chains.hpp"
 #include "vibro/continuation.hpp"
 #include "vibro/family_engine.hpp"
@@ -21,13 +28,6 @@
 #include <numbers>
 #include <vector>
 
-///
-/// The scenario: six unit masses, C = 0.05 M + 0.05 K, driven by 0.6 cos Ωt on mass 0, a stop
-/// above mass 0 (r = 0.6) that the orbit chatters into and is held by once per period, and one
-/// below mass 3 (r = 0.8) hit four times per period. Continued in Ω over [0.3578, 0.3592] (dense
-/// engine: 72 points, 355 maps, ~1.7 s): stable up to a fold at Ω ≈ 0.358971, unstable beyond it
-/// back down to a grazing corner of stop 0 at Ω ≈ 0.358385 (an impact before the chatter
-/// vanishes), then stable without that impact up to the limit.
 namespace {
 
 using Eigen::VectorXd;
