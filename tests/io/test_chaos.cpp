@@ -13,6 +13,7 @@
 #include "vibro/orbit.hpp"
 #include "vibro/shooting.hpp"
 
+#include "support/six_mass_chain.hpp"
 #include "support/temp_dir.hpp"
 
 #include <catch2/catch.hpp>
@@ -329,24 +330,11 @@ run:
 // tests/analysis/test_modal_tangent.cpp, where the 1e-9 is justified).
 TEST_CASE("a lyapunov run on the modal engine writes the dense engine's spectrum", "[runner][lyapunov]") {
   auto scene = [](const std::string& engine) {
-    return std::string(R"(
-model:
-  chain:
-    masses: [1, 1, 1, 1, 1, 1]
-    springs: [1, 1, 1, 1, 1]
-    dampers: [0.05, 0.05, 0.05, 0.05, 0.05]
-    left_wall: {spring: 1, damper: 0.05}
-forcing:
-  frequency: 0.35
-  cosine: [0.6, 0, 0, 0, 0, 0]
-stops:
-  - {mass: 0, side: upper, position: 0.3, restitution: 0.6}
-  - {mass: 3, side: lower, position: -0.2, restitution: 0.8}
-initial:
+    return std::string("\n") + vibro::test::kSixMassChain + R"(initial:
   x: [0, 0, 0, 0, 0, 0]
   v: [0, 0, 0, 0, 0, 0]
 solver:
-  engine: )") + engine + R"(
+  engine: )" + engine + R"(
 run:
   kind: lyapunov
   lyapunov: {transient: 3, align: 2, periods: 6}

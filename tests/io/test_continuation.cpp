@@ -6,10 +6,10 @@
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"
+#include "support/six_mass_chain.hpp"
+#include "support/temp_dir.hpp"
 
 #include <catch2/catch.hpp>
-
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -50,17 +50,6 @@ run:
     max_step: 0.2
 )";
 
-/// A fresh directory of this test's own (removed at the end).
-struct TempDir {
-  std::filesystem::path path;
-  TempDir() {
-    std::string pattern = (std::filesystem::temp_directory_path() / "vibro_continue_XXXXXX").string();
-    REQUIRE(mkdtemp(pattern.data()) != nullptr);
-    path = pattern;
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-};
-
 SceneError error_of(const std::string& text) {
   try {
     (void)SceneDocument::parse(text, "c.yaml").build();
@@ -80,10 +69,10 @@ std::string with(const std::string& from, const std::string& to) {
 }  // namespace
 
 TEST_CASE("a continue run writes the branch and the located rising, as the library finds them", "[runner][continue]") {
-  const TempDir dir;
+  const vibro::test::TempDir dir;
   const SceneDocument doc = SceneDocument::parse(kContinue, "continue.yaml");
   const Scene scene = doc.build();
-  const std::string out = (dir.path / "branch.h5").string();
+  const std::string out = dir / "branch.h5";
   const RunReport report = run_scene(doc, scene, {out, 1, false, false, 0});
   CAPTURE(report.summary);
   REQUIRE(report.exit_code == 0);
@@ -132,7 +121,7 @@ TEST_CASE("continuation parameters: derivatives of the data along a path, and pa
   CHECK(parameter_derivative(doc, "forcing.frequency").frequency == 1.0);
   CHECK(parameter_derivative(doc, "stops[1].phase").stops[1].cosine == 0.0);
 
-  // Refused: a value that does not move the system; an off-diagonal entry alone; the modal engine.
+  // Refused: a value that does not move the system; a range without the scene's value.
   const SceneError initial = error_of(with("path: forcing.frequency", "path: initial.x[0]"));
   CHECK(initial.path() == "run.continue.path");
   CHECK(initial.line() > 1);
@@ -140,7 +129,100 @@ TEST_CASE("continuation parameters: derivatives of the data along a path, and pa
   const SceneError range = error_of(with("range: [0.2559, 0.2561]", "range: [0.26, 0.27]"));
   CHECK(range.path() == "run.continue.range");
   CHECK(std::string(range.what()).find("outside") != std::string::npos);
-  const SceneError modal = error_of(with("initial:", "solver: {engine: modal}\ninitial:"));
-  CHECK(modal.path() == "run.kind");
-  CHECK(std::string(modal.what()).find("dense engine") != std::string::npos);
+}
+
+namespace {
+
+// The chain of support/six_mass_chain.hpp (its stop below mass 3 is hit four times per period),
+// continued in the position of that stop (a stop's data: the modal engine differentiates along it)
+// over [-0.3, -0.2]: 42 points and a Neimark–Sacker bifurcation at -0.27654248064 (dense engine,
+// 0.65 s). ENGINE, PATH and RANGE are replaced.
+const std::string kChain = std::string("\nname: continue-chain\n") + vibro::test::kSixMassChain + R"(solver: {engine: ENGINE}
+run:
+  kind: continue
+  transient_periods: 100
+  continue:
+    path: PATH
+    range: RANGE
+    step: 0.05
+)";
+
+std::string chain_scene(const std::string& engine, const std::string& path = "stops[1].position",
+                        const std::string& range = "[-0.3, -0.2]") {
+  std::string s = kChain;
+  for (const auto& [key, value] : {std::pair{std::string("ENGINE"), engine}, {"PATH", path}, {"RANGE", range}})
+    s.replace(s.find(key), key.size(), value);
+  return s;
+}
+
+/// Runs the scene into dir/name and returns the file.
+ResultReader run_into(const vibro::test::TempDir& dir, const std::string& text, const std::string& name) {
+  const SceneDocument doc = SceneDocument::parse(text, name + ".yaml");
+  const Scene scene = doc.build();
+  const std::string out = dir / (name + ".h5");
+  const RunReport report = run_scene(doc, scene, {out, 1, false, false, 0});
+  CAPTURE(report.summary);
+  REQUIRE(report.exit_code == 0);
+  return ResultReader(out);
+}
+
+double largest_difference(const std::vector<double>& a, const std::vector<double>& b) {
+  REQUIRE(a.size() == b.size());
+  double worst = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
+  return worst;
+}
+
+}  // namespace
+
+// Tolerances as in tests/analysis/test_continuation_modal.cpp (the same comparison on the
+// library's results): p to 1e-9, states and multipliers to 1e-8 (here absolute: L and V are of
+// order 0.1 to 1 in this chain), everything discrete (counts, kinds, stops, signatures) equal.
+TEST_CASE("a continue run on the modal engine writes the branch and the bifurcations the dense engine's run writes",
+          "[runner][continue][modal]") {
+  const vibro::test::TempDir dir;
+  const ResultReader dense = run_into(dir, chain_scene("dense"), "dense");
+  const ResultReader modal = run_into(dir, chain_scene("modal"), "modal");
+  CHECK(modal.attribute_string("/meta", "status") == "completed");
+  const std::vector<double> p = dense.read("/branch/p");
+  REQUIRE(p.size() >= 5);
+  REQUIRE(!dense.read("/bifurcations/p").empty());
+  for (const char* name : {"/branch/branch", "/branch/k", "/branch/stable", "/branch/structural_zeros",
+                           "/branch/signature", "/branch/located", "/branches/k", "/branches/count", "/bifurcations/kind",
+                           "/bifurcations/stop", "/bifurcations/branch", "/bifurcations/smooth"}) {
+    INFO(name);
+    CHECK(modal.read(name) == dense.read(name));
+  }
+  for (const char* name : {"/branch/p", "/bifurcations/p"}) {
+    INFO(name);
+    CHECK(largest_difference(modal.read(name), dense.read(name)) <= 1e-9);
+  }
+  for (const char* name : {"/branch/x", "/branch/v", "/branch/multipliers_real", "/branch/multipliers_imag",
+                           "/bifurcations/x", "/bifurcations/v"}) {
+    INFO(name);
+    CHECK(largest_difference(modal.read(name), dense.read(name)) <= 1e-8);
+  }
+  // Not bit for bit: the modal engine's own rounding shows, so it is the modal engine that ran.
+  CHECK(largest_difference(modal.read("/branch/x"), dense.read("/branch/x")) > 0.0);
+}
+
+TEST_CASE("continuation on the modal engine refuses a parameter that moves M, C or K, at its place",
+          "[runner][continue][modal]") {
+  // A mass moves M (the damping stays proportional, C = 0.05 K): refused on the modal engine ...
+  const SceneError mass = error_of(chain_scene("modal", "model.chain.masses[2]", "[0.9, 1.1]"));
+  CHECK(mass.path() == "run.continue.path");
+  CHECK(mass.line() == 20);
+  CHECK(mass.column() == 11);
+  CHECK_THAT(mass.problem(), Catch::Contains("'model.chain.masses[2]' moves the mass matrix, and this scene resolves "
+                                             "to the modal engine (solver.engine: modal)"));
+  CHECK_THAT(mass.problem(), Catch::Contains("set solver.engine: dense"));
+  // ... and accepted on the dense one.
+  CHECK_NOTHROW(SceneDocument::parse(chain_scene("dense", "model.chain.masses[2]", "[0.9, 1.1]"), "c.yaml").build());
+  // A spring alone makes the damping non-proportional beside its value, which the modal engine
+  // cannot run at all: the message says so (it used to blame an off-diagonal matrix entry only).
+  const SceneError spring = error_of(chain_scene("modal", "model.chain.springs[2]", "[0.9, 1.1]"));
+  CHECK(spring.path() == "run.continue.path");
+  CHECK_THAT(spring.problem(), Catch::Contains("beside it the scene is invalid: solver.engine: the modal engine "
+                                               "cannot run this scene"));
+  CHECK_THAT(spring.problem(), Catch::Contains("not proportional"));
 }

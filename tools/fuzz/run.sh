@@ -4,6 +4,7 @@
 #   cmake --preset sanitize && cmake --build --preset sanitize --target fuzz_scene fuzz_run
 #
 #   bash tools/fuzz/run.sh SECONDS [TARGET ...]       # default targets: fuzz_scene fuzz_run
+#   FUZZ_RUNS=1000000 bash tools/fuzz/run.sh 0 fuzz_scene  # a number of executions instead (0 s: no time limit)
 #
 # Each target runs SECONDS of wall time on one core (inputs up to MAX_LEN bytes, default 4096), from the seeds plus what earlier runs kept
 # in build/sanitize/fuzz/corpus-TARGET. Exit status: 0 if no target found anything; else 1, with
@@ -27,7 +28,7 @@ for target in "${targets[@]}"; do
   if ! ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
       LSAN_OPTIONS=suppressions=$PWD/tools/fuzz/lsan.supp \
       "$build/tools/fuzz/$target" "$corpus" "$work/seeds" -dict=tools/fuzz/scene.dict \
-      -max_total_time="$seconds" -max_len="${MAX_LEN:-4096}" -timeout=30 -rss_limit_mb=4096 -malloc_limit_mb=4096 \
+      -max_total_time="$seconds" ${FUZZ_RUNS:+-runs="$FUZZ_RUNS"} -max_len="${MAX_LEN:-4096}" -timeout=30 -rss_limit_mb=4096 -malloc_limit_mb=4096 \
       -artifact_prefix="$work/$target-" -print_final_stats=1 > "$work/$target.log" 2>&1; then
     status=1
     echo "fuzz: $target FOUND A PROBLEM (log: $work/$target.log):" >&2

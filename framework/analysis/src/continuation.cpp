@@ -142,9 +142,26 @@ struct Eval {
 /// The continuation of one branch family; holds the scales and the section.
 class Continuer {
  public:
-  Continuer(const ParameterFamily& family, const ContinuationOptions& o, Index n, std::size_t stops,
+  Continuer(const ContinuationFamily& family, const ContinuationOptions& o, Index n, std::size_t stops,
             ContinuationResult& result)
       : family_(family), o_(o), n_(n), stops_(stops), result_(result) {}
+
+  /// The engine at p: the last one made if it was made at this p (Newton at fixed p, shooting
+  /// then evaluating, a section move: the modal engine's set-up and its contact sets' modes are
+  /// paid once), else a new one. Valid until the next call with another p. Throws as the family.
+  FamilyEngine& engine_at(double p) {
+    if (!engine_ || !(engine_p_ == p)) {
+      engine_.reset();
+      engine_ = family_(p);
+      engine_p_ = p;
+    }
+    return *engine_;
+  }
+  /// Takes `engine`, made at p, as the last one made.
+  void adopt(double p, std::unique_ptr<FamilyEngine> engine) {
+    engine_ = std::move(engine);
+    engine_p_ = p;
+  }
 
   double theta = 0.0;  ///< the section phase of the branch being followed
   int k = 1;
@@ -172,21 +189,21 @@ class Continuer {
     e.z = z;
     ++result_.maps;
     try {
-      const FamilyPoint fp = family_(p);
-      e.omega = fp.system.system().forcing().frequency;
+      FamilyEngine& engine = engine_at(p);
+      e.omega = engine.frequency();
       if (!(e.omega > 0.0)) throw InvalidInput("the forcing frequency must be > 0 at p = " + number_text(p));
       const double T = kTwoPi / e.omega;
       e.t0 = theta / e.omega;
       const double t1 = e.t0 + k * T;
       LinearisationOptions lo;
-      lo.parameter = fp.derivative;
+      lo.parameter = engine.derivative;
       lo.features = true;
-      e.map = linearise(fp.system, o_.solver, e.t0, z.head(n_), z.tail(n_), t1, lo);
+      e.map = engine.linearise(e.t0, z.head(n_), z.tail(n_), t1, lo);
       if (e.map.summary.status != RunStatus::completed) {
         e.why = std::string("run stopped early (") + to_string(e.map.summary.status) + "): " + e.map.summary.message;
         return e;
       }
-      const double dw = fp.derivative.frequency;
+      const double dw = engine.derivative.frequency;
       const double dt0 = -theta / (e.omega * e.omega) * dw;
       const double dt1 = dt0 - k * kTwoPi / (e.omega * e.omega) * dw;
       e.Pp = e.map.parameter + e.map.rate_end * dt1 - e.map.jacobian * (e.map.rate_start * dt0);
@@ -271,10 +288,8 @@ class Continuer {
   }
 
   /// Whether the orbit of e already closes after `periods` forcing periods (to 1e3 × tolerance).
-  bool closes_after(const Eval& e, int periods) const {
-    const FamilyPoint fp = family_(e.p);
-    Simulator sim(fp.system, o_.solver);
-    const RunSummary r = sim.run(e.t0, e.z.head(n_), e.z.tail(n_), e.t0 + periods * kTwoPi / e.omega);
+  bool closes_after(const Eval& e, int periods) {
+    const RunSummary r = engine_at(e.p).run(e.t0, e.z.head(n_), e.z.tail(n_), e.t0 + periods * kTwoPi / e.omega);
     if (r.status != RunStatus::completed) return false;
     const double res = std::max((r.x - e.z.head(n_)).cwiseAbs().maxCoeff() / L,
                                 (r.v - e.z.tail(n_)).cwiseAbs().maxCoeff() / V);
@@ -301,11 +316,15 @@ class Continuer {
     return b;
   }
 
-  const ParameterFamily& family_;
+  const ContinuationFamily& family_;
   const ContinuationOptions& o_;
   Index n_;
   std::size_t stops_;
   ContinuationResult& result_;
+
+ private:
+  std::unique_ptr<FamilyEngine> engine_;
+  double engine_p_ = kNaN;
 };
 
 /// A point of the branch as continuation keeps it: evaluated, with its tangent.
@@ -494,7 +513,7 @@ class BranchRunner {
     const Index n = c_.n_;
     ShootingResult r;
     try {
-      r = shoot(c_.family_(p).system, so, from.e.t0, from.e.z.head(n), from.e.z.tail(n));
+      r = c_.engine_at(p).shoot(so, from.e.t0, from.e.z.head(n), from.e.z.tail(n));
     } catch (const InvalidInput&) {
       return std::nullopt;
     }
@@ -553,14 +572,15 @@ class BranchRunner {
     const auto [mid, half] = detail::free_section(g);
     if (half <= clearance || mid <= cur.e.t0) return std::nullopt;
     const Index n = c_.n_, N = 2 * n;
-    const FamilyPoint fp = c_.family_(cur.e.p);
+    FamilyEngine& engine = c_.engine_at(cur.e.p);
     LinearisationOptions lo;
-    lo.parameter = fp.derivative;
-    const TangentMap m = linearise(fp.system, o_.solver, cur.e.t0, cur.e.z.head(n), cur.e.z.tail(n), mid, lo);
+    lo.parameter = engine.derivative;
+    const TangentMap m = engine.linearise(cur.e.t0, cur.e.z.head(n), cur.e.z.tail(n), mid, lo);
     ++result_.maps;
     if (m.summary.status != RunStatus::completed) return std::nullopt;
     // z'(p) = φ(t'(p); t0(p), z(p), p) with t0 = θ/Ω and t' = θ'/Ω (θ' = Ω·mid, unwrapped).
-    const double w = cur.e.omega, dw = fp.derivative.frequency, theta_mid = w * mid;
+    // (`engine` is not used after the corrector below, which may replace it.)
+    const double w = cur.e.omega, dw = engine.derivative.frequency, theta_mid = w * mid;
     const double dt0 = -c_.theta / (w * w) * dw, dt1 = -theta_mid / (w * w) * dw;
     const VectorXd Pp = m.parameter + m.rate_end * dt1 - m.jacobian * (m.rate_start * dt0);
     const VectorXd d = c_.D();
@@ -598,13 +618,12 @@ class BranchRunner {
     std::vector<VectorXd> carried;
     for (std::size_t i = 0; i + 1 < trail.size(); ++i) {
       const double p = trail[i](N) * c_.P;
-      const FamilyPoint fp = c_.family_(p);
-      const double w = fp.system.system().forcing().frequency;
+      FamilyEngine& engine = c_.engine_at(p);
+      const double w = engine.frequency();
       const VectorXd z = trail[i].head(N).cwiseProduct(d);
-      Simulator sim(fp.system, o_.solver);
       RunSummary r;
       try {
-        r = sim.run(old_theta / w, z.head(n), z.tail(n), (old_theta + turn) / w);
+        r = engine.run(old_theta / w, z.head(n), z.tail(n), (old_theta + turn) / w);
       } catch (const InvalidInput&) {
         continue;
       }
@@ -1070,28 +1089,47 @@ void ContinuationOptions::validate() const {
   solver.validate();
 }
 
+namespace {
+
+/// The dense engine at each p of `family` (which must outlive the result).
+ContinuationFamily dense_engines(const ParameterFamily& family, const SimulatorOptions& solver) {
+  return [&family, solver](double p) {
+    FamilyPoint fp = family(p);
+    return dense_family_engine(std::move(fp.system), std::move(fp.derivative), solver);
+  };
+}
+
+}  // namespace
+
 ContinuationResult continue_orbits(const ParameterFamily& family, double p0, double t_guess, const VectorXd& x,
+                                   const VectorXd& v, const ContinuationOptions& options,
+                                   const ContinuationProgress& progress) {
+  return continue_orbits(dense_engines(family, options.solver), p0, t_guess, x, v, options, progress);
+}
+
+ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, double t_guess, const VectorXd& x,
                                    const VectorXd& v, const ContinuationOptions& options,
                                    const ContinuationProgress& progress) {
   options.validate();
   if (!(p0 >= options.p_min && p0 <= options.p_max))
     throw InvalidInput("continuation: the start p = " + number_text(p0) + " is outside [" +
                        number_text(options.p_min) + ", " + number_text(options.p_max) + "]");
-  const FamilyPoint first = family(p0);
-  const Index n = first.system.dof();
-  const std::size_t stops = first.system.stop_count();
+  std::unique_ptr<FamilyEngine> first = family(p0);
+  const Index n = first->dof();
+  const std::size_t stops = first->stop_count();
   ShootingOptions so;
   so.period = options.period;
   so.phase = options.phase;
   so.tolerance = options.tolerance;
   so.solver = options.solver;
-  const ShootingResult start = shoot(first.system, so, t_guess, x, v);
+  const ShootingResult start = first->shoot(so, t_guess, x, v);
   if (!start.converged())
     throw InvalidInput("continuation: no periodic orbit of period " + std::to_string(options.period) +
                        "T found at p = " + number_text(p0) + " from the guess: " + start.message);
 
   ContinuationResult result;
   Continuer c(family, options, n, stops, result);
+  c.adopt(p0, std::move(first));
   c.theta = start.phase;
   c.k = options.period;
   c.L = start.length_scale;
@@ -1203,6 +1241,17 @@ void CurveOptions::validate() const {
 }
 
 Curve follow_curve(const PlaneFamily& family, const Bifurcation& start, double p2_start, const CurveOptions& options) {
+  const SimulatorOptions solver = options.branch.solver;
+  const PlaneContinuationFamily engines = [&family, solver](double p1, double p2) {
+    PlanePoint pp = family(p1, p2);
+    std::unique_ptr<FamilyEngine> engine = dense_family_engine(std::move(pp.system), pp.d1, solver);
+    return PlaneEngine{std::move(engine), std::move(pp.d1), std::move(pp.d2)};
+  };
+  return follow_curve(engines, start, p2_start, options);
+}
+
+Curve follow_curve(const PlaneContinuationFamily& family, const Bifurcation& start, double p2_start,
+                   const CurveOptions& options) {
   options.validate();
   if (start.kind != BifurcationKind::grazing && start.kind != BifurcationKind::rising)
     throw InvalidInput(std::string("curve: only grazing and rising points can be followed, not ") + to_string(start.kind));
@@ -1234,10 +1283,11 @@ Curve follow_curve(const PlaneFamily& family, const Bifurcation& start, double p
       return curve;
     }
     // The family along the normal line through the predictor: σ in scaled units.
-    const ParameterFamily line = [&](double sigma) {
+    const ContinuationFamily line = [&](double sigma) {
       const double q1 = a1 + sigma * normal(0) * P1, q2 = a2 + sigma * normal(1) * P2;
-      PlanePoint pp = family(q1, q2);
-      return FamilyPoint{std::move(pp.system), pp.d1.combined(normal(0) * P1, pp.d2, normal(1) * P2)};
+      PlaneEngine pe = family(q1, q2);
+      pe.engine->derivative = pe.d1.combined(normal(0) * P1, pe.d2, normal(1) * P2);
+      return std::move(pe.engine);
     };
     ContinuationOptions lo = options.branch;
     lo.period = last.point.k;

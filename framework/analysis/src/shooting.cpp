@@ -98,30 +98,10 @@ class Backend {
   }
 };
 
-class DenseBackend final : public Backend {
+/// Newton steps by LU on the full J and all 2n multipliers from its reduced map: the dense
+/// engine's linear algebra, on maps that carry J (TangentMap::jacobian, reduced, lift).
+class FullJacobianBackend : public Backend {
  public:
-  DenseBackend(const ImpactSystem& system, const SimulatorOptions& solver, const LinearisationOptions& o)
-      : system_(system), solver_(solver), options_(o) {
-    options_.jacobian = true;
-  }
-  Index dof() const override { return system_.dof(); }
-  double frequency() const override { return system_.system().forcing().frequency; }
-  TangentMap probe(double t0, const VectorXd& z, double t1) override {
-    LinearisationOptions probe;
-    probe.jacobian = false;
-    probe.features = true;
-    return linearise(system_, solver_, t0, z.head(dof()), z.tail(dof()), t1, probe);
-  }
-  Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
-    Evaluation e;
-    try {
-      e.map = linearise(system_, solver_, t0, z.head(dof()), z.tail(dof()), t1, options_);
-    } catch (const InvalidInput& err) {
-      e.why = err.what();
-      return e;
-    }
-    return finish(std::move(e));
-  }
   NewtonStep newton_step(const Evaluation& e, const VectorXd& z) override {
     const TangentMap& m = e.map;
     const Index n = m.x0.size();
@@ -137,6 +117,39 @@ class DenseBackend final : public Backend {
   FloquetMultipliers multipliers(const Evaluation& e, int k) override { return floquet_multipliers(e.map, k); }
 
  protected:
+  /// The map with J from `linearise`, or the failure it threw.
+  template <class Linearise>
+  static Evaluation evaluate_with(Linearise&& linearise_map) {
+    Evaluation e;
+    try {
+      e.map = linearise_map();
+    } catch (const InvalidInput& err) {
+      e.why = err.what();
+      return e;
+    }
+    return finish(std::move(e));
+  }
+};
+
+class DenseBackend final : public FullJacobianBackend {
+ public:
+  DenseBackend(const ImpactSystem& system, const SimulatorOptions& solver, const LinearisationOptions& o)
+      : system_(system), solver_(solver), options_(o) {
+    options_.jacobian = true;
+  }
+  Index dof() const override { return system_.dof(); }
+  double frequency() const override { return system_.system().forcing().frequency; }
+  TangentMap probe(double t0, const VectorXd& z, double t1) override {
+    LinearisationOptions probe;
+    probe.jacobian = false;
+    probe.features = true;
+    return linearise(system_, solver_, t0, z.head(dof()), z.tail(dof()), t1, probe);
+  }
+  Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
+    return evaluate_with([&] { return linearise(system_, solver_, t0, z.head(dof()), z.tail(dof()), t1, options_); });
+  }
+
+ protected:
   RunSummary run(double from, const VectorXd& z, double to) override {
     Simulator sim(system_, solver_);
     return sim.run(from, z.head(dof()), z.tail(dof()), to);
@@ -148,14 +161,43 @@ class DenseBackend final : public Backend {
   LinearisationOptions options_;
 };
 
-class ModalBackend final : public Backend {
+/// What every backend on the modal engine shares: its size and frequency, plain runs, probes.
+template <class Base>
+class OnModalEngine : public Base {
  public:
-  ModalBackend(ModalEngine& engine, const KrylovOptions& krylov) : engine_(engine), krylov_(krylov) {}
+  explicit OnModalEngine(ModalEngine& engine) : engine_(engine) {}
   Index dof() const override { return engine_.simulator().modes().dof(); }
   double frequency() const override { return engine_.frequency(); }
   TangentMap probe(double t0, const VectorXd& z, double t1) override {
     return ModalTangent(engine_, t0, z.head(dof()), z.tail(dof()), t1).map();
   }
+
+ protected:
+  RunSummary run(double from, const VectorXd& z, double to) override {
+    return engine_.run(from, z.head(dof()), z.tail(dof()), to);
+  }
+  ModalEngine& engine_;
+};
+
+/// The modal engine's maps with their full J (ModalTangent::fill_jacobian): self-contained, so
+/// nothing needs refreshing after other runs.
+class ModalJacobianBackend final : public OnModalEngine<FullJacobianBackend> {
+ public:
+  ModalJacobianBackend(ModalEngine& engine, const LinearisationOptions& o) : OnModalEngine(engine), options_(o) {
+    options_.jacobian = true;
+    options_.directions.resize(0, 0);
+  }
+  Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
+    return evaluate_with([&] { return linearise(engine_, t0, z.head(dof()), z.tail(dof()), t1, options_); });
+  }
+
+ private:
+  LinearisationOptions options_;
+};
+
+class ModalBackend final : public OnModalEngine<Backend> {
+ public:
+  ModalBackend(ModalEngine& engine, const KrylovOptions& krylov) : OnModalEngine(engine), krylov_(krylov) {}
   Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
     Evaluation e;
     try {
@@ -239,13 +281,7 @@ class ModalBackend final : public Backend {
     return f;
   }
 
- protected:
-  RunSummary run(double from, const VectorXd& z, double to) override {
-    return engine_.run(from, z.head(dof()), z.tail(dof()), to);
-  }
-
  private:
-  ModalEngine& engine_;
   KrylovOptions krylov_;
 };
 
@@ -317,6 +353,13 @@ ShootingResult shoot(ModalEngine& engine, const ShootingOptions& options, double
   ShootingResult out = shoot_with(backend, options, t_guess, x, v);
   out.krylov_products = backend.products;
   return out;
+}
+
+ShootingResult shoot_full_jacobian(ModalEngine& engine, const ShootingOptions& options, double t_guess,
+                                  const VectorXd& x, const VectorXd& v, const LinearisationOptions& options_map) {
+  options.validate();
+  ModalJacobianBackend backend(engine, options_map);
+  return shoot_with(backend, options, t_guess, x, v);
 }
 
 void KrylovOptions::validate() const {

@@ -99,6 +99,7 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
   // The largest step that keeps the scene valid on both sides: affine data make the central
   // difference exact to rounding, ε|D|/h, so the step is taken as large as the scene allows.
   const double base = p != 0.0 ? std::abs(p) : 1.0;
+  std::string neighbour;  // why the scene beside p was invalid (the last step tried)
   for (double h = 1e-2 * base; h >= 1e-10 * base; h *= 0.1) {
     Data plus, minus;
     try {
@@ -107,9 +108,11 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
       b.set(path, p - h);
       plus = data_of(a.build_point());
       minus = data_of(b.build_point());
-    } catch (const SceneError&) {
+    } catch (const SceneError& e) {
+      neighbour = e.path().empty() ? e.problem() : e.path() + ": " + e.problem();
       continue;
-    } catch (const InvalidInput&) {
+    } catch (const InvalidInput& e) {
+      neighbour = e.what();
       continue;
     }
     const double size = std::max({largest(plus, d0, 0.0), largest(minus, d0, 0.0), 1e-300});
@@ -135,7 +138,8 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
     return e;
   }
   refuse(doc, path, "cannot be varied on its own around " + number_text(p) +
-                        " (an off-diagonal matrix entry needs its mirror: continue in a model.chain value instead)");
+                        " (an off-diagonal matrix entry needs its mirror: continue in a model.chain value instead)" +
+                        (neighbour.empty() ? std::string() : "; beside it the scene is invalid: " + neighbour));
 }
 
 SystemDerivative derivative_at(const Entry& e, const Scene& s) {
@@ -152,6 +156,16 @@ SystemDerivative derivative_at(const Entry& e, const Scene& s) {
     case Entry::Kind::affine: return e.affine;
   }
   return {};
+}
+
+/// The engine continuation drives at one point of the scene (the engine the base scene resolved to).
+std::unique_ptr<FamilyEngine> engine_at(const Scene& s, EngineKind engine, SystemDerivative d,
+                                        const SimulatorOptions& solver) {
+  if (engine == EngineKind::modal) {
+    if (!s.chain) throw InvalidInput("the chain's damping is not proportional at this value (modal engine)");
+    return modal_family_engine(*s.chain, s.stops, std::move(d), modal_options(solver));
+  }
+  return dense_family_engine(s.impact_system(), std::move(d), solver);
 }
 
 std::vector<Eigen::VectorXd> multipliers_part(const std::vector<BranchPoint>& pts, bool imag) {
@@ -288,9 +302,10 @@ SystemDerivative parameter_derivative(const SceneDocument& doc, const std::strin
   return derivative_at(classify(doc, path), doc.build_point());
 }
 
-ParameterFamily parameter_family(const SceneDocument& doc, const std::string& path) {
+ContinuationFamily continuation_family(const SceneDocument& doc, const std::string& path, EngineKind engine,
+                                         const SimulatorOptions& solver) {
   const Entry entry = classify(doc, path);
-  return [doc, path, entry](double p) {
+  return [doc, path, entry, engine, solver](double p) {
     // A value the scene rejects (a corrector's Newton step can reach Ω < 0 near a grazing, where
     // the map's Jacobian is nearly singular) is no system at p: InvalidInput, which continuation
     // takes as "no orbit there" and answers with a shorter step, rather than the end of the run.
@@ -298,7 +313,7 @@ ParameterFamily parameter_family(const SceneDocument& doc, const std::string& pa
       SceneDocument point(doc);
       point.set(path, p);
       const Scene s = point.build_point();
-      return FamilyPoint{s.impact_system(), derivative_at(entry, s)};
+      return engine_at(s, engine, derivative_at(entry, s), solver);
     } catch (const SceneError& e) {
       throw InvalidInput(e.what());
     }
@@ -309,7 +324,6 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   const auto wall_start = std::chrono::steady_clock::now();
   const ContinueSpec& spec = scene.run.continuation;
   const std::size_t n = static_cast<std::size_t>(scene.dof()), m = scene.stops.size();
-  const ParameterFamily family = parameter_family(doc, spec.path);
   const double p0 = doc.get(spec.path);
 
   ContinuationOptions o;
@@ -328,13 +342,14 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   o.max_doublings = spec.max_doublings;
   o.solver = scene.solver;
   o.solver.interrupt = request.interrupt;
+  const ContinuationFamily family = continuation_family(doc, spec.path, scene.engine, o.solver);
 
   ResultFile file = open_result_file(request, scene, current_meta(1));
   // The guess: the transient from `initial`, then Newton shooting at p0.
-  const ImpactSystem system = scene.impact_system();
   const double t_guess = scene.t0 + scene.run.transient_periods * scene.period();
-  Simulator sim(system, o.solver);
-  const RunSummary warm = sim.run(scene.t0, scene.x0, scene.v0, t_guess);
+  Scene built = scene;
+  built.solver = o.solver;
+  const RunSummary warm = make_engine(built)->run(scene.t0, scene.x0, scene.v0, t_guess);
   if (warm.status != RunStatus::completed)
     throw SceneError(scene.file, 1, 1, "run.transient_periods",
                      std::string("the transient before the first orbit stopped early (") + to_string(warm.status) +
@@ -353,12 +368,13 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   std::vector<Curve> curves;
   if (!spec.curve_path.empty()) {
     const Entry e1 = classify(doc, spec.path), e2 = classify(doc, spec.curve_path);
-    const PlaneFamily plane = [&doc, &spec, e1, e2](double a, double b) {
+    const PlaneContinuationFamily plane = [&doc, &spec, &o, e1, e2, engine = scene.engine](double a, double b) {
       SceneDocument point(doc);
       point.set(spec.path, a);
       point.set(spec.curve_path, b);
       const Scene s = point.build_point();
-      return PlanePoint{s.impact_system(), derivative_at(e1, s), derivative_at(e2, s)};
+      SystemDerivative d1 = derivative_at(e1, s);
+      return PlaneEngine{engine_at(s, engine, d1, o.solver), d1, derivative_at(e2, s)};
     };
     CurveOptions co;
     co.p1_min = spec.p_min;

@@ -885,6 +885,13 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     EngineKind engine;
   };
   std::vector<PointEngine> point_engines;
+  // Continuation's parameters with their place and dD/dp (checked against the engine below).
+  struct ContinuationPath {
+    YAML::Node at;
+    std::string key, path;
+    SystemDerivative derivative;
+  };
+  std::vector<ContinuationPath> continuation_paths;
   auto check_values = [&](const SweepAxis& axis, const YAML::Node& p, const std::string& path) {
     SceneDocument point(*this);  // one copy, its value replaced per point: no re-parse per point
     for (std::size_t i = 0; i < axis.values.size(); ++i) {
@@ -1088,9 +1095,10 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
         hi = v[1];
       };
       // The parameter must move the system, linearly or in closed form (io/continuation.hpp).
+      // Kept, with their place, for the engine's check below (what the modal engine differentiates).
       auto moves = [&](const YAML::Node& node, const std::string& key, const std::string& path) {
         try {
-          (void)parameter_derivative(*this, path);
+          continuation_paths.push_back({node, key, path, parameter_derivative(*this, path)});
         } catch (const SceneError& e) {
           r.fail(node, key, "'" + path + "' " + e.problem());
         }
@@ -1176,10 +1184,22 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
              std::to_string(kModalAutomaticMinimumDof) + ")";
   }
 
-  if (check_sweep && run.kind == RunSpec::Kind::continuation && engine == EngineKind::modal)
-    r.fail(root["run"]["kind"], "run.kind",
-           "continuation runs on the dense engine (its tangent maps are dense), and this scene resolves to the modal "
-           "engine (" + reason + "): set solver.engine: dense");
+  // Continuation on the modal engine differentiates along Ω, the forcing and the stops' data only:
+  // a path that moves M, C or K moves the chain's modes (analysis/modal_tangent.hpp).
+  if (run.kind == RunSpec::Kind::continuation && engine == EngineKind::modal)
+    for (const ContinuationPath& c : continuation_paths) {
+      std::vector<std::string> moved;
+      const SystemDerivative& d = c.derivative;
+      for (const auto& [m, name] : {std::pair{&d.mass, "mass"}, {&d.damping, "damping"}, {&d.stiffness, "stiffness"}})
+        if (m->size() > 0 && !m->isZero(0.0)) moved.emplace_back(name);
+      if (moved.empty()) continue;
+      std::string list = moved.front();
+      for (std::size_t i = 1; i < moved.size(); ++i) list += (i + 1 == moved.size() ? " and " : ", ") + moved[i];
+      r.fail(c.at, c.key,
+             "'" + c.path + "' moves the " + list + (moved.size() > 1 ? " matrices" : " matrix") + ", and this scene resolves to the modal engine (" + reason +
+                 "), whose continuation differentiates only along the forcing frequency, the forcing and the stops' "
+                 "data (M, C and K fix its modes): set solver.engine: dense, or continue in one of those");
+    }
   for (const PointEngine& p : point_engines)
     if (p.engine != engine)
       r.fail(p.at, p.path, p.what + " runs with the " + to_string(p.engine) + " engine, the base scene with the " +

@@ -51,11 +51,21 @@
 /// (a one-parameter family along that line: the system at each point and its derivative
 /// n1 dD/dp1 + n2 dD/dp2), so every curve point is located like a branch point.
 ///
+/// **Engines.** Continuation drives a FamilyEngine per parameter value (family_engine.hpp): the
+/// dense engine (any system and parameter; the ParameterFamily overloads below) or the modal chain
+/// engine (proportionally damped chains, parameters that leave M, C, K alone). Both give maps
+/// with the full Jacobian, so the predictor, the bordered corrector, the tangents and the
+/// multipliers are the same dense linear algebra on either, and a branch is the same on both up
+/// to the maps' rounding (tests/analysis/test_continuation.cpp). Per corrector iteration that is
+/// O(N²) memory and an O(N³) LU of the (2N + 1)² bordered system: a couple of thousand masses at
+/// most; a matrix-free (Newton–Krylov) bordered corrector for longer chains is not built yet.
+///
 /// Usage:
 ///     vibro::ParameterFamily fam = [&](double omega) { return vibro::FamilyPoint{system_at(omega), d_domega}; };
 ///     vibro::ContinuationOptions o;  o.p_min = 0.24;  o.p_max = 0.28;
 ///     vibro::ContinuationResult r = vibro::continue_orbits(fam, 0.255, t, x, v, o);
 ///     for (const vibro::Bifurcation& b : r.bifurcations) … b.kind, b.p, b.stop, b.value …
+#include "vibro/family_engine.hpp"
 #include "vibro/shooting.hpp"
 
 #include <functional>
@@ -101,6 +111,8 @@ struct ContinuationOptions {
   bool locate = true;               ///< locate bifurcations (else only detect them)
   double locate_tolerance = 1e-10;  ///< |Δp| of a located point (absolute, in p's units)
   int max_doublings = 3;            ///< depth of branch switching at period doublings (0: none)
+  /// The dense engine's settings (the ParameterFamily overloads); an ContinuationFamily's engines carry
+  /// their own (family_engine.hpp).
   SimulatorOptions solver;
   void validate() const;            ///< throws InvalidInput naming the field
 };
@@ -165,6 +177,12 @@ ContinuationResult continue_orbits(const ParameterFamily& family, double p0, dou
                                    const Eigen::VectorXd& x, const Eigen::VectorXd& v,
                                    const ContinuationOptions& options,
                                    const ContinuationProgress& progress = {});
+/// The same on any engine (family_engine.hpp); the ParameterFamily form runs the dense engine
+/// with options.solver.
+ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, double t_guess,
+                                   const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                                   const ContinuationOptions& options,
+                                   const ContinuationProgress& progress = {});
 
 /// The signature of an orbit from its map (events over kT).
 Signature orbit_signature(const TangentMap& m, int k, std::size_t stops);
@@ -188,6 +206,13 @@ struct PlanePoint {
   SystemDerivative d1, d2;
 };
 using PlaneFamily = std::function<PlanePoint(double p1, double p2)>;
+/// The same on any engine: the engine at (p1, p2) (its own `derivative` is not used) and the
+/// derivatives of the data along p1 and p2.
+struct PlaneEngine {
+  std::unique_ptr<FamilyEngine> engine;
+  SystemDerivative d1, d2;
+};
+using PlaneContinuationFamily = std::function<PlaneEngine(double p1, double p2)>;
 
 struct CurveOptions {
   double p2_min = 0.0, p2_max = 0.0;  ///< limits of the second parameter
@@ -203,6 +228,9 @@ struct CurveOptions {
 /// Follows a located grazing or rising point (`start`, found with p2 = p2_start) in (p1, p2).
 /// Throws InvalidInput if `start` is not a grazing or rising point.
 Curve follow_curve(const PlaneFamily& family, const Bifurcation& start, double p2_start,
+                   const CurveOptions& options);
+/// The same on any engine (the PlaneFamily form runs the dense engine with options.branch.solver).
+Curve follow_curve(const PlaneContinuationFamily& family, const Bifurcation& start, double p2_start,
                    const CurveOptions& options);
 
 }  // namespace vibro

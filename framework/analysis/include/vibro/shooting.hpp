@@ -126,6 +126,16 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
 ShootingResult shoot(ModalEngine& engine, const ShootingOptions& options, double t_guess,
                      const Eigen::VectorXd& x, const Eigen::VectorXd& v, const KrylovOptions& krylov = {});
 
+/// Newton shooting on the modal engine with the full Jacobian (ModalTangent::fill_jacobian: 2N
+/// products per map, O(N²) memory): the linear algebra of shoot(ImpactSystem, …) — LU Newton
+/// steps, all 2N multipliers from the reduced map — on the modal engine's exact maps, so both
+/// engines take the same steps up to the maps' rounding. For chains of up to a few thousand masses
+/// (continuation.hpp uses it; longer chains: the Newton–Krylov shoot above). `options_map` as
+/// for the dense shoot (its `directions` are ignored); options.solver is not used.
+ShootingResult shoot_full_jacobian(ModalEngine& engine, const ShootingOptions& options, double t_guess,
+                                  const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                                  const LinearisationOptions& options_map = {});
+
 /// max(|Δx|∞/L, |Δv|∞/V) of the map's end state against its start.
 double periodicity_residual(const TangentMap& m);
 
