@@ -427,6 +427,7 @@ void Segment::reset(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0) {
   z0_ = z0;  // same size: no allocation
   cached_tau_ = std::numeric_limits<double>::quiet_NaN();
   for (double& tau : cache_tau_) tau = std::numeric_limits<double>::quiet_NaN();
+  for (bool& direct : cache_direct_) direct = false;
   cache_next_ = 0;
   const LinearFlow& flow = functionals.flow();
   if (!flow.closed_form()) return;
@@ -452,6 +453,8 @@ void Segment::reset(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0) {
     powers_.resize(state_width, 1);
     for (int d = 0; d < 4; ++d) coefficients_[d].resize(rows, width_);
     for (auto& m : moduli_) m.resize(rows, width_);
+    rate_ = 0.0;
+    for (const auto& term : terms) rate_ = std::max(rate_, std::abs(term.lambda));
     cache_e_.resize(K, cache_slots);
     cache_growth_.resize(K, cache_slots);
     scratch_.resize(flow.size());
@@ -552,11 +555,70 @@ const Eigen::VectorXd& Segment::pade_state(double tau) const {
   return cached_z_;
 }
 
-void Segment::fill_exponentials(double tau, std::complex<double>* e, double* growth) const {
+namespace {
+
+/// Short steps (Segment::fill_exponentials): e^z for |z| ≤ 2⁻⁵ by its Taylor polynomial of
+/// degree 8, whose tail is below 1.04 |z|⁹/9! ≤ 8e-20 (and |e^z| ≥ e^{-1/32}): the value right
+/// to about an ulp, as exp and sincos give it.
+constexpr double kSeriesReach = 0x1p-5;
+/// 1/k!, k = 0…8.
+constexpr double kFactorial[9] = {1.0, 1.0, 1.0 / 2, 1.0 / 6, 1.0 / 24, 1.0 / 120, 1.0 / 720, 1.0 / 5040, 1.0 / 40320};
+
+}  // namespace
+
+void Segment::fill_exponentials(double tau, std::complex<double>* e, double* growth, bool* direct) const {
   ++evaluations_;
+  const auto& terms = functionals_->flow().terms();
+  // The event search evaluates mostly near points it has just evaluated (the root refinement's
+  // iterates converge on a point already sampled) or near the start (the flights of a chatter
+  // sequence): from the nearest such base b — τ = 0, where e = 1 exactly, or a cached τ whose
+  // exponentials were computed directly — e^{λτ} = e^{λb} e^{λ(τ - b)} with the second factor
+  // a short series (above) when |λ(τ - b)| ≤ 2⁻⁵ for every term: a few complex products
+  // instead of one exp and one sincos per term. Only directly computed values serve as bases,
+  // so no chain of products builds up: each value is within a few ulps.
+  double delta = tau;
+  int base = -1;
+  for (int c = 0; c < cache_slots; ++c)
+    if (cache_direct_[c] && std::abs(tau - cache_tau_[c]) < std::abs(delta)) {
+      delta = tau - cache_tau_[c];
+      base = c;
+    }
+  const double reach = rate_ * std::abs(delta);
+  if (reach <= kSeriesReach) {
+    for (std::size_t r = 0; r < terms.size(); ++r) {
+      const double zr = terms[r].lambda.real() * delta, zi = terms[r].lambda.imag() * delta;
+      // Σ_{k≤8} zᵏ/k! by Estrin's scheme (pairs c_k + c_{k+1} z, combined with z², z⁴, z⁸):
+      // three complex products deep instead of Horner's eight.
+      const double z2r = zr * zr - zi * zi, z2i = 2.0 * zr * zi;
+      const double z4r = z2r * z2r - z2i * z2i, z4i = 2.0 * z2r * z2i;
+      const double z8r = z4r * z4r - z4i * z4i, z8i = 2.0 * z4r * z4i;
+      const double p01r = 1.0 + zr, p01i = zi;
+      const double p23r = kFactorial[2] + kFactorial[3] * zr, p23i = kFactorial[3] * zi;
+      const double p45r = kFactorial[4] + kFactorial[5] * zr, p45i = kFactorial[5] * zi;
+      const double p67r = kFactorial[6] + kFactorial[7] * zr, p67i = kFactorial[7] * zi;
+      const double q0r = p01r + (z2r * p23r - z2i * p23i), q0i = p01i + (z2r * p23i + z2i * p23r);
+      const double q1r = p45r + (z2r * p67r - z2i * p67i), q1i = p45i + (z2r * p67i + z2i * p67r);
+      const double pr = q0r + (z4r * q1r - z4i * q1i) + kFactorial[8] * z8r;
+      const double pi = q0i + (z4r * q1i + z4i * q1r) + kFactorial[8] * z8i;
+      // e^{Re z} the same way, in reals.
+      const double x2 = zr * zr, x4 = x2 * x2;
+      const double g = (1.0 + zr) + x2 * (kFactorial[2] + kFactorial[3] * zr) +
+                       x4 * ((kFactorial[4] + kFactorial[5] * zr) + x2 * (kFactorial[6] + kFactorial[7] * zr)) +
+                       kFactorial[8] * x4 * x4;
+      if (base >= 0) {
+        const std::complex<double> b = cache_e_(static_cast<Eigen::Index>(r), base);
+        e[r] = {b.real() * pr - b.imag() * pi, b.real() * pi + b.imag() * pr};
+        growth[r] = cache_growth_(static_cast<Eigen::Index>(r), base) * g;
+      } else {
+        e[r] = {pr, pi};
+        growth[r] = g;
+      }
+    }
+    *direct = base < 0;
+    return;
+  }
   // e^{λτ} = e^{Re λ τ} (cos Im λ τ + i sin Im λ τ), with the real (damped modes without
   // oscillation, the constant) and the purely imaginary (the forcing) cases taking one call.
-  const auto& terms = functionals_->flow().terms();
   for (std::size_t r = 0; r < terms.size(); ++r) {
     const double re = terms[r].lambda.real() * tau, im = terms[r].lambda.imag() * tau;
     const double g = re == 0.0 ? 1.0 : std::exp(re);
@@ -568,17 +630,24 @@ void Segment::fill_exponentials(double tau, std::complex<double>* e, double* gro
       e[r] = {g * cs, g * sn};
     }
   }
+  *direct = true;
 }
 
-const std::complex<double>* Segment::exponentials(double tau) const {
+int Segment::store_exponentials(double tau) const {
   for (int c = 0; c < cache_slots; ++c)
-    if (cache_tau_[c] == tau) return &cache_e_(0, c);
+    if (cache_tau_[c] == tau) return c;
   if (cache_next_ == pinned_) cache_next_ = (cache_next_ + 1) % cache_slots;
   const int c = cache_next_;
   cache_next_ = (cache_next_ + 1) % cache_slots;
-  cache_tau_[c] = tau;
-  fill_exponentials(tau, &cache_e_(0, c), &cache_growth_(0, c));
-  return &cache_e_(0, c);
+  bool direct = false;
+  fill_exponentials(tau, &cache_e_(0, c), &cache_growth_(0, c), &direct);
+  cache_tau_[c] = tau;  // after the fill: the slot must not serve as its own base
+  cache_direct_[c] = direct;
+  return c;
+}
+
+const std::complex<double>* Segment::exponentials(double tau) const {
+  return &cache_e_(0, store_exponentials(tau));
 }
 
 double Segment::row_value(Eigen::Index i, int derivative, double tau, const std::complex<double>* e) const {
@@ -644,14 +713,11 @@ void Segment::sample(double tau, SegmentSample& out) const {
     const auto K = static_cast<Eigen::Index>(offset_.size());
     out.e.resize(K);
     out.growth.resize(K);
-    bool cached = false;
-    for (int c = 0; c < cache_slots && !cached; ++c)
-      if (cache_tau_[c] == tau) {  // e.g. the root the finder just refined
-        out.e = cache_e_.col(c);
-        out.growth = cache_growth_.col(c);
-        cached = true;
-      }
-    if (!cached) fill_exponentials(tau, out.e.data(), out.growth.data());
+    // Through the cache (e.g. the root the finder just refined is there), so that later points
+    // near this one can start from it (fill_exponentials).
+    const int slot = store_exponentials(tau);
+    out.e = cache_e_.col(slot);
+    out.growth = cache_growth_.col(slot);
     guard_evaluations_ += rows;
     if (!polynomial_) {
       for (Eigen::Index i = 0; i < rows; ++i) {
@@ -731,19 +797,12 @@ double Segment::derivative_bound(int derivative, Eigen::Index i, const SegmentSa
   return closed_form_bound(derivative, i, a.tau, b.tau, a.growth.data(), b.growth.data());
 }
 
-int Segment::cache_slot(double tau) const {
-  exponentials(tau);
-  for (int c = 0; c < cache_slots; ++c)
-    if (cache_tau_[c] == tau) return c;
-  return 0;  // not reached: exponentials() just stored τ
-}
-
 double Segment::bound_between(int derivative, Eigen::Index i, double a, double b) const {
   if (functionals_->flow().closed_form()) {
     // Two cache slots; the first is pinned while the second is looked up.
-    const int sa = cache_slot(a);
+    const int sa = store_exponentials(a);
     pinned_ = sa;
-    const int sb = cache_slot(b);
+    const int sb = store_exponentials(b);
     pinned_ = -1;
     return closed_form_bound(derivative, i, a, b, &cache_growth_(0, sa), &cache_growth_(0, sb));
   }

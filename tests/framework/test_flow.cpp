@@ -921,3 +921,54 @@ TEST_CASE("flow accuracy report", "[.report]") {
   }
   SUCCEED();
 }
+
+TEST_CASE("segment: values, slopes, curvatures and states at short steps agree with the matrix exponential to rounding",
+          "[flow][segment]") {
+  // Segment evaluates e^{λτ} by a series where |λτ| ≤ 2⁻⁵, from τ = 0 or from a cached point
+  // (flow.cpp, Segment::fill_exponentials), and by exp and sincos elsewhere. Every path is
+  // compared with the Padé exponential z(τ) = exp(Âτ) z0: on the spectral method (a damped,
+  // forced 4-DOF system) and on the closed form of the Schur clusters (a free-free chain: a
+  // Jordan block at 0). Tolerance 1e-13 of the rows' magnitude: both sides are right to a few
+  // ulps of it (the Padé exponential to ~1e-15 here, kAgreementTolerance's cases to 1e-12 over
+  // whole periods); a wrong series term (e.g. 1/k! off by one) errs by |λτ|ᵏ ≥ 1e-11 at the
+  // steps below, a wrong base by O(1).
+  struct Case {
+    const char* name;
+    LinearSystem system;
+  };
+  const std::vector<Case> cases{{"spectral, 4-DOF forced", random_problem({4, 7, Damping::full}).system},
+                                {"closed form, free-free chain", free_free_chain()}};
+  for (const Case& c : cases) {
+    INFO(c.name);
+    const LinearFlow flow(c.system);
+    REQUIRE(flow.closed_form());
+    const Eigen::Index N = flow.size();
+    Eigen::MatrixXd rows = Eigen::MatrixXd::Identity(N, N);
+    const vibro::Functionals functionals(flow, rows);
+    Eigen::VectorXd z0 = flow.augment(0.3, Eigen::VectorXd::LinSpaced(flow.dof(), -0.7, 0.9),
+                                      Eigen::VectorXd::LinSpaced(flow.dof(), 0.4, -0.2));
+    const vibro::Segment segment(functionals, 0.3, z0);
+    double rate = 0.0;
+    for (const auto& term : flow.terms()) rate = std::max(rate, std::abs(term.lambda));
+    const double far = 1.3 / rate;  // evaluated directly: a base for the points after it
+    const std::vector<double> taus{0.0,           1e-9 / rate,        1e-4 / rate,        0.01 / rate,
+                                   0.031 / rate,  0.032 / rate,       far,                far + 1e-7 / rate,
+                                   far - 0.02 / rate, far + 0.03 / rate, 3.1 / rate};
+    vibro::SegmentSample sample;
+    Eigen::VectorXd state(N);
+    for (const double tau : taus) {
+      INFO("tau = " << tau << " (|λτ| ≤ " << rate * tau << ")");
+      const Eigen::VectorXd z = flow.transition_matrix(tau) * z0;
+      segment.sample(tau, sample);
+      segment.state(tau, state);
+      for (Eigen::Index i = 0; i < N; ++i) {
+        const double scale = std::max(segment.magnitude(i), z.cwiseAbs().maxCoeff());
+        CHECK(std::abs(sample.h(i) - functionals.rows(0).row(i).dot(z)) <= 1e-13 * scale);
+        CHECK(std::abs(sample.d(i) - functionals.rows(1).row(i).dot(z)) <= 1e-13 * scale * std::max(1.0, rate));
+        CHECK(std::abs(sample.c(i) - functionals.rows(2).row(i).dot(z)) <= 1e-13 * scale * std::max(1.0, rate * rate));
+        CHECK(std::abs(segment.value(i, tau) - sample.h(i)) <= 1e-15 * scale);
+        CHECK(std::abs(state(i) - z(i)) <= 1e-13 * scale);
+      }
+    }
+  }
+}

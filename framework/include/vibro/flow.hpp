@@ -285,14 +285,16 @@ class Segment {
   const Eigen::VectorXd& pade_state(double tau) const;
   /// e^{λᵣτ} of the terms, from a small cache of recent τ.
   const std::complex<double>* exponentials(double tau) const;
-  void fill_exponentials(double tau, std::complex<double>* e, double* growth) const;
+  /// e^{λᵣτ} and |e^{λᵣτ}| of the terms; `direct`: computed from τ alone (not from a cached base).
+  void fill_exponentials(double tau, std::complex<double>* e, double* growth, bool* direct) const;
+  /// The cache slot holding τ's exponentials, filled if missing.
+  int store_exponentials(double tau) const;
   /// Σᵣ Re(e_r Σₚ αᵈᵢᵣₚ τ^p) for derivative d.
   double row_value(Eigen::Index i, int derivative, double tau, const std::complex<double>* e) const;
   double pade_bound(int derivative, Eigen::Index i, double z_norm, double dz_norm, double length) const;
   double closed_form_bound(int derivative, Eigen::Index i, double a, double b, const double* ga,
                            const double* gb) const;
   double bound_between(int derivative, Eigen::Index i, double a, double b) const;
-  int cache_slot(double tau) const;
   void closed_form_state(double tau, const std::complex<double>* e, Eigen::Ref<Eigen::VectorXd> out) const;
 
   const Functionals* functionals_;
@@ -300,6 +302,7 @@ class Segment {
   Eigen::VectorXd z0_;
   bool polynomial_ = false;  // some term has degree > 0 (closed-form exponential)
   Eigen::Index width_ = 0;   // Σᵣ (degree_r + 1): coefficient columns per row
+  double rate_ = 0.0;        // maxᵣ |λᵣ|: where |λᵣτ| is small the exponentials are series
   std::vector<Eigen::Index> offset_;  // per term: first coefficient column
 
   Eigen::VectorXcd modal_;   // V⁻¹ z0
@@ -314,6 +317,7 @@ class Segment {
   mutable Eigen::VectorXd cached_z_;   // Padé: z(cached_tau_)
   static constexpr int cache_slots = 4;
   mutable double cache_tau_[cache_slots];
+  mutable bool cache_direct_[cache_slots] = {};
   mutable int cache_next_ = 0, pinned_ = -1;
   mutable Eigen::MatrixXcd cache_e_;
   mutable Eigen::MatrixXd cache_growth_;
