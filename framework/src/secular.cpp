@@ -86,23 +86,27 @@ VIBRO_KERNEL void pole_sums(const double* d, const double* w, long n, double d_o
 }
 
 /// out_j = Σ_p a_{p,j} / ((d_p - d_o) - τ) for K columns of a (column-major, leading dimension
-/// lda): one division per p shared by the columns.
-template <int K>
+/// lda): one division per p shared by the columns. With Norm, also *norm = Σ_p w_p / ((d_p -
+/// d_o) - τ)², summed as pole_sums' slope (the same bits).
+template <int K, bool Norm>
 VIBRO_INLINE void cauchy_dots_k(const double* d, long n, double d_o, double tau, const double* a, long lda,
-                                double* out) {
+                                double* out, const double* w, double* norm) {
   const Lanes origin = splat(d_o), shift = splat(tau), one = splat(1.0);
-  Lanes acc[K];
+  Lanes acc[K], t = splat(0.0);
   for (int j = 0; j < K; ++j) acc[j] = splat(0.0);
   long p = 0;
   for (; p + 4 <= n; p += 4) {
     const Lanes inv = one / ((load(d + p) - origin) - shift);
     for (int j = 0; j < K; ++j) acc[j] += load(a + j * lda + p) * inv;
+    if constexpr (Norm) t += (load(w + p) * inv) * inv;
   }
   for (; p < n; ++p) {
     const double inv = 1.0 / ((d[p] - d_o) - tau);
     for (int j = 0; j < K; ++j) acc[j][0] += a[j * lda + p] * inv;
+    if constexpr (Norm) t[0] += w[p] * inv * inv;
   }
   for (int j = 0; j < K; ++j) out[j] = lane_sum(acc[j]);
+  if constexpr (Norm) *norm = lane_sum(t);
 }
 
 /// b_{p,j} += c_j / ((d_p - d_o) - τ) for K columns of b (column-major, leading dimension ldb).
@@ -136,12 +140,18 @@ VIBRO_INLINE void cauchy_axpys_k(const double* d, long n, double d_o, double tau
     default: call(8); break;   \
   }
 
-/// cauchy_dots_k for k ≤ 8 columns.
+/// cauchy_dots_k for 1 ≤ k ≤ 8 columns, with the norm sum if w is given.
 VIBRO_KERNEL void cauchy_dots(const double* d, long n, double d_o, double tau, const double* a, long lda, int k,
-                              double* out) {
-#define VIBRO_DOTS(K) cauchy_dots_k<K>(d, n, d_o, tau, a, lda, out)
-  VIBRO_BY_COLUMNS(VIBRO_DOTS)
+                              double* out, const double* w = nullptr, double* norm = nullptr) {
+#define VIBRO_DOTS(K) cauchy_dots_k<K, false>(d, n, d_o, tau, a, lda, out, w, norm)
+#define VIBRO_DOTS_NORM(K) cauchy_dots_k<K, true>(d, n, d_o, tau, a, lda, out, w, norm)
+  if (w) {
+    VIBRO_BY_COLUMNS(VIBRO_DOTS_NORM)
+  } else {
+    VIBRO_BY_COLUMNS(VIBRO_DOTS)
+  }
 #undef VIBRO_DOTS
+#undef VIBRO_DOTS_NORM
 }
 
 /// cauchy_axpys_k for k ≤ 8 columns.
@@ -184,7 +194,8 @@ double middle_way_step(double g, double c, double s1, double s2, double A, doubl
 
 }  // namespace
 
-SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z) : m_(d.size()) {
+SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z, Eigen::MatrixXd* carry)
+    : m_(d.size()) {
   if (z.size() != m_ || m_ < 1) throw std::logic_error("secular level: sizes do not match");
   const double norm = z.norm();
   if (!(norm > 0.0) || !std::isfinite(norm))
@@ -304,13 +315,6 @@ SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z) :
                         ratio_product(at_origin.data() + p, tau_.data() + p, d_.data() + p + 1, roots - p, d_(p));
     zhat_(p) = std::copysign(std::sqrt(std::max(prod, 0.0)), zk(p));
   }
-  inv_norm_.resize(roots);
-  const Eigen::VectorXd zhat2 = zhat_.cwiseAbs2();
-  for (Eigen::Index l = 0; l < roots; ++l) {
-    double unused, sum;  // Σ ẑ_p² / (d_p - μ_l)²
-    pole_sums(d_.data(), zhat2.data(), q, at_origin(l), tau_(l), &unused, &sum);
-    inv_norm_(l) = 1.0 / std::sqrt(sum);
-  }
   // Children by ascending eigenvalue: the roots (ascending in l) merged with the deflated poles.
   std::vector<std::pair<double, Eigen::Index>> all;
   all.reserve(static_cast<std::size_t>(m_ - 1));
@@ -326,6 +330,24 @@ SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z) :
     mu_(static_cast<Eigen::Index>(c)) = all[c].first;
     child_[c] = all[c].second;
   }
+  // The vectors' norms ‖(d - μ_l)⁻¹ ẑ‖ take a pass over the poles per root, as does a product
+  // with the child basis: with columns to carry, both share that pass (its divisions).
+  inv_norm_.resize(roots);
+  const Eigen::VectorXd zhat2 = zhat_.cwiseAbs2();
+  if (carry && carry->cols() > 0) {
+    if (carry->rows() != m_) throw std::logic_error("secular level: the carried columns do not match the parent");
+    std::vector<double> scratch(static_cast<std::size_t>(scratch_size(carry->cols())));
+    Eigen::MatrixXd child(m_ - 1, carry->cols());
+    child_pass(*carry, child, scratch.data(), &zhat2, &inv_norm_);
+    *carry = std::move(child);
+    return;
+  }
+  for (Eigen::Index l = 0; l < roots; ++l) {
+    double unused, sum;  // Σ ẑ_p² / (d_p - μ_l)²
+    pole_sums(d_.data(), zhat2.data(), q, at_origin(l), tau_(l), &unused, &sum);
+    inv_norm_(l) = 1.0 / std::sqrt(sum);
+  }
+  if (carry) *carry = Eigen::MatrixXd(m_ - 1, 0);
 }
 
 void SecularLevel::rotate(Eigen::Map<Eigen::MatrixXd>& x, bool forward) const {
@@ -349,6 +371,11 @@ void SecularLevel::to_child(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eig
 
 void SecularLevel::to_child(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eigen::Ref<Eigen::MatrixXd> child,
                             double* scratch) const {
+  child_pass(parent, child, scratch, nullptr, nullptr);
+}
+
+void SecularLevel::child_pass(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eigen::Ref<Eigen::MatrixXd> child,
+                              double* scratch, const Eigen::VectorXd* zhat2, Eigen::VectorXd* inv_norm) const {
   const Eigen::Index k = parent.cols(), q = d_.size();
   Eigen::Map<Eigen::MatrixXd> x(scratch, m_, k);
   x = parent;
@@ -362,10 +389,18 @@ void SecularLevel::to_child(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eig
       child.row(row) = x.row(-1 - l);
       continue;
     }
+    const double d_o = d_(origin_[static_cast<std::size_t>(l)]);
     for (Eigen::Index j0 = 0; j0 < k; j0 += 8) {
       const int block = static_cast<int>(std::min<Eigen::Index>(8, k - j0));
-      cauchy_dots(d_.data(), q, d_(origin_[static_cast<std::size_t>(l)]), tau_(l), a.col(j0).data(), q, block, out);
-      for (int j = 0; j < block; ++j) child(row, j0 + j) = inv_norm_(l) * out[j];
+      if (inv_norm && j0 == 0) {  // the norm with the first block (the constructor's pass)
+        double sum;
+        cauchy_dots(d_.data(), q, d_o, tau_(l), a.col(j0).data(), q, block, out, zhat2->data(), &sum);
+        (*inv_norm)(l) = 1.0 / std::sqrt(sum);
+      } else {
+        cauchy_dots(d_.data(), q, d_o, tau_(l), a.col(j0).data(), q, block, out);
+      }
+      const double scale = inv_norm ? (*inv_norm)(l) : inv_norm_(l);
+      for (int j = 0; j < block; ++j) child(row, j0 + j) = scale * out[j];
     }
   }
 }

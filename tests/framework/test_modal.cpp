@@ -475,8 +475,10 @@ TEST_CASE("modal set-up: the secular route at N = 400, smooth and rough chains, 
   // The case the root finder's extrapolated first guesses are made for (secular.cpp: a uniform
   // chain, whose roots sit smoothly in their intervals, most found in one pass) and one they do
   // not fit (masses and springs varying irregularly from mass to mass, where the guess falls back
-  // to the previous root's place), each with three held stops (three levels, the forcing carried
-  // down through all of them) and a force on one mass or on every one. Against the reduced
+  // to the previous root's place), each with three held stops (three levels, each carrying the
+  // forcing and the later stops' constraints down in the pass that normalises its vectors,
+  // secular.hpp) and a force on one mass or on every one (the two ways the set's forcing is
+  // brought to the free modes, modal.cpp). Against the reduced
   // chain's own tridiagonal eigenproblem, sign-free: ω² to 1e-12 of the largest, Φ_r Φ_rᵀ =
   // M_r⁻¹ and Φ_rᵀ K_r Φ_r = diag ω² to 1e-12 relative, and the particular (periodic) solution
   // in reduced coordinates, Φ_r (c0 + cc cos Ωt + cs sin Ωt) and its rate. The displacement's
