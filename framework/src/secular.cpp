@@ -32,9 +32,10 @@ constexpr double kEps = std::numeric_limits<double>::epsilon();
 
 #if defined(__GNUC__)
 using Lanes = double __attribute__((vector_size(32)));  // GCC and Clang vector extensions
-// The helpers below pass Lanes by value: GCC warns that this ABI differs with and without AVX,
-// which cannot matter here (file-local, always inlined into each kernel clone). GCC reports it
-// where it emits the functions, at the end of the file, so it is silenced for the whole file.
+// splat and load below return Lanes by value: GCC warns that this ABI differs with and without
+// AVX, which cannot matter here (file-local, always inlined into each kernel clone). GCC reports
+// it where it emits the functions, at the end of the file, so it is silenced for the whole
+// file; arguments are passed by reference (by value, GCC adds a note on the same ABI change).
 #pragma GCC diagnostic ignored "-Wpsabi"
 #else
 struct Lanes {  // the same four lanes for other compilers, element by element
@@ -61,8 +62,8 @@ VIBRO_INLINE Lanes load(const double* p) {
   std::memcpy(&v, p, sizeof v);  // unaligned load
   return v;
 }
-VIBRO_INLINE void store(double* p, Lanes v) { std::memcpy(p, &v, sizeof v); }
-VIBRO_INLINE double lane_sum(Lanes v) { return (v[0] + v[1]) + (v[2] + v[3]); }
+VIBRO_INLINE void store(double* p, const Lanes& v) { std::memcpy(p, &v, sizeof v); }
+VIBRO_INLINE double lane_sum(const Lanes& v) { return (v[0] + v[1]) + (v[2] + v[3]); }
 
 /// Σ w_p / ((d_p - d_o) - τ) and Σ w_p / ((d_p - d_o) - τ)² over p ∈ [0, n).
 VIBRO_KERNEL void pole_sums(const double* d, const double* w, long n, double d_o, double tau, double* sum,
