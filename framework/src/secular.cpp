@@ -383,16 +383,18 @@ void SecularLevel::child_pass(const Eigen::Ref<const Eigen::MatrixXd>& parent, E
   rotate(x, true);
   Eigen::Map<Eigen::MatrixXd> a(scratch + m_ * k, q, k);  // ẑ_p x_p
   for (Eigen::Index p = 0; p < q; ++p) a.row(p) = zhat_(p) * x.row(poles_[static_cast<std::size_t>(p)]);
+  for (std::size_t c = 0; c < child_.size(); ++c)  // deflated: a parent mode itself
+    if (child_[c] < 0) child.row(static_cast<Eigen::Index>(c)) = x.row(-1 - child_[c]);
+  // Blocks of 8 columns outside, roots inside: each root reads its block of a (8q doubles, 640 kB
+  // at q = 10 000, held in L2) rather than all of a, which for the hundreds of columns of a set
+  // with many stops (the rows its guards read) would stream from memory for every root.
   double out[8];
-  for (std::size_t c = 0; c < child_.size(); ++c) {
-    const Eigen::Index l = child_[c], row = static_cast<Eigen::Index>(c);
-    if (l < 0) {
-      child.row(row) = x.row(-1 - l);
-      continue;
-    }
-    const double d_o = d_(origin_[static_cast<std::size_t>(l)]);
-    for (Eigen::Index j0 = 0; j0 < k; j0 += 8) {
-      const int block = static_cast<int>(std::min<Eigen::Index>(8, k - j0));
+  for (Eigen::Index j0 = 0; j0 < k; j0 += 8) {
+    const int block = static_cast<int>(std::min<Eigen::Index>(8, k - j0));
+    for (std::size_t c = 0; c < child_.size(); ++c) {
+      const Eigen::Index l = child_[c], row = static_cast<Eigen::Index>(c);
+      if (l < 0) continue;
+      const double d_o = d_(origin_[static_cast<std::size_t>(l)]);
       if (inv_norm && j0 == 0) {  // the norm with the first block (the constructor's pass)
         double sum;
         cauchy_dots(d_.data(), q, d_o, tau_(l), a.col(j0).data(), q, block, out, zhat2->data(), &sum);
@@ -412,15 +414,15 @@ void SecularLevel::to_parent(const Eigen::Ref<const Eigen::MatrixXd>& child, Eig
   Eigen::Map<Eigen::MatrixXd> x(scratch, m_, k), b(scratch + m_ * k, q, k);
   x.setZero();
   b.setZero();
+  for (std::size_t c = 0; c < child_.size(); ++c)
+    if (child_[c] < 0) x.row(-1 - child_[c]) = child.row(static_cast<Eigen::Index>(c));
+  // Blocks of columns outside, roots inside, as in to_child (each root updates one block of b).
   double coef[8];
-  for (std::size_t c = 0; c < child_.size(); ++c) {
-    const Eigen::Index l = child_[c], row = static_cast<Eigen::Index>(c);
-    if (l < 0) {
-      x.row(-1 - l) = child.row(row);
-      continue;
-    }
-    for (Eigen::Index j0 = 0; j0 < k; j0 += 8) {
-      const int block = static_cast<int>(std::min<Eigen::Index>(8, k - j0));
+  for (Eigen::Index j0 = 0; j0 < k; j0 += 8) {
+    const int block = static_cast<int>(std::min<Eigen::Index>(8, k - j0));
+    for (std::size_t c = 0; c < child_.size(); ++c) {
+      const Eigen::Index l = child_[c], row = static_cast<Eigen::Index>(c);
+      if (l < 0) continue;
       for (int j = 0; j < block; ++j) coef[j] = inv_norm_(l) * child(row, j0 + j);
       cauchy_axpys(d_.data(), q, d_(origin_[static_cast<std::size_t>(l)]), tau_(l), coef, b.col(j0).data(), q, block);
     }
