@@ -25,13 +25,14 @@
 /// log(cost per event) against log N over N = 100 … 10 000.
 ///
 /// Usage:
-///   bench_chain [--max-n N] [--impacts K] [--quick] [--eigen] [--dense] [--sets-only [--n N]]
+///   bench_chain [--max-n N] [--impacts K] [--quick] [--eigen] [--dense] [--sets-only [--n N] [--every-10th]]
 ///     --quick    N = 10, 100 and 100 impacts: a smoke test (seconds)
 ///     --sets-only  only the contact-set builds of the "4 stops" chain at one N (--n, default
 ///                10 000; the free chain's set-up, ~11 s at 10 000, is paid once and no run is
 ///                made): set {0}, then {0, 1} on the same simulator (as in the table), then
 ///                {0, 1} again on a fresh one (from scratch, nothing cached), each its CPU
-///                seconds and the peak memory after it
+///                seconds and the peak memory after it; with --every-10th, of the "every 10th"
+///                chain instead (N/10 stops: the rows of all the free stops make the build)
 ///     --eigen    Eigen's computeFromTridiagonal instead of LAPACK (O(N³): minutes at N = 10 000)
 ///     --dense    also time the dense engine (Simulator) on the same chains with non-proportional
 ///                damping (only the wall dashpot, c = 0.02), N = 10 … 200, to show its limit
@@ -158,13 +159,14 @@ Row measure(int n, const std::string& config, vibro::TridiagonalSolver solver, l
 }
 
 /// --sets-only: the contact-set columns of the table, and {0, 1} from scratch, at one N.
-void sets_only(int n, vibro::TridiagonalSolver solver) {
+void sets_only(int n, bool many, vibro::TridiagonalSolver solver) {
   const Chain c = make_chain(n, 0.02);
   double t = cpu_seconds();
   const vibro::ChainModes modes(
       vibro::BandedChain::from_links(c.masses, c.springs, c.dampers, 1.0, 0.02, 0.0, 0.0, c.forcing), solver);
-  std::printf("N = %d, 4 stops: free set-up %.3g CPU s, peak %.0f MiB\n", n, cpu_seconds() - t, peak_mib());
-  const std::vector<vibro::Stop> stops = four_stops();
+  const std::vector<vibro::Stop> stops = many ? every_tenth(n) : four_stops();
+  std::printf("N = %d, %zu stops: free set-up %.3g CPU s, peak %.0f MiB\n", n, stops.size(), cpu_seconds() - t,
+              peak_mib());
   auto timed = [&](vibro::ModalChainSimulator& sim, const vibro::ContactSet& set, const char* what) {
     const double before = peak_mib();
     const double start = cpu_seconds();
@@ -246,7 +248,7 @@ int main(int argc, char** argv) {
   int max_n = 10000;
   long impacts = 400;
   int sets_n = 10000;
-  bool quick = false, dense = false, sets = false;
+  bool quick = false, dense = false, sets = false, many = false;
   vibro::TridiagonalSolver solver = vibro::TridiagonalSolver::automatic;
   for (int i = 1; i < argc; ++i) {
     const std::string_view a = argv[i];
@@ -254,21 +256,24 @@ int main(int argc, char** argv) {
     else if (a == "--dense") dense = true;
     else if (a == "--sets-only") sets = true;
     else if (a == "--n" && i + 1 < argc) sets_n = std::atoi(argv[++i]);
+    else if (a == "--every-10th") many = true;
     else if (a == "--eigen") solver = vibro::TridiagonalSolver::eigen;
     else if (a == "--max-n" && i + 1 < argc) max_n = std::atoi(argv[++i]);
     else if (a == "--impacts" && i + 1 < argc) impacts = std::atol(argv[++i]);
     else {
       std::fprintf(stderr,
-                   "usage: bench_chain [--max-n N] [--impacts K] [--quick] [--eigen] [--dense] [--sets-only [--n N]]\n");
+                   "usage: bench_chain [--max-n N] [--impacts K] [--quick] [--eigen] [--dense] "
+                   "[--sets-only [--n N] [--every-10th]]\n");
       return 2;
     }
   }
   if (sets) {
-    if (sets_n < 6) {
-      std::fprintf(stderr, "bench_chain: --n %d: the four stops sit on masses 1 to 5, so N ≥ 6\n", sets_n);
+    if (sets_n < (many ? 11 : 6)) {
+      std::fprintf(stderr, "bench_chain: --n %d: the set {0, 1} needs two stops (N ≥ 6, or 11 with --every-10th)\n",
+                   sets_n);
       return 2;
     }
-    sets_only(sets_n, solver);
+    sets_only(sets_n, many, solver);
     return 0;
   }
   if (quick) {
