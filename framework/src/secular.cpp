@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -12,74 +13,166 @@ namespace {
 
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 
-// The O(m) kernels every pass runs, over raw arrays with four partial sums so that they
-// vectorise (built for AVX2 and for the baseline, chosen at run time): these passes are the
-// whole cost of a contact set of a long chain.
+// The O(m) kernels every pass runs: these passes are the whole cost of a contact set of a long
+// chain (one division per pole and pass), so they are written four poles at a time in explicit
+// vector lanes (built for AVX2 and for the baseline, chosen at run time). Left to the compiler,
+// the former scalar loops with four partial sums became unrolled scalar additions around the
+// divisions, ~3 cycles a pole on the benchmark machine against ~1.3 now. Each lane sums the poles
+// p ≡ lane (mod 4), the order of those loops, so the results are the same to the bit.
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
 #define VIBRO_KERNEL __attribute__((target_clones("avx2", "default")))
 #else
 #define VIBRO_KERNEL
 #endif
+#if defined(__GNUC__)
+#define VIBRO_INLINE inline __attribute__((always_inline))
+#else
+#define VIBRO_INLINE inline
+#endif
+
+#if defined(__GNUC__)
+using Lanes = double __attribute__((vector_size(32)));  // GCC and Clang vector extensions
+// splat and load below return Lanes by value: GCC warns that this ABI differs with and without
+// AVX, which cannot matter here (file-local, always inlined into each kernel clone). GCC reports
+// it where it emits the functions, at the end of the file, so it is silenced for the whole
+// file; arguments are passed by reference (by value, GCC adds a note on the same ABI change).
+#pragma GCC diagnostic ignored "-Wpsabi"
+#else
+struct Lanes {  // the same four lanes for other compilers, element by element
+  double v[4];
+  double& operator[](int i) { return v[i]; }
+  double operator[](int i) const { return v[i]; }
+};
+#define VIBRO_LANEWISE(op)                                      \
+  inline Lanes operator op(Lanes a, Lanes b) {                  \
+    for (int i = 0; i < 4; ++i) a.v[i] = a.v[i] op b.v[i];      \
+    return a;                                                   \
+  }                                                             \
+  inline Lanes& operator op##=(Lanes& a, Lanes b) { return a = a op b; }
+VIBRO_LANEWISE(+)
+VIBRO_LANEWISE(-)
+VIBRO_LANEWISE(*)
+VIBRO_LANEWISE(/)
+#undef VIBRO_LANEWISE
+#endif
+
+VIBRO_INLINE Lanes splat(double x) { return Lanes{x, x, x, x}; }
+VIBRO_INLINE Lanes load(const double* p) {
+  Lanes v;
+  std::memcpy(&v, p, sizeof v);  // unaligned load
+  return v;
+}
+VIBRO_INLINE void store(double* p, const Lanes& v) { std::memcpy(p, &v, sizeof v); }
+VIBRO_INLINE double lane_sum(const Lanes& v) { return (v[0] + v[1]) + (v[2] + v[3]); }
 
 /// Σ w_p / ((d_p - d_o) - τ) and Σ w_p / ((d_p - d_o) - τ)² over p ∈ [0, n).
 VIBRO_KERNEL void pole_sums(const double* d, const double* w, long n, double d_o, double tau, double* sum,
                             double* slope) {
-  double s[4] = {0, 0, 0, 0}, t[4] = {0, 0, 0, 0};
+  const Lanes origin = splat(d_o), shift = splat(tau), one = splat(1.0);
+  Lanes s = splat(0.0), t = splat(0.0);
   long p = 0;
-  for (; p + 4 <= n; p += 4)
-    for (int k = 0; k < 4; ++k) {
-      const double inv = 1.0 / ((d[p + k] - d_o) - tau);
-      const double term = w[p + k] * inv;
-      s[k] += term;
-      t[k] += term * inv;
-    }
+  for (; p + 4 <= n; p += 4) {
+    const Lanes inv = one / ((load(d + p) - origin) - shift);
+    const Lanes term = load(w + p) * inv;
+    s += term;
+    t += term * inv;
+  }
   for (; p < n; ++p) {
     const double inv = 1.0 / ((d[p] - d_o) - tau);
     s[0] += w[p] * inv;
     t[0] += w[p] * inv * inv;
   }
-  *sum = (s[0] + s[1]) + (s[2] + s[3]);
-  *slope = (t[0] + t[1]) + (t[2] + t[3]);
+  *sum = lane_sum(s);
+  *slope = lane_sum(t);
 }
 
-/// out_j = Σ_p a_{p,j} / ((d_p - d_o) - τ) for k ≤ 8 columns of a (column-major, leading
-/// dimension lda): one division per p shared by the columns.
-VIBRO_KERNEL void cauchy_dots(const double* d, long n, double d_o, double tau, const double* a, long lda, int k,
-                              double* out) {
-  double acc[8][4] = {};
+/// out_j = Σ_p a_{p,j} / ((d_p - d_o) - τ) for K columns of a (column-major, leading dimension
+/// lda): one division per p shared by the columns. With Norm, also *norm = Σ_p w_p / ((d_p -
+/// d_o) - τ)², summed as pole_sums' slope (the same bits).
+template <int K, bool Norm>
+VIBRO_INLINE void cauchy_dots_k(const double* d, long n, double d_o, double tau, const double* a, long lda,
+                                double* out, const double* w, double* norm) {
+  const Lanes origin = splat(d_o), shift = splat(tau), one = splat(1.0);
+  Lanes acc[K], t = splat(0.0);
+  for (int j = 0; j < K; ++j) acc[j] = splat(0.0);
   long p = 0;
   for (; p + 4 <= n; p += 4) {
-    double inv[4];
-    for (int t = 0; t < 4; ++t) inv[t] = 1.0 / ((d[p + t] - d_o) - tau);
-    for (int j = 0; j < k; ++j)
-      for (int t = 0; t < 4; ++t) acc[j][t] += a[j * lda + p + t] * inv[t];
+    const Lanes inv = one / ((load(d + p) - origin) - shift);
+    for (int j = 0; j < K; ++j) acc[j] += load(a + j * lda + p) * inv;
+    if constexpr (Norm) t += (load(w + p) * inv) * inv;
   }
   for (; p < n; ++p) {
     const double inv = 1.0 / ((d[p] - d_o) - tau);
-    for (int j = 0; j < k; ++j) acc[j][0] += a[j * lda + p] * inv;
+    for (int j = 0; j < K; ++j) acc[j][0] += a[j * lda + p] * inv;
+    if constexpr (Norm) t[0] += w[p] * inv * inv;
   }
-  for (int j = 0; j < k; ++j) out[j] = (acc[j][0] + acc[j][1]) + (acc[j][2] + acc[j][3]);
+  for (int j = 0; j < K; ++j) out[j] = lane_sum(acc[j]);
+  if constexpr (Norm) *norm = lane_sum(t);
 }
 
-/// b_{p,j} += c_j / ((d_p - d_o) - τ) for k ≤ 8 columns of b (column-major, leading dimension ldb).
-VIBRO_KERNEL void cauchy_axpys(const double* d, long n, double d_o, double tau, const double* c, double* b, long ldb,
-                               int k) {
-  for (long p = 0; p < n; ++p) {
+/// b_{p,j} += c_j / ((d_p - d_o) - τ) for K columns of b (column-major, leading dimension ldb).
+template <int K>
+VIBRO_INLINE void cauchy_axpys_k(const double* d, long n, double d_o, double tau, const double* c, double* b,
+                                 long ldb) {
+  const Lanes origin = splat(d_o), shift = splat(tau), one = splat(1.0);
+  Lanes coef[K];
+  for (int j = 0; j < K; ++j) coef[j] = splat(c[j]);
+  long p = 0;
+  for (; p + 4 <= n; p += 4) {
+    const Lanes inv = one / ((load(d + p) - origin) - shift);
+    for (int j = 0; j < K; ++j) store(b + j * ldb + p, load(b + j * ldb + p) + coef[j] * inv);
+  }
+  for (; p < n; ++p) {
     const double inv = 1.0 / ((d[p] - d_o) - tau);
-    for (int j = 0; j < k; ++j) b[j * ldb + p] += c[j] * inv;
+    for (int j = 0; j < K; ++j) b[j * ldb + p] += c[j] * inv;
   }
 }
+
+// The column count as a template argument keeps each column's accumulator in a register.
+#define VIBRO_BY_COLUMNS(call) \
+  switch (k) {                 \
+    case 1: call(1); break;    \
+    case 2: call(2); break;    \
+    case 3: call(3); break;    \
+    case 4: call(4); break;    \
+    case 5: call(5); break;    \
+    case 6: call(6); break;    \
+    case 7: call(7); break;    \
+    default: call(8); break;   \
+  }
+
+/// cauchy_dots_k for 1 ≤ k ≤ 8 columns, with the norm sum if w is given.
+VIBRO_KERNEL void cauchy_dots(const double* d, long n, double d_o, double tau, const double* a, long lda, int k,
+                              double* out, const double* w = nullptr, double* norm = nullptr) {
+#define VIBRO_DOTS(K) cauchy_dots_k<K, false>(d, n, d_o, tau, a, lda, out, w, norm)
+#define VIBRO_DOTS_NORM(K) cauchy_dots_k<K, true>(d, n, d_o, tau, a, lda, out, w, norm)
+  if (w) {
+    VIBRO_BY_COLUMNS(VIBRO_DOTS_NORM)
+  } else {
+    VIBRO_BY_COLUMNS(VIBRO_DOTS)
+  }
+#undef VIBRO_DOTS
+#undef VIBRO_DOTS_NORM
+}
+
+/// cauchy_axpys_k for k ≤ 8 columns.
+VIBRO_KERNEL void cauchy_axpys(const double* d, long n, double d_o, double tau, const double* c, double* b, long ldb,
+                               int k) {
+#define VIBRO_AXPYS(K) cauchy_axpys_k<K>(d, n, d_o, tau, c, b, ldb)
+  VIBRO_BY_COLUMNS(VIBRO_AXPYS)
+#undef VIBRO_AXPYS
+}
+#undef VIBRO_BY_COLUMNS
 
 /// Π_l num_l / den_l with num_l = (a_l - x) + b_l, den_l = c_l - x (every ratio in (0, 1]).
 VIBRO_KERNEL double ratio_product(const double* a, const double* b, const double* c, long n, double x) {
-  double s[4] = {1, 1, 1, 1};
+  const Lanes at = splat(x);
+  Lanes s = splat(1.0);
   long l = 0;
-  for (; l + 4 <= n; l += 4)
-    for (int k = 0; k < 4; ++k) s[k] *= ((a[l + k] - x) + b[l + k]) / (c[l + k] - x);
+  for (; l + 4 <= n; l += 4) s *= ((load(a + l) - at) + load(b + l)) / (load(c + l) - at);
   for (; l < n; ++l) s[0] *= ((a[l] - x) + b[l]) / (c[l] - x);
   return (s[0] * s[1]) * (s[2] * s[3]);
 }
-
 
 /// The root in (A, B) (A < 0 < B) of c + s1/(A - η) + s2/(B - η) = 0, whose value at η = 0 is
 /// g (so its constant term is g A B): c η² - (c (A + B) + s1 + s2) η + g A B = 0. NaN if none.
@@ -102,7 +195,8 @@ double middle_way_step(double g, double c, double s1, double s2, double A, doubl
 
 }  // namespace
 
-SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z) : m_(d.size()) {
+SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z, Eigen::MatrixXd* carry)
+    : m_(d.size()) {
   if (z.size() != m_ || m_ < 1) throw std::logic_error("secular level: sizes do not match");
   const double norm = z.norm();
   if (!(norm > 0.0) || !std::isfinite(norm))
@@ -147,11 +241,25 @@ SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z) :
   const Eigen::Index roots = std::max<Eigen::Index>(q - 1, 0);
   origin_.resize(static_cast<std::size_t>(roots));
   tau_.resize(roots);
-  // Where the previous root sat in its interval: the first guess for the next (the weights of
-  // neighbouring poles are alike for a smooth constraint, so the roots sit alike).
-  double fraction = 0.5;
+  // The first guess for each root: where it sits in its interval, as a fraction of the gap,
+  // extrapolated from the roots before it. For a smooth constraint (weights alike from pole to
+  // pole, as for a stop on a uniform chain) that fraction drifts smoothly with l, wrapping from
+  // near 1 to near 0 when the roots move past a pole, so it is extrapolated modulo 1 (quadratic
+  // through the last three): at N = 10 000 the first step is then below 1e-9 of τ for 99 % of
+  // the roots, and each costs one pass over the poles instead of three (the previous fraction
+  // alone was off by ~1e-3 of τ). Where the fractions are not smooth (second difference above
+  // 0.01) the previous fraction is the guess, as before; a poor guess costs iterations, never
+  // accuracy (the iteration below is bracketed).
+  double recent[3] = {0.5, 0.5, 0.5};  // fractions of roots l - 1, l - 2, l - 3 (unwrapped)
+  auto guess_fraction = [&](Eigen::Index l) {
+    if (l == 0) return 0.5;
+    const bool smooth = l >= 3 && std::abs(recent[0] - 2.0 * recent[1] + recent[2]) <= 0.01;
+    const double next = smooth ? 3.0 * recent[0] - 3.0 * recent[1] + recent[2] : recent[0];
+    return next - std::floor(next);
+  };
   for (Eigen::Index l = 0; l < roots; ++l) {
     const double gap = d_(l + 1) - d_(l);
+    const double fraction = std::clamp(guess_fraction(l), 1e-6, 1.0 - 1e-6);
     Eigen::Index o = fraction <= 0.5 ? l : l + 1;
     double tau = o == l ? fraction * gap : -(1.0 - fraction) * gap;
     for (int pass = 0; pass < 2; ++pass) {
@@ -189,7 +297,13 @@ SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z) :
       tau = (d_o - d_(nearer)) + tau;
       o = nearer;
     }
-    fraction = std::clamp(((d_(o) - d_(l)) + tau) / gap, 1e-6, 1.0 - 1e-6);
+    // This root's fraction, unwrapped to within 1/2 of the previous one (so that a root past
+    // the next pole continues the sequence rather than jumping back by 1).
+    double found = ((d_(o) - d_(l)) + tau) / gap;
+    if (l > 0) found -= std::round(found - recent[0]);
+    recent[2] = recent[1];
+    recent[1] = recent[0];
+    recent[0] = found;
     origin_[static_cast<std::size_t>(l)] = o;
     tau_(l) = tau;
   }
@@ -201,13 +315,6 @@ SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z) :
     const double prod = ratio_product(at_origin.data(), tau_.data(), d_.data(), p, d_(p)) *
                         ratio_product(at_origin.data() + p, tau_.data() + p, d_.data() + p + 1, roots - p, d_(p));
     zhat_(p) = std::copysign(std::sqrt(std::max(prod, 0.0)), zk(p));
-  }
-  inv_norm_.resize(roots);
-  const Eigen::VectorXd zhat2 = zhat_.cwiseAbs2();
-  for (Eigen::Index l = 0; l < roots; ++l) {
-    double unused, sum;  // Σ ẑ_p² / (d_p - μ_l)²
-    pole_sums(d_.data(), zhat2.data(), q, at_origin(l), tau_(l), &unused, &sum);
-    inv_norm_(l) = 1.0 / std::sqrt(sum);
   }
   // Children by ascending eigenvalue: the roots (ascending in l) merged with the deflated poles.
   std::vector<std::pair<double, Eigen::Index>> all;
@@ -224,6 +331,24 @@ SecularLevel::SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z) :
     mu_(static_cast<Eigen::Index>(c)) = all[c].first;
     child_[c] = all[c].second;
   }
+  // The vectors' norms ‖(d - μ_l)⁻¹ ẑ‖ take a pass over the poles per root, as does a product
+  // with the child basis: with columns to carry, both share that pass (its divisions).
+  inv_norm_.resize(roots);
+  const Eigen::VectorXd zhat2 = zhat_.cwiseAbs2();
+  if (carry && carry->cols() > 0) {
+    if (carry->rows() != m_) throw std::logic_error("secular level: the carried columns do not match the parent");
+    std::vector<double> scratch(static_cast<std::size_t>(scratch_size(carry->cols())));
+    Eigen::MatrixXd child(m_ - 1, carry->cols());
+    child_pass(*carry, child, scratch.data(), &zhat2, &inv_norm_);
+    *carry = std::move(child);
+    return;
+  }
+  for (Eigen::Index l = 0; l < roots; ++l) {
+    double unused, sum;  // Σ ẑ_p² / (d_p - μ_l)²
+    pole_sums(d_.data(), zhat2.data(), q, at_origin(l), tau_(l), &unused, &sum);
+    inv_norm_(l) = 1.0 / std::sqrt(sum);
+  }
+  if (carry) *carry = Eigen::MatrixXd(m_ - 1, 0);
 }
 
 void SecularLevel::rotate(Eigen::Map<Eigen::MatrixXd>& x, bool forward) const {
@@ -247,23 +372,38 @@ void SecularLevel::to_child(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eig
 
 void SecularLevel::to_child(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eigen::Ref<Eigen::MatrixXd> child,
                             double* scratch) const {
+  child_pass(parent, child, scratch, nullptr, nullptr);
+}
+
+void SecularLevel::child_pass(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eigen::Ref<Eigen::MatrixXd> child,
+                              double* scratch, const Eigen::VectorXd* zhat2, Eigen::VectorXd* inv_norm) const {
   const Eigen::Index k = parent.cols(), q = d_.size();
   Eigen::Map<Eigen::MatrixXd> x(scratch, m_, k);
   x = parent;
   rotate(x, true);
   Eigen::Map<Eigen::MatrixXd> a(scratch + m_ * k, q, k);  // ẑ_p x_p
   for (Eigen::Index p = 0; p < q; ++p) a.row(p) = zhat_(p) * x.row(poles_[static_cast<std::size_t>(p)]);
+  for (std::size_t c = 0; c < child_.size(); ++c)  // deflated: a parent mode itself
+    if (child_[c] < 0) child.row(static_cast<Eigen::Index>(c)) = x.row(-1 - child_[c]);
+  // Blocks of 8 columns outside, roots inside: each root reads its block of a (8q doubles, 640 kB
+  // at q = 10 000, held in L2) rather than all of a, which for the hundreds of columns of a set
+  // with many stops (the rows its guards read) would stream from memory for every root.
   double out[8];
-  for (std::size_t c = 0; c < child_.size(); ++c) {
-    const Eigen::Index l = child_[c], row = static_cast<Eigen::Index>(c);
-    if (l < 0) {
-      child.row(row) = x.row(-1 - l);
-      continue;
-    }
-    for (Eigen::Index j0 = 0; j0 < k; j0 += 8) {
-      const int block = static_cast<int>(std::min<Eigen::Index>(8, k - j0));
-      cauchy_dots(d_.data(), q, d_(origin_[static_cast<std::size_t>(l)]), tau_(l), a.col(j0).data(), q, block, out);
-      for (int j = 0; j < block; ++j) child(row, j0 + j) = inv_norm_(l) * out[j];
+  for (Eigen::Index j0 = 0; j0 < k; j0 += 8) {
+    const int block = static_cast<int>(std::min<Eigen::Index>(8, k - j0));
+    for (std::size_t c = 0; c < child_.size(); ++c) {
+      const Eigen::Index l = child_[c], row = static_cast<Eigen::Index>(c);
+      if (l < 0) continue;
+      const double d_o = d_(origin_[static_cast<std::size_t>(l)]);
+      if (inv_norm && j0 == 0) {  // the norm with the first block (the constructor's pass)
+        double sum;
+        cauchy_dots(d_.data(), q, d_o, tau_(l), a.col(j0).data(), q, block, out, zhat2->data(), &sum);
+        (*inv_norm)(l) = 1.0 / std::sqrt(sum);
+      } else {
+        cauchy_dots(d_.data(), q, d_o, tau_(l), a.col(j0).data(), q, block, out);
+      }
+      const double scale = inv_norm ? (*inv_norm)(l) : inv_norm_(l);
+      for (int j = 0; j < block; ++j) child(row, j0 + j) = scale * out[j];
     }
   }
 }
@@ -274,15 +414,15 @@ void SecularLevel::to_parent(const Eigen::Ref<const Eigen::MatrixXd>& child, Eig
   Eigen::Map<Eigen::MatrixXd> x(scratch, m_, k), b(scratch + m_ * k, q, k);
   x.setZero();
   b.setZero();
+  for (std::size_t c = 0; c < child_.size(); ++c)
+    if (child_[c] < 0) x.row(-1 - child_[c]) = child.row(static_cast<Eigen::Index>(c));
+  // Blocks of columns outside, roots inside, as in to_child (each root updates one block of b).
   double coef[8];
-  for (std::size_t c = 0; c < child_.size(); ++c) {
-    const Eigen::Index l = child_[c], row = static_cast<Eigen::Index>(c);
-    if (l < 0) {
-      x.row(-1 - l) = child.row(row);
-      continue;
-    }
-    for (Eigen::Index j0 = 0; j0 < k; j0 += 8) {
-      const int block = static_cast<int>(std::min<Eigen::Index>(8, k - j0));
+  for (Eigen::Index j0 = 0; j0 < k; j0 += 8) {
+    const int block = static_cast<int>(std::min<Eigen::Index>(8, k - j0));
+    for (std::size_t c = 0; c < child_.size(); ++c) {
+      const Eigen::Index l = child_[c], row = static_cast<Eigen::Index>(c);
+      if (l < 0) continue;
       for (int j = 0; j < block; ++j) coef[j] = inv_norm_(l) * child(row, j0 + j);
       cauchy_axpys(d_.data(), q, d_(origin_[static_cast<std::size_t>(l)]), tau_(l), coef, b.col(j0).data(), q, block);
     }

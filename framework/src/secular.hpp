@@ -18,12 +18,14 @@
 //    eigenvector of the restricted problem (eigenvalue dᵢ; residual ≤ 8ε‖d‖); two poles closer
 //    than 8ε‖d‖ / |cs| are rotated (Givens, c = zᵢ/r, s = zⱼ/r) so that one of them has z = 0
 //    and is deflated the same way.
-//  * Each root is found from the pole it is closer to (decided by the sign of f at the middle of
-//    its interval) as μ = d_o + τ, with every difference dᵢ - μ formed as (dᵢ - d_o) - τ, so
+//  * Each root is found from the pole it is closer to as μ = d_o + τ (first guess: where the
+//    previous roots sat in their intervals, extrapolated; the origin moves if the root proves
+//    nearer the other pole), with every difference dᵢ - μ formed as (dᵢ - d_o) - τ, so
 //    that τ and the vectors are accurate even where poles cluster. Iteration: the "middle way"
 //    of dlaed4 (the sums over the poles below and above the root each replaced by a constant
 //    plus one pole, matching value and slope), safeguarded by bisection on the bracket, to
-//    |f| ≤ 8ε Σ|terms|.
+//    |f| ≤ 8ε Σ|terms| or a step below 1e-9 |τ| (the step is kept: the iteration converges
+//    quadratically, so the next would be below rounding).
 //  * The weights are recomputed from the roots (Löwner's formula, the residues of f):
 //        ẑ_p² = Π_{l<p} (μ_l - d_p)/(d_l - d_p) · Π_{l≥p} (μ_l - d_p)/(d_{l+1} - d_p),
 //    every factor in (0, 1], so that the computed μ are the exact eigenvalues of the problem
@@ -31,7 +33,10 @@
 //    precision (Gu & Eisenstat's argument).
 //
 // Storage O(m) (the vectors are never formed); each product with the child basis V (m × (m-1))
-// or its transpose is O(m²) per vector, and several vectors share each pass.
+// or its transpose is O(m²) per vector, and several vectors share each pass. Cost of a level:
+// passes over the q poles, one division per pole each, for every root: the root (one pass for
+// most when the weights vary smoothly, else ~3), Löwner's weights (one), the norms (one, which
+// also carries any columns given to the constructor into the child basis).
 #include <Eigen/Dense>
 
 #include <vector>
@@ -41,8 +46,10 @@ namespace vibro::detail {
 class SecularLevel {
  public:
   /// d: the parent's eigenvalues, ascending (size m ≥ 1); z: the constraint in the parent's basis.
+  /// carry (optional, m × k): columns in the parent's basis, replaced by Vᵀ carry ((m-1) × k),
+  /// computed in the pass that normalises the vectors (so they cost no pass of their own).
   /// Throws std::runtime_error if z is zero to rounding (the constraint adds nothing).
-  SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z);
+  SecularLevel(const Eigen::VectorXd& d, const Eigen::VectorXd& z, Eigen::MatrixXd* carry = nullptr);
 
   Eigen::Index parent_size() const { return m_; }
   Eigen::Index child_size() const { return m_ - 1; }
@@ -70,6 +77,10 @@ class SecularLevel {
     double c, s;  // (xᵢ, xⱼ) ← (c xᵢ + s xⱼ, -s xᵢ + c xⱼ)
   };
   void rotate(Eigen::Map<Eigen::MatrixXd>& x, bool forward) const;
+  /// to_child; with zhat2 (ẑ²) and inv_norm given, also each root's 1/‖(d - μ_l)⁻¹ ẑ‖ into
+  /// inv_norm, read from the same divisions and used for this product (the constructor's pass).
+  void child_pass(const Eigen::Ref<const Eigen::MatrixXd>& parent, Eigen::Ref<Eigen::MatrixXd> child, double* scratch,
+                  const Eigen::VectorXd* zhat2, Eigen::VectorXd* inv_norm) const;
 
   Eigen::Index m_ = 0;
   std::vector<Rotation> rotations_;

@@ -25,8 +25,14 @@
 /// log(cost per event) against log N over N = 100 … 10 000.
 ///
 /// Usage:
-///   bench_chain [--max-n N] [--impacts K] [--quick] [--eigen] [--dense]
+///   bench_chain [--max-n N] [--impacts K] [--quick] [--eigen] [--dense] [--sets-only [--n N] [--every-10th]]
 ///     --quick    N = 10, 100 and 100 impacts: a smoke test (seconds)
+///     --sets-only  only the contact-set builds of the "4 stops" chain at one N (--n, default
+///                10 000; the free chain's set-up, ~11 s at 10 000, is paid once and no run is
+///                made): set {0}, then {0, 1} on the same simulator (as in the table), then
+///                {0, 1} again on a fresh one (from scratch, nothing cached), each its CPU
+///                seconds and the peak memory after it; with --every-10th, of the "every 10th"
+///                chain instead (N/10 stops: the rows of all the free stops make the build)
 ///     --eigen    Eigen's computeFromTridiagonal instead of LAPACK (O(N³): minutes at N = 10 000)
 ///     --dense    also time the dense engine (Simulator) on the same chains with non-proportional
 ///                damping (only the wall dashpot, c = 0.02), N = 10 … 200, to show its limit
@@ -152,6 +158,32 @@ Row measure(int n, const std::string& config, vibro::TridiagonalSolver solver, l
           set1, set2, peak_mib()};
 }
 
+/// --sets-only: the contact-set columns of the table, and {0, 1} from scratch, at one N.
+void sets_only(int n, bool many, vibro::TridiagonalSolver solver) {
+  const Chain c = make_chain(n, 0.02);
+  double t = cpu_seconds();
+  const vibro::ChainModes modes(
+      vibro::BandedChain::from_links(c.masses, c.springs, c.dampers, 1.0, 0.02, 0.0, 0.0, c.forcing), solver);
+  const std::vector<vibro::Stop> stops = many ? every_tenth(n) : four_stops();
+  std::printf("N = %d, %zu stops: free set-up %.3g CPU s, peak %.0f MiB\n", n, stops.size(), cpu_seconds() - t,
+              peak_mib());
+  auto timed = [&](vibro::ModalChainSimulator& sim, const vibro::ContactSet& set, const char* what) {
+    const double before = peak_mib();
+    const double start = cpu_seconds();
+    sim.contact_mode(set);
+    const double seconds = cpu_seconds() - start;
+    std::printf("%-34s %9.3f CPU s   peak %6.0f -> %6.0f MiB\n", what, seconds, before, peak_mib());
+    std::fflush(stdout);
+  };
+  {
+    vibro::ModalChainSimulator fresh(modes, stops, {});
+    timed(fresh, {0}, "set {0}");
+    timed(fresh, {0, 1}, "set {0, 1} (after {0}, as the table)");
+  }
+  vibro::ModalChainSimulator scratch(modes, stops, {});
+  timed(scratch, {0, 1}, "set {0, 1} (from scratch)");
+}
+
 double fitted_slope(const std::vector<Row>& rows, const std::string& config) {
   double sx = 0, sy = 0, sxx = 0, sxy = 0;
   int k = 0;
@@ -215,19 +247,34 @@ void dense_limit(long impacts) {
 int main(int argc, char** argv) {
   int max_n = 10000;
   long impacts = 400;
-  bool quick = false, dense = false;
+  int sets_n = 10000;
+  bool quick = false, dense = false, sets = false, many = false;
   vibro::TridiagonalSolver solver = vibro::TridiagonalSolver::automatic;
   for (int i = 1; i < argc; ++i) {
     const std::string_view a = argv[i];
     if (a == "--quick") quick = true;
     else if (a == "--dense") dense = true;
+    else if (a == "--sets-only") sets = true;
+    else if (a == "--n" && i + 1 < argc) sets_n = std::atoi(argv[++i]);
+    else if (a == "--every-10th") many = true;
     else if (a == "--eigen") solver = vibro::TridiagonalSolver::eigen;
     else if (a == "--max-n" && i + 1 < argc) max_n = std::atoi(argv[++i]);
     else if (a == "--impacts" && i + 1 < argc) impacts = std::atol(argv[++i]);
     else {
-      std::fprintf(stderr, "usage: bench_chain [--max-n N] [--impacts K] [--quick] [--eigen] [--dense]\n");
+      std::fprintf(stderr,
+                   "usage: bench_chain [--max-n N] [--impacts K] [--quick] [--eigen] [--dense] "
+                   "[--sets-only [--n N] [--every-10th]]\n");
       return 2;
     }
+  }
+  if (sets) {
+    if (sets_n < (many ? 11 : 6)) {
+      std::fprintf(stderr, "bench_chain: --n %d: the set {0, 1} needs two stops (N ≥ 6, or 11 with --every-10th)\n",
+                   sets_n);
+      return 2;
+    }
+    sets_only(sets_n, many, solver);
+    return 0;
   }
   if (quick) {
     max_n = std::min(max_n, 100);
