@@ -80,7 +80,8 @@ class SegmentView {
 class DenseSegmentView final : public SegmentView {
  public:
   /// `scratch` (optional; the event loop passes its own) holds two augmented states of the
-  /// full system, so that state() allocates nothing; without it state() allocates.
+  /// full system, so that state() allocates nothing (after the mode's first state, which
+  /// tabulates its rows: ContactMode::state_rows); without it state() allocates.
   DenseSegmentView(const ContactMode& mode, const Segment& segment, double t_begin, double t_end,
                    double force_tolerance, Eigen::VectorXd* scratch = nullptr)
       : SegmentView(t_begin, t_end), mode_(&mode), segment_(&segment),
