@@ -191,9 +191,33 @@ void record_state(const SegmentView& view, double ts, std::vector<double>& t,
 
 }  // namespace
 
+void Samples::begin(const RunContext& run, double) {
+  // Room for the times still to come beside what an earlier run recorded.
+  const auto recorded = static_cast<Eigen::Index>(t.size());
+  if (recorded > 0 && x.rows() != run.dof)
+    throw InvalidInput("samples: a run of " + std::to_string(run.dof) + " DOF after one of " +
+                       std::to_string(x.rows()) + " DOF; use one Samples per system");
+  const Eigen::Index capacity = recorded + static_cast<Eigen::Index>(times_.size() - next_);
+  t.reserve(static_cast<std::size_t>(capacity));
+  x.conservativeResize(run.dof, capacity);
+  v.conservativeResize(run.dof, capacity);
+}
+
 void Samples::segment(const SegmentView& view) {
-  for (; next_ < times_.size() && times_[next_] <= view.t_end(); ++next_)
-    record_state(view, times_[next_], t, x, v);
+  for (; next_ < times_.size() && times_[next_] <= view.t_end(); ++next_) {
+    const double ts = times_[next_];
+    if (ts < view.t_begin()) continue;
+    const auto k = static_cast<Eigen::Index>(t.size());
+    view.state(ts, x.col(k), v.col(k));
+    t.push_back(ts);
+  }
+}
+
+void Samples::end(double) {
+  const auto recorded = static_cast<Eigen::Index>(t.size());
+  if (x.cols() == recorded) return;
+  x.conservativeResize(Eigen::NoChange, recorded);
+  v.conservativeResize(Eigen::NoChange, recorded);
 }
 
 void Poincare::begin(const RunContext& run, double t0) {
