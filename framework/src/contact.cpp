@@ -302,6 +302,15 @@ void ContactMode::expand(const Eigen::Ref<const Eigen::VectorXd>& reduced_state,
   full.noalias() = reduced().to_full * reduced_state;
 }
 
+const Functionals& ContactMode::state_rows() const {
+  if (!state_rows_) {
+    const Reduced& red = reduced();
+    const Eigen::Index n = scene_->dof();
+    state_rows_ = std::make_unique<Functionals>(*red.flow, red.to_full.topRows(2 * n));
+  }
+  return *state_rows_;
+}
+
 const ContactMode& ContactModes::get(const ContactSet& set) {
   auto it = modes_.find(set);
   if (it == modes_.end())

@@ -425,6 +425,7 @@ void Segment::reset(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0) {
   const Functionals& functionals = *functionals_;
   t0_ = t0;
   z0_ = z0;  // same size: no allocation
+  tabulated_ = nullptr;  // evaluate()'s table is of the previous start
   cached_tau_ = std::numeric_limits<double>::quiet_NaN();
   for (double& tau : cache_tau_) tau = std::numeric_limits<double>::quiet_NaN();
   for (bool& direct : cache_direct_) direct = false;
@@ -877,6 +878,81 @@ void Segment::state(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
     return;
   }
   closed_form_state(tau, exponentials(tau), out);
+}
+
+// --- evaluate(): other rows of the same flow, tabulated once per segment ----------------------
+
+void Segment::tabulate(const Functionals& other) const {
+  // αᵢᵣₚ = (ℓᵢᵀV)_r y_rp with y_rp the state's own coefficients (powers_), the product reset()
+  // forms for the segment's own rows; a spectral term is the case m = 1, degree 0. Per row, per
+  // term, per power: Re α, then -Im α only where Im λᵣ ≠ 0 (for a real λ, e^{λτ}τ^p is real and
+  // Im α is not needed). One column per row, so that evaluate() reads each row's coefficients
+  // in order.
+  const auto& terms = functionals_->flow().terms();
+  const Eigen::MatrixXcd& modal_rows = other.modal_rows();
+  const Eigen::Index rows = other.count();
+  Eigen::Index width = 0;
+  for (const auto& term : terms) width += (term.lambda.imag() != 0.0 ? 2 : 1) * (term.degree + 1);
+  table_.resize(width, rows);
+  table_e_.resize(static_cast<Eigen::Index>(terms.size()));
+  Eigen::Index at = 0, k = 0;  // at: position in powers_ (per term, per power p, m entries)
+  for (const auto& term : terms) {
+    const bool complex = term.lambda.imag() != 0.0;
+    for (int p = 0; p <= term.degree; ++p, at += term.size) {
+      for (Eigen::Index i = 0; i < rows; ++i) {
+        std::complex<double> sum = 0.0;
+        for (Eigen::Index q = 0; q < term.size; ++q) sum += modal_rows(i, term.column + q) * powers_(at + q);
+        table_(k, i) = sum.real();
+        if (complex) table_(k + 1, i) = -sum.imag();
+      }
+      k += complex ? 2 : 1;
+    }
+  }
+  tabulated_ = &other;
+}
+
+void Segment::evaluate(const Functionals& other, double tau, Eigen::Ref<Eigen::VectorXd> out) const {
+  if (!functionals_->flow().closed_form()) {
+    out.noalias() = other.rows(0) * pade_state(tau);
+    return;
+  }
+  if (tabulated_ != &other) tabulate(other);
+  // e^{λτ} is formed here rather than through the search's cache, which it would evict.
+  const auto& terms = functionals_->flow().terms();
+  const auto K = static_cast<Eigen::Index>(terms.size());
+  std::complex<double>* e = table_e_.data();
+  for (Eigen::Index r = 0; r < K; ++r) {
+    const auto& term = terms[static_cast<std::size_t>(r)];
+    const double re = term.lambda.real() * tau, g = re == 0.0 ? 1.0 : std::exp(re);
+    e[r] = term.lambda.imag() == 0.0 ? std::complex<double>(g, 0.0)
+                                     : std::complex<double>(g * std::cos(term.lambda.imag() * tau),
+                                                            g * std::sin(term.lambda.imag() * tau));
+  }
+  // Row i: Σᵣ Re(e^{λᵣτ} Σₚ αᵢᵣₚ τ^p), each polynomial by Horner's rule, written out (the
+  // tables are small in most modes, a few terms of low degree, where a library product costs
+  // more in set-up than in arithmetic; every sum stays in registers).
+  const double* a = table_.data();
+  for (Eigen::Index i = 0; i < table_.cols(); ++i) {
+    double sum = 0.0;
+    for (Eigen::Index r = 0; r < K; ++r) {
+      const int degree = terms[static_cast<std::size_t>(r)].degree;
+      if (terms[static_cast<std::size_t>(r)].lambda.imag() == 0.0) {  // as tabulate() laid it out
+        double poly = a[degree];
+        for (int p = degree - 1; p >= 0; --p) poly = poly * tau + a[p];
+        sum += poly * e[r].real();
+        a += degree + 1;
+      } else {  // (Re α, -Im α) pairs: Re(α e) = Re α Re e + (-Im α) Im e
+        double pr = a[2 * degree], pi = a[2 * degree + 1];
+        for (int p = degree - 1; p >= 0; --p) {
+          pr = pr * tau + a[2 * p];
+          pi = pi * tau + a[2 * p + 1];
+        }
+        sum += pr * e[r].real() + pi * e[r].imag();
+        a += 2 * (degree + 1);
+      }
+    }
+    out(i) = sum;
+  }
 }
 
 }  // namespace vibro

@@ -20,18 +20,33 @@ const char* to_string(EventKind kind) {
 }
 
 void DenseSegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const {
-  const auto& red = mode_->reduced();
-  const Eigen::Index full = red.to_full.rows(), size = red.flow->size();
+  const Eigen::Index n = x.size();
   Eigen::VectorXd local;
   Eigen::VectorXd& buffer = scratch_ ? *scratch_ : local;
-  if (buffer.size() < full + size) buffer.resize(full + size);
-  auto zr = buffer.head(size);
-  auto z = buffer.segment(size, full);
-  segment_->state(t - t_begin(), zr);
-  mode_->expand(zr, z);
-  const Eigen::Index n = x.size();
-  x = z.head(n);
-  v = z.segment(n, n);
+  if (t == t_end()) {
+    // At the end, the engine's own arithmetic (the reduced state, then T), bit for bit: the
+    // engine carries on from this very state (simulator.cpp), and the analysis layer joins the
+    // view's state before an event to the engine's after it, where a difference of rounding
+    // biases, e.g., a conservative system's Lyapunov sum (test_lyapunov.cpp).
+    const auto& red = mode_->reduced();
+    const Eigen::Index full = red.to_full.rows(), size = red.flow->size();
+    if (buffer.size() < full + size) buffer.resize(full + size);
+    auto zr = buffer.head(size);
+    auto z = buffer.segment(size, full);
+    segment_->state(t - t_begin(), zr);
+    mode_->expand(zr, z);
+    x = z.head(n);
+    v = z.segment(n, n);
+    return;
+  }
+  // Elsewhere x and v straight from the segment's flow through the mode's rows [x; v] (T and
+  // the basis folded into one table per segment, Segment::evaluate): a few times cheaper, the
+  // same exact form rounded in another order.
+  if (buffer.size() < 2 * n) buffer.resize(2 * n);
+  auto xv = buffer.head(2 * n);
+  segment_->evaluate(mode_->state_rows(), t - t_begin(), xv);
+  x = xv.head(n);
+  v = xv.tail(n);
 }
 
 double DenseSegmentView::force(Eigen::Index a, double t) const {
@@ -176,9 +191,33 @@ void record_state(const SegmentView& view, double ts, std::vector<double>& t,
 
 }  // namespace
 
+void Samples::begin(const RunContext& run, double) {
+  // Room for the times still to come beside what an earlier run recorded.
+  const auto recorded = static_cast<Eigen::Index>(t.size());
+  if (recorded > 0 && x.rows() != run.dof)
+    throw InvalidInput("samples: a run of " + std::to_string(run.dof) + " DOF after one of " +
+                       std::to_string(x.rows()) + " DOF; use one Samples per system");
+  const Eigen::Index capacity = recorded + static_cast<Eigen::Index>(times_.size() - next_);
+  t.reserve(static_cast<std::size_t>(capacity));
+  x.conservativeResize(run.dof, capacity);
+  v.conservativeResize(run.dof, capacity);
+}
+
 void Samples::segment(const SegmentView& view) {
-  for (; next_ < times_.size() && times_[next_] <= view.t_end(); ++next_)
-    record_state(view, times_[next_], t, x, v);
+  for (; next_ < times_.size() && times_[next_] <= view.t_end(); ++next_) {
+    const double ts = times_[next_];
+    if (ts < view.t_begin()) continue;
+    const auto k = static_cast<Eigen::Index>(t.size());
+    view.state(ts, x.col(k), v.col(k));
+    t.push_back(ts);
+  }
+}
+
+void Samples::end(double) {
+  const auto recorded = static_cast<Eigen::Index>(t.size());
+  if (x.cols() == recorded) return;
+  x.conservativeResize(Eigen::NoChange, recorded);
+  v.conservativeResize(Eigen::NoChange, recorded);
 }
 
 void Poincare::begin(const RunContext& run, double t0) {

@@ -4,7 +4,8 @@
 /// allocators interposed (Eigen allocates through malloc, not operator new) — and a run after
 /// its warm-up (the contact sets it visits built, the per-mode scratch sized) must make none
 /// between its first event after the warm-up and its end. An observer that allocates nothing
-/// itself switches the count on and off. This is its own executable: the replaced allocators
+/// itself switches the count on and off. The dense engine's runs also record states on a grid
+/// (vibro::Samples, storage sized at the run's start): recording must allocate nothing either. This is its own executable: the replaced allocators
 /// must not reach the other tests (ctest runs them as separate processes anyway).
 #include "vibro/modal.hpp"
 #include "vibro/models/chain.hpp"
@@ -130,12 +131,18 @@ struct Counted {
   vibro::RunStatus status = vibro::RunStatus::completed;
 };
 
+/// With `samples` states on an even grid over [0, t_end] (the window first among the observers,
+/// so that its end() stops the count before any other observer's).
 Counted dense_run(const vibro::ImpactSystem& scene, const VectorXd& x0, const VectorXd& v0, double warm_up,
-                  double t_end) {
+                  double t_end, int samples = 4000) {
   vibro::Simulator sim(scene);
   AllocationWindow window(warm_up);
-  const vibro::RunSummary s = sim.run(0.0, x0, v0, t_end, {&window});
+  std::vector<double> times;
+  for (int i = 0; i < samples; ++i) times.push_back(t_end * i / samples);
+  vibro::Samples grid(times);
+  const vibro::RunSummary s = sim.run(0.0, x0, v0, t_end, {&window, &grid});
   g_counting.store(false);
+  REQUIRE(grid.t.size() == times.size());
   return {g_allocations.load(), window.events, s.status};
 }
 

@@ -153,7 +153,7 @@ TEST_CASE(
 
 struct PaperRun {
   std::vector<Event> events;
-  std::vector<VectorXd> x, v;
+  Eigen::MatrixXd x, v;  // a column per sample
   double L = 0.0, V = 0.0;
   long impacts = 0;
 };
@@ -203,19 +203,19 @@ std::vector<std::pair<double, double>> tails(const PaperRun& run) {
 /// tails: there the true motion still bounces (rebound speeds up to r u, heights up to
 /// chatter_height·L) while a run that ended the chatter holds the stop, whatever the rule.
 double state_error(const PaperRun& run, const PaperRun& tight, double t_end) {
-  REQUIRE(run.x.size() == tight.x.size());
+  REQUIRE(run.x.cols() == tight.x.cols());
   std::vector<std::pair<double, double>> skip = tails(run);
   for (const auto& tail : tails(tight)) skip.push_back(tail);
   double err = 0.0;
-  const auto count = run.x.size();
+  const Eigen::Index count = run.x.cols();
   long used = 0;
-  for (std::size_t i = 0; i < count; ++i) {
+  for (Eigen::Index i = 0; i < count; ++i) {
     const double t = t_end * static_cast<double>(i + 1) / static_cast<double>(count);
     if (std::any_of(skip.begin(), skip.end(), [&](const auto& tail) { return t >= tail.first && t <= tail.second; }))
       continue;
     ++used;
-    err = std::max(err, (run.x[i] - tight.x[i]).cwiseAbs().maxCoeff() / tight.L);
-    err = std::max(err, (run.v[i] - tight.v[i]).cwiseAbs().maxCoeff() / tight.V);
+    err = std::max(err, (run.x.col(i) - tight.x.col(i)).cwiseAbs().maxCoeff() / tight.L);
+    err = std::max(err, (run.v.col(i) - tight.v.col(i)).cwiseAbs().maxCoeff() / tight.V);
   }
   REQUIRE(used > static_cast<long>(count) / 2);
   return err;

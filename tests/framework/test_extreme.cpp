@@ -262,10 +262,8 @@ Run simulate(const ImpactSystem& scene, double t0, const VectorXd& x0, const Vec
   run.summary = sim.run(t0, x0, v0, t_end, {&run.audit, &run.dense});
   run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   double worst = run.audit.gap_max;
-  for (std::size_t i = 0; i < run.dense.t.size(); ++i) {
-    worst = std::max(worst, max_gap(scene, run.dense.x[i]));
-    run.finite = run.finite && run.dense.x[i].allFinite() && run.dense.v[i].allFinite();
-  }
+  for (Eigen::Index k = 0; k < run.dense.x.cols(); ++k) worst = std::max(worst, max_gap(scene, run.dense.x.col(k)));
+  run.finite = run.finite && run.dense.x.allFinite() && run.dense.v.allFinite();
   run.finite = run.finite && run.audit.all_finite && run.summary.x.allFinite() &&
                run.summary.v.allFinite();
   run.penetration = worst / run.summary.length_scale;

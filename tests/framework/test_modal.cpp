@@ -196,8 +196,8 @@ void compare_with_dense(int n, double periods) {
   CHECK(dv <= 1e-10 * ms.velocity_scale);
   CHECK(max_relative(ms.x, ds.x) <= 1e-10);
   CHECK(max_relative(ms.v, ds.v) <= 1e-10);
-  REQUIRE(samples.x.size() == 2);
-  CHECK(max_relative(samples.x[1], ms.x) <= 1e-13);
+  REQUIRE(samples.x.cols() == 2);
+  CHECK(max_relative(samples.x.col(1), ms.x) <= 1e-13);
   CHECK(ms.impacts == ds.impacts);
 }
 

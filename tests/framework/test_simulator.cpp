@@ -323,7 +323,7 @@ Run simulate(const ImpactSystem& scene, double t0, const VectorXd& x0, const Vec
   run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   double worst = run.audit.gap_max;
   for (std::size_t i = 0; i < dense.t.size(); ++i)
-    worst = std::max(worst, max_gap(scene, dense.t[i], dense.x[i]));
+    worst = std::max(worst, max_gap(scene, dense.t[i], dense.x.col(static_cast<Eigen::Index>(i))));
   run.penetration = worst / run.summary.length_scale;
   run.sampled = static_cast<long>(dense.t.size());
   return run;

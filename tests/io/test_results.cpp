@@ -133,11 +133,16 @@ Eigen::MatrixXd stacked(const std::vector<Eigen::VectorXd>& rows, Eigen::Index c
   return out;
 }
 
-/// The rows one after the other, as one row (how a point's block is flattened).
-Eigen::RowVectorXd flattened(const std::vector<Eigen::VectorXd>& rows) {
-  std::vector<double> values;
-  for (const Eigen::VectorXd& row : rows) values.insert(values.end(), row.data(), row.data() + row.size());
-  return Eigen::Map<const Eigen::RowVectorXd>(values.data(), static_cast<Eigen::Index>(values.size()));
+/// Samples' layout: one column per sample.
+Eigen::MatrixXd stacked(const Eigen::MatrixXd& columns, Eigen::Index cols) {
+  REQUIRE(columns.rows() == cols);
+  return columns.transpose();
+}
+
+/// The samples one after the other, as one row (how a point's block is flattened); Samples'
+/// columns are already in that order (column-major).
+Eigen::RowVectorXd flattened(const Eigen::MatrixXd& columns) {
+  return Eigen::Map<const Eigen::RowVectorXd>(columns.data(), columns.size());
 }
 
 /// Equal bit for bit (so NaN fill equals NaN fill).
@@ -333,7 +338,7 @@ TEST_CASE("A value that is not finite is never written", "[results]") {
   Cleanup cleanup{{path}};
   const Scene scene = make_scene(0.255, record_everything(), simulate_run(2.0));
   Recording rec = run(scene);
-  rec.samples->x[3](1) = std::nan("");
+  rec.samples->x(1, 3) = std::nan("");
   {
     ResultFile file = ResultFile::create(path, scene, current_meta(1));
     CHECK_THROWS_WITH(file.write_simulation(rec),

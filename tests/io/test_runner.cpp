@@ -108,8 +108,8 @@ TEST_CASE("a simulation's file holds exactly what the library computes", "[runne
     CHECK(file.read("/events/v_before")[i] == events.events[i].v_before);
   }
   const Eigen::MatrixXd x = file.read_matrix("/samples/x");
-  REQUIRE(static_cast<std::size_t>(x.rows()) == samples.x.size());
-  for (Eigen::Index i = 0; i < x.rows(); ++i) CHECK(x.row(i).transpose() == samples.x[static_cast<std::size_t>(i)]);
+  REQUIRE(x.rows() == samples.x.cols());
+  for (Eigen::Index i = 0; i < x.rows(); ++i) CHECK(x.row(i).transpose() == samples.x.col(i));
   CHECK(file.attribute_string("/scene", "yaml") == kScene);
   // Counts are the recorded run's, as the recorded events are (docs/results.md): the transient's
   // impacts (3 periods of chatter here) are not in them.

@@ -22,7 +22,7 @@
 namespace {
 
 struct Result {
-  std::vector<Eigen::VectorXd> x;
+  Eigen::MatrixXd x;  // a column per sample
   long impacts = 0;
   double seconds = 0.0;
   double length = 0.0;
@@ -53,8 +53,8 @@ void study(const char* name, const vibro::ImpactSystem& scene, double t_end) {
   for (double h : {1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12}) {
     const Result r = run(scene, t_end, h);
     double err = 0.0;
-    for (std::size_t i = 0; i < r.x.size() && i < ref.x.size(); ++i)
-      err = std::max(err, (r.x[i] - ref.x[i]).cwiseAbs().maxCoeff());
+    for (Eigen::Index i = 0; i < r.x.cols() && i < ref.x.cols(); ++i)
+      err = std::max(err, (r.x.col(i) - ref.x.col(i)).cwiseAbs().maxCoeff());
     std::printf("| %.0e | %.2e | %ld | %.2f |\n", h, err / ref.length, r.impacts, 1e3 * r.seconds);
   }
   std::printf("| 1e-13 (reference) | 0 | %ld | %.2f |\n", ref.impacts, 1e3 * ref.seconds);

@@ -63,7 +63,7 @@ struct Settings {
 };
 
 struct Sampled {
-  std::vector<Eigen::VectorXd> x, v;
+  Eigen::MatrixXd x, v;  // a column per sample
   vibro::RunSummary summary;
   std::vector<vibro::Event> events;
 };
@@ -189,16 +189,16 @@ std::vector<std::pair<double, double>> tails(const Sampled& run) {
 double state_error(const Sampled& run, const Sampled& ref, double t_end) {
   const double L = ref.summary.length_scale, V = ref.summary.velocity_scale;
   double err = 0.0;
-  const std::size_t count = std::min(run.x.size(), ref.x.size());
-  if (run.x.size() != ref.x.size()) return std::numeric_limits<double>::infinity();
+  const Eigen::Index count = std::min(run.x.cols(), ref.x.cols());
+  if (run.x.cols() != ref.x.cols()) return std::numeric_limits<double>::infinity();
   std::vector<std::pair<double, double>> skip = tails(run);
   for (const auto& tail : tails(ref)) skip.push_back(tail);
-  for (std::size_t i = 0; i < count; ++i) {
+  for (Eigen::Index i = 0; i < count; ++i) {
     const double t = t_end * static_cast<double>(i + 1) / static_cast<double>(count);
     if (std::any_of(skip.begin(), skip.end(), [&](const auto& s) { return t >= s.first && t <= s.second; }))
       continue;
-    err = std::max(err, (run.x[i] - ref.x[i]).cwiseAbs().maxCoeff() / L);
-    err = std::max(err, (run.v[i] - ref.v[i]).cwiseAbs().maxCoeff() / V);
+    err = std::max(err, (run.x.col(i) - ref.x.col(i)).cwiseAbs().maxCoeff() / L);
+    err = std::max(err, (run.v.col(i) - ref.v.col(i)).cwiseAbs().maxCoeff() / V);
   }
   return err;
 }

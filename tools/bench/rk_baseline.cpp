@@ -492,7 +492,20 @@ RkResult RkBaseline::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vect
     rk78 = p.get();
     stepper = std::move(p);
   }
+  std::size_t next_sample = 0;
+  while (next_sample < sample_times.size() && sample_times[next_sample] < t0) ++next_sample;
+  const auto wanted = static_cast<Eigen::Index>(
+      std::upper_bound(sample_times.begin(), sample_times.end(), t_end) - sample_times.begin()) -
+      static_cast<Eigen::Index>(next_sample);
+  result.x.resize(n, std::max<Eigen::Index>(wanted, 0));
+  result.v.resize(n, result.x.cols());
+  Eigen::Index taken = 0;
+  auto trim_samples = [&] {  // a run that stopped early took fewer
+    result.x.conservativeResize(Eigen::NoChange, taken);
+    result.v.conservativeResize(Eigen::NoChange, taken);
+  };
   auto fail = [&](const std::string& why) {
+    trim_samples();
     result.ok = false;
     result.message = why + " at t = " + number_text(im.t);
     result.rhs = im.dyn.evaluations;
@@ -508,13 +521,12 @@ RkResult RkBaseline::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vect
     im.x = Eigen::Map<const Eigen::VectorXd>(s.data(), n);
     im.v = Eigen::Map<const Eigen::VectorXd>(s.data() + n, n);
   };
-  std::size_t next_sample = 0;
-  while (next_sample < sample_times.size() && sample_times[next_sample] < t0) ++next_sample;
   auto record_until = [&](double t_hi) {  // samples in (previous, t_hi] from the current step
-    while (next_sample < sample_times.size() && sample_times[next_sample] <= t_hi) {
+    while (next_sample < sample_times.size() && sample_times[next_sample] <= t_hi && taken < result.x.cols()) {
       stepper->state_at(sample_times[next_sample], zt);
-      result.x.emplace_back(Eigen::Map<const Eigen::VectorXd>(zt.data(), n));
-      result.v.emplace_back(Eigen::Map<const Eigen::VectorXd>(zt.data() + n, n));
+      result.x.col(taken) = Eigen::Map<const Eigen::VectorXd>(zt.data(), n);
+      result.v.col(taken) = Eigen::Map<const Eigen::VectorXd>(zt.data() + n, n);
+      ++taken;
       ++next_sample;
     }
   };
@@ -630,6 +642,7 @@ RkResult RkBaseline::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vect
   } catch (const std::runtime_error& e) {
     return fail(e.what());
   }
+  trim_samples();
   result.rhs = im.dyn.evaluations;
   if (rk78) result.rejected = rk78->rejected;
   return result;

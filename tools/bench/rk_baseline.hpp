@@ -62,7 +62,9 @@ struct RkResult {
   bool ok = true;
   std::string message;
   std::vector<Event> events;              ///< impacts, sticks, releases, chatter limits
-  std::vector<Eigen::VectorXd> x, v;      ///< at the requested sample times
+  /// At the requested sample times, a column each (n × samples taken): sized once for all the
+  /// times in [t0, t_end] and filled in place, as vibro::Samples stores the framework's.
+  Eigen::MatrixXd x, v;
   long steps = 0, rejected = 0, rhs = 0;  ///< accepted steps, rejected steps, RHS evaluations
   long impacts = 0;
 };

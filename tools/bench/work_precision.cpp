@@ -24,7 +24,13 @@
 ///   sticking max over stops |p - p_ref|, p = time held / run length, a held interval starting
 ///            at the stick time or, after chatter, at the logged Budd–Dux accumulation time.
 /// CPU time: the median over repeated runs of this thread's CPU time (CLOCK_THREAD_CPUTIME_ID),
-/// including recording the grid samples and the events.
+/// including recording the grid samples and the events. Both sides store the samples alike: in
+/// an n × samples matrix sized once before the run and filled in place (vibro::Samples; the
+/// baseline's RkResult), which Trajectory keeps and compare() reads. Until issue 13 both pushed
+/// two vectors per sample: on c (2000 samples, ~50 µs of simulation) their allocations were a
+/// third of the framework's time and timed storage more than integration. The framework's
+/// states come from a per-segment table of the contact mode's [x; v] (Segment::evaluate): a few
+/// real operations a sample, where the baseline evaluates its dense output (or re-steps).
 ///
 /// Usage: work_precision [--quick] [--out DIR] [--problems abcd]
 ///   writes DIR/work_precision.csv (one line per run setting) and DIR/work_precision.json
@@ -77,7 +83,7 @@ struct Problem {
 struct Trajectory {
   bool ok = true;
   std::string message;
-  std::vector<VectorXd> x, v;
+  Eigen::MatrixXd x, v;  // a column per grid sample
   std::vector<Event> events;
   long impacts = 0;
   long work = 0;  // segments (framework) or accepted steps (baseline)
@@ -149,11 +155,11 @@ Errors compare(const Problem& p, const Trajectory& run, const Trajectory& ref) {
   if (!run.ok) return e;
   e.state = 0.0;
   e.velocity = 0.0;
-  const std::size_t m = std::min(run.x.size(), ref.x.size());
-  if (run.x.size() != ref.x.size()) e.state = e.velocity = INFINITY;  // a run that lost samples
-  for (std::size_t i = 0; i < m; ++i) {
-    e.state = std::max(e.state, (run.x[i] - ref.x[i]).cwiseAbs().maxCoeff() / p.L);
-    e.velocity = std::max(e.velocity, (run.v[i] - ref.v[i]).cwiseAbs().maxCoeff() / p.V);
+  const Eigen::Index m = std::min(run.x.cols(), ref.x.cols());
+  if (run.x.cols() != ref.x.cols()) e.state = e.velocity = INFINITY;  // a run that lost samples
+  for (Eigen::Index i = 0; i < m; ++i) {
+    e.state = std::max(e.state, (run.x.col(i) - ref.x.col(i)).cwiseAbs().maxCoeff() / p.L);
+    e.velocity = std::max(e.velocity, (run.v.col(i) - ref.v.col(i)).cwiseAbs().maxCoeff() / p.V);
   }
   const int stops = static_cast<int>(p.scene->stop_count());
   match_impacts(run.events, ref.events, stops, p.T, e);
@@ -227,7 +233,10 @@ Trajectory closed_form_bounce(const Problem& p) {
   Trajectory t;
   for (std::size_t k = 0; k < tk.size(); ++k) t.events.push_back({tk[k], 0, EventKind::impact, uk[k], -r * uk[k], 0.0});
   t.events.push_back({t_inf, 0, EventKind::chatter_limit, 0.0, 0.0, g});
-  for (double s : p.grid) {
+  t.x.resize(1, static_cast<Eigen::Index>(p.grid.size()));
+  t.v.resize(1, t.x.cols());
+  for (std::size_t i = 0; i < p.grid.size(); ++i) {
+    const double s = p.grid[i];
     double x, v;
     if (s < tk[0]) {
       x = h - 0.5 * g * s * s;
@@ -247,8 +256,8 @@ Trajectory closed_form_bounce(const Problem& p) {
         v = w - g * tau;
       }
     }
-    t.x.push_back(VectorXd::Constant(1, x));
-    t.v.push_back(VectorXd::Constant(1, v));
+    t.x(0, static_cast<Eigen::Index>(i)) = x;
+    t.v(0, static_cast<Eigen::Index>(i)) = v;
   }
   return t;
 }
@@ -507,8 +516,8 @@ int main(int argc, char** argv) {
         e.sticking = std::max(e.sticking, std::abs(h1[static_cast<std::size_t>(j)] - h2[static_cast<std::size_t>(j)]));
       // Final state: the framework's last grid sample is at t_end.
       const VectorXd hx = h.x.cast<double>(), hv = h.v.cast<double>();
-      e.state = (fw_tight.result.x.back() - hx).cwiseAbs().maxCoeff() / p.L;
-      e.velocity = (fw_tight.result.v.back() - hv).cwiseAbs().maxCoeff() / p.V;
+      e.state = (fw_tight.result.x.rightCols(1) - hx).cwiseAbs().maxCoeff() / p.L;
+      e.velocity = (fw_tight.result.v.rightCols(1) - hv).cwiseAbs().maxCoeff() / p.V;
       // Release times matched the same way (releases as "impacts" of a relabelled list).
       auto releases = [](const std::vector<Event>& ev) {
         std::vector<Event> r;

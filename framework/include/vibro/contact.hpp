@@ -106,6 +106,11 @@ class ContactMode {
   /// The full augmented state T·z_r from a reduced one (the empty set's T is the identity),
   /// without allocating; `full` has size 2n + 3 and may not alias `reduced_state`.
   void expand(const Eigen::Ref<const Eigen::VectorXd>& reduced_state, Eigen::Ref<Eigen::VectorXd> full) const;
+  /// The full system's positions and velocities [x; v] as functionals of the reduced augmented
+  /// state (the first 2n rows of T), for states asked for at many times (DenseSegmentView::state,
+  /// through Segment::evaluate: T and the flow's basis folded into one table). Built on first
+  /// call, so a mode whose states no observer asks for never pays for it.
+  const Functionals& state_rows() const;
 
  private:
   void build_reduced() const;
@@ -116,6 +121,7 @@ class ContactMode {
   Eigen::MatrixXd normals_;  // W (n × m)
   Eigen::MatrixXd delassus_, minv_w_, restitution_;
   mutable std::unique_ptr<Reduced> reduced_;
+  mutable std::unique_ptr<Functionals> state_rows_;  // after reduced_: it points into its flow
 };
 
 /// The lazily built modes of one scene, keyed by contact set. Not thread-safe: each simulation

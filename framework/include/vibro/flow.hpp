@@ -274,6 +274,16 @@ class Segment {
   double magnitude(Eigen::Index i) const;
   /// Full augmented state at s.tau, from the sample's exponentials.
   void state(const SegmentSample& s, Eigen::Ref<Eigen::VectorXd> out) const;
+  /// out = (ℓᵢᵀ z(τ))ᵢ for the rows of `other`, functionals of the same flow that are not the
+  /// segment's own (e.g. a contact mode's positions and velocities of the full system, which
+  /// observers ask for at many τ). Exponential-polynomial form: their coefficients αᵢᵣₚ (as in
+  /// the class comment) are tabulated on the first call after a reset, O(rows · N · m), as real
+  /// numbers Re α and, for a complex λᵣ, -Im α; each call then costs one exponential per term
+  /// and, per row, Σᵣ Re(e^{λᵣτ} Σₚ αᵢᵣₚ τ^p) in real arithmetic: the same exact form as
+  /// state(), rounded in another order, without forming z. Padé path: the rows times the Padé
+  /// state. Allocates only on a Segment's first call (or a first call with
+  /// rows of a new size); touches neither the exponentials' cache nor evaluations().
+  void evaluate(const Functionals& other, double tau, Eigen::Ref<Eigen::VectorXd> out) const;
   /// Evaluations of the exponentials since construction (one per sample or uncached τ; one
   /// matrix exponential on the Padé path): the unit of work of the event search.
   long evaluations() const { return evaluations_; }
@@ -322,6 +332,12 @@ class Segment {
   mutable Eigen::MatrixXcd cache_e_;
   mutable Eigen::MatrixXd cache_growth_;
   mutable Eigen::VectorXcd scratch_;  // state(): the terms' vectors at τ
+  // evaluate(): the table of the rows it was last asked for (null: none since the last reset),
+  // one column per row, and e^{λᵣτ} per term.
+  void tabulate(const Functionals& other) const;
+  mutable const Functionals* tabulated_ = nullptr;
+  mutable Eigen::MatrixXd table_;
+  mutable Eigen::VectorXcd table_e_;
 };
 
 }  // namespace vibro

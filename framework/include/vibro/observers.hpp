@@ -80,7 +80,8 @@ class SegmentView {
 class DenseSegmentView final : public SegmentView {
  public:
   /// `scratch` (optional; the event loop passes its own) holds two augmented states of the
-  /// full system, so that state() allocates nothing; without it state() allocates.
+  /// full system, so that state() allocates nothing (after the mode's first state, which
+  /// tabulates its rows: ContactMode::state_rows); without it state() allocates.
   DenseSegmentView(const ContactMode& mode, const Segment& segment, double t_begin, double t_end,
                    double force_tolerance, Eigen::VectorXd* scratch = nullptr)
       : SegmentView(t_begin, t_end), mode_(&mode), segment_(&segment),
@@ -144,20 +145,32 @@ class ContactLog : public Observer {
   std::vector<double> last_end_force_;  // per stop: λ at the end of its last segment
 };
 
-/// Exact states at requested times (sorted ascending).
+/// Exact states at requested times (sorted ascending): column k of x and v is the state at t[k].
+/// Both the times and n are known when a run begins, so begin() sizes the storage of every
+/// requested time at once and recording a sample allocates nothing (a vector per sample cost
+/// more than evaluating it). A time before the run's start or after its end is not recorded;
+/// end() drops the columns left over. A second run with the same Samples carries on with the
+/// times after the last one taken, appending its columns.
+///
+///     vibro::Samples samples({0.5, 1.0, 1.5});
+///     sim.run(t0, x0, v0, 2.0, {&samples});
+///     samples.x.col(1);  // x at t = 1.0 (n)
 class Samples : public Observer {
  public:
   explicit Samples(std::vector<double> times) : times_(std::move(times)) {}
+  void begin(const RunContext& run, double t0) override;
   void segment(const SegmentView& view) override;
+  void end(double t_end) override;
   std::vector<double> t;
-  std::vector<Eigen::VectorXd> x, v;
+  Eigen::MatrixXd x, v;  ///< n × t.size()
 
  private:
   std::vector<double> times_;
   std::size_t next_ = 0;
 };
 
-/// States at t = phase + k·2π/Ω, k = 0, 1, … (Ω > 0 required).
+/// States at t = phase + k·2π/Ω, k = 0, 1, … (Ω > 0 required). How many is not known before
+/// the run ends, so each is stored as it comes (one vector each: a few per forcing period).
 class Poincare : public Observer {
  public:
   explicit Poincare(double phase_time = 0.0) : phase_time_(phase_time) {}

@@ -306,6 +306,16 @@ Column rows_column(std::string name, const std::vector<Eigen::VectorXd>& rows, E
                {static_cast<hsize_t>(rows.size()), static_cast<hsize_t>(cols)});
 }
 
+/// columns.cols() × cols from the columns of an n × r matrix (Samples' layout, column-major: its
+/// storage is already the r × n array row by row).
+Column rows_column(std::string name, const Eigen::MatrixXd& columns, Eigen::Index cols) {
+  if (columns.cols() > 0 && columns.rows() != cols)
+    throw std::logic_error("results: " + name + ": the columns have " + std::to_string(columns.rows()) +
+                           " entries, expected " + std::to_string(cols));
+  return reals(std::move(name), std::vector<double>(columns.data(), columns.data() + columns.size()),
+               {static_cast<hsize_t>(columns.cols()), static_cast<hsize_t>(cols)});
+}
+
 /// "[2, 1]" for flat index 5 of a 3×2 array.
 std::string index_text(hsize_t flat, const Dims& shape) {
   std::vector<hsize_t> index(shape.size());
@@ -784,8 +794,9 @@ std::vector<std::string> event_kind_names() {
           to_string(EventKind::chatter_limit)};
 }
 
-Table states_table(std::string group, const std::vector<double>& t,
-                   const std::vector<Eigen::VectorXd>& x, const std::vector<Eigen::VectorXd>& v,
+/// States is Samples' n × r matrix or Poincaré's vector of r vectors (see rows_column).
+template <class States>
+Table states_table(std::string group, const std::vector<double>& t, const States& x, const States& v,
                    Eigen::Index dof) {
   Table table{std::move(group), false, t.size(), {}};
   table.columns.push_back(reals("t", t, {t.size()}));

@@ -539,6 +539,11 @@ class Encoder {
     put<std::uint64_t>(static_cast<std::uint64_t>(v.size()));
     append(v.data(), static_cast<std::size_t>(v.size()) * sizeof(Scalar));
   }
+  void put(const Eigen::MatrixXd& m) {
+    put<std::uint64_t>(static_cast<std::uint64_t>(m.rows()));
+    put<std::uint64_t>(static_cast<std::uint64_t>(m.cols()));
+    append(m.data(), static_cast<std::size_t>(m.size()) * sizeof(double));
+  }
   template <class Scalar>
   void put(const std::vector<Eigen::Matrix<Scalar, Eigen::Dynamic, 1>>& vs) {
     put<std::uint64_t>(vs.size());
@@ -575,6 +580,16 @@ class Decoder {
   void get(Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& v) {
     v.resize(static_cast<Eigen::Index>(count(sizeof(Scalar))));
     take(v.data(), static_cast<std::size_t>(v.size()) * sizeof(Scalar));
+  }
+  void get(Eigen::MatrixXd& m) {
+    std::uint64_t rows = 0, cols = 0;
+    get(rows);
+    get(cols);
+    // rows · cols could overflow: compare against what is left, one factor at a time.
+    if (rows > 0 && cols > (bytes_.size() - at_) / sizeof(double) / rows)
+      throw std::logic_error("runner: a received recording is truncated");
+    m.resize(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(cols));
+    take(m.data(), static_cast<std::size_t>(m.size()) * sizeof(double));
   }
   template <class Scalar>
   void get(std::vector<Eigen::Matrix<Scalar, Eigen::Dynamic, 1>>& vs) {
