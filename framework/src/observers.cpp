@@ -23,11 +23,12 @@ void DenseSegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref
   const Eigen::Index n = x.size();
   Eigen::VectorXd local;
   Eigen::VectorXd& buffer = scratch_ ? *scratch_ : local;
-  if (t == t_end()) {
-    // At the end, the engine's own arithmetic (the reduced state, then T), bit for bit: the
-    // engine carries on from this very state (simulator.cpp), and the analysis layer joins the
-    // view's state before an event to the engine's after it, where a difference of rounding
-    // biases, e.g., a conservative system's Lyapunov sum (test_lyapunov.cpp).
+  if (t == t_end() || t == t_begin()) {
+    // At the ends, the engine's own arithmetic (the reduced state, then T), bit for bit as
+    // before the table below: the engine carries on from the end state (simulator.cpp), and the
+    // analysis layer joins the view's states on either side of an event (linearisation.cpp
+    // reads both ends of every segment), where a difference of rounding biases, e.g., a
+    // conservative system's Lyapunov sum (test_lyapunov.cpp).
     const auto& red = mode_->reduced();
     const Eigen::Index full = red.to_full.rows(), size = red.flow->size();
     if (buffer.size() < full + size) buffer.resize(full + size);
