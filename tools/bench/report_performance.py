@@ -201,7 +201,8 @@ def main():
       f"run has {a['events']:.1f} events per period, so 50 µs per period needs ≤ {50 / a['events']:.2f} µs per "
       f"event; it takes {per_event:.2f}. Guard work per search is already at the target ({a['guards_median']:.0f} "
       "median); what is left is its unit cost: "
-      + (f"the complex exponentials of the modal terms (`sincos`, `exp`, `Segment::fill_exponentials`) take "
+      + (f"the complex exponentials of the modal terms (`sincos`, `exp`, `Segment::fill_exponentials`, which "
+         f"since this stop takes a degree-8 series from the nearest evaluated point for most evaluations) take "
          f"{share(r'sincos|exp_fma|^exp@|fill_exponentials|Segment::exponentials'):.0f} % of the profile below, the "
          f"certified search (`Segment::sample`, the cubic and quadratic bounds, root models, `CrossingFinder`) "
          f"{share(r'Segment::sample|cubic_max|certified|model_root|CrossingFinder|closed_form_bound|derivative_bound|row_value'):.0f} %, "
@@ -215,9 +216,12 @@ def main():
       "dozen flops, so the framework's margin is the number of steps per event, not the cost of each.")
     p("")
     p("**Modal contact sets:** a set of k held stops is built by the secular equation on the free chain's modes "
-      "(src/secular.hpp: O(kN) memory, O(kN²) time), so one held stop is near 1 s at N = 10 000 and two take "
-      "about twice that; memory per set is far below the target. The free chain's own set-up (the `set-up s` "
-      "column of bench_chain, LAPACK dstemr on the full tridiagonal chain) is separate and still O(N²).")
+      "(src/secular.hpp: O(kN) memory, O(kN²) time): each level's passes run four poles at a time in vector "
+      "lanes, each root starts from a guess extrapolated from its neighbours' (one pass for 99 % of them at "
+      "N = 10 000), and the forcing and the later stops' constraints ride along in the pass that normalises the "
+      "vectors. `bench_chain --sets-only --n 10000` times the builds alone (from scratch too). The free chain's "
+      "own set-up (the `set-up s` column of bench_chain, LAPACK dstemr on the full tridiagonal chain) is separate "
+      "and still O(N²).")
     p("")
     if profile:
         p("## Where (a)'s time goes (`perf record` of `bench_engine --timing-only --problem a --height 1e-9`)")
