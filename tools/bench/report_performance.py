@@ -120,7 +120,7 @@ def main():
     p("# Performance")
     p("")
     p("Every number below comes from ONE run of `bash tools/bench/report.sh` (it builds what is missing, "
-      "then runs the benchmarks one after the other on one thread; 4–10 minutes on 2 shared cores, this run's wall time below). "
+      "then runs the benchmarks one after the other on one thread; 2.5–10 minutes on 2 shared cores, once built, this run's wall time below). "
       "The README quotes this file and nothing else; re-running the script overwrites it, "
       "docs/accuracy-work-precision.md and docs/figures/work_precision_*.png.")
     p("")
