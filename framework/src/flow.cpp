@@ -565,6 +565,25 @@ constexpr double kSeriesReach = 0x1p-5;
 /// 1/k!, k = 0…8.
 constexpr double kFactorial[9] = {1.0, 1.0, 1.0 / 2, 1.0 / 6, 1.0 / 24, 1.0 / 120, 1.0 / 720, 1.0 / 5040, 1.0 / 40320};
 
+/// e^{λᵣτ} = e^{Re λᵣτ} (cos Im λᵣτ + i sin Im λᵣτ) for every term by exp and sincos, with the
+/// real (damped modes without oscillation, the constant) and the purely imaginary (the forcing)
+/// cases taking one call; growth (if not null) |e^{λᵣτ}|. The one direct formula of the segment's
+/// exponentials, for the search (fill_exponentials) and the observers' states (evaluate).
+void direct_exponentials(const std::vector<LinearFlow::Term>& terms, double tau, std::complex<double>* e,
+                         double* growth) {
+  for (std::size_t r = 0; r < terms.size(); ++r) {
+    const double re = terms[r].lambda.real() * tau, im = terms[r].lambda.imag() * tau;
+    const double g = re == 0.0 ? 1.0 : std::exp(re);
+    if (growth) growth[r] = g;
+    if (im == 0.0) {
+      e[r] = {g, 0.0};
+    } else {
+      const double cs = std::cos(im), sn = std::sin(im);
+      e[r] = {g * cs, g * sn};
+    }
+  }
+}
+
 }  // namespace
 
 void Segment::fill_exponentials(double tau, std::complex<double>* e, double* growth, bool* direct) const {
@@ -618,19 +637,7 @@ void Segment::fill_exponentials(double tau, std::complex<double>* e, double* gro
     *direct = base < 0;
     return;
   }
-  // e^{λτ} = e^{Re λ τ} (cos Im λ τ + i sin Im λ τ), with the real (damped modes without
-  // oscillation, the constant) and the purely imaginary (the forcing) cases taking one call.
-  for (std::size_t r = 0; r < terms.size(); ++r) {
-    const double re = terms[r].lambda.real() * tau, im = terms[r].lambda.imag() * tau;
-    const double g = re == 0.0 ? 1.0 : std::exp(re);
-    growth[r] = g;
-    if (im == 0.0) {
-      e[r] = {g, 0.0};
-    } else {
-      const double cs = std::cos(im), sn = std::sin(im);
-      e[r] = {g * cs, g * sn};
-    }
-  }
+  direct_exponentials(terms, tau, e, growth);
   *direct = true;
 }
 
@@ -921,13 +928,7 @@ void Segment::evaluate(const Functionals& other, double tau, Eigen::Ref<Eigen::V
   const auto& terms = functionals_->flow().terms();
   const auto K = static_cast<Eigen::Index>(terms.size());
   std::complex<double>* e = table_e_.data();
-  for (Eigen::Index r = 0; r < K; ++r) {
-    const auto& term = terms[static_cast<std::size_t>(r)];
-    const double re = term.lambda.real() * tau, g = re == 0.0 ? 1.0 : std::exp(re);
-    e[r] = term.lambda.imag() == 0.0 ? std::complex<double>(g, 0.0)
-                                     : std::complex<double>(g * std::cos(term.lambda.imag() * tau),
-                                                            g * std::sin(term.lambda.imag() * tau));
-  }
+  direct_exponentials(terms, tau, e, nullptr);
   // Row i: Σᵣ Re(e^{λᵣτ} Σₚ αᵢᵣₚ τ^p), each polynomial by Horner's rule, written out (the
   // tables are small in most modes, a few terms of low degree, where a library product costs
   // more in set-up than in arithmetic; every sum stays in registers).
