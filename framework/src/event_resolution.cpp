@@ -21,6 +21,31 @@ Eigen::Index index_in(const ContactSet& s, int j) {
   return std::lower_bound(s.begin(), s.end(), j) - s.begin();
 }
 
+/// The second-order chatter rule's state correction for stop j caught and held in `held`, whose
+/// skipped bounces displace its gap by ∫ δg dt = `displacement` (simulator.hpp, ChatterRule):
+///     x -= (∫δg/G) d,   v += (∫δg/G) (M⁻¹ C d − M⁻¹ K M⁻¹ w_j),   d = P M⁻¹ C M⁻¹ w_j,
+/// P removing the held stops' normal components (d -= M⁻¹ W (Wᵀ M⁻¹ W)⁻¹ Wᵀ d); v's normal part
+/// is removed after, with the residual of every held stop (resolve_event). Uses w.G, w.gn,
+/// w.impulse and w.factor as scratch (resolve_event fills them again after).
+void chatter_correction(ContactAlgebra& algebra, const ContactSet& held, int j, double displacement,
+                        Eigen::VectorXd& x, Eigen::VectorXd& v, EventWorkspace& w) {
+  const double scale = displacement / algebra.delassus_diagonal(j);
+  Eigen::VectorXd& d = w.chatter_d;
+  algebra.damped_normal(j, d);
+  const auto k = static_cast<Eigen::Index>(held.size());
+  auto G = w.G.topLeftCorner(k, k);
+  algebra.delassus(held, G);
+  auto dn = w.gn.head(k);
+  for (Eigen::Index a = 0; a < k; ++a) dn(a) = algebra.normal_dot(held[static_cast<std::size_t>(a)], d);
+  auto mu = w.impulse.head(k);
+  if (!spd_solve(G, dn, mu, w.factor.topLeftCorner(k, k)))
+    mu = Eigen::MatrixXd(G).llt().solve(Eigen::VectorXd(dn));  // not reached for independent normals
+  algebra.apply_impulse(held, mu, d);
+  x -= scale * d;
+  algebra.damped_response(j, d, w.chatter_e);
+  v += scale * w.chatter_e;
+}
+
 }  // namespace
 
 RunScales run_scales(const SimulatorOptions& o, double omega, double kmax, double mmax, double fmax,
@@ -45,13 +70,15 @@ RunScales run_scales(const SimulatorOptions& o, double omega, double kmax, doubl
   return s;
 }
 
-void EventWorkspace::reserve(Eigen::Index m) {
+void EventWorkspace::reserve(Eigen::Index m, Eigen::Index n) {
   const auto capacity = static_cast<std::size_t>(m);
   for (ContactSet* set : {&candidates, &chatter, &slow, &test, &held, &all, &next, &scratch_set})
     set->reserve(capacity);
   candidates.reserve(2 * capacity);  // appended to before its repeats are removed
   for (Eigen::VectorXd* vec : {&g_before, &g_after, &g_now, &hold_force, &forces, &q, &impulse, &gn, &rhs})
     vec->resize(m);
+  chatter_d.resize(n);
+  chatter_e.resize(n);
   G.resize(m, m);
   factor.resize(m, m);
   lcp.reserve(m);
@@ -154,13 +181,18 @@ bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, cons
       emit({t, j, EventKind::impact, w.g_before(j), w.g_after(j), 0.0});
       ++summary.impacts;
     }
-    // Appended, then sorted and made unique: contains() is a binary search, and a check against
-    // the vector while it is being appended to (unsorted) let a stop in twice, past the
-    // workspace's size (found by fuzz_run: Eigen head() past the end of the force vector).
+    // The stops that may hold after the impact: those of `all` not separating after it (rate
+    // ≥ -v_contact), and the resting ones. A held stop that the impulse leaves separating (the
+    // LCP gave it no impulse: keeping it shut would take a pull) opens at the impact and is
+    // released. Until issue 13's stop 21 it stayed a candidate; held again, the residual-velocity
+    // step below pulled it shut, which sent the impacting stop back into approach: a cascade of
+    // a dozen impacts at one instant, each r × the last (a chain with a stop between two masses
+    // held and an impact on one of them, tests/framework/test_modal.cpp), that amplified rounding.
+    // (`all` is sorted, so the filtered list is; contains() is a binary search.)
+    w.scratch_set.clear();
     for (int j : all)
-      if (w.g_after(j) >= -rules.v_contact) candidates.push_back(j);
-    std::sort(candidates.begin(), candidates.end());
-    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+      if (!contains(releasing, j) && w.g_after(j) >= -rules.v_contact) w.scratch_set.push_back(j);
+    merge_into(w.scratch_set, resting, candidates);
   }
   ContactSet& next = w.next;
   auto forces = w.forces.head(static_cast<Eigen::Index>(candidates.size()));
@@ -197,11 +229,11 @@ bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, cons
         const double A_dot = Gjj * algebra.force_slope(next, j, t, x, v);
         const double T = T0 + T0 * T0 * (algebra.chatter_alpha(j) / 6.0 - A_dot / (3.0 * A));
         if (std::abs(T - T0) <= 0.5 * T0) t_limit = t + T;
-        // The bounces' mean displacement: ∫ δg dt = -(2/3) Σ w_k³ / A² over the tail, felt
-        // through K as the momentum -K M⁻¹ w_j ∫δg dt / G (∫ δg' dt = 0, so C adds nothing).
+        // The bounces' mean displacement: ∫ δg dt = -(2/3) Σ w_k³ / A² over the tail, felt by
+        // the rest of the system through C and K (chatter_correction above).
         const double r3 = r * r * r;
         const double displacement_integral = -(2.0 / 3.0) * w0 * w0 * w0 / (A * A * (1.0 - r3));
-        algebra.chatter_kick(j, displacement_integral, v);
+        chatter_correction(algebra, next, j, displacement_integral, x, v, w);
       }
     }
     w.chatter_limits.push_back({j, t_limit});

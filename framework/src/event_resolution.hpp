@@ -42,11 +42,14 @@ class ContactAlgebra {
   virtual bool accept(const ContactSet& held, std::string* why) = 0;
   /// Second-order chatter rule (simulator.hpp, ChatterRule): α_j = -w_jᵀM⁻¹CM⁻¹w_j / G_jj, the
   /// slope λ_j' of stop j's contact force along the flow with `held` stuck from (t, x, v), and
-  /// the momentum kick v -= M⁻¹ K M⁻¹ w_j s / G_jj.
+  /// the pieces of its state correction (resolve_event): w_jᵀ y; d = M⁻¹ C M⁻¹ w_j; and
+  /// e = M⁻¹ C d − M⁻¹ K M⁻¹ w_j for a given d.
   virtual double chatter_alpha(int j) const = 0;
   virtual double force_slope(const ContactSet& held, int j, double t, const Eigen::VectorXd& x,
                              const Eigen::VectorXd& v) = 0;
-  virtual void chatter_kick(int j, double s, Eigen::VectorXd& v) = 0;
+  virtual double normal_dot(int j, const Eigen::VectorXd& y) const = 0;
+  virtual void damped_normal(int j, Eigen::VectorXd& d) = 0;
+  virtual void damped_response(int j, const Eigen::VectorXd& d, Eigen::VectorXd& e) = 0;
 };
 
 /// Thresholds of the rules, in absolute units (SimulatorOptions × the run's scales).
@@ -87,11 +90,12 @@ struct EventWorkspace {
   };
   ContactSet candidates, chatter, slow, test, held, all, next, scratch_set;
   Eigen::VectorXd g_before, g_after, g_now, hold_force, forces, q, impulse, gn, rhs;
+  Eigen::VectorXd chatter_d, chatter_e;  // n: the chatter rule's correction
   Eigen::MatrixXd G, factor;
   LcpWorkspace lcp;
   std::vector<ChatterLimit> chatter_limits;
-  /// Sizes everything for m stops (allocates; once per run).
-  void reserve(Eigen::Index m);
+  /// Sizes everything for m stops and n degrees of freedom (allocates; once per run).
+  void reserve(Eigen::Index m, Eigen::Index n);
 };
 
 /// Checks that a run over [t0, t_end] with scales `s` can meet its tolerances in doubles, and

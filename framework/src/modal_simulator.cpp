@@ -593,11 +593,21 @@ class ChainAlgebra final : public detail::ContactAlgebra {
     guard_at(*mode, W_, t, u, ud, 0.0, mode->gap_rows + a_idx, &value, &slope, b_);
     return -slope;  // the guard is -λ
   }
-  void chatter_kick(int j, double s, Eigen::VectorXd& v) override {
+  double normal_dot(int j, const Eigen::VectorXd& y) const override { return w_dot(j, y); }
+  // C = αM + βK: M⁻¹ C y = α y + β M⁻¹ K y, O(n).
+  void damped_normal(int j, Eigen::VectorXd& d) override {
     b_.z.setZero();
     add_minv_w(j, 1.0, b_.z);
     stiffness_times(ch_, b_.z, b_.kz);
-    v -= (b_.kz.cwiseQuotient(ch_.mass) / G_diag_(j)) * s;
+    d = ch_.rayleigh_mass * b_.z + ch_.rayleigh_stiffness * b_.kz.cwiseQuotient(ch_.mass);
+  }
+  void damped_response(int j, const Eigen::VectorXd& d, Eigen::VectorXd& e) override {
+    stiffness_times(ch_, d, kx_);  // M⁻¹ C d
+    e = ch_.rayleigh_mass * d + ch_.rayleigh_stiffness * kx_.cwiseQuotient(ch_.mass);
+    b_.z.setZero();  // − M⁻¹ K M⁻¹ w_j
+    add_minv_w(j, 1.0, b_.z);
+    stiffness_times(ch_, b_.z, b_.kz);
+    e -= b_.kz.cwiseQuotient(ch_.mass);
   }
 
  private:
@@ -1103,7 +1113,7 @@ ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,
   const std::function<void(const Event&)> emit_event = emit;
   const std::function<void(const ContactSet&)> visit = [&](const ContactSet& set) { sets_seen.insert(set); };
   detail::EventWorkspace work;
-  work.reserve(m);
+  work.reserve(m, n);
   auto handle = [&](const ContactSet& impacting, const ContactSet& releasing, const ContactSet& resting) {
     ++summary.general_events;
     return detail::resolve_event(algebra, stops_, rules, t, x, v, stuck, impacting, releasing, resting,

@@ -33,10 +33,10 @@ void require_positive(double value, const char* field, bool allow_zero = false) 
 /// Per-run tables of the stops (allocated once per run, so that no event allocates): the normals
 /// W and M⁻¹W, the Delassus matrix of all stops G = WᵀM⁻¹W (a set's G is its principal
 /// submatrix), each stop's motion s(t) = s0 + sc cos Ωt + ss sin Ωt, and for the second-order
-/// chatter rule α_j = -w_jᵀ M⁻¹ C M⁻¹ w_j / G_jj and the direction M⁻¹ K M⁻¹ w_j / G_jj of its
-/// state kick.
+/// chatter rule α_j = -w_jᵀ M⁻¹ C M⁻¹ w_j / G_jj and the pieces of its state correction,
+/// M⁻¹ C M⁻¹ w_j, M⁻¹ K M⁻¹ w_j and M⁻¹ C (event_resolution.cpp, chatter_correction).
 struct StopTables {
-  Eigen::MatrixXd normals, minv_normals, delassus, chatter_kick;
+  Eigen::MatrixXd normals, minv_normals, delassus, damped_normals, stiff_normals, minv_damping;
   Eigen::VectorXd s0, sc, ss, chatter_alpha;
 
   explicit StopTables(const ImpactSystem& scene) {
@@ -52,14 +52,15 @@ struct StopTables {
     sc.resize(m);
     ss.resize(m);
     chatter_alpha.resize(m);
-    chatter_kick.resize(sys.dof(), m);
+    minv_damping = mass_llt.solve(sys.damping());
+    damped_normals = m > 0 ? Eigen::MatrixXd(minv_damping * minv_normals) : Eigen::MatrixXd(sys.dof(), 0);
+    stiff_normals = m > 0 ? Eigen::MatrixXd(mass_llt.solve(sys.stiffness() * minv_normals)) : Eigen::MatrixXd(sys.dof(), 0);
     for (Eigen::Index j = 0; j < m; ++j) {
       const Stop& st = scene.stops()[static_cast<std::size_t>(j)];
       s0(j) = st.s0();
       sc(j) = st.s_cos();
       ss(j) = st.s_sin();
       chatter_alpha(j) = -minv_normals.col(j).dot(sys.damping() * minv_normals.col(j)) / delassus(j, j);
-      chatter_kick.col(j) = mass_llt.solve(sys.stiffness() * minv_normals.col(j)) / delassus(j, j);
     }
   }
 };
@@ -137,7 +138,12 @@ class DenseAlgebra final : public detail::ContactAlgebra {
     const auto a_idx = std::lower_bound(held.begin(), held.end(), j) - held.begin();
     return -red.watch->rows(1).row(red.gap_rows + a_idx).dot(z);
   }
-  void chatter_kick(int j, double s, Eigen::VectorXd& v) override { v -= tab_.chatter_kick.col(j) * s; }
+  double normal_dot(int j, const Eigen::VectorXd& y) const override { return tab_.normals.col(j).dot(y); }
+  void damped_normal(int j, Eigen::VectorXd& d) override { d = tab_.damped_normals.col(j); }
+  void damped_response(int j, const Eigen::VectorXd& d, Eigen::VectorXd& e) override {
+    e.noalias() = tab_.minv_damping * d;
+    e -= tab_.stiff_normals.col(j);
+  }
 
  private:
   /// (cos Ωt, sin Ωt), kept for the last t (an event asks for them several times).
@@ -312,7 +318,7 @@ RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::Vec
   const StopTables tables(scene);
   DenseAlgebra algebra(scene, modes_, tables);
   detail::EventWorkspace work;
-  work.reserve(stops);
+  work.reserve(stops, n);
   const detail::EventRules& rules = sc.rules;
   const std::function<void(const Event&)> emit_event = emit;
   // Impact sets are visited sets too (RunSummary::contact_sets_built): their restitution data.

@@ -252,12 +252,13 @@ TEST_CASE(
   // 1e-9, and at every threshold it must be better by a factor of ten.
   CHECK(time_error[1][0] <= time_error[0][2]);
   for (int i = 0; i < 3; ++i) CHECK(time_error[1][i] <= 0.1 * time_error[0][i]);
-  // States on the grid (outside chatter tails) against the engine's own tightest run: the kick
-  // for the bounces' mean displacement removes the leading O(w0³) error of the other mass
-  // (k ∫δg dt, ~1e-9 relative at h = 1e-7 without it; measured 1.2e-9 → 1.8e-10, 1e-8:
-  // 4.8e-11 → 1.1e-11). A missing or wrong-signed kick leaves the ratio at 1 or above it;
-  // required: a factor 4 at h = 1e-7 (floor 1e-12: rounding over ~500 events).
-  CHECK(state[1][0] <= std::max(0.25 * state[0][0], 1e-12));
+  // States on the grid (outside chatter tails) against the engine's own tightest run: the
+  // correction for the bounces' mean displacement (simulator.hpp, ChatterRule: Δx through C,
+  // Δv through C and K) removes the whole O(w0³) error; measured at h = 1e-7: first order
+  // 1.18e-9, second order 1.9e-12. With Δv's K term alone (as until issue 13's stop 21) it was
+  // 1.8e-10, a factor 0.15; without any correction, or a wrong-signed one, the ratio is ≥ 1.
+  // Required: a factor 50 (floor 1e-12: rounding over ~500 events).
+  CHECK(state[1][0] <= std::max(0.02 * state[0][0], 1e-12));
 }
 
 }  // namespace

@@ -330,8 +330,7 @@ TEST_CASE("modal engine: sticking at the chain's ends, under a constant force, a
   // Edge cases of the reduction (modal.hpp): a held stop on the first or last mass (one side of
   // the cut is empty), a group of two masses held by a stop on one and a stop between them, a
   // run with Ω = 0 (constant force: chatter ends in permanent sticking) and over-damped modes in
-  // the reduced chains. Same comparison and tolerance as above (measured ≤ 1.2e-9, in the first
-  // section with eight chatter limits, each a jump whose rounding the later motion carries).
+  // the reduced chains. Same comparison and tolerance as above (the first section tighter).
   std::set<int> stuck;
   SECTION("stops on both end masses, walls at both ends") {
     vibro::HarmonicForcing f = vibro::HarmonicForcing::zero(8, 0.5);
@@ -342,7 +341,11 @@ TEST_CASE("modal engine: sticking at the chain's ends, under a constant force, a
     const Agreement a = compare_sticking(
         chain, {Stop::upper(0, 0.3, 0.0), Stop::lower(7, -0.2, 0.4), Stop::between(6, 7, 0.05, 0.3)}, 5.0, &stuck);
     CHECK(stuck.size() >= 2);
-    CHECK(std::max({a.event_time, a.event_rate, a.event_force, a.force_min, a.state}) <= 1e-8);
+    // Tighter here (measured 3.2e-11 for the rates, 8e-14 for the states): until issue 13's stop
+    // 21, an impact on stop 1 while stop 2 was held set off a cascade of impacts at one instant
+    // (test_simulator.cpp, "an impact that leaves a held stop separating …") that amplified the
+    // engines' rounding into differences of 1e-9 … 3e-8.
+    CHECK(std::max({a.event_time, a.event_rate, a.event_force, a.force_min, a.state}) <= 1e-9);
   }
   SECTION("a constant push into a chattering stop: Ω = 0, sticking for good") {
     vibro::HarmonicForcing f = vibro::HarmonicForcing::zero(5, 0.0);

@@ -387,23 +387,22 @@ class TangentRecorder final : public Observer {
     Mode& before = mode_for(rule.held_before);
     Mode& after = mode_for(rule.held_after);
     const VectorXd fm = rate(before, t, x, vm);
-    const VectorXd fp = rate(after, t, x, vp);
+    // x⁺: moved only by the chatter rule (mechanics.hpp, step 2).
+    const VectorXd xp = mech_.reset(rule, x, vm, t).head(n);
+    const VectorXd fp = rate(after, t, xp, vp);
     auto reset_along = [&](const VectorXd& dx, const VectorXd& dv, double dt) {
-      return derivative(mech0_.reset_velocity(rule, seeded(x, dx), seeded(vm, dv), Dual(t, dt)));
+      return derivative(mech0_.reset(rule, seeded(x, dx), seeded(vm, dv), Dual(t, dt)));
     };
     Jump out;
     out.v_after = vp;
     // R_z column by column, and c = R_z f⁻ + R_t along the flow.
-    MatrixXd Rz = MatrixXd::Zero(N2, N2);
-    Rz.topLeftCorner(n, n).setIdentity();
+    MatrixXd Rz(N2, N2);
     for (Index i = 0; i < N2; ++i) {
       VectorXd dx = VectorXd::Zero(n), dv = VectorXd::Zero(n);
       (i < n ? dx(i) : dv(i - n)) = 1.0;
-      Rz.col(i).tail(n) = reset_along(dx, dv, 0.0);
+      Rz.col(i) = reset_along(dx, dv, 0.0);
     }
-    VectorXd c(N2);
-    c.head(n) = fm.head(n);
-    c.tail(n) = reset_along(fm.head(n), fm.tail(n), 1.0);
+    const VectorXd c = reset_along(fm.head(n), fm.tail(n), 1.0);
     // The guard: h_z, ḣ⁻, h_p.
     VectorXd hz = VectorXd::Zero(N2);
     double hdot = 0.0, hp = 0.0;
@@ -425,8 +424,7 @@ class TangentRecorder final : public Observer {
     out.S = Rz;
     if (guard >= 0 && hdot != 0.0) out.S += (fp - c) * hz.transpose() / hdot;
     if (mechp_) {
-      out.sp = VectorXd::Zero(N2);
-      out.sp.tail(n) = derivative(mechp_->reset_velocity(rule, seeded(x, VectorXd()), seeded(vm, VectorXd()), Dual(t)));
+      out.sp = derivative(mechp_->reset(rule, seeded(x, VectorXd()), seeded(vm, VectorXd()), Dual(t)));
       if (guard >= 0 && hdot != 0.0) out.sp += (fp - c) * (hp / hdot);
     }
     return out;
@@ -493,7 +491,7 @@ class TangentRecorder final : public Observer {
     total.rate = std::numeric_limits<double>::infinity();
     for (const detail::SequenceStep& s :
          detail::impact_sequence(mech_, held_, tr, held_after, xe_, ve_, vp, t, solver_.chatter_rule, reverse)) {
-      const Jump step = jump(s.rule, s.stop, true, xe_, s.v_before, s.v_after, t);
+      const Jump step = jump(s.rule, s.stop, true, s.x_before, s.v_before, s.v_after, t);
       total.S = step.S * total.S;
       if (mechp_) total.sp = step.S * total.sp + step.sp;
       total.rate = std::min(total.rate, step.rate);

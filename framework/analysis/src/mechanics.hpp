@@ -27,13 +27,15 @@
 //   1. impulse over `all` = S ∪ I with r_eff = 0 for held and caught stops, on its active set A:
 //        v1 = v − Q_A G_AA⁻¹ ((1 + r_eff) ∘ (W_Aᵀ v − s'_A(t)))
 //   2. second-order chatter rule, for each caught stop j held after (simulator.hpp, ChatterRule):
-//        v2 = v1 − M⁻¹ K M⁻¹ w_j / G_jj · D_j,   D_j = −(2/3) w0³ / (A_j² (1 − r_j³)),
+//        x2 = x − (D_j / G_jj) d_j,   v2 = v1 + (D_j / G_jj) (M⁻¹ C d_j − M⁻¹ K M⁻¹ w_j),
+//        d_j = P_N M⁻¹ C M⁻¹ w_j (P_N y = y − Q_N G_NN⁻¹ W_Nᵀ y),
+//        D_j = −(2/3) w0³ / (A_j² (1 − r_j³)),
 //        w0 = r_j (w_jᵀ v − s'_j(t)) (the rebound speed, from the velocity before the impact),
 //        A_j = G_jj λ_j with λ = λ_N(x, v1, t) the forces of the held set N after the event;
 //   3. the held set's residual normal velocity removed:
 //        v3 = v2 − Q_N G_NN⁻¹ (W_Nᵀ v2 − s'_N(t)).
-// The position is not reset (the engine's placement of the gap exactly at zero corrects
-// rounding only and is zero along the exact map).
+// Otherwise the position is not reset (the engine's placement of the gap exactly at zero
+// corrects rounding only and is zero along the exact map).
 #include "dual.hpp"
 #include "vibro/contact.hpp"
 #include "vibro/modal.hpp"
@@ -199,6 +201,12 @@ class Mechanics {
     return out;
   }
 
+  /// C y.
+  VecT<T> damping_times(const VecT<T>& y) const {
+    if (!banded_) return C_ * y;
+    return alpha_ * mass_.cwiseProduct(y) + beta_ * stiffness_times(y);
+  }
+
   /// M⁻¹ (f − C v − K x).
   VecT<T> free_acceleration(const VecT<T>& x, const VecT<T>& v, const T& t) const {
     return acceleration_under(forcing(t), x, v);
@@ -206,8 +214,7 @@ class Mechanics {
   /// M⁻¹ (F − C v − K x) for a given force F.
   VecT<T> acceleration_under(const VecT<T>& F, const VecT<T>& x, const VecT<T>& v) const {
     if (banded_) {
-      const VecT<T> Cv = alpha_ * mass_.cwiseProduct(v) + beta_ * stiffness_times(v);
-      return mass_inverse(VecT<T>(F - Cv - stiffness_times(x)));
+      return mass_inverse(VecT<T>(F - damping_times(v) - stiffness_times(x)));
     }
     return llt_.solve(VecT<T>(F - C_ * v - K_ * x));
   }
@@ -272,8 +279,8 @@ class Mechanics {
     return g;
   }
 
-  /// v after an event resolved by `rule` at (x, v, t) (the file comment, steps 1–3).
-  VecT<T> reset_velocity(const ResetRule& rule, const VecT<T>& x, const VecT<T>& v, const T& t) const {
+  /// [x; v] after an event resolved by `rule` at (x, v, t) (the file comment, steps 1–3).
+  VecT<T> reset(const ResetRule& rule, const VecT<T>& x, const VecT<T>& v, const T& t) const {
     VecT<T> v1 = v;
     if (!rule.impacting.empty() && !rule.impulse.empty()) {
       const ContactSet& A = rule.impulse;
@@ -289,10 +296,15 @@ class Mechanics {
       }
       v1 = v - Q * G.partialPivLu().solve(q);
     }
+    VecT<T> out(2 * n_);
+    out.head(n_) = x;
     VecT<T> v2 = v1;
-    if (rule.rule == ChatterRule::second_order && !rule.caught.empty()) {
+    if (rule.rule == ChatterRule::second_order && !rule.caught.empty() && !rule.held_after.empty()) {
       const ContactSet& N = rule.held_after;
       const VecT<T> lambda = forces(N, x, v1, t);
+      const MatT<T> WN = normals(N);
+      const MatT<T> QN = mass_inverse(WN);
+      const auto GN = (WN.transpose() * QN).eval().partialPivLu();
       for (int j : rule.caught) {
         if (!contains(N, j)) continue;
         const auto a = static_cast<Eigen::Index>(std::lower_bound(N.begin(), N.end(), j) - N.begin());
@@ -304,17 +316,24 @@ class Mechanics {
         const T r = restitution(j);
         const T w0 = r * gap_rate(j, v, t);
         const T D = -(2.0 / 3.0) * w0 * w0 * w0 / (A * A * (T(1.0) - r * r * r));
-        v2 -= mass_inverse(stiffness_times(qj)) * (D / Gjj);
+        VecT<T> d = mass_inverse(damping_times(qj));
+        d -= QN * GN.solve(VecT<T>(WN.transpose() * d));
+        out.head(n_) -= d * (D / Gjj);
+        v2 += (mass_inverse(damping_times(d)) - mass_inverse(stiffness_times(qj))) * (D / Gjj);
       }
     }
-    if (rule.held_after.empty()) return v2;
+    if (rule.held_after.empty()) {
+      out.tail(n_) = v2;
+      return out;
+    }
     const ContactSet& N = rule.held_after;
     const MatT<T> W = normals(N);
     const MatT<T> Q = mass_inverse(W);
     const MatT<T> G = W.transpose() * Q;
     VecT<T> g(static_cast<Eigen::Index>(N.size()));
     for (std::size_t a = 0; a < N.size(); ++a) g(static_cast<Eigen::Index>(a)) = gap_rate(N[a], v2, t);
-    return v2 - Q * G.partialPivLu().solve(g);
+    out.tail(n_) = v2 - Q * G.partialPivLu().solve(g);
+    return out;
   }
 
   static bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }

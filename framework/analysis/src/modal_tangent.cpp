@@ -153,9 +153,7 @@ struct ModalTangent::Record {
     for (Index c = 0; c < D.cols(); ++c) {
       const VectorXd dx = D.col(c).head(n), dv = D.col(c).tail(n);
       const double sc = s.guard >= 0 && s.rate != 0.0 ? guard_derivative(s, dx, dv) / s.rate : 0.0;
-      const VectorXd rv = derivative(dual.reset_velocity(s.rule, seeded(s.x, dx), seeded(s.vm, dv), Dual(s.t)));
-      D.col(c).head(n) = dx + s.jump.head(n) * sc;
-      D.col(c).tail(n) = rv + s.jump.tail(n) * sc;
+      D.col(c) = derivative(dual.reset(s.rule, seeded(s.x, dx), seeded(s.vm, dv), Dual(s.t))) + s.jump * sc;
     }
     if (!p) return;
     auto zeta = D.col(p->column);
@@ -166,7 +164,7 @@ struct ModalTangent::Record {
                                  : -force_of(p->data, s.rule.held_before, s.guard, x, vm, Dual(s.t)).d;
       zeta += s.jump * (hp / s.rate);
     }
-    zeta.tail(n) += derivative(p->data.reset_velocity(s.rule, x, vm, Dual(s.t)));
+    zeta += derivative(p->data.reset(s.rule, x, vm, Dual(s.t)));
   }
 
   void apply(const Jump& j, Eigen::Ref<MatrixXd> D, const Sensitivity* p) const {
@@ -464,11 +462,11 @@ class Recorder final : public Observer {
     s.t = t;
     s.x = x;
     s.vm = vm;
-    const VectorXd fm = rate(rule.held_before, t, x, vm), fp = rate(rule.held_after, t, x, vp);
+    // x⁺: moved only by the chatter rule (mechanics.hpp, step 2).
+    const VectorXd xp = rec_.mech.reset(rule, x, vm, t).head(n_);
+    const VectorXd fm = rate(rule.held_before, t, x, vm), fp = rate(rule.held_after, t, xp, vp);
     // c = R_z f⁻ + R_t: the reset along the flow.
-    VectorXd c(2 * n_);
-    c.head(n_) = fm.head(n_);
-    c.tail(n_) = derivative(rec_.dual.reset_velocity(rule, seeded(x, fm.head(n_)), seeded(vm, fm.tail(n_)), Dual(t, 1.0)));
+    const VectorXd c = derivative(rec_.dual.reset(rule, seeded(x, fm.head(n_)), seeded(vm, fm.tail(n_)), Dual(t, 1.0)));
     s.jump = fp - c;
     if (guard >= 0 && impact) {
       s.rate = rec_.mech.gap_rate(guard, vm, t);
@@ -599,7 +597,7 @@ class Recorder final : public Observer {
     Jump out;
     for (const detail::SequenceStep& s :
          detail::impact_sequence(rec_.mech, held_, tr, held_after, xe_, ve_, vp, t, rule_, reverse))
-      out.salts.push_back(salt(s.rule, s.stop, true, xe_, s.v_before, s.v_after, t));
+      out.salts.push_back(salt(s.rule, s.stop, true, s.x_before, s.v_before, s.v_after, t));
     return out;
   }
 

@@ -92,7 +92,7 @@ inline bool flight_start_artifact(double s, double tau, double g, double g_start
 struct SequenceStep {
   ResetRule rule;
   int stop = -1;
-  Eigen::VectorXd v_before, v_after;
+  Eigen::VectorXd x_before, v_before, v_after;  // x: the chatter rule moves it (mechanics.hpp)
 };
 
 inline std::vector<SequenceStep> impact_sequence(const Mechanics<double>& mech, const ContactSet& held_before,
@@ -103,7 +103,7 @@ inline std::vector<SequenceStep> impact_sequence(const Mechanics<double>& mech, 
   ContactSet order = tr.impacting;
   if (reverse) std::reverse(order.begin(), order.end());
   ContactSet held = held_before;
-  Eigen::VectorXd vel = v;
+  Eigen::VectorXd pos = x, vel = v;
   std::vector<SequenceStep> out;
   for (std::size_t i = 0; i < order.size(); ++i) {
     const int j = order[i];
@@ -115,8 +115,15 @@ inline std::vector<SequenceStep> impact_sequence(const Mechanics<double>& mech, 
     SequenceStep step;
     step.rule = {held, one, caught_j, impulse_set(mech, held, one, caught_j, vel, t), next, chatter};
     step.stop = j;
+    step.x_before = pos;
     step.v_before = vel;
-    step.v_after = last ? vp : mech.reset_velocity(step.rule, x, vel, t);
+    if (last) {
+      step.v_after = vp;
+    } else {
+      const Eigen::VectorXd after = mech.reset(step.rule, pos, vel, t);
+      pos = after.head(x.size());
+      step.v_after = after.tail(x.size());
+    }
     held = next;
     vel = step.v_after;
     out.push_back(std::move(step));

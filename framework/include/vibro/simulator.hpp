@@ -54,12 +54,21 @@ namespace vibro {
 ///    u_{k+1} = w_k + (2/3)(A'/A² + α/A) w_k², so that, summed over the geometric series to first
 ///    order in w0 (derivation in simulator.cpp),
 ///        T = T0 + T0² (α/6 - A'/(3A)),   error O(T0³) = O(w0³);
-///    and the bounces' displacement δg (∫ δg dt = -(2/3) w0³ / (A² (1 - r³)) over the whole tail,
-///    while ∫ δg' dt = 0) acts on the rest of the system through the stiffness: the velocity
-///    receives Δv = -M⁻¹ K M⁻¹ w_j ∫δg dt / G at the impact (its normal part is then taken by the
-///    held stop), which removes the leading O(w0³) state error (on the paper's system, measured
-///    outside the chatter tails against chatter_height = 1e-13: 1.2e-9 → 1.8e-10 L at
-///    chatter_height 1e-7, 4.8e-11 → 1.1e-11 at 1e-8; tests/framework/test_chatter.cpp).
+///    and the bounces' displacement δg (∫ δg dt = -(2/3) w0³ / (A² (1 - r³)) over the whole tail)
+///    acts on the rest of the system. Derivation: the true motion minus the sticking motion
+///    started at the impact, e(t), obeys M e'' + C e' + K e = w_j μ(t), μ the impulses minus the
+///    holding force; with the impulse response H(τ) = M⁻¹τ − ½M⁻¹CM⁻¹τ² + ⅙(M⁻¹CM⁻¹CM⁻¹ −
+///    M⁻¹KM⁻¹)τ³ + … and the moments m_k = ∫ (t∞ − s)ᵏ μ ds (m_k = O(w0^{k+1})), the state
+///    difference at the accumulation point t∞ is e = Σ H_k w_j m_k, e' = Σ k H_k w_j m_{k−1}.
+///    The gap's own end conditions δg = δg' = 0 fix m_1, m_0 from m_2 = 2 ∫δg dt / G, and what
+///    is left, with q = M⁻¹ w_j and d = P M⁻¹ C q (P removing the held stops' normal components,
+///    M-orthogonally), is the correction applied at the impact:
+///        Δx = −(∫δg dt / G) d,   Δv = (∫δg dt / G) (M⁻¹ C d − M⁻¹ K q)   (then v's normal part
+///    is taken by the held stops), so that the state errs by O(w0⁴) instead of O(w0³). On the
+///    paper's system (damped), state error outside the chatter tails against chatter_height
+///    = 1e-13: 9.6e-11 → 9.5e-12 L at chatter_height 1e-7, 2.3e-9 → 9.4e-11 at 1e-6 (bench_engine;
+///    the former value with Δv's K term alone, as before issue 13's stop 21: without damping
+///    d = 0 and that is the whole correction; tests/framework/test_chatter.cpp).
 ///    A' = G λ_j' comes exactly from
 ///    the reduced sticking flow (ℓ Â z of the force row). Where the expansion does not hold
 ///    (|T - T0| > T0/2: the holding force changes by O(1) within the tail) T0 is kept.
