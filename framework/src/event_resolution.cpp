@@ -21,6 +21,58 @@ Eigen::Index index_in(const ContactSet& s, int j) {
   return std::lower_bound(s.begin(), s.end(), j) - s.begin();
 }
 
+/// The third-order chatter rule's tail (simulator.hpp, ChatterRule::third_order): from the
+/// rebound w0 at s = 0, the bounces of the gap's local model h'' = −a(s) + α h' + β h,
+/// a(s) = A + A' s + ½ A'' s² (h ≥ 0 the height above the stop, s the time since the impact),
+/// summed flight by flight until the rebound is below 1e-9 w0, then the Budd–Dux remainder
+/// (≤ 1e-9 of the tail, off by its own O(w)). Each flight is the root of its Taylor polynomial,
+/// h = Σ hₘ sᵐ/m! with h₀ = 0, h₁ = w, hₘ₊₂ = −a⁽ᵐ⁾ + α hₘ₊₁ + β hₘ, of degree 8: a flight lasts
+/// ~2w/A, so the truncation is O((ρ·2w/A)⁹) relative, far below the model's own O(w³) (ρ the
+/// largest of |α|, √|β| and the drift rates of a). Returns the tail's duration, or NaN where the
+/// model has no accumulation within it (a(s) ≤ 0 reached, a rebound not decreasing, or more
+/// than 100 000 flights).
+double local_tail(double w0, double r, double A, double A1, double A2, double alpha, double beta) {
+  constexpr int degree = 8;
+  double s = 0.0, w = w0;
+  for (int flight = 0; flight < 100000; ++flight) {
+    const double a0 = A + s * (A1 + 0.5 * A2 * s), a1 = A1 + A2 * s;
+    if (!(a0 > 0.0)) break;
+    if (w <= 1e-9 * w0) return s + 2.0 * w / (a0 * (1.0 - r));
+    // The derivatives hₘ at the take-off, then hₘ / m! (the polynomial's coefficients).
+    double h[degree + 1] = {0.0, w};
+    for (int m = 0; m + 2 <= degree; ++m) {
+      const double am = m == 0 ? a0 : (m == 1 ? a1 : (m == 2 ? A2 : 0.0));
+      h[m + 2] = -am + alpha * h[m + 1] + beta * h[m];
+    }
+    double factorial = 1.0;
+    for (int m = 2; m <= degree; ++m) {
+      factorial *= m;
+      h[m] /= factorial;
+    }
+    // The landing: the root of h(s)/s = Σ hₘ sᵐ⁻¹ (Newton from the constant-acceleration flight).
+    double tau = 2.0 * w / (a0 - alpha * w);
+    if (!(tau > 0.0)) break;
+    for (int it = 0; it < 20; ++it) {
+      double q = h[degree], dq = 0.0;
+      for (int m = degree - 1; m >= 1; --m) {
+        dq = dq * tau + q;
+        q = q * tau + h[m];
+      }
+      const double step = q / dq;
+      tau -= step;
+      if (std::abs(step) <= 1e-15 * tau) break;
+    }
+    // The landing speed −h'(τ), the next rebound r times it.
+    double slope = degree * h[degree];
+    for (int m = degree - 1; m >= 1; --m) slope = slope * tau + m * h[m];
+    const double next = -r * slope;
+    if (!(tau > 0.0) || !(next < w)) break;
+    s += tau;
+    w = next;
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
 /// The second-order chatter rule's state correction for stop j caught and held in `held`, whose
 /// skipped bounces displace its gap by ∫ δg dt = `displacement` (simulator.hpp, ChatterRule):
 ///     x -= (∫δg/G) d,   v += (∫δg/G) (M⁻¹ C d − M⁻¹ K M⁻¹ w_j),   d = P M⁻¹ C M⁻¹ w_j,
@@ -218,17 +270,25 @@ bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, cons
       // after T0 = Σ 2 r^k w0 / A = 2 w0 / (A (1 - r)).
       const double T0 = 2.0 * w0 / (A * (1.0 - r));
       t_limit = t + T0;
-      if (rules.chatter_rule == ChatterRule::second_order) {
-        // Next order (simulator.hpp, ChatterRule). Expansion: with A_k = A + A'(t_k - t),
-        // t_k - t = (2 w0 / A)(1 - r^k)/(1 - r) and w_k = r^k w0 (1 + κ w0 (1 - r^k)/(1 - r)),
-        // κ = (2/3)(A'/A² + α/A) (from u_{k+1} = w_k (1 + κ w_k)), the sum of the flights
-        // τ_k = 2 w_k / A_k + (-(4/3) A'/A³ + (2/3) α/A²) w_k² is, to O(w0²),
-        //   T = T0 + w0² / (1 - r)² · (-(4/3) A'/A³ + (2/3) α/A²) = T0 + T0² (α/6 - A'/(3A)),
-        // using Σ r^k (1 - r^k) = r / ((1 - r)(1 - r²)) and Σ r^{2k} = 1 / (1 - r²).
-        // A' = G λ_j' along the sticking flow of `next` from the post-impact state (exact).
-        const double A_dot = Gjj * algebra.force_slope(next, j, t, x, v);
-        const double T = T0 + T0 * T0 * (algebra.chatter_alpha(j) / 6.0 - A_dot / (3.0 * A));
-        if (std::abs(T - T0) <= 0.5 * T0) t_limit = t + T;
+      if (rules.chatter_rule != ChatterRule::first_order) {
+        // A' = G λ_j', A'' = G λ_j'' along the sticking flow of `next` from the post-impact
+        // state (exact).
+        double slope = 0.0, curvature = 0.0;
+        algebra.force_rates(next, j, t, x, v, &slope, &curvature);
+        const double A_dot = Gjj * slope, alpha = algebra.chatter_alpha(j);
+        double T;
+        if (rules.chatter_rule == ChatterRule::second_order) {
+          // Expansion (simulator.hpp, ChatterRule): with A_k = A + A'(t_k - t),
+          // t_k - t = (2 w0 / A)(1 - r^k)/(1 - r) and w_k = r^k w0 (1 + κ w0 (1 - r^k)/(1 - r)),
+          // κ = (2/3)(A'/A² + α/A) (from u_{k+1} = w_k (1 + κ w_k)), the sum of the flights
+          // τ_k = 2 w_k / A_k + (-(4/3) A'/A³ + (2/3) α/A²) w_k² is, to O(w0²),
+          //   T = T0 + w0² / (1 - r)² · (-(4/3) A'/A³ + (2/3) α/A²) = T0 + T0² (α/6 - A'/(3A)),
+          // using Σ r^k (1 - r^k) = r / ((1 - r)(1 - r²)) and Σ r^{2k} = 1 / (1 - r²).
+          T = T0 + T0 * T0 * (alpha / 6.0 - A_dot / (3.0 * A));
+        } else {
+          T = local_tail(w0, r, A, A_dot, Gjj * curvature, alpha, algebra.chatter_beta(j));
+        }
+        if (std::isfinite(T) && std::abs(T - T0) <= 0.5 * T0) t_limit = t + T;
         // The bounces' mean displacement: ∫ δg dt = -(2/3) Σ w_k³ / A² over the tail, felt by
         // the rest of the system through C and K (chatter_correction above).
         const double r3 = r * r * r;

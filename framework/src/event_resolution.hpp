@@ -40,13 +40,14 @@ class ContactAlgebra {
   /// May `held` be the next contact set? False, with the reason, if the engine cannot represent
   /// it (the modal engine's unsupported sets); the dense engine accepts every set.
   virtual bool accept(const ContactSet& held, std::string* why) = 0;
-  /// Second-order chatter rule (simulator.hpp, ChatterRule): α_j = -w_jᵀM⁻¹CM⁻¹w_j / G_jj, the
-  /// slope λ_j' of stop j's contact force along the flow with `held` stuck from (t, x, v), and
-  /// the pieces of its state correction (resolve_event): w_jᵀ y; d = M⁻¹ C M⁻¹ w_j; and
-  /// e = M⁻¹ C d − M⁻¹ K M⁻¹ w_j for a given d.
+  /// Chatter rules (simulator.hpp, ChatterRule): the gap's local coefficients α_j and β_j; the
+  /// slope λ_j' and curvature λ_j'' of stop j's contact force along the flow with `held` stuck
+  /// from (t, x, v); and the pieces of the state correction (resolve_event): w_jᵀ y;
+  /// d = M⁻¹ C M⁻¹ w_j; and e = M⁻¹ C d − M⁻¹ K M⁻¹ w_j for a given d.
   virtual double chatter_alpha(int j) const = 0;
-  virtual double force_slope(const ContactSet& held, int j, double t, const Eigen::VectorXd& x,
-                             const Eigen::VectorXd& v) = 0;
+  virtual double chatter_beta(int j) const = 0;
+  virtual void force_rates(const ContactSet& held, int j, double t, const Eigen::VectorXd& x,
+                           const Eigen::VectorXd& v, double* slope, double* curvature) = 0;
   virtual double normal_dot(int j, const Eigen::VectorXd& y) const = 0;
   virtual void damped_normal(int j, Eigen::VectorXd& d) = 0;
   virtual void damped_response(int j, const Eigen::VectorXd& d, Eigen::VectorXd& e) = 0;
@@ -57,7 +58,7 @@ struct EventRules {
   double v_chatter = 0.0;   ///< approach speeds below this are chatter
   double h_chatter = 0.0;   ///< bounces rising less than this are chatter
   double v_contact = 0.0;   ///< post-impact speeds below this are resting
-  ChatterRule chatter_rule = ChatterRule::second_order;
+  ChatterRule chatter_rule = ChatterRule::third_order;
 };
 
 /// A run's scales and the absolute tolerances they give (SimulatorOptions documents each):

@@ -479,14 +479,16 @@ void to_modal(const ModalContactMode& mode, const Eigen::VectorXd& mass, double 
   mode.modes->to_modal(t, y, yd, u, ud, b.work);
 }
 
-/// Value and slope of guard `row` at t0 + τ from the homogeneous state (u0, ud0) at t0. O(n_r).
+/// Value and slope of guard `row` at t0 + τ from the homogeneous state (u0, ud0) at t0, and
+/// its second derivative if `curvature` is given. O(n_r).
 void guard_at(const ModalContactMode& mode, double W, double t0, const Eigen::Ref<const Eigen::VectorXd>& u0,
               const Eigen::Ref<const Eigen::VectorXd>& ud0, double tau, Eigen::Index row, double* value, double* slope,
-              Buffers& b) {
+              Buffers& b, double* curvature = nullptr) {
   const ModalGuards& g = mode.guards;
   const double t = t0 + tau, c = std::cos(W * t), s = std::sin(W * t);
   *value = g.h0(row) + g.hc(row) * c + g.hs(row) * s;
   *slope = W * (g.hs(row) * c - g.hc(row) * s);
+  if (curvature) *curvature = -W * W * (g.hc(row) * c + g.hs(row) * s);
   if (!mode.modes) return;
   const Eigen::Index nr = mode.size();
   auto u = b.u.head(nr), ud = b.ud.head(nr), udd = b.udd.head(nr);
@@ -494,10 +496,17 @@ void guard_at(const ModalContactMode& mode, double W, double t0, const Eigen::Re
   *value += g.P.row(row).dot(u);
   *slope += g.P.row(row).dot(ud);
   const Eigen::Index first_d = g.rows() - g.D.rows();
-  if (row >= first_d) {
+  const bool rates = row >= first_d;
+  // u'' = −(2 d ∘ u' + ω² ∘ u) (modal.hpp), and u''' from it the same way.
+  if (rates || curvature)
     udd = -(2.0 * mode.modes->decay().cwiseProduct(ud) + mode.modes->omega_squared().cwiseProduct(u));
+  if (curvature) *curvature += g.P.row(row).dot(udd);
+  if (rates) {
     *value += g.D.row(row - first_d).dot(ud);
     *slope += g.D.row(row - first_d).dot(udd);
+    if (curvature)
+      *curvature -= g.D.row(row - first_d).dot(2.0 * mode.modes->decay().cwiseProduct(udd) +
+                                               mode.modes->omega_squared().cwiseProduct(ud));
   }
 }
 
@@ -523,11 +532,19 @@ class ChainAlgebra final : public detail::ContactAlgebra {
       normal_.push_back(normal_of(stops[static_cast<std::size_t>(j)]));
       G_diag_(j) = delassus_entry(normal_.back(), normal_.back(), ch_.mass);
     }
-    for (Eigen::Index j = 0; j < m; ++j) {  // α_j = -w_jᵀM⁻¹CM⁻¹w_j / G_jj, C = αM + βK
+    beta_.resize(m);
+    for (Eigen::Index j = 0; j < m; ++j) {  // α_j, β_j (simulator.hpp, ChatterRule), C = αM + βK
       b_.z.setZero();
-      add_minv_w(static_cast<int>(j), 1.0, b_.z);
+      add_minv_w(static_cast<int>(j), 1.0, b_.z);  // q = M⁻¹ w_j
       stiffness_times(ch_, b_.z, b_.kz);
       alpha_(j) = -(ch_.rayleigh_mass * G_diag_(j) + ch_.rayleigh_stiffness * b_.z.dot(b_.kz)) / G_diag_(j);
+      // qᵀCq, qᵀ K q and qᵀ C M⁻¹ C q with M⁻¹ C q = α q + β M⁻¹ K q.
+      const double G = G_diag_(j), qkq = b_.z.dot(b_.kz);
+      const double qcq = ch_.rayleigh_mass * G + ch_.rayleigh_stiffness * qkq;
+      kx_ = ch_.rayleigh_mass * b_.z + ch_.rayleigh_stiffness * b_.kz.cwiseQuotient(ch_.mass);  // d = M⁻¹ C q
+      stiffness_times(ch_, kx_, kv_);
+      const double qcd = ch_.rayleigh_mass * b_.z.dot(ch_.mass.cwiseProduct(kx_)) + ch_.rayleigh_stiffness * b_.z.dot(kv_);
+      beta_(j) = (qcd - qkq) / G - (qcq / G) * (qcq / G);
     }
   }
 
@@ -581,18 +598,20 @@ class ChainAlgebra final : public detail::ContactAlgebra {
   }
   bool accept(const ContactSet& held, std::string* why) override { return mode_of_(held, why) != nullptr; }
   double chatter_alpha(int j) const override { return alpha_(j); }
-  double force_slope(const ContactSet& held, int j, double t, const Eigen::VectorXd& x,
-                     const Eigen::VectorXd& v) override {
+  void force_rates(const ContactSet& held, int j, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                   double* slope, double* curvature) override {
     std::string why;
     const ModalContactMode* mode = mode_of_(held, &why);
-    if (!mode) throw std::logic_error("force_slope: the held set was not accepted: " + why);
+    if (!mode) throw std::logic_error("force_rates: the held set was not accepted: " + why);
     auto u = b_.fu.head(mode->size()), ud = b_.fud.head(mode->size());
     to_modal(*mode, ch_.mass, W_, t, x, v, u, ud, b_);
     const auto a_idx = std::lower_bound(held.begin(), held.end(), j) - held.begin();
-    double value, slope;
-    guard_at(*mode, W_, t, u, ud, 0.0, mode->gap_rows + a_idx, &value, &slope, b_);
-    return -slope;  // the guard is -λ
+    double value;
+    guard_at(*mode, W_, t, u, ud, 0.0, mode->gap_rows + a_idx, &value, slope, b_, curvature);
+    *slope = -*slope;  // the guard is -λ
+    *curvature = -*curvature;
   }
+  double chatter_beta(int j) const override { return beta_(j); }
   double normal_dot(int j, const Eigen::VectorXd& y) const override { return w_dot(j, y); }
   // C = αM + βK: M⁻¹ C y = α y + β M⁻¹ K y, O(n).
   void damped_normal(int j, Eigen::VectorXd& d) override {
@@ -628,7 +647,7 @@ class ChainAlgebra final : public detail::ContactAlgebra {
   ModeOf mode_of_;
   Buffers& b_;
   std::vector<Normal> normal_;
-  Eigen::VectorXd G_diag_, alpha_, kx_, kv_, acc_, q_;
+  Eigen::VectorXd G_diag_, alpha_, beta_, kx_, kv_, acc_, q_;
   Eigen::MatrixXd G_;
   LcpWorkspace lcp_;
 };

@@ -37,7 +37,7 @@ void require_positive(double value, const char* field, bool allow_zero = false) 
 /// M⁻¹ C M⁻¹ w_j, M⁻¹ K M⁻¹ w_j and M⁻¹ C (event_resolution.cpp, chatter_correction).
 struct StopTables {
   Eigen::MatrixXd normals, minv_normals, delassus, damped_normals, stiff_normals, minv_damping;
-  Eigen::VectorXd s0, sc, ss, chatter_alpha;
+  Eigen::VectorXd s0, sc, ss, chatter_alpha, chatter_beta;
 
   explicit StopTables(const ImpactSystem& scene) {
     const LinearSystem& sys = scene.system();
@@ -52,6 +52,7 @@ struct StopTables {
     sc.resize(m);
     ss.resize(m);
     chatter_alpha.resize(m);
+    chatter_beta.resize(m);
     minv_damping = mass_llt.solve(sys.damping());
     damped_normals = m > 0 ? Eigen::MatrixXd(minv_damping * minv_normals) : Eigen::MatrixXd(sys.dof(), 0);
     stiff_normals = m > 0 ? Eigen::MatrixXd(mass_llt.solve(sys.stiffness() * minv_normals)) : Eigen::MatrixXd(sys.dof(), 0);
@@ -61,6 +62,11 @@ struct StopTables {
       sc(j) = st.s_cos();
       ss(j) = st.s_sin();
       chatter_alpha(j) = -minv_normals.col(j).dot(sys.damping() * minv_normals.col(j)) / delassus(j, j);
+      // β_j = (qᵀ C M⁻¹ C q − qᵀ K q) / G − (qᵀ C q / G)², q = M⁻¹ w_j (simulator.hpp, ChatterRule).
+      const auto q = minv_normals.col(j);
+      const double G = delassus(j, j), qcq = q.dot(sys.damping() * q);
+      chatter_beta(j) = (q.dot(sys.damping() * damped_normals.col(j)) - q.dot(sys.stiffness() * q)) / G -
+                        (qcq / G) * (qcq / G);
     }
   }
 };
@@ -129,15 +135,17 @@ class DenseAlgebra final : public detail::ContactAlgebra {
   }
   bool accept(const ContactSet& /*held*/, std::string* /*why*/) override { return true; }
   double chatter_alpha(int j) const override { return tab_.chatter_alpha(j); }
-  double force_slope(const ContactSet& held, int j, double t, const Eigen::VectorXd& x,
-                     const Eigen::VectorXd& v) override {
+  void force_rates(const ContactSet& held, int j, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                   double* slope, double* curvature) override {
     const ContactMode& mode = modes_.get(held);
     const ContactMode::Reduced& red = mode.reduced();
     auto z = reduced_state_.head(red.flow->size());
     mode.reduce(t, x, v, z);
     const auto a_idx = std::lower_bound(held.begin(), held.end(), j) - held.begin();
-    return -red.watch->rows(1).row(red.gap_rows + a_idx).dot(z);
+    *slope = -red.watch->rows(1).row(red.gap_rows + a_idx).dot(z);
+    *curvature = -red.watch->rows(2).row(red.gap_rows + a_idx).dot(z);
   }
+  double chatter_beta(int j) const override { return tab_.chatter_beta(j); }
   double normal_dot(int j, const Eigen::VectorXd& y) const override { return tab_.normals.col(j).dot(y); }
   void damped_normal(int j, Eigen::VectorXd& d) override { d = tab_.damped_normals.col(j); }
   void damped_response(int j, const Eigen::VectorXd& d, Eigen::VectorXd& e) override {
@@ -184,6 +192,15 @@ const char* to_string(RunStatus s) {
     case RunStatus::numerical_failure: return "numerical failure";
     case RunStatus::unsupported: return "not supported by this engine";
     case RunStatus::interrupted: return "interrupted";
+  }
+  return "?";
+}
+
+const char* to_string(ChatterRule rule) {
+  switch (rule) {
+    case ChatterRule::first_order: return "first_order";
+    case ChatterRule::second_order: return "second_order";
+    case ChatterRule::third_order: return "third_order";
   }
   return "?";
 }

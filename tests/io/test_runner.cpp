@@ -116,7 +116,7 @@ TEST_CASE("a simulation's file holds exactly what the library computes", "[runne
   REQUIRE(transient.impacts > 0);
   CHECK(file.attribute_number("/meta", "impacts") == static_cast<double>(recorded.impacts));
   CHECK(file.attribute_number("/meta", "sticks") == static_cast<double>(recorded.sticks));
-  CHECK(file.attribute_string("/meta", "chatter_rule") == "second_order");
+  CHECK(file.attribute_string("/meta", "chatter_rule") == "third_order");  // the default
   std::filesystem::remove(out);
 }
 

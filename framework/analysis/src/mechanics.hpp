@@ -26,7 +26,7 @@
 // after):
 //   1. impulse over `all` = S ∪ I with r_eff = 0 for held and caught stops, on its active set A:
 //        v1 = v − Q_A G_AA⁻¹ ((1 + r_eff) ∘ (W_Aᵀ v − s'_A(t)))
-//   2. second-order chatter rule, for each caught stop j held after (simulator.hpp, ChatterRule):
+//   2. second- and third-order chatter rules, for each caught stop j held after (simulator.hpp, ChatterRule):
 //        x2 = x − (D_j / G_jj) d_j,   v2 = v1 + (D_j / G_jj) (M⁻¹ C d_j − M⁻¹ K M⁻¹ w_j),
 //        d_j = P_N M⁻¹ C M⁻¹ w_j (P_N y = y − Q_N G_NN⁻¹ W_Nᵀ y),
 //        D_j = −(2/3) w0³ / (A_j² (1 − r_j³)),
@@ -68,7 +68,7 @@ struct ResetRule {
   ContactSet caught;       ///< stops of I the chatter rule ended (r_eff = 0, kick)
   ContactSet impulse;      ///< A ⊂ S ∪ I: the stops whose impulse is > 0 (LCP active set)
   ContactSet held_after;   ///< N
-  ChatterRule rule = ChatterRule::second_order;
+  ChatterRule rule = ChatterRule::third_order;
 };
 
 /// A stop's normal: w = e_i (upper), −e_i (lower), e_i − e_k (between).
@@ -299,7 +299,7 @@ class Mechanics {
     VecT<T> out(2 * n_);
     out.head(n_) = x;
     VecT<T> v2 = v1;
-    if (rule.rule == ChatterRule::second_order && !rule.caught.empty() && !rule.held_after.empty()) {
+    if (rule.rule != ChatterRule::first_order && !rule.caught.empty() && !rule.held_after.empty()) {
       const ContactSet& N = rule.held_after;
       const VecT<T> lambda = forces(N, x, v1, t);
       const MatT<T> WN = normals(N);

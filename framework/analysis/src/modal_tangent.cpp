@@ -613,7 +613,7 @@ class Recorder final : public Observer {
   }
 
  public:
-  ChatterRule rule_ = ChatterRule::second_order;
+  ChatterRule rule_ = ChatterRule::third_order;
 
  private:
   ModalTangent::Record& rec_;

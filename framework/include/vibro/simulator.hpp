@@ -47,7 +47,7 @@ namespace vibro {
 ///    flights 2 r^k w0 / A, so the bounces accumulate at t + T0, T0 = 2 w0 / (A (1 - r)); the
 ///    error of the accumulation time is O(T0²) (O(w0²)), and the motion of the other degrees of
 ///    freedom misses the bounces' mean displacement, O(w0³).
-///  * second_order (default): the same expansion carried one order further, in the spirit of the
+///  * second_order: the same expansion carried one order further, in the spirit of the
 ///    chatter map of Nordmark & Piiroinen (2009, "Simulation and stability analysis of impacting
 ///    systems with complete chattering", Nonlinear Dyn. 58): with A(t_k) = A + A'(t_k - t),
 ///    one flight lasts τ_k = 2w_k/A_k - (4/3) A' w_k²/A³ + (2/3) α w_k²/A² and ends at the speed
@@ -72,10 +72,23 @@ namespace vibro {
 ///    A' = G λ_j' comes exactly from
 ///    the reduced sticking flow (ℓ Â z of the force row). Where the expansion does not hold
 ///    (|T - T0| > T0/2: the holding force changes by O(1) within the tail) T0 is kept.
-/// Both are exact for a ball under constant gravity (A' = α = 0, K = 0). For several held stops
-/// the rule uses the diagonal G_jj, exact when the held stops' normals are M⁻¹-orthogonal (as in
-/// Wagg 2004: stops on different masses, diagonal M).
-enum class ChatterRule { first_order, second_order };
+///  * third_order (default; issue 13, stop 21): the state as second_order, the accumulation time
+///    one order further, O(w0⁴). The same moment expansion, carried to the gap itself
+///    (h = −g ≥ 0, s from the impact), closes at this order into a local equation without memory:
+///        h'' = −A(s) + α h' + β h + O(w0³),   A(s) = A + A' s + ½ A'' s²,
+///        β = (w_jᵀM⁻¹CM⁻¹CM⁻¹w_j − w_jᵀM⁻¹KM⁻¹w_j) / G − α²
+///    (the impulses' history enters through Σ P_k φ''(t − t_k), φ = w_jᵀ H w_j the gap's own
+///    impulse response, whose terms are α h' and β h to this order). Its bounces are not summed
+///    in closed form but one by one (each flight the root of its Taylor polynomial, event_resolution.cpp,
+///    local_tail): no series to get wrong, and a few hundred flops per chatter. A'' = G λ_j'' from
+///    the reduced sticking flow like A'. Same fallback (to T0) where the model has no accumulation.
+/// All are exact for a ball under constant gravity (A' = α = 0, K = 0). For several held stops
+/// the rules use the diagonal G_jj and the free system's α, β: exact when the held stops' normals
+/// are M⁻¹-orthogonal and the damping does not couple them (Wagg 2004: stops on different masses,
+/// diagonal M — the damping does couple them there, at O(w0⁴) in the times).
+enum class ChatterRule { first_order, second_order, third_order };
+/// Its name in scenes and results ("first_order", "second_order", "third_order").
+const char* to_string(ChatterRule rule);
 
 struct SimulatorOptions {
   /// Guards trigger when they exceed this fraction of L (gaps) or F (forces): no penetration
@@ -87,11 +100,11 @@ struct SimulatorOptions {
   /// stop that would hold (acceleration LCP) when the next bounce would rise less than
   /// chatter_height·L, i.e. (r u)² / (2 a) ≤ chatter_height·L for approach speed u and approach
   /// acceleration a, or when u ≤ chatter_velocity·V. Errors: see ChatterRule (with the default
-  /// second-order rule the accumulation time errs by O(u³) instead of O(u²)).
+  /// third-order rule the accumulation time errs by O(u⁴), the state by O(u⁴)).
   double chatter_height = 1e-9;
   double chatter_velocity = 0.0;
   /// How the skipped bounces are accounted for (see ChatterRule).
-  ChatterRule chatter_rule = ChatterRule::second_order;
+  ChatterRule chatter_rule = ChatterRule::third_order;
   /// Post-impact normal speeds below this fraction of V count as resting contact.
   double contact_velocity = 1e-11;
   /// Zeno guard: at most this many events within one event window (default one period T).

@@ -1278,8 +1278,7 @@ struct ResultFile::Impl {
       else
         store.set_real("/meta", name, value);
     store.set_text("/meta", "flow_method", flow_method_name(scene.solver.flow.method));
-    store.set_text("/meta", "chatter_rule",
-                   scene.solver.chatter_rule == ChatterRule::first_order ? "first_order" : "second_order");
+    store.set_text("/meta", "chatter_rule", to_string(scene.solver.chatter_rule));
     store.set_text("/meta", "engine", to_string(scene.engine));
     store.set_text("/meta", "engine_choice", to_string(scene.engine_choice));
     store.set_text("/meta", "status", "running");

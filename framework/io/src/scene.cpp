@@ -766,8 +766,11 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     }
     if (sv["max_condition"]) opt.flow.max_condition = r.number_in(sv["max_condition"], "solver.max_condition", 1, 1e16, "a condition number in [1, 1e16]");
     if (sv["chatter_rule"]) {
-      const std::string c = r.choice(sv["chatter_rule"], "solver.chatter_rule", {"second_order", "first_order"});
-      opt.chatter_rule = c == "first_order" ? ChatterRule::first_order : ChatterRule::second_order;
+      const std::string c =
+          r.choice(sv["chatter_rule"], "solver.chatter_rule", {"third_order", "second_order", "first_order"});
+      opt.chatter_rule = c == "first_order"    ? ChatterRule::first_order
+                         : c == "second_order" ? ChatterRule::second_order
+                                               : ChatterRule::third_order;
     }
     if (sv["engine"]) {
       const std::string e = r.choice(sv["engine"], "solver.engine", {"auto", "dense", "modal"});
