@@ -47,6 +47,8 @@ t0=$(date +%s)
 echo "report.sh: 1/4 bench_engine" >&2
 "$build/tools/bench/bench_engine" --problem ab --repeat 7 --reference > "$raw/engine.md"
 "$build/tools/bench/bench_engine" --problem ab --repeat 7 --trigger 1e-9 > "$raw/engine_trigger.md"
+# The chatter rules compared (accuracy only: one timing repeat): the second order against the default third.
+"$build/tools/bench/bench_engine" --problem ab --repeat 1 --reference --rule second > "$raw/engine_second.md"
 # Where (a)'s time goes: a sampling profile of the timed runs (skipped where perf is missing).
 rm -f "$raw/profile.txt"
 if command -v perf > /dev/null && perf record -q -o "$raw/perf.data" "$build/tools/bench/bench_engine" --timing-only \
