@@ -24,35 +24,40 @@ Eigen::Index index_in(const ContactSet& s, int j) {
 /// The third-order chatter rule's tail (simulator.hpp, ChatterRule::third_order): from the
 /// rebound w0 at s = 0, the bounces of the gap's local model h'' = −a(s) + α h' + β h,
 /// a(s) = A + A' s + ½ A'' s² (h ≥ 0 the height above the stop, s the time since the impact),
-/// summed flight by flight until the rebound is below 1e-9 w0, then the Budd–Dux remainder
-/// (≤ 1e-9 of the tail, off by its own O(w)). Each flight is the root of its Taylor polynomial,
-/// h = Σ hₘ sᵐ/m! with h₀ = 0, h₁ = w, hₘ₊₂ = −a⁽ᵐ⁾ + α hₘ₊₁ + β hₘ, of degree 8: a flight lasts
-/// ~2w/A, so the truncation is O((ρ·2w/A)⁹) relative, far below the model's own O(w³) (ρ the
-/// largest of |α|, √|β| and the drift rates of a). Returns the tail's duration, or NaN where the
-/// model has no accumulation within it (a(s) ≤ 0 reached, a rebound not decreasing, or more
-/// than 100 000 flights).
-double local_tail(double w0, double r, double A, double A1, double A2, double alpha, double beta) {
+/// summed flight by flight until the second-order closed form (simulator.hpp) can take the rest:
+/// until its error for the remaining tail T_k, estimated as T_k³ ρ² (ρ² the largest of |A''/a|,
+/// (a'/a)², α², |β|: the next order's coefficients), is below `tolerance`, or the rebound below
+/// w0/1000 (its O(T³) then ~1e-9 of the model's own O(T0⁴)). At thresholds where the second-order
+/// rule is already within the tolerance no flight is summed at all. Each flight is the root of its Taylor polynomial, h = Σ hₘ sᵐ/m! with
+/// h₀ = 0, h₁ = w, hₘ₊₂ = −a⁽ᵐ⁾ + α hₘ₊₁ + β hₘ, of degree 8: a flight lasts ~2w/A, so the
+/// truncation is O((ρ·2w/A)⁹) relative, far below the model's own O(w³) (ρ the largest of |α|,
+/// √|β| and the drift rates of a); Newton from the flight's second-order length converges in
+/// one or two steps. Returns the tail's duration, or NaN where the model has no accumulation
+/// within it (a(s) ≤ 0 reached, a rebound not decreasing, or more than 100 000 flights).
+double local_tail(double w0, double r, double A, double A1, double A2, double alpha, double beta,
+                  double tolerance) {
   constexpr int degree = 8;
+  constexpr double inverse_factorial[degree + 1] = {1.0,       1.0,         1.0 / 2,     1.0 / 6,      1.0 / 24,
+                                                    1.0 / 120, 1.0 / 720,   1.0 / 5040,  1.0 / 40320};
   double s = 0.0, w = w0;
   for (int flight = 0; flight < 100000; ++flight) {
     const double a0 = A + s * (A1 + 0.5 * A2 * s), a1 = A1 + A2 * s;
     if (!(a0 > 0.0)) break;
-    if (w <= 1e-9 * w0) return s + 2.0 * w / (a0 * (1.0 - r));
+    const double T0 = 2.0 * w / (a0 * (1.0 - r));
+    const double rho2 = std::max({std::abs(A2 / a0), (a1 / a0) * (a1 / a0), alpha * alpha, std::abs(beta)});
+    if (w <= 1e-3 * w0 || T0 * T0 * T0 * rho2 <= tolerance) return s + T0 + T0 * T0 * (alpha / 6.0 - a1 / (3.0 * a0));
     // The derivatives hₘ at the take-off, then hₘ / m! (the polynomial's coefficients).
     double h[degree + 1] = {0.0, w};
     for (int m = 0; m + 2 <= degree; ++m) {
       const double am = m == 0 ? a0 : (m == 1 ? a1 : (m == 2 ? A2 : 0.0));
       h[m + 2] = -am + alpha * h[m + 1] + beta * h[m];
     }
-    double factorial = 1.0;
-    for (int m = 2; m <= degree; ++m) {
-      factorial *= m;
-      h[m] /= factorial;
-    }
-    // The landing: the root of h(s)/s = Σ hₘ sᵐ⁻¹ (Newton from the constant-acceleration flight).
-    double tau = 2.0 * w / (a0 - alpha * w);
+    for (int m = 2; m <= degree; ++m) h[m] *= inverse_factorial[m];
+    // The landing: the root of h(s)/s = Σ hₘ sᵐ⁻¹, by Newton from the second-order flight
+    // 2w/a − (4/3) a' w²/a³ + (2/3) α w²/a² (simulator.hpp).
+    double tau = 2.0 * w / a0 + (w * w / (a0 * a0)) * ((2.0 / 3.0) * alpha - (4.0 / 3.0) * a1 / a0);
     if (!(tau > 0.0)) break;
-    for (int it = 0; it < 20; ++it) {
+    for (int it = 0; it < 8; ++it) {
       double q = h[degree], dq = 0.0;
       for (int m = degree - 1; m >= 1; --m) {
         dq = dq * tau + q;
@@ -60,7 +65,7 @@ double local_tail(double w0, double r, double A, double A1, double A2, double al
       }
       const double step = q / dq;
       tau -= step;
-      if (std::abs(step) <= 1e-15 * tau) break;
+      if (std::abs(step) <= 1e-14 * tau) break;
     }
     // The landing speed −h'(τ), the next rebound r times it.
     double slope = degree * h[degree];
@@ -118,7 +123,8 @@ RunScales run_scales(const SimulatorOptions& o, double omega, double kmax, doubl
   s.eps_force = o.trigger * s.F;
   s.dt_simultaneous = o.simultaneity * s.T;
   s.window = o.event_window > 0.0 ? o.event_window : s.T;
-  s.rules = {o.chatter_velocity * s.V, o.chatter_height * s.L, o.contact_velocity * s.V, o.chatter_rule};
+  s.rules = {o.chatter_velocity * s.V, o.chatter_height * s.L, o.contact_velocity * s.V, o.chatter_rule,
+             o.trigger * s.T};
   return s;
 }
 
@@ -286,7 +292,7 @@ bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, cons
           // using Σ r^k (1 - r^k) = r / ((1 - r)(1 - r²)) and Σ r^{2k} = 1 / (1 - r²).
           T = T0 + T0 * T0 * (alpha / 6.0 - A_dot / (3.0 * A));
         } else {
-          T = local_tail(w0, r, A, A_dot, Gjj * curvature, alpha, algebra.chatter_beta(j));
+          T = local_tail(w0, r, A, A_dot, Gjj * curvature, alpha, algebra.chatter_beta(j), rules.t_tolerance);
         }
         if (std::isfinite(T) && std::abs(T - T0) <= 0.5 * T0) t_limit = t + T;
         // The bounces' mean displacement: ∫ δg dt = -(2/3) Σ w_k³ / A² over the tail, felt by

@@ -59,6 +59,7 @@ struct EventRules {
   double h_chatter = 0.0;   ///< bounces rising less than this are chatter
   double v_contact = 0.0;   ///< post-impact speeds below this are resting
   ChatterRule chatter_rule = ChatterRule::third_order;
+  double t_tolerance = 0.0;  ///< trigger·T: the third-order rule's tail is summed to this
 };
 
 /// A run's scales and the absolute tolerances they give (SimulatorOptions documents each):
