@@ -919,8 +919,20 @@ void Segment::tabulate(const Functionals& other) const {
 }
 
 void Segment::evaluate(const Functionals& other, double tau, Eigen::Ref<Eigen::VectorXd> out) const {
+  Eigen::Map<Eigen::MatrixXd> all(out.data(), out.size(), 1), none(out.data(), 0, 1);
+  evaluate(other, &tau, 1, 0.0, all, none);  // τ - 0.0 is τ, bit for bit
+}
+
+void Segment::evaluate(const Functionals& other, const double* t, Eigen::Index count, double origin,
+                       Eigen::Ref<Eigen::MatrixXd> top, Eigen::Ref<Eigen::MatrixXd> bottom) const {
+  const Eigen::Index split = top.rows();
   if (!functionals_->flow().closed_form()) {
-    out.noalias() = other.rows(0) * pade_state(tau);
+    rows_out_.resize(other.count());
+    for (Eigen::Index k = 0; k < count; ++k) {
+      rows_out_.noalias() = other.rows(0) * pade_state(t[k] - origin);
+      top.col(k) = rows_out_.head(split);
+      bottom.col(k) = rows_out_.tail(other.count() - split);
+    }
     return;
   }
   if (tabulated_ != &other) tabulate(other);
@@ -928,31 +940,39 @@ void Segment::evaluate(const Functionals& other, double tau, Eigen::Ref<Eigen::V
   const auto& terms = functionals_->flow().terms();
   const auto K = static_cast<Eigen::Index>(terms.size());
   std::complex<double>* e = table_e_.data();
-  direct_exponentials(terms, tau, e, nullptr);
   // Row i: Σᵣ Re(e^{λᵣτ} Σₚ αᵢᵣₚ τ^p), each polynomial by Horner's rule, written out (the
   // tables are small in most modes, a few terms of low degree, where a library product costs
-  // more in set-up than in arithmetic; every sum stays in registers).
-  const double* a = table_.data();
-  for (Eigen::Index i = 0; i < table_.cols(); ++i) {
-    double sum = 0.0;
-    for (Eigen::Index r = 0; r < K; ++r) {
-      const int degree = terms[static_cast<std::size_t>(r)].degree;
-      if (terms[static_cast<std::size_t>(r)].lambda.imag() == 0.0) {  // as tabulate() laid it out
-        double poly = a[degree];
-        for (int p = degree - 1; p >= 0; --p) poly = poly * tau + a[p];
-        sum += poly * e[r].real();
-        a += degree + 1;
-      } else {  // (Re α, -Im α) pairs: Re(α e) = Re α Re e + (-Im α) Im e
-        double pr = a[2 * degree], pi = a[2 * degree + 1];
-        for (int p = degree - 1; p >= 0; --p) {
-          pr = pr * tau + a[2 * p];
-          pi = pi * tau + a[2 * p + 1];
+  // more in set-up than in arithmetic; every sum stays in registers). `a` walks the table's
+  // columns (one per row) in order, across both outputs.
+  const auto row_sums = [&](double tau, const double*& a, Eigen::Index rows, double* out) {
+    for (Eigen::Index i = 0; i < rows; ++i) {
+      double sum = 0.0;
+      for (Eigen::Index r = 0; r < K; ++r) {
+        const int degree = terms[static_cast<std::size_t>(r)].degree;
+        if (terms[static_cast<std::size_t>(r)].lambda.imag() == 0.0) {  // as tabulate() laid it out
+          double poly = a[degree];
+          for (int p = degree - 1; p >= 0; --p) poly = poly * tau + a[p];
+          sum += poly * e[r].real();
+          a += degree + 1;
+        } else {  // (Re α, -Im α) pairs: Re(α e) = Re α Re e + (-Im α) Im e
+          double pr = a[2 * degree], pi = a[2 * degree + 1];
+          for (int p = degree - 1; p >= 0; --p) {
+            pr = pr * tau + a[2 * p];
+            pi = pi * tau + a[2 * p + 1];
+          }
+          sum += pr * e[r].real() + pi * e[r].imag();
+          a += 2 * (degree + 1);
         }
-        sum += pr * e[r].real() + pi * e[r].imag();
-        a += 2 * (degree + 1);
       }
+      out[i] = sum;
     }
-    out(i) = sum;
+  };
+  for (Eigen::Index k = 0; k < count; ++k) {
+    const double tau = t[k] - origin;
+    direct_exponentials(terms, tau, e, nullptr);
+    const double* a = table_.data();
+    row_sums(tau, a, split, top.col(k).data());
+    row_sums(tau, a, table_.cols() - split, bottom.col(k).data());
   }
 }
 
