@@ -1013,7 +1013,9 @@ TEST_CASE("segment: evaluate over many times gives, column by column, evaluate a
     const vibro::Functionals other(flow, rows);
     const double t0 = 0.7;
     const vibro::Segment segment(own, t0, flow.augment(t0, rng.vector(n, -1.0, 1.0), rng.vector(n, -1.0, 1.0)));
-    const std::vector<double> times{t0, 0.71, 0.9, 1.3, 1.3, 2.05, 3.7, 5.2, 6.0};
+    // Two groups of the eight times evaluate() takes side by side, and three more alone.
+    const std::vector<double> times{t0,  0.71, 0.9, 1.3, 1.3, 2.05, 3.7, 5.2, 6.0, 6.1,
+                                    6.4, 7.0,  7.7, 8.1, 8.8, 9.3,  9.9, 10.4, 11.0};
     const auto count = static_cast<Eigen::Index>(times.size());
     const double sentinel = 12345.0;
     const Eigen::Index split = n + 1;

@@ -342,7 +342,7 @@ class Segment {
   mutable Eigen::MatrixXd cache_growth_;
   mutable Eigen::VectorXcd scratch_;  // state(): the terms' vectors at τ
   // evaluate(): the table of the rows it was last asked for (null: none since the last reset),
-  // one column per row, and e^{λᵣτ} per term.
+  // one column per row, and e^{λᵣτ} per term for each of the times evaluated together.
   void tabulate(const Functionals& other) const;
   mutable const Functionals* tabulated_ = nullptr;
   mutable Eigen::MatrixXd table_;
