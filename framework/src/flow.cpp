@@ -568,18 +568,24 @@ constexpr double kFactorial[9] = {1.0, 1.0, 1.0 / 2, 1.0 / 6, 1.0 / 24, 1.0 / 12
 /// e^{λᵣτ} = e^{Re λᵣτ} (cos Im λᵣτ + i sin Im λᵣτ) for every term by exp and sincos, with the
 /// real (damped modes without oscillation, the constant) and the purely imaginary (the forcing)
 /// cases taking one call; growth (if not null) |e^{λᵣτ}|. The one direct formula of the segment's
-/// exponentials, for the search (fill_exponentials) and the observers' states (evaluate).
-void direct_exponentials(const std::vector<LinearFlow::Term>& terms, double tau, std::complex<double>* e,
-                         double* growth) {
-  for (std::size_t r = 0; r < terms.size(); ++r) {
-    const double re = terms[r].lambda.real() * tau, im = terms[r].lambda.imag() * tau;
-    const double g = re == 0.0 ? 1.0 : std::exp(re);
-    if (growth) growth[r] = g;
-    if (im == 0.0) {
-      e[r] = {g, 0.0};
-    } else {
-      const double cs = std::cos(im), sn = std::sin(im);
-      e[r] = {g * cs, g * sn};
+/// exponentials, for the search (fill_exponentials) and the observers' states (evaluate). At
+/// `count` times tau[j] at once (term by term, so that each term's case is settled once), into
+/// e[r + j·K] and growth[r + j·K], K the number of terms: each value as at one time alone.
+void direct_exponentials(const std::vector<LinearFlow::Term>& terms, const double* tau, Eigen::Index count,
+                         std::complex<double>* e, double* growth) {
+  const auto K = static_cast<Eigen::Index>(terms.size());
+  for (Eigen::Index r = 0; r < K; ++r) {
+    const std::complex<double> lambda = terms[static_cast<std::size_t>(r)].lambda;
+    for (Eigen::Index j = 0; j < count; ++j) {
+      const double re = lambda.real() * tau[j], im = lambda.imag() * tau[j];
+      const double g = re == 0.0 ? 1.0 : std::exp(re);
+      if (growth) growth[r + j * K] = g;
+      if (im == 0.0) {
+        e[r + j * K] = {g, 0.0};
+      } else {
+        const double cs = std::cos(im), sn = std::sin(im);
+        e[r + j * K] = {g * cs, g * sn};
+      }
     }
   }
 }
@@ -637,7 +643,7 @@ void Segment::fill_exponentials(double tau, std::complex<double>* e, double* gro
     *direct = base < 0;
     return;
   }
-  direct_exponentials(terms, tau, e, growth);
+  direct_exponentials(terms, &tau, 1, e, growth);
   *direct = true;
 }
 
@@ -889,6 +895,71 @@ void Segment::state(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
 
 // --- evaluate(): other rows of the same flow, tabulated once per segment ----------------------
 
+namespace {
+
+/// Times evaluate() takes side by side: independent sums that overlap in the pipeline (and
+/// pair up in vector registers) instead of one chain of dependent products per time.
+constexpr Eigen::Index kEvaluateLanes = 8;
+
+/// Where evaluate() writes row i of column k: top(i, k) for i < split, else bottom(i - split, k).
+struct RowOutput {
+  Eigen::Index split;
+  double* top;
+  Eigen::Index top_stride;
+  double* bottom;
+  Eigen::Index bottom_stride;
+  /// Row i of column k, and the step from one column to the next.
+  double* row(Eigen::Index i, Eigen::Index k) const {
+    return i < split ? top + i + k * top_stride : bottom + (i - split) + k * bottom_stride;
+  }
+  Eigen::Index stride(Eigen::Index i) const { return i < split ? top_stride : bottom_stride; }
+};
+
+/// Columns k, …, k + L - 1 of evaluate(): row i at tau[j] is Σᵣ Re(e^{λᵣτ} Σₚ αᵢᵣₚ τ^p), each
+/// polynomial by Horner's rule, written out (the tables are small in most modes, a few terms of
+/// low degree, where a library product costs more in set-up than in arithmetic). `e` holds
+/// e^{λᵣτ_j} at r + j·K. Each time gets the same operations in the same order whatever L, so a
+/// column is bit for bit the same in a batch or alone.
+template <Eigen::Index L>
+void table_row_sums(const std::vector<LinearFlow::Term>& terms, const Eigen::MatrixXd& table, const double* tau,
+                    const std::complex<double>* e, const RowOutput& out, Eigen::Index k) {
+  const auto K = static_cast<Eigen::Index>(terms.size());
+  const double* a = table.data();  // one column per row, in tabulate()'s layout
+  for (Eigen::Index i = 0; i < table.cols(); ++i) {
+    double sum[L] = {};
+    for (Eigen::Index r = 0; r < K; ++r) {
+      const int degree = terms[static_cast<std::size_t>(r)].degree;
+      if (terms[static_cast<std::size_t>(r)].lambda.imag() == 0.0) {
+        double poly[L];
+        for (Eigen::Index j = 0; j < L; ++j) poly[j] = a[degree];
+        for (int p = degree - 1; p >= 0; --p)
+          for (Eigen::Index j = 0; j < L; ++j) poly[j] = poly[j] * tau[j] + a[p];
+        for (Eigen::Index j = 0; j < L; ++j) sum[j] += poly[j] * e[r + j * K].real();
+        a += degree + 1;
+      } else {  // (Re α, -Im α) pairs: Re(α e) = Re α Re e + (-Im α) Im e
+        double pr[L], pi[L];
+        for (Eigen::Index j = 0; j < L; ++j) {
+          pr[j] = a[2 * degree];
+          pi[j] = a[2 * degree + 1];
+        }
+        for (int p = degree - 1; p >= 0; --p)
+          for (Eigen::Index j = 0; j < L; ++j) {
+            pr[j] = pr[j] * tau[j] + a[2 * p];
+            pi[j] = pi[j] * tau[j] + a[2 * p + 1];
+          }
+        for (Eigen::Index j = 0; j < L; ++j) sum[j] += pr[j] * e[r + j * K].real() + pi[j] * e[r + j * K].imag();
+        a += 2 * (degree + 1);
+      }
+    }
+    double* const row = out.row(i, k);
+    const Eigen::Index stride = out.stride(i);
+    for (Eigen::Index j = 0; j < L; ++j) row[j * stride] = sum[j];
+  }
+}
+
+}  // namespace
+
+
 void Segment::tabulate(const Functionals& other) const {
   // αᵢᵣₚ = (ℓᵢᵀV)_r y_rp with y_rp the state's own coefficients (powers_), the product reset()
   // forms for the segment's own rows; a spectral term is the case m = 1, degree 0. Per row, per
@@ -901,7 +972,7 @@ void Segment::tabulate(const Functionals& other) const {
   Eigen::Index width = 0;
   for (const auto& term : terms) width += (term.lambda.imag() != 0.0 ? 2 : 1) * (term.degree + 1);
   table_.resize(width, rows);
-  table_e_.resize(static_cast<Eigen::Index>(terms.size()));
+  table_e_.resize(static_cast<Eigen::Index>(terms.size()) * kEvaluateLanes);
   Eigen::Index at = 0, k = 0;  // at: position in powers_ (per term, per power p, m entries)
   for (const auto& term : terms) {
     const bool complex = term.lambda.imag() != 0.0;
@@ -919,40 +990,40 @@ void Segment::tabulate(const Functionals& other) const {
 }
 
 void Segment::evaluate(const Functionals& other, double tau, Eigen::Ref<Eigen::VectorXd> out) const {
+  Eigen::Map<Eigen::MatrixXd> all(out.data(), out.size(), 1), none(out.data(), 0, 1);
+  evaluate(other, &tau, 1, 0.0, all, none);  // τ - 0.0 is τ, bit for bit
+}
+
+void Segment::evaluate(const Functionals& other, const double* t, Eigen::Index count, double origin,
+                       Eigen::Ref<Eigen::MatrixXd> top, Eigen::Ref<Eigen::MatrixXd> bottom) const {
+  const Eigen::Index split = top.rows();
   if (!functionals_->flow().closed_form()) {
-    out.noalias() = other.rows(0) * pade_state(tau);
+    rows_out_.resize(other.count());
+    for (Eigen::Index k = 0; k < count; ++k) {
+      rows_out_.noalias() = other.rows(0) * pade_state(t[k] - origin);
+      top.col(k) = rows_out_.head(split);
+      bottom.col(k) = rows_out_.tail(other.count() - split);
+    }
     return;
   }
   if (tabulated_ != &other) tabulate(other);
   // e^{λτ} is formed here rather than through the search's cache, which it would evict.
   const auto& terms = functionals_->flow().terms();
-  const auto K = static_cast<Eigen::Index>(terms.size());
   std::complex<double>* e = table_e_.data();
-  direct_exponentials(terms, tau, e, nullptr);
-  // Row i: Σᵣ Re(e^{λᵣτ} Σₚ αᵢᵣₚ τ^p), each polynomial by Horner's rule, written out (the
-  // tables are small in most modes, a few terms of low degree, where a library product costs
-  // more in set-up than in arithmetic; every sum stays in registers).
-  const double* a = table_.data();
-  for (Eigen::Index i = 0; i < table_.cols(); ++i) {
-    double sum = 0.0;
-    for (Eigen::Index r = 0; r < K; ++r) {
-      const int degree = terms[static_cast<std::size_t>(r)].degree;
-      if (terms[static_cast<std::size_t>(r)].lambda.imag() == 0.0) {  // as tabulate() laid it out
-        double poly = a[degree];
-        for (int p = degree - 1; p >= 0; --p) poly = poly * tau + a[p];
-        sum += poly * e[r].real();
-        a += degree + 1;
-      } else {  // (Re α, -Im α) pairs: Re(α e) = Re α Re e + (-Im α) Im e
-        double pr = a[2 * degree], pi = a[2 * degree + 1];
-        for (int p = degree - 1; p >= 0; --p) {
-          pr = pr * tau + a[2 * p];
-          pi = pi * tau + a[2 * p + 1];
-        }
-        sum += pr * e[r].real() + pi * e[r].imag();
-        a += 2 * (degree + 1);
-      }
-    }
-    out(i) = sum;
+  double tau[kEvaluateLanes];
+  Eigen::Index k = 0;
+  const auto exponentials_at = [&](Eigen::Index lanes) {
+    for (Eigen::Index j = 0; j < lanes; ++j) tau[j] = t[k + j] - origin;
+    direct_exponentials(terms, tau, lanes, e, nullptr);
+  };
+  const RowOutput out{split, top.data(), top.outerStride(), bottom.data(), bottom.outerStride()};
+  for (; k + kEvaluateLanes <= count; k += kEvaluateLanes) {
+    exponentials_at(kEvaluateLanes);
+    table_row_sums<kEvaluateLanes>(terms, table_, tau, e, out, k);
+  }
+  for (; k < count; ++k) {
+    exponentials_at(1);
+    table_row_sums<1>(terms, table_, tau, e, out, k);
   }
 }
 

@@ -43,11 +43,29 @@ void DenseSegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref
   // Elsewhere x and v straight from the segment's flow through the mode's rows [x; v] (T and
   // the basis folded into one table per segment, Segment::evaluate): a few times cheaper, the
   // same exact form rounded in another order.
-  if (buffer.size() < 2 * n) buffer.resize(2 * n);
-  auto xv = buffer.head(2 * n);
-  segment_->evaluate(mode_->state_rows(), t - t_begin(), xv);
-  x = xv.head(n);
-  v = xv.tail(n);
+  Eigen::Map<Eigen::MatrixXd> xs(x.data(), n, 1), vs(v.data(), n, 1);
+  segment_->evaluate(mode_->state_rows(), &t, 1, t_begin(), xs, vs);
+}
+
+void SegmentView::states(const double* t, Eigen::Index count, Eigen::Ref<Eigen::MatrixXd> x,
+                         Eigen::Ref<Eigen::MatrixXd> v) const {
+  for (Eigen::Index k = 0; k < count; ++k) state(t[k], x.col(k), v.col(k));
+}
+
+void DenseSegmentView::states(const double* t, Eigen::Index count, Eigen::Ref<Eigen::MatrixXd> x,
+                              Eigen::Ref<Eigen::MatrixXd> v) const {
+  const auto at_end = [this](double ts) { return ts == t_begin() || ts == t_end(); };
+  for (Eigen::Index k = 0; k < count;) {
+    if (at_end(t[k])) {  // the engine's arithmetic, as state() (above)
+      state(t[k], x.col(k), v.col(k));
+      ++k;
+      continue;
+    }
+    Eigen::Index run = 1;
+    while (k + run < count && !at_end(t[k + run])) ++run;
+    segment_->evaluate(mode_->state_rows(), t + k, run, t_begin(), x.middleCols(k, run), v.middleCols(k, run));
+    k += run;
+  }
 }
 
 double DenseSegmentView::force(Eigen::Index a, double t) const {
@@ -205,12 +223,21 @@ void Samples::begin(const RunContext& run, double) {
 }
 
 void Samples::segment(const SegmentView& view) {
-  for (; next_ < times_.size() && times_[next_] <= view.t_end(); ++next_) {
-    const double ts = times_[next_];
-    if (ts < view.t_begin()) continue;
+  // The times up to t_end, those before t_begin skipped; the others (one run when the times are
+  // sorted) in one states() call, straight into their columns.
+  const auto inside = [&view](double ts) { return ts >= view.t_begin() && ts <= view.t_end(); };
+  while (next_ < times_.size() && times_[next_] <= view.t_end()) {
+    if (!inside(times_[next_])) {
+      ++next_;
+      continue;
+    }
+    const std::size_t first = next_;
+    while (next_ < times_.size() && inside(times_[next_])) ++next_;
     const auto k = static_cast<Eigen::Index>(t.size());
-    view.state(ts, x.col(k), v.col(k));
-    t.push_back(ts);
+    const auto count = static_cast<Eigen::Index>(next_ - first);
+    view.states(times_.data() + first, count, x.middleCols(k, count), v.middleCols(k, count));
+    t.insert(t.end(), times_.begin() + static_cast<std::ptrdiff_t>(first),
+             times_.begin() + static_cast<std::ptrdiff_t>(next_));
   }
 }
 

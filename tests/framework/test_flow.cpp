@@ -972,3 +972,72 @@ TEST_CASE("segment: values, slopes, curvatures and states at short steps agree w
     }
   }
 }
+
+TEST_CASE("segment: evaluate over many times gives, column by column, evaluate at each time bit for bit",
+          "[flow][segment]") {
+  // The batched Segment::evaluate (the observers' dense samples) settles the method and the
+  // table once and must then do per τ the very arithmetic of the single-τ call: exact equality,
+  // on every path: spectral (a damped, forced 2-DOF system), the closed form on a Jordan block
+  // (a unit mass falling under a constant force: one polynomial term), the closed form with
+  // complex clusters of degree > 0 (the free-free chain) and the Padé exponential. The rows
+  // (more than the state's, an odd count) are split unevenly between the two outputs, which
+  // are windows of wider matrices: a row sent to the wrong output, a column shifted, a τ taken
+  // from the wrong origin, a table or exponentials not renewed per column all break equality
+  // or the sentinels around the windows.
+  struct Case {
+    const char* name;
+    LinearSystem system;
+    FlowOptions options;
+    bool closed_form;
+  };
+  const FlowOptions pade{.method = FlowMethod::exponential, .closed_form = false};
+  const std::vector<Case> cases{
+      {"spectral, 2-DOF damped and forced", random_problem({2, 7, Damping::full}).system, {}, true},
+      {"closed form, falling unit mass", make_system({1, 0, 0, -1}), {}, true},
+      {"closed form, free-free chain", free_free_chain(), {}, true},
+      {"Padé, 2-DOF damped and forced", random_problem({2, 7, Damping::full}).system, pade, false}};
+  Random rng(41);
+  for (const Case& c : cases) {
+    INFO(c.name);
+    const LinearFlow flow(c.system, c.options);
+    REQUIRE(flow.closed_form() == c.closed_form);
+    if (std::string(c.name).starts_with("spectral")) REQUIRE(flow.method() == FlowMethod::spectral);
+    if (std::string(c.name).starts_with("closed form, falling")) {
+      REQUIRE(flow.terms().size() == 1);
+      REQUIRE(flow.terms()[0].degree == 2);
+    }
+    const Eigen::Index N = flow.size(), n = flow.dof();
+    const vibro::Functionals own(flow, Eigen::MatrixXd::Identity(1, N));
+    Eigen::MatrixXd rows(2 * n + 1, N);
+    for (Eigen::Index i = 0; i < rows.rows(); ++i) rows.row(i) = rng.vector(N, -1.0, 1.0).transpose();
+    const vibro::Functionals other(flow, rows);
+    const double t0 = 0.7;
+    const vibro::Segment segment(own, t0, flow.augment(t0, rng.vector(n, -1.0, 1.0), rng.vector(n, -1.0, 1.0)));
+    // Two groups of the eight times evaluate() takes side by side, and three more alone.
+    const std::vector<double> times{t0,  0.71, 0.9, 1.3, 1.3, 2.05, 3.7, 5.2, 6.0, 6.1,
+                                    6.4, 7.0,  7.7, 8.1, 8.8, 9.3,  9.9, 10.4, 11.0};
+    const auto count = static_cast<Eigen::Index>(times.size());
+    const double sentinel = 12345.0;
+    const Eigen::Index split = n + 1;
+    Eigen::MatrixXd top = Eigen::MatrixXd::Constant(split, count + 2, sentinel);
+    Eigen::MatrixXd bottom = Eigen::MatrixXd::Constant(rows.rows() - split, count + 2, sentinel);
+    segment.evaluate(other, times.data(), count, t0, top.middleCols(1, count), bottom.middleCols(1, count));
+    Eigen::VectorXd single(rows.rows());
+    for (Eigen::Index k = 0; k < count; ++k) {
+      INFO("t = " << times[static_cast<std::size_t>(k)]);
+      segment.evaluate(other, times[static_cast<std::size_t>(k)] - t0, single);
+      CHECK(single.allFinite());
+      CHECK((top.col(k + 1).array() == single.head(split).array()).all());
+      CHECK((bottom.col(k + 1).array() == single.tail(rows.rows() - split).array()).all());
+    }
+    for (const Eigen::Index k : {Eigen::Index{0}, count + 1}) {
+      CHECK((top.col(k).array() == sentinel).all());
+      CHECK((bottom.col(k).array() == sentinel).all());
+    }
+    // And the values are the state's: to rounding against rows × state(τ).
+    Eigen::VectorXd z(N);
+    segment.state(times.back() - t0, z);
+    const Eigen::VectorXd expected = rows * z;
+    CHECK((single - expected).cwiseAbs().maxCoeff() <= 1e-12 * std::max(1.0, expected.cwiseAbs().maxCoeff()));
+  }
+}

@@ -284,6 +284,15 @@ class Segment {
   /// state. Allocates only on a Segment's first call (or a first call with
   /// rows of a new size); touches neither the exponentials' cache nor evaluations().
   void evaluate(const Functionals& other, double tau, Eigen::Ref<Eigen::VectorXd> out) const;
+  /// The same at many times in one call (an observer's dense samples): column k at
+  /// τ = t[k] - origin, its first top.rows() rows in top and the others in bottom
+  /// (top.rows() + bottom.rows() = other.count(); e.g. x and v, n × count each, from a mode's
+  /// state rows). The method and the table are settled once per call, then each column costs
+  /// the exponentials and the row sums: bit for bit what evaluate() gives at that τ (which is
+  /// this call with count = 1). Allocates as evaluate() does (Padé path: its product's vector,
+  /// once per Segment).
+  void evaluate(const Functionals& other, const double* t, Eigen::Index count, double origin,
+                Eigen::Ref<Eigen::MatrixXd> top, Eigen::Ref<Eigen::MatrixXd> bottom) const;
   /// Evaluations of the exponentials since construction (one per sample or uncached τ; one
   /// matrix exponential on the Padé path): the unit of work of the event search.
   long evaluations() const { return evaluations_; }
@@ -333,11 +342,12 @@ class Segment {
   mutable Eigen::MatrixXd cache_growth_;
   mutable Eigen::VectorXcd scratch_;  // state(): the terms' vectors at τ
   // evaluate(): the table of the rows it was last asked for (null: none since the last reset),
-  // one column per row, and e^{λᵣτ} per term.
+  // one column per row, and e^{λᵣτ} per term for each of the times evaluated together.
   void tabulate(const Functionals& other) const;
   mutable const Functionals* tabulated_ = nullptr;
   mutable Eigen::MatrixXd table_;
   mutable Eigen::VectorXcd table_e_;
+  mutable Eigen::VectorXd rows_out_;  // evaluate() on the Padé path: all rows at one τ
 };
 
 }  // namespace vibro

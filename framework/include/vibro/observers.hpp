@@ -57,6 +57,12 @@ class SegmentView {
   virtual const ContactSet& active() const = 0;
   /// Full state at t ∈ [t_begin, t_end] from the exact flow.
   virtual void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const = 0;
+  /// States at t[0], …, t[count - 1] ∈ [t_begin, t_end] at once: column k of x and v (n × count
+  /// or wider) is state(t[k]), bit for bit. Observers that record many states per segment
+  /// (Samples) call this: an engine can settle once what each state() call settles again. The
+  /// default calls state() per time.
+  virtual void states(const double* t, Eigen::Index count, Eigen::Ref<Eigen::MatrixXd> x,
+                      Eigen::Ref<Eigen::MatrixXd> v) const;
   /// Contact force λ of the a-th stop of active() at t.
   virtual double force(Eigen::Index a, double t) const = 0;
   /// Certified minimum of that force over the segment (value, time).
@@ -91,6 +97,10 @@ class DenseSegmentView final : public SegmentView {
   Eigen::Index dof() const override { return mode_->reduced().to_full.rows() / 2 - 1; }
   const ContactSet& active() const override { return mode_->active(); }
   void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const override;
+  /// Times inside (t_begin, t_end) in runs, each by one batched Segment::evaluate; the ends as
+  /// state() takes them. Allocates nothing that state() would not.
+  void states(const double* t, Eigen::Index count, Eigen::Ref<Eigen::MatrixXd> x,
+              Eigen::Ref<Eigen::MatrixXd> v) const override;
   double force(Eigen::Index a, double t) const override;
   Minimum force_minimum(Eigen::Index a) const override;
   std::vector<Minimum> force_local_minima(Eigen::Index a) const override;
