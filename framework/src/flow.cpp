@@ -96,6 +96,17 @@ LinearFlow::LinearFlow(Eigen::MatrixXd generator, Eigen::Index dof, double frequ
     if (options.closed_form && N <= kClosedFormMaxSize) build_schur_clusters(options.max_condition);
     return;
   }
+  // A strictly upper triangular Â (a free mass under a constant force, Ω = 0) is nilpotent:
+  // every eigenvalue 0, defective unless Â = 0, so the spectral attempt below can only fail
+  // (its eigenvectors and their SVD cost a third of such a run's set-up): go to the closed form.
+  bool strictly_upper = !generator_.isZero(0.0);
+  for (Eigen::Index j = 0; j < N && strictly_upper; ++j)
+    for (Eigen::Index i = j; i < N && strictly_upper; ++i) strictly_upper = generator_(i, j) == 0.0;
+  if (options.method == Method::automatic && strictly_upper) {
+    spectral_radius_ = 0.0;
+    if (options.closed_form && N <= kClosedFormMaxSize) build_schur_clusters(options.max_condition);
+    return;
+  }
   Eigen::EigenSolver<Eigen::MatrixXd> eig(generator_, true);
   if (eig.info() == Eigen::Success) {
     lambda_ = eig.eigenvalues();
@@ -458,6 +469,8 @@ void Segment::reset(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0) {
     for (const auto& term : terms) rate_ = std::max(rate_, std::abs(term.lambda));
     cache_e_.resize(K, cache_slots);
     cache_growth_.resize(K, cache_slots);
+    unstored_e_.resize(K);
+    unstored_growth_.resize(K);
     scratch_.resize(flow.size());
   }
   magnitude_.setZero(rows);
@@ -891,6 +904,21 @@ void Segment::state(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
     return;
   }
   closed_form_state(tau, exponentials(tau), out);
+}
+
+void Segment::state_unstored(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
+  if (!functionals_->flow().closed_form()) {
+    out = pade_state(tau);  // a memo of one z(τ): the same values whether it holds τ or not
+    return;
+  }
+  for (int c = 0; c < cache_slots; ++c)
+    if (cache_tau_[c] == tau) {
+      closed_form_state(tau, &cache_e_(0, c), out);
+      return;
+    }
+  bool direct = false;  // as store_exponentials() would fill a slot, from the same bases
+  fill_exponentials(tau, unstored_e_.data(), unstored_growth_.data(), &direct);
+  closed_form_state(tau, unstored_e_.data(), out);
 }
 
 // --- evaluate(): other rows of the same flow, tabulated once per segment ----------------------

@@ -28,13 +28,17 @@ void DenseSegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref
     // before the table below: the engine carries on from the end state (simulator.cpp), and the
     // analysis layer joins the view's states on either side of an event (linearisation.cpp
     // reads both ends of every segment), where a difference of rounding biases, e.g., a
-    // conservative system's Lyapunov sum (test_lyapunov.cpp).
+    // conservative system's Lyapunov sum (test_lyapunov.cpp). Without storing anything in the
+    // segment's cache of exponentials, which the engine's search reads (Segment::state_unstored).
     const auto& red = mode_->reduced();
     const Eigen::Index full = red.to_full.rows(), size = red.flow->size();
     if (buffer.size() < full + size) buffer.resize(full + size);
     auto zr = buffer.head(size);
     auto z = buffer.segment(size, full);
-    segment_->state(t - t_begin(), zr);
+    if (t == t_begin())
+      zr = segment_->initial_state();  // the state the engine started the segment from
+    else
+      segment_->state_unstored(t - t_begin(), zr);
     mode_->expand(zr, z);
     x = z.head(n);
     v = z.segment(n, n);

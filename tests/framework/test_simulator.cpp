@@ -1667,6 +1667,45 @@ TEST_CASE(
   CHECK(run.audit.chatter_shift > 0.0);
 }
 
+namespace {
+
+/// Reads every segment's states at both ends, as the analysis layer does (linearisation.cpp).
+class EndStates final : public vibro::Observer {
+ public:
+  void segment(const vibro::SegmentView& view) override {
+    VectorXd x(view.dof()), v(view.dof());
+    view.state(view.t_begin(), x, v);
+    view.state(view.t_end(), x, v);
+  }
+};
+
+}  // namespace
+
+TEST_CASE("simulator: a run's result does not depend on what observes it, bit for bit", "[simulator][observers]") {
+  // Observers read states through the segment's view; none of it may feed back into the engine.
+  // Until issue 13's stop 21 the view's states at a segment's ends went through the cache of
+  // exponentials the event search takes its series from (storing τ = 0 there evicted a point
+  // the engine's end state could have started its series from), so the same run observed at
+  // the segments' ends ended rounded differently.
+  const ImpactSystem scene = vibro::models::wagg2004();
+  const double t_end = 50.0 * 2.0 * kPi / vibro::models::Wagg2004{}.frequency;
+  Simulator bare(scene);
+  const RunSummary a = bare.run(0.0, VectorXd::Zero(2), VectorXd::Zero(2), t_end);
+  std::vector<double> times;
+  for (int i = 0; i <= 4000; ++i) times.push_back(t_end * i / 4000.0);
+  Samples samples(times);
+  vibro::EventLog log;
+  EndStates ends;
+  Simulator watched(scene);
+  const RunSummary b = watched.run(0.0, VectorXd::Zero(2), VectorXd::Zero(2), t_end, {&samples, &log, &ends});
+  REQUIRE(a.status == RunStatus::completed);
+  REQUIRE(b.status == RunStatus::completed);
+  CHECK(b.impacts == a.impacts);
+  CHECK(b.sticks == a.sticks);
+  CHECK(b.x == a.x);
+  CHECK(b.v == a.v);
+}
+
 TEST_CASE("simulator: an interrupt flag ends the run at the next event with status interrupted",
           "[simulator][interrupt]") {
   vibro::models::Wagg2004 p;

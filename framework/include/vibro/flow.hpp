@@ -259,6 +259,11 @@ class Segment {
   double third_derivative_bound(Eigen::Index i, double a, double b) const;
   /// Full augmented state at τ.
   void state(double tau, Eigen::Ref<Eigen::VectorXd> out) const;
+  /// The same, bit for bit, without storing e^{λτ} in the cache of recent τ: for observers. The
+  /// search takes its series from the cached points (fill_exponentials), so a τ stored by an
+  /// observer (which evicts another) would change the rounding of the run's later states: a run
+  /// must not depend on what observes it.
+  void state_unstored(double tau, Eigen::Ref<Eigen::VectorXd> out) const;
 
   // --- the certified search's interface (events.hpp): all rows at once ---
   /// Values, slopes and curvatures of every row at τ, with what the bounds need. One
@@ -341,6 +346,8 @@ class Segment {
   mutable Eigen::MatrixXcd cache_e_;
   mutable Eigen::MatrixXd cache_growth_;
   mutable Eigen::VectorXcd scratch_;  // state(): the terms' vectors at τ
+  mutable Eigen::VectorXcd unstored_e_;  // state_unstored(): e^{λᵣτ}, |e^{λᵣτ}| of a τ not cached
+  mutable Eigen::VectorXd unstored_growth_;
   // evaluate(): the table of the rows it was last asked for (null: none since the last reset),
   // one column per row, and e^{λᵣτ} per term for each of the times evaluated together.
   void tabulate(const Functionals& other) const;
