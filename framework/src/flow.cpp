@@ -947,8 +947,10 @@ struct RowOutput {
 /// polynomial by Horner's rule, written out (the tables are small in most modes, a few terms of
 /// low degree, where a library product costs more in set-up than in arithmetic). `e` holds
 /// e^{λᵣτ_j} at r + j·K. Each time gets the same operations in the same order whatever L, so a
-/// column is bit for bit the same in a batch or alone.
-template <Eigen::Index L>
+/// column is bit for bit the same in a batch or alone. `Unit`: every λᵣ is 0 (a polynomial
+/// flow: free masses under constant forces), so e^{λᵣτ} = 1 and `e` is not read; the sums are
+/// the same, x · 1 being x.
+template <Eigen::Index L, bool Unit>
 void table_row_sums(const std::vector<LinearFlow::Term>& terms, const Eigen::MatrixXd& table, const double* tau,
                     const std::complex<double>* e, const RowOutput& out, Eigen::Index k) {
   const auto K = static_cast<Eigen::Index>(terms.size());
@@ -962,7 +964,7 @@ void table_row_sums(const std::vector<LinearFlow::Term>& terms, const Eigen::Mat
         for (Eigen::Index j = 0; j < L; ++j) poly[j] = a[degree];
         for (int p = degree - 1; p >= 0; --p)
           for (Eigen::Index j = 0; j < L; ++j) poly[j] = poly[j] * tau[j] + a[p];
-        for (Eigen::Index j = 0; j < L; ++j) sum[j] += poly[j] * e[r + j * K].real();
+        for (Eigen::Index j = 0; j < L; ++j) sum[j] += Unit ? poly[j] : poly[j] * e[r + j * K].real();
         a += degree + 1;
       } else {  // (Re α, -Im α) pairs: Re(α e) = Re α Re e + (-Im α) Im e
         double pr[L], pi[L];
@@ -1040,18 +1042,25 @@ void Segment::evaluate(const Functionals& other, const double* t, Eigen::Index c
   std::complex<double>* e = table_e_.data();
   double tau[kEvaluateLanes];
   Eigen::Index k = 0;
+  const bool unit = std::all_of(terms.begin(), terms.end(), [](const auto& term) { return term.lambda == 0.0; });
   const auto exponentials_at = [&](Eigen::Index lanes) {
     for (Eigen::Index j = 0; j < lanes; ++j) tau[j] = t[k + j] - origin;
-    direct_exponentials(terms, tau, lanes, e, nullptr);
+    if (!unit) direct_exponentials(terms, tau, lanes, e, nullptr);
   };
   const RowOutput out{split, top.data(), top.outerStride(), bottom.data(), bottom.outerStride()};
   for (; k + kEvaluateLanes <= count; k += kEvaluateLanes) {
     exponentials_at(kEvaluateLanes);
-    table_row_sums<kEvaluateLanes>(terms, table_, tau, e, out, k);
+    if (unit)
+      table_row_sums<kEvaluateLanes, true>(terms, table_, tau, e, out, k);
+    else
+      table_row_sums<kEvaluateLanes, false>(terms, table_, tau, e, out, k);
   }
   for (; k < count; ++k) {
     exponentials_at(1);
-    table_row_sums<1>(terms, table_, tau, e, out, k);
+    if (unit)
+      table_row_sums<1, true>(terms, table_, tau, e, out, k);
+    else
+      table_row_sums<1, false>(terms, table_, tau, e, out, k);
   }
 }
 
