@@ -220,7 +220,7 @@ def main():
          f"{share(r'resolve_event|solve_lcp|settle|gap_rates|DenseAlgebra::gap|merge_into'):.0f} %. " if profile else
          "no profile was taken (perf missing). ")
       + "The other lever is fewer events: with the third-order chatter rule and the full state correction "
-      "(this stop) chatter_height 1e-7 has the default's errors on (a) and (d) (state "
+      "(issue 13, stop 21) chatter_height 1e-7 has the default's errors on (a) and (d) (state "
       f"{coarse.get('error', float('nan')):.1e}, chatter limits {checks.get('a', {}).get('1e-07', ['', '?'])[1]} of T) at "
       f"{coarse.get('us_period', float('nan')):.1f} µs per period, but it moves the main command's split-phase "
       "vanishing points by 1.5e-6 to 3.6e-6 in Ω (docs/accuracy.md), so the default stays 1e-9. The RK ratios "
