@@ -27,13 +27,14 @@ Eigen::Index index_in(const ContactSet& s, int j) {
 /// summed flight by flight until the second-order closed form (simulator.hpp) can take the rest:
 /// until its error for the remaining tail T_k, estimated as T_k³ ρ² (ρ² the largest of |A''/a|,
 /// (a'/a)², α², |β|: the next order's coefficients), is below `tolerance`, or the rebound below
-/// w0/1000 (its O(T³) then ~1e-9 of the model's own O(T0⁴)). At thresholds where the second-order
-/// rule is already within the tolerance no flight is summed at all. Each flight is the root of its Taylor polynomial, h = Σ hₘ sᵐ/m! with
-/// h₀ = 0, h₁ = w, hₘ₊₂ = −a⁽ᵐ⁾ + α hₘ₊₁ + β hₘ, of degree 8: a flight lasts ~2w/A, so the
-/// truncation is O((ρ·2w/A)⁹) relative, far below the model's own O(w³) (ρ the largest of |α|,
-/// √|β| and the drift rates of a); Newton from the flight's second-order length converges in
-/// one or two steps. Returns the tail's duration, or NaN where the model has no accumulation
-/// within it (a(s) ≤ 0 reached, a rebound not decreasing, or more than 100 000 flights).
+/// w0/1000 (its O(T³) then ~1e-9 of the model's own O(T0⁴)). At thresholds where the
+/// second-order rule is already within the tolerance no flight is summed at all. Each flight is
+/// the root of its Taylor polynomial, h = Σ hₘ sᵐ/m! with h₀ = 0, h₁ = w,
+/// hₘ₊₂ = −a⁽ᵐ⁾ + α hₘ₊₁ + β hₘ, of degree 8: a flight lasts ~2w/A, so the truncation is
+/// O((ρ·2w/A)⁹) relative, far below the model's own O(w³) (ρ the largest of |α|, √|β| and the
+/// drift rates of a); Newton from the flight's second-order length converges in one or two steps.
+/// Returns the tail's duration, or NaN where the model has no accumulation within it (a(s) ≤ 0
+/// reached, a rebound not decreasing, or more than 100 000 flights).
 double local_tail(double w0, double r, double A, double A1, double A2, double alpha, double beta,
                   double tolerance) {
   constexpr int degree = 8;
@@ -78,8 +79,8 @@ double local_tail(double w0, double r, double A, double A1, double A2, double al
   return std::numeric_limits<double>::quiet_NaN();
 }
 
-/// The second-order chatter rule's state correction for stop j caught and held in `held`, whose
-/// skipped bounces displace its gap by ∫ δg dt = `displacement` (simulator.hpp, ChatterRule):
+/// The second- and third-order chatter rules' state correction for stop j caught and held in
+/// `held`, whose skipped bounces displace its gap by ∫ δg dt = `displacement` (simulator.hpp):
 ///     x -= (∫δg/G) d,   v += (∫δg/G) (M⁻¹ C d − M⁻¹ K M⁻¹ w_j),   d = P M⁻¹ C M⁻¹ w_j,
 /// P removing the held stops' normal components (d -= M⁻¹ W (Wᵀ M⁻¹ W)⁻¹ Wᵀ d); v's normal part
 /// is removed after, with the residual of every held stop (resolve_event). Uses w.G, w.gn,
