@@ -21,6 +21,13 @@ Eigen::Index index_in(const ContactSet& s, int j) {
   return std::lower_bound(s.begin(), s.end(), j) - s.begin();
 }
 
+/// The second-order rule's tail after a rebound that lasts T0 by Budd–Dux, with the approach
+/// acceleration a, its slope a' and the gap's damping α (simulator.hpp, ChatterRule):
+/// T0 + T0² (α/6 − a'/(3a)).
+double second_order_tail(double T0, double a, double a_slope, double alpha) {
+  return T0 + T0 * T0 * (alpha / 6.0 - a_slope / (3.0 * a));
+}
+
 /// The third-order chatter rule's tail (simulator.hpp, ChatterRule::third_order): from the
 /// rebound w0 at s = 0, the bounces of the gap's local model h'' = −a(s) + α h' + β h,
 /// a(s) = A + A' s + ½ A'' s² (h ≥ 0 the height above the stop, s the time since the impact),
@@ -46,7 +53,7 @@ double local_tail(double w0, double r, double A, double A1, double A2, double al
     if (!(a0 > 0.0)) break;
     const double T0 = 2.0 * w / (a0 * (1.0 - r));
     const double rho2 = std::max({std::abs(A2 / a0), (a1 / a0) * (a1 / a0), alpha * alpha, std::abs(beta)});
-    if (w <= 1e-3 * w0 || T0 * T0 * T0 * rho2 <= tolerance) return s + T0 + T0 * T0 * (alpha / 6.0 - a1 / (3.0 * a0));
+    if (w <= 1e-3 * w0 || T0 * T0 * T0 * rho2 <= tolerance) return s + second_order_tail(T0, a0, a1, alpha);
     // The derivatives hₘ at the take-off, then hₘ / m! (the polynomial's coefficients).
     double h[degree + 1] = {0.0, w};
     for (int m = 0; m + 2 <= degree; ++m) {
@@ -291,7 +298,7 @@ bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, cons
           // τ_k = 2 w_k / A_k + (-(4/3) A'/A³ + (2/3) α/A²) w_k² is, to O(w0²),
           //   T = T0 + w0² / (1 - r)² · (-(4/3) A'/A³ + (2/3) α/A²) = T0 + T0² (α/6 - A'/(3A)),
           // using Σ r^k (1 - r^k) = r / ((1 - r)(1 - r²)) and Σ r^{2k} = 1 / (1 - r²).
-          T = T0 + T0 * T0 * (alpha / 6.0 - A_dot / (3.0 * A));
+          T = second_order_tail(T0, A, A_dot, alpha);
         } else {
           T = local_tail(w0, r, A, A_dot, Gjj * curvature, alpha, algebra.chatter_beta(j), rules.t_tolerance);
         }

@@ -1042,7 +1042,7 @@ void Segment::evaluate(const Functionals& other, const double* t, Eigen::Index c
   std::complex<double>* e = table_e_.data();
   double tau[kEvaluateLanes];
   Eigen::Index k = 0;
-  const bool unit = std::all_of(terms.begin(), terms.end(), [](const auto& term) { return term.lambda == 0.0; });
+  const bool unit = rate_ == 0.0;  // maxᵣ |λᵣ| = 0: every λᵣ is 0
   const auto exponentials_at = [&](Eigen::Index lanes) {
     for (Eigen::Index j = 0; j < lanes; ++j) tau[j] = t[k + j] - origin;
     if (!unit) direct_exponentials(terms, tau, lanes, e, nullptr);

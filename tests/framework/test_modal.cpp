@@ -4,6 +4,7 @@
 // detection of near-grazing impacts, chatter, sticking and release against the dense Simulator,
 // and the refusals (non-proportional damping, rigid-body modes, unsupported contact sets).
 #include "support/chains.hpp"
+#include "support/end_states.hpp"
 #include "vibro/flow.hpp"
 #include "vibro/observers.hpp"
 #include "vibro/modal.hpp"
@@ -326,21 +327,6 @@ TEST_CASE("modal engine: chatter, sticking and release agree with the dense Simu
   }
 }
 
-namespace {
-
-/// Reads every segment's states at both ends and in the middle, as the analysis layer does.
-class EndStates final : public vibro::Observer {
- public:
-  void segment(const vibro::SegmentView& view) override {
-    Eigen::VectorXd x(view.dof()), v(view.dof());
-    view.state(view.t_begin(), x, v);
-    view.state(view.t_end(), x, v);
-    view.state(0.5 * (view.t_begin() + view.t_end()), x, v);
-  }
-};
-
-}  // namespace
-
 TEST_CASE("modal engine: a run's result does not depend on what observes it, bit for bit", "[modal][observers]") {
   // As for the dense engine (test_simulator.cpp): the view reads the engine's segment, and no
   // read may feed back into the search (a cache it fills, a scratch it shares). An 8-mass chain
@@ -359,7 +345,7 @@ TEST_CASE("modal engine: a run's result does not depend on what observes it, bit
   std::vector<double> times;
   for (int i = 0; i <= 3000; ++i) times.push_back(t_end * i / 3000.0);
   vibro::Samples samples(times);
-  EndStates ends;
+  vibro::test::EndStates ends;
   vibro::EventLog log;
   ModalChainSimulator watched(modes, stops);
   const auto b = watched.run(0.0, zero, zero, t_end, {&samples, &ends, &log});

@@ -21,6 +21,7 @@
 /// Measured worst errors are printed by the hidden test "[.report]":
 ///     ./vibro_tests_engine "[.report]"
 #include "support/reference_hybrid.hpp"
+#include "support/end_states.hpp"
 #include "support/reference_integrator.hpp"
 #include "vibro/models/chain.hpp"
 #include "vibro/simulator.hpp"
@@ -1667,20 +1668,6 @@ TEST_CASE(
   CHECK(run.audit.chatter_shift > 0.0);
 }
 
-namespace {
-
-/// Reads every segment's states at both ends, as the analysis layer does (linearisation.cpp).
-class EndStates final : public vibro::Observer {
- public:
-  void segment(const vibro::SegmentView& view) override {
-    VectorXd x(view.dof()), v(view.dof());
-    view.state(view.t_begin(), x, v);
-    view.state(view.t_end(), x, v);
-  }
-};
-
-}  // namespace
-
 TEST_CASE("simulator: a run's result does not depend on what observes it, bit for bit", "[simulator][observers]") {
   // Observers read states through the segment's view; none of it may feed back into the engine.
   // Until issue 13's stop 21 the view's states at a segment's ends went through the cache of
@@ -1695,7 +1682,7 @@ TEST_CASE("simulator: a run's result does not depend on what observes it, bit fo
   for (int i = 0; i <= 4000; ++i) times.push_back(t_end * i / 4000.0);
   Samples samples(times);
   vibro::EventLog log;
-  EndStates ends;
+  vibro::test::EndStates ends;
   Simulator watched(scene);
   const RunSummary b = watched.run(0.0, VectorXd::Zero(2), VectorXd::Zero(2), t_end, {&samples, &log, &ends});
   REQUIRE(a.status == RunStatus::completed);

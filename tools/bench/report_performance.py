@@ -55,6 +55,15 @@ def engine_rows(text):
     return res
 
 
+def threshold_rows(eng):
+    """(section, label, height, row) of bench_engine's rows at each threshold (not the 1e-13
+    reference), sections in order; bench_engine's (b) is the work-precision report's (d)."""
+    for sec in sorted(eng):
+        for h, e in eng[sec].items():
+            if "reference" not in h:
+                yield sec, "d" if sec == "b" else sec, h, e
+
+
 def cross_checks(text):
     """{problem: {height: (sticks, worst, median, releases, worst release)}} against the reference."""
     return {sec: {r[0]: r[1:] for r in rows} for sec, rows in tables(text, reference=True).items()}
@@ -266,13 +275,11 @@ def main():
     p("| problem | chatter_height | bounces | limits, third (worst, median) | limits, second (worst, median) "
       "| releases, third / second | state, third / second |")
     p("|---|---|---|---|---|---|---|")
-    for sec in sorted(eng):
-        for h, e in eng[sec].items():
-            c3, c2 = checks.get(sec, {}).get(h), second_checks.get(sec, {}).get(h)
-            s2 = second.get(sec, {}).get(h)
-            if "reference" in h or not c3 or not c2 or not s2 or "error" not in e:
-                continue
-            p(f"| {'d' if sec == 'b' else sec} | {h} | {e['bounces'].split(',')[0]} | {c3[1]}, {c3[2]} | {c2[1]}, {c2[2]} "
+    for sec, label, h, e in threshold_rows(eng):
+        c3, c2 = checks.get(sec, {}).get(h), second_checks.get(sec, {}).get(h)
+        s2 = second.get(sec, {}).get(h)
+        if c3 and c2 and s2 and "error" in e:
+            p(f"| {label} | {h} | {e['bounces'].split(',')[0]} | {c3[1]}, {c3[2]} | {c2[1]}, {c2[2]} "
               f"| {c3[4]} / {c2[4]} | {e['error']:.2e} / {s2['error']:.2e} |")
     p("")
     p("## Trigger (`solver.trigger`): 1e-13 (default) against 1e-9 (`bench_engine --trigger 1e-9`)")
@@ -280,12 +287,10 @@ def main():
     p("| problem | chatter_height | µs / period 1e-13 | µs / period 1e-9 | guard evals / search (median) 1e-13 → 1e-9 "
       "| state error 1e-13 | state error 1e-9 |")
     p("|---|---|---|---|---|---|---|")
-    for sec in sorted(eng):
-        for h, e in eng[sec].items():
-            if "reference" in h or h not in trig.get(sec, {}):
-                continue
+    for sec, label, h, e in threshold_rows(eng):
+        if h in trig.get(sec, {}):
             t = trig[sec][h]
-            p(f"| {'d' if sec == 'b' else sec} | {h} | {e['us_period']:.1f} | {t['us_period']:.1f} | "
+            p(f"| {label} | {h} | {e['us_period']:.1f} | {t['us_period']:.1f} | "
               f"{e['guards_median']:.0f} → {t['guards_median']:.0f} | {e['error']:.2e} | {t['error']:.2e} |")
     p("")
     worse = [(sec, h) for sec in trig for h, t in trig[sec].items()
