@@ -28,8 +28,9 @@ while [[ $# -gt 0 ]]; do
   esac
 done
 cd "$root"
-if [[ ! -f "$build/CMakeCache.txt" ]]; then
-  cmake --preset release -DCMAKE_CXX_COMPILER_LAUNCHER="$(command -v ccache || true)"
+if [[ "$build" == "$root/build/release" ]]; then
+  # the benchmarks are built by the dev preset (the release preset is the user's lean build)
+  cmake --preset dev -DCMAKE_CXX_COMPILER_LAUNCHER="$(command -v ccache || true)" > /dev/null
 fi
 cmake --build "$build" -j2 --target bench_engine work_precision bench_chain vibro_tests_allocations
 

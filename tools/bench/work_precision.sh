@@ -11,7 +11,7 @@
 #            --problems abcd (a subset)
 #
 # Needs a Release build of the bench first:
-#   cmake --preset release && cmake --build --preset release --target work_precision
+#   cmake --preset dev && cmake --build --preset dev --target work_precision
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 build="$root/build/release"
@@ -30,7 +30,7 @@ done
 bin="$build/tools/bench/work_precision"
 if [[ ! -x "$bin" ]]; then
   echo "work_precision.sh: $bin not found; build it first:" >&2
-  echo "  cmake --preset release && cmake --build --preset release --target work_precision" >&2
+  echo "  cmake --preset dev && cmake --build --preset dev --target work_precision" >&2
   exit 2
 fi
 if [[ -z "$docs" ]]; then
