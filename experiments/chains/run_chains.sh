@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Long chains (issue 7): runs the 1000-mass sticking chain with the modal engine and draws its
+# Long chains: runs the 1000-mass sticking chain with the modal engine and draws its
 # figure (tools/figures/chain_sticking.py) into docs/figures/chains/ (PNG and PDF).
 #
 #   bash experiments/chains/run_chains.sh [BUILD_DIR] [OUT_DIR]

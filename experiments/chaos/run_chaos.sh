@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Chaos and multistability (issue 16), the README's section: runs the three scenes of
+# Chaos and multistability, the README's section: runs the three scenes of
 # experiments/chaos, draws their figures and prints every number the README quotes.
 #   * bifurcation_wagg.yaml: the paper's system, brute-force diagram over Ω ∈ [0.24, 0.28], up
 #     and down (marked with experiments/wagg2004/continuation.yaml's bifurcations, run too);

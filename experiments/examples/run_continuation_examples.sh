@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Continuation beyond the paper's branch (issue 12, "shown in the repo"): runs each scene, checks
+# Continuation beyond the paper's branch: runs each scene, checks
 # it against an independent method and draws its figure into docs/figures/continuation.
 #   * the three-mass chain (three_mass_continuation.yaml): its branch in Ω and every bifurcation;
 #   * a period-doubling cascade (pd_cascade.yaml): the period-1 branch and the branches of periods

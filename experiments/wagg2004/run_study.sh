@@ -8,7 +8,7 @@
 #
 # BUILD_DIR defaults to build/release (cmake --preset release), OUT_DIR to docs/figures/wagg2004:
 # figures go there as PNG and PDF (the README shows the PNGs), result files to OUT_DIR/data.
-# Takes about 30 s on 2 cores (29 s measured after issue 13's engine).
+# Takes about 30 s on 2 cores once built.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 build=${1:-build/release}
