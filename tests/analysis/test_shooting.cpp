@@ -12,7 +12,7 @@
 #include "support/analysis_helpers.hpp"
 #include "support/designed_orbit.hpp"
 #include "vibro/models/chain.hpp"
-#include "vibro/orbit.hpp"
+#include "vibro/running_orbit.hpp"
 #include "vibro/shooting.hpp"
 
 #include <catch2/catch.hpp>
@@ -144,10 +144,10 @@ TEST_CASE("shooting: the paper's sticking orbits equal the running method's, the
     REQUIRE(r.converged());
     CHECK(r.multipliers.structural_zeros == 2);  // one mass held at a time: d = 2(n − 1)
     CHECK(r.multipliers.stable);
-    // The running method (orbit.hpp) from rest finds the same orbit.
-    vibro::OrbitOptions oo;
+    // The running method (running_orbit.hpp) from rest finds the same orbit.
+    vibro::RunningOrbitOptions oo;
     oo.min_periods = 200;
-    const vibro::Orbit run = vibro::find_periodic_orbit(sys, oo, 0.0, VectorXd::Zero(2), VectorXd::Zero(2));
+    const vibro::RunningOrbit run = vibro::run_to_periodic_orbit(sys, oo, 0.0, VectorXd::Zero(2), VectorXd::Zero(2));
     REQUIRE(run.periodic);
     REQUIRE(run.k == 1);
     // Compare at the shooting section: run the orbit there.

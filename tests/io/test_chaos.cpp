@@ -1,6 +1,6 @@
 // The chaos and multistability run kinds (issue 16).
 // basin: every grid point's label is the attractor an independent long run from that start ends
-// on (find_periodic_orbit, a tighter tolerance, no early stop), the attractors are periodic
+// on (run_to_periodic_orbit, a tighter tolerance, no early stop), the attractors are periodic
 // orbits, the file is the same for any number of threads, runs stop early, and points that never
 // settle are labelled as such.
 // diagram, lyapunov and orbit: the files hold what the engine and the library give when called directly
@@ -10,7 +10,7 @@
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/scene.hpp"
 #include "vibro/lyapunov.hpp"
-#include "vibro/orbit.hpp"
+#include "vibro/running_orbit.hpp"
 #include "vibro/shooting.hpp"
 
 #include "support/six_mass_chain.hpp"
@@ -145,7 +145,7 @@ TEST_CASE("a basin labels every start with the attractor a long run from it ends
     CHECK(distance(s.x, s.v, x, v) < 1e-7);
   }
   // Every start, run without early stop to a tighter periodicity, ends on its labelled attractor.
-  OrbitOptions options;
+  RunningOrbitOptions options;
   options.tolerance = 1e-11;
   options.max_periods = 5000;
   const auto p1 = r.read("/basin/p1"), p2 = r.read("/basin/p2");
@@ -155,7 +155,7 @@ TEST_CASE("a basin labels every start with the attractor a long run from it ends
       point.set("initial.x[0]", p1[i]);
       point.set("initial.v[0]", p2[j]);
       const Scene s = point.build_point();
-      const Orbit o = find_periodic_orbit(*engine, options, s.t0, s.x0, s.v0);
+      const RunningOrbit o = run_to_periodic_orbit(*engine, options, s.t0, s.x0, s.v0);
       CAPTURE(i, j, p1[i], p2[j]);
       REQUIRE(o.periodic);
       const std::int64_t l = label[i * 10 + j];

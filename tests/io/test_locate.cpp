@@ -1,6 +1,6 @@
 // vibro run with run.kind: locate — the file holds the scan and the located transitions, equal to
-// the library (vibro/bifurcation.hpp) called directly; bad input leaves no file behind.
-#include "vibro/bifurcation.hpp"
+// the library (vibro/running_locate.hpp) called directly; bad input leaves no file behind.
+#include "vibro/running_locate.hpp"
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"

@@ -10,9 +10,9 @@
 //  * the rising frequency: the least interior contact force of stop s1 (the paper's mass 1) on
 //    the periodic orbit at three frequencies below rising, each minimum refined by golden-section
 //    search on sub-steps of the reference, extrapolated to zero by the quadratic through them.
-// The framework's values come from find_periodic_orbit and scan_and_locate (bifurcation.hpp).
+// The framework's values come from run_to_periodic_orbit and scan_and_locate (running_locate.hpp).
 #include "support/reference_hybrid.hpp"
-#include "vibro/bifurcation.hpp"
+#include "vibro/running_locate.hpp"
 #include "vibro/continuation.hpp"
 #include "vibro/models/chain.hpp"
 
@@ -108,10 +108,10 @@ ReferencePeriod reference_period(double omega, double impact_speed) {
   return out;
 }
 
-vibro::Orbit framework_orbit(double omega) {
-  vibro::OrbitOptions o;
+vibro::RunningOrbit framework_orbit(double omega) {
+  vibro::RunningOrbitOptions o;
   o.min_periods = 200;
-  const vibro::Orbit orbit = vibro::find_periodic_orbit(paper_at(omega), o, 0.0, Eigen::Vector2d::Zero(),
+  const vibro::RunningOrbit orbit = vibro::run_to_periodic_orbit(paper_at(omega), o, 0.0, Eigen::Vector2d::Zero(),
                                                        Eigen::Vector2d::Zero());
   REQUIRE(orbit.status == vibro::RunStatus::completed);
   REQUIRE(orbit.periodic);
@@ -130,7 +130,7 @@ constexpr double kImpactSpeed = 1e-4;
 TEST_CASE("rising study: sticking proportions and impacts per period agree with the reference", "[study]") {
   for (const double omega : {0.255, 0.27}) {
     CAPTURE(omega);
-    const vibro::Orbit orbit = framework_orbit(omega);
+    const vibro::RunningOrbit orbit = framework_orbit(omega);
     const ReferencePeriod ref = reference_period(omega, kImpactSpeed);
     // The reference's orbit is periodic to its own accuracy after 200 periods.
     CHECK(ref.residual < 1e-11L);
@@ -168,7 +168,7 @@ TEST_CASE("rising study: the located rising frequency agrees with the reference'
     REQUIRE(lambda[i] > 0.0L);
     // The framework's interior minimum at the same Ω: both are exact up to rounding and the
     // reference's ~1e-12 trajectory error (reference_hybrid.hpp), so 1e-10 of the force scale (≈0.3).
-    const vibro::Orbit orbit = framework_orbit(omegas[i]);
+    const vibro::RunningOrbit orbit = framework_orbit(omegas[i]);
     double fw = std::numeric_limits<double>::infinity();
     for (const vibro::ContactPhase& p : orbit.phases)
       if (p.stop == 0) fw = std::min(fw, p.force_min);
@@ -199,7 +199,7 @@ TEST_CASE("rising study: the located rising frequency agrees with the reference'
   co.p_max = 0.2561;
   co.step = 0.05;
   co.max_step = 0.2;
-  const vibro::Orbit start = framework_orbit(0.2559);
+  const vibro::RunningOrbit start = framework_orbit(0.2559);
   const vibro::ContinuationResult branch = vibro::continue_orbits(
       [](double omega) { return vibro::FamilyPoint{paper_at(omega), vibro::SystemDerivative::frequency_only()}; },
       0.2559, start.t_start, start.x, start.v, co);

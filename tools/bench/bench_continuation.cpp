@@ -1,7 +1,7 @@
 /// \file bench_continuation.cpp
 /// Cost of the analysis layer (framework/analysis): a Newton iteration (one exact tangent map
 /// over a period: flows and saltation matrices), Newton shooting of a periodic orbit, a
-/// continuation point — against the running method (orbit.hpp: simulate until the orbit
+/// continuation point — against the running method (running_orbit.hpp: simulate until the orbit
 /// repeats) finding the same orbit, for chains of N = 2, 10, 100 masses on the dense engine.
 ///
 /// Problems: N = 2 is the paper's system at Ω = 0.255 (sticking orbit, chatter); N = 10 and 100
@@ -17,7 +17,7 @@
 /// Usage: bench_continuation [--max-n N]      (N = 2, 10, 100 by default; --max-n 10 for a quick run)
 #include "vibro/continuation.hpp"
 #include "vibro/models/chain.hpp"
-#include "vibro/orbit.hpp"
+#include "vibro/running_orbit.hpp"
 #include "vibro/shooting.hpp"
 
 #include <cstdio>
@@ -84,11 +84,11 @@ int main(int argc, char** argv) {
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(pr.n);
 
     // The running method from rest.
-    vibro::OrbitOptions oo;
+    vibro::RunningOrbitOptions oo;
     oo.max_periods = 20000;
     oo.max_period = 1;
     double t = cpu();
-    const vibro::Orbit run = vibro::find_periodic_orbit(sys, oo, 0.0, zero, zero);
+    const vibro::RunningOrbit run = vibro::run_to_periodic_orbit(sys, oo, 0.0, zero, zero);
     const double run_s = cpu() - t;
 
     // Shooting from 5 periods of running.

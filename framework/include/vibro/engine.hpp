@@ -1,7 +1,8 @@
 #pragma once
 /// \file engine.hpp
 /// One interface over the two event-driven engines, for what does not care which runs: periodic
-/// orbits (orbit.hpp), continuation and bifurcation location (bifurcation.hpp), the runner.
+/// orbits found by running (running_orbit.hpp), bifurcations located by running
+/// (running_locate.hpp), the runner.
 ///
 /// * DenseEngine: the general Simulator (simulator.hpp) on an ImpactSystem it owns.
 /// * ModalEngine: the modal chain engine (modal.hpp) on a proportionally damped chain it owns.
@@ -11,7 +12,7 @@
 ///
 /// Usage:
 ///     std::unique_ptr<vibro::Engine> e = std::make_unique<vibro::ModalEngine>(chain, stops, options);
-///     vibro::Orbit orbit = vibro::find_periodic_orbit(*e, orbit_options, 0.0, x0, v0);
+///     vibro::RunningOrbit orbit = vibro::run_to_periodic_orbit(*e, orbit_options, 0.0, x0, v0);
 #include "vibro/modal.hpp"
 #include "vibro/simulator.hpp"
 

@@ -38,7 +38,7 @@ constexpr std::int64_t kNotConverged = -1;
 constexpr std::int64_t kStoppedEarly = -2;
 constexpr std::int64_t kNotRun = -3;  ///< the run was interrupted before this point
 /// A period-k repeat counts only if no proper divisor q of k repeats to kDistinct × tolerance
-/// (as in orbit.cpp: a period-1 orbit approached with a multiplier near −1 passes k = 2 first).
+/// (as in running_orbit.cpp: a period-1 orbit approached with a multiplier near −1 passes k = 2 first).
 constexpr double kDistinct = 1e3;
 
 /// A periodic attractor: its period k and its k stroboscopic states z = (x, v), in time order.

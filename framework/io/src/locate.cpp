@@ -2,7 +2,7 @@
 
 #include "datasets.hpp"
 
-#include "vibro/bifurcation.hpp"
+#include "vibro/running_locate.hpp"
 #include "vibro/io/result_file.hpp"
 
 #include <fmt/format.h>
@@ -39,7 +39,7 @@ void write_scan(ResultFile& file, const std::vector<ScanPoint>& points, std::siz
   std::vector<double> ph_phase, ph_duration, ph_force, ph_tforce, ph_start;
   std::vector<std::int64_t> ph_point, ph_stop;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const Orbit& o = points[i].orbit;
+    const RunningOrbit& o = points[i].orbit;
     p.push_back(points[i].p);
     periodic.push_back(o.periodic ? 1 : 0);
     k.push_back(o.k);

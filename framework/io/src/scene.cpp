@@ -1060,7 +1060,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       if (lc["max_period"]) l.max_period = static_cast<int>(r.integer(lc["max_period"], "run.locate.max_period", 1, 64));
       if (lc["max_periods"]) l.max_periods = r.integer(lc["max_periods"], "run.locate.max_periods", 2, 100000000);
       // The first orbit is searched after the transient, each for up to max_period periods:
-      // a budget below that would have to be raised behind the user's back (bifurcation.cpp).
+      // a budget below that would have to be raised behind the user's back (running_locate.cpp).
       const long needed = static_cast<long>(std::ceil(run.transient_periods)) + l.max_period + 1;
       if (l.max_periods < needed)
         r.fail(lc["max_periods"] ? lc["max_periods"] : lc, "run.locate.max_periods",

@@ -20,7 +20,7 @@
 ///    J − I, with Arnoldi multipliers) is the next step; it is not built yet.
 ///
 /// A family maps p to such an engine (it throws InvalidInput where p gives no valid system:
-/// continuation takes that as "no orbit there"). Not bifurcation.hpp's EngineFamily, which gives
+/// continuation takes that as "no orbit there"). Not running_locate.hpp's EngineFamily, which gives
 /// plain engines (engine.hpp) to the running method of locating bifurcations.
 ///
 /// Usage:

@@ -1,7 +1,7 @@
 #pragma once
 /// \file locate.hpp
 /// run.kind: locate — the bifurcations of a scene's periodic orbits along one parameter, found
-/// and located automatically (vibro/bifurcation.hpp), written to one HDF5 file.
+/// and located automatically (vibro/running_locate.hpp), written to one HDF5 file.
 ///
 ///     run:
 ///       kind: locate

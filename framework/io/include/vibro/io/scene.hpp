@@ -70,7 +70,7 @@ struct SweepAxis {
   std::vector<double> values;
 };
 
-/// run.kind: locate — bifurcations of periodic orbits along one parameter (vibro/bifurcation.hpp).
+/// run.kind: locate — bifurcations of periodic orbits along one parameter (vibro/running_locate.hpp).
 struct LocateSpec {
   double tolerance = 1e-8;     ///< final bracket width of each located transition
   double periodicity = 1e-10;  ///< |z(t + kT) − z(t)| relative to L and V

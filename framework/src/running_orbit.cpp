@@ -1,4 +1,4 @@
-#include "vibro/orbit.hpp"
+#include "vibro/running_orbit.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,7 +10,7 @@
 
 namespace vibro {
 
-void OrbitOptions::validate() const {
+void RunningOrbitOptions::validate() const {
   if (max_period < 1) throw InvalidInput("orbit: max_period must be ≥ 1, got " + std::to_string(max_period));
   if (max_periods < 1) throw InvalidInput("orbit: max_periods must be ≥ 1, got " + std::to_string(max_periods));
   if (min_periods < 0) throw InvalidInput("orbit: min_periods must be ≥ 0, got " + std::to_string(min_periods));
@@ -19,19 +19,19 @@ void OrbitOptions::validate() const {
   solver.validate();
 }
 
-Eigen::VectorXd Orbit::sticking_fraction(std::size_t stops) const {
+Eigen::VectorXd RunningOrbit::sticking_fraction(std::size_t stops) const {
   Eigen::VectorXd f = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(stops));
   if (k == 0) return f;
   for (const ContactPhase& p : phases) f(p.stop) += p.duration;
   return f / (k * period);
 }
 
-int Orbit::phase_count(int stop) const {
+int RunningOrbit::phase_count(int stop) const {
   return static_cast<int>(std::count_if(phases.begin(), phases.end(),
                                         [stop](const ContactPhase& p) { return p.stop == stop; }));
 }
 
-int Orbit::impact_count(int stop, double min_speed) const {
+int RunningOrbit::impact_count(int stop, double min_speed) const {
   return static_cast<int>(std::count_if(impacts.begin(), impacts.end(), [&](const OrbitImpact& i) {
     return i.stop == stop && i.speed > min_speed;
   }));
@@ -40,7 +40,7 @@ int Orbit::impact_count(int stop, double min_speed) const {
 namespace {
 
 /// A period-k orbit counts only if it is at least this many tolerances from repeating at every
-/// proper divisor of k (see find_periodic_orbit).
+/// proper divisor of k (see run_to_periodic_orbit).
 constexpr double kDistinct = 1e3;
 
 /// |Δx|∞/L and |Δv|∞/V between two states.
@@ -52,7 +52,7 @@ double distance(const Eigen::VectorXd& xa, const Eigen::VectorXd& va, const Eige
 /// Records the orbit of period kT starting at (t, x, v): the phases that start in (t, t + kT]
 /// (each complete, since the recording runs on to t + 2kT), a phase held through the whole
 /// recording as one phase of length kT, and the impacts in (t, t + kT].
-void record(Engine& sim, Orbit& orbit) {
+void record(Engine& sim, RunningOrbit& orbit) {
   const double span = orbit.k * orbit.period;
   const double t0 = orbit.t_start;
   ContactLog contacts;
@@ -90,18 +90,18 @@ void record(Engine& sim, Orbit& orbit) {
 
 }  // namespace
 
-Orbit find_periodic_orbit(const ImpactSystem& scene, const OrbitOptions& options, double t0,
+RunningOrbit run_to_periodic_orbit(const ImpactSystem& scene, const RunningOrbitOptions& options, double t0,
                           const Eigen::VectorXd& x0, const Eigen::VectorXd& v0) {
   DenseEngine engine(scene, options.solver);
-  return find_periodic_orbit(engine, options, t0, x0, v0);
+  return run_to_periodic_orbit(engine, options, t0, x0, v0);
 }
 
-Orbit find_periodic_orbit(Engine& sim, const OrbitOptions& options, double t0,
+RunningOrbit run_to_periodic_orbit(Engine& sim, const RunningOrbitOptions& options, double t0,
                           const Eigen::VectorXd& x0, const Eigen::VectorXd& v0) {
   options.validate();
   const double omega = sim.frequency();
   if (!(omega > 0.0)) throw InvalidInput("orbit: periodic orbits need a forcing frequency > 0");
-  Orbit orbit;
+  RunningOrbit orbit;
   orbit.period = 2.0 * std::numbers::pi / omega;
   orbit.residual = std::numeric_limits<double>::infinity();
 

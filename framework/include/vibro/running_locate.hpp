@@ -1,5 +1,5 @@
 #pragma once
-/// \file bifurcation.hpp
+/// \file running_locate.hpp
 /// Locating the bifurcations of sticking orbits along a parameter: rising (multi-sliding), a part
 /// of a split sticking phase vanishing, a change of period, a loss of periodicity.
 ///
@@ -33,7 +33,7 @@
 ///   vanishing: on the side with more phases, the shortest phase of j → 0 (in units of kT).
 /// Whichever of the two normalised limits is smaller names the transition; both are reported,
 /// so a reader can see how clear the call is. Other changes: period (k differs), periodicity
-/// (one side not periodic within OrbitOptions::max_periods), several stops at once (other).
+/// (one side not periodic within RunningOrbitOptions::max_periods), several stops at once (other).
 ///
 /// A sticking phase can also be cut short at a tangency without splitting: the mass rises and
 /// does not come back to stick in that phase, so the phase counts stay equal and only the
@@ -53,7 +53,7 @@
 ///     auto family = [&](double omega) { return system_at(omega); };   // builds ImpactSystem
 ///     vibro::ScanResult r = vibro::scan_and_locate(family, grid, 0.0, x0, v0, {});
 ///     for (const vibro::Transition& t : r.transitions) ... t.kind, t.p, t.stop, t.limit
-#include "vibro/orbit.hpp"
+#include "vibro/running_orbit.hpp"
 
 #include <functional>
 #include <memory>
@@ -70,7 +70,7 @@ using EngineFamily = std::function<std::unique_ptr<Engine>(double p)>;
 EngineFamily dense_family(SystemFamily family, const SimulatorOptions& solver);
 
 struct ScanOptions {
-  OrbitOptions orbit;            ///< per point (continuation points start near their orbit)
+  RunningOrbitOptions orbit;            ///< per point (continuation points start near their orbit)
   long first_transient = 200;    ///< periods run at the first point before testing periodicity
   double tolerance = 1e-8;       ///< final bracket width in p
   int max_transitions = 64;      ///< located per scan, at most (a guard against chaos)
@@ -83,7 +83,7 @@ struct ScanOptions {
 
 struct ScanPoint {
   double p = 0.0;
-  Orbit orbit;
+  RunningOrbit orbit;
 };
 
 enum class TransitionKind { rising, vanishing, drop, period, periodicity, other };

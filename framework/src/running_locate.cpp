@@ -1,4 +1,4 @@
-#include "vibro/bifurcation.hpp"
+#include "vibro/running_locate.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -34,7 +34,7 @@ void ScanOptions::validate() const {
 namespace {
 
 /// (periodic?, k, phases per orbit of each stop): what bisection compares.
-std::vector<int> signature(const Orbit& o, std::size_t stops) {
+std::vector<int> signature(const RunningOrbit& o, std::size_t stops) {
   std::vector<int> s{o.periodic ? 1 : 0, o.k};
   for (std::size_t j = 0; j < stops; ++j) s.push_back(o.phase_count(static_cast<int>(j)));
   return s;
@@ -71,11 +71,11 @@ class Continuation {
  private:
   ScanPoint solve(double p, Engine& engine, double t0, const Eigen::VectorXd& x0,
                   const Eigen::VectorXd& v0, long min_periods) {
-    OrbitOptions o = options_.orbit;
+    RunningOrbitOptions o = options_.orbit;
     o.min_periods = min_periods;
     o.max_periods = std::max(o.max_periods, min_periods + o.max_period + 1);
     ++computed;
-    return {p, find_periodic_orbit(engine, o, t0, x0, v0)};
+    return {p, run_to_periodic_orbit(engine, o, t0, x0, v0)};
   }
 
   double omega(const ScanPoint& s) const { return 2.0 * std::numbers::pi / s.orbit.period; }
@@ -85,13 +85,13 @@ class Continuation {
 };
 
 /// Least interior force of stop j's phases, and its shortest phase / kT (∞ if it has none).
-double least_force(const Orbit& o, int stop) {
+double least_force(const RunningOrbit& o, int stop) {
   double f = std::numeric_limits<double>::infinity();
   for (const ContactPhase& p : o.phases)
     if (p.stop == stop) f = std::min(f, p.force_min);
   return f;
 }
-double shortest_phase(const Orbit& o, int stop) {
+double shortest_phase(const RunningOrbit& o, int stop) {
   double d = std::numeric_limits<double>::infinity();
   for (const ContactPhase& p : o.phases)
     if (p.stop == stop) d = std::min(d, p.duration / (o.k * o.period));
@@ -100,8 +100,8 @@ double shortest_phase(const Orbit& o, int stop) {
 
 /// Names the change between the bracket ends (see the header).
 void classify(Transition& tr, std::size_t stops, double force_scale) {
-  const Orbit& a = tr.low.orbit;
-  const Orbit& b = tr.high.orbit;
+  const RunningOrbit& a = tr.low.orbit;
+  const RunningOrbit& b = tr.high.orbit;
   if (a.periodic != b.periodic) {
     tr.kind = TransitionKind::periodicity;
     return;
@@ -117,8 +117,8 @@ void classify(Transition& tr, std::size_t stops, double force_scale) {
     if (na == nb) continue;
     ++changed;
     tr.stop = stop;
-    const Orbit& fewer = na < nb ? a : b;
-    const Orbit& more = na < nb ? b : a;
+    const RunningOrbit& fewer = na < nb ? a : b;
+    const RunningOrbit& more = na < nb ? b : a;
     tr.force_limit = least_force(fewer, stop);
     tr.duration_limit = shortest_phase(more, stop);
     tr.kind = tr.force_limit / force_scale < tr.duration_limit ? TransitionKind::rising
@@ -141,7 +141,7 @@ void close(Transition& tr, ScanPoint lo, ScanPoint hi) {
 }
 
 /// The stop whose sticking fraction differs most between two orbits, and by how much.
-std::pair<int, double> largest_jump(const Orbit& a, const Orbit& b, std::size_t stops) {
+std::pair<int, double> largest_jump(const RunningOrbit& a, const RunningOrbit& b, std::size_t stops) {
   if (!a.periodic || !b.periodic) return {-1, 0.0};
   const Eigen::VectorXd d = b.sticking_fraction(stops) - a.sticking_fraction(stops);
   Eigen::Index j = 0;

@@ -1,10 +1,10 @@
 #pragma once
-/// \file orbit.hpp
+/// \file running_orbit.hpp
 /// Periodic orbits of a forced vibro-impact system, found by running to convergence, and what
 /// happens on them: each contact phase (a stop held) with its duration and its least interior
 /// contact force, and the impacts.
 ///
-/// procedure FindPeriodicOrbit(t, x, v):
+/// procedure RunToPeriodicOrbit(t, x, v):
 ///     repeat one forcing period at a time (at most max_periods):
 ///         z_n ← state at t0 + nT                         # exact: the end of a simulator run
 ///         k ← least k ≤ max_period with |z_n − z_{n−k}| ≤ tolerance   (x in L, v in V)
@@ -18,7 +18,7 @@
 /// max_periods is reported as not periodic (with the least residual seen), never forced.
 ///
 /// Usage:
-///     vibro::Orbit orbit = vibro::find_periodic_orbit(scene, {}, 0.0, x0, v0);
+///     vibro::RunningOrbit orbit = vibro::run_to_periodic_orbit(scene, {}, 0.0, x0, v0);
 ///     if (orbit.periodic) for (const vibro::ContactPhase& p : orbit.phases) ...
 #include "vibro/engine.hpp"
 #include "vibro/simulator.hpp"
@@ -28,7 +28,7 @@
 
 namespace vibro {
 
-struct OrbitOptions {
+struct RunningOrbitOptions {
   int max_period = 8;         ///< periods kT looked for: k = 1 … max_period
   long max_periods = 2000;    ///< forcing periods run before giving up
   long min_periods = 0;       ///< run at least this many periods before testing (transient)
@@ -57,7 +57,7 @@ struct OrbitImpact {
   double speed = 0.0;  ///< approach speed g'⁻ > 0
 };
 
-struct Orbit {
+struct RunningOrbit {
   bool periodic = false;
   int k = 0;                  ///< period kT (0 if not periodic)
   double residual = 0.0;      ///< max(|Δx|∞/L, |Δv|∞/V) at the accepted k (least seen if not periodic)
@@ -83,10 +83,10 @@ struct Orbit {
 
 /// Runs from (t0, x0, v0) until the motion is periodic (see the file comment), then records it.
 /// Throws InvalidInput for bad options or an inadmissible start; Ω must be > 0.
-Orbit find_periodic_orbit(const ImpactSystem& scene, const OrbitOptions& options, double t0,
+RunningOrbit run_to_periodic_orbit(const ImpactSystem& scene, const RunningOrbitOptions& options, double t0,
                           const Eigen::VectorXd& x0, const Eigen::VectorXd& v0);
 /// The same on any engine (engine.hpp); options.solver is then the engine's business, unused.
-Orbit find_periodic_orbit(Engine& engine, const OrbitOptions& options, double t0,
+RunningOrbit run_to_periodic_orbit(Engine& engine, const RunningOrbitOptions& options, double t0,
                           const Eigen::VectorXd& x0, const Eigen::VectorXd& v0);
 
 }  // namespace vibro

@@ -1,0 +1,245 @@
+/// \file bifurcation_location.cpp
+/// Locating a bifurcation between two neighbouring branch points, each evaluation a corrected
+/// branch point:
+///  * Illinois (modified regula falsi) on the arclength σ between a and b, each point in the
+///    hyperplane a + σ t_a normal to t_a: σ ← σ_hi − f_hi (σ_hi − σ_lo)/(f_hi − f_lo), the end
+///    kept twice in a row having its f halved; to |Δσ| P ≤ locate_tolerance (at a fold p is
+///    stationary in σ while the test function is not, so σ is what converges);
+///  * one-sided secant in p from the side where the test function is smooth (grazing, rising:
+///    on the other side the map's derivative blows up), each point by Newton at fixed p; the
+///    zero may lie beyond the good point, at a corner where both parts of the branch reach it
+///    from the same side in p;
+///  * bisection in p on a discrete property (the event signature) where the condition is not
+///    smooth in p.
+/// record() runs the one asked for, falls back to bisection when the smooth one fails, and
+/// appends the Bifurcation with its bracket, its test function's value and the orbit there.
+#include "branch_runner.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace vibro::detail {
+
+/// The point between a and b (in the hyperplanes normal to a's tangent) where p = limit.
+std::optional<Node> BranchRunner::on_limit(const Node& a, const Node& b, double limit) {
+  auto f = [&](const Node& n) { return n.e.p - limit; };
+  return illinois(a, b, f, true, nullptr);
+}
+
+/// Illinois iteration on σ ∈ [0, σ_b] for a zero of f between a and b (f(a) f(b) < 0), each
+/// evaluation the branch point in the hyperplane a + σ t_a (normal t_a). With bisect, or
+/// where f is NaN, it halves instead.
+std::optional<Node> BranchRunner::illinois(const Node& a, const Node& b, const TestFunction& f, bool smooth, int* count,
+                             const std::function<bool(const Node&)>& same_as_a) {
+  const VectorXd ya = c_.scaled(a.e);
+  double s_lo = 0.0, s_hi = a.t.dot(c_.scaled(b.e) - ya);
+  double f_lo = smooth ? f(a) : -1.0, f_hi = smooth ? f(b) : 1.0;
+  if (smooth && (!std::isfinite(f_lo) || !std::isfinite(f_hi))) smooth = false, f_lo = -1.0, f_hi = 1.0;
+  Node lo = a, hi = b;
+  int side = 0;
+  double s_last = std::numeric_limits<double>::infinity();
+  for (int it = 0; it < 100; ++it) {
+    double s = 0.5 * (s_lo + s_hi);
+    if (smooth) s = s_hi - f_hi * (s_hi - s_lo) / (f_hi - f_lo);
+    if (!(s > s_lo && s < s_hi)) s = 0.5 * (s_lo + s_hi);
+    Node m;
+    m.e = c_.correct(ya + s * a.t, a.t);
+    if (count) ++*count;
+    if (!m.e.ok) return std::nullopt;
+    m.t = c_.tangent(m.e, a.t);
+    m.b = c_.point(m.e, m.t, 0);
+    m.b.located = true;
+    double fm = smooth ? f(m) : kNaN;
+    if (smooth && !std::isfinite(fm)) smooth = false;
+    bool to_lo;
+    if (smooth) {
+      to_lo = (fm < 0.0) == (f_lo < 0.0);
+    } else {
+      to_lo = same_as_a ? same_as_a(m) : (m.e.p - a.e.p) * (b.e.p - a.e.p) < 0.0;
+    }
+    if (to_lo) {
+      s_lo = s;
+      f_lo = smooth ? fm : f_lo;
+      lo = m;
+      if (smooth && side == -1) f_hi *= 0.5;
+      side = -1;
+    } else {
+      s_hi = s;
+      f_hi = smooth ? fm : f_hi;
+      hi = m;
+      if (smooth && side == +1) f_lo *= 0.5;
+      side = +1;
+    }
+    // In σ (scaled arclength): |Δp| ≤ |Δσ| P, and at a fold p is stationary in σ while the
+    // test function (t_p) is not, so converging σ is what locates every kind.
+    const double width = std::abs(s_hi - s_lo) * c_.P;
+    const double s_step = std::abs(s - s_last) * c_.P;
+    s_last = s;
+    if (width <= o_.locate_tolerance || (smooth && (fm == 0.0 || s_step <= 0.1 * o_.locate_tolerance))) {
+      Node best = smooth ? m : (same_as_a ? lo : m);
+      best.b.p = best.e.p;
+      bracket_low_ = std::min(lo.e.p, hi.e.p);
+      bracket_high_ = std::max(lo.e.p, hi.e.p);
+      located_smooth_ = smooth;
+      return best;
+    }
+  }
+  return std::nullopt;
+}
+
+/// The branch point at p (the hyperplane p = const), Newton from `from`'s state.
+std::optional<Node> BranchRunner::at_p(const Node& from, double p, const VectorXd& along) {
+  VectorXd y = c_.scaled(from.e);
+  y(y.size() - 1) = p / c_.P;
+  VectorXd n = VectorXd::Zero(y.size());
+  n(n.size() - 1) = 1.0;
+  Node m;
+  int it = 0;
+  m.e = c_.correct(y, n, &it);
+  if (!m.e.ok) return std::nullopt;
+  m.t = c_.tangent(m.e, along);
+  m.b = c_.point(m.e, m.t, it);
+  m.b.located = true;
+  return m;
+}
+
+/// A zero of f located from the side of `good` only, where f is defined and smooth (on_good
+/// says whether a point is on that side): secant steps in p through the two nearest good
+/// points (the first step goes half way towards `bad`). A trial point that has no orbit or
+/// lies on the other side halves the step back towards the last good point. The zero may lie
+/// beyond the good point, away from `bad`: at a grazing corner both branches reach the grazing
+/// from the same side in p. Ends when the secant's next step is below half the tolerance; the
+/// zero is that step's end, the orbit the last good point's.
+std::optional<Node> BranchRunner::one_sided(const Node& good, const Node& bad, const TestFunction& f,
+                              const std::function<bool(const Node&)>& on_good, int* count) {
+  struct Good {
+    double p, f;
+    Node node;
+  };
+  std::vector<Good> g{{good.e.p, f(good), good}};
+  double toward = bad.e.p;
+  const VectorXd along = good.t;
+  // The zero lies within the bracket or, at a corner, beyond one of its ends: after a jump from
+  // the unstable side of a fold onto the branch without the impact, the corner lies below both
+  // points by a few times their distance (the paper's system at A1 = 0.4939: 2.6 ×, where a
+  // reach of 2 × left only a bisection between two branches). A secant that leads further has
+  // left the orbit family.
+  const double reach = 8.0 * std::abs(bad.e.p - good.e.p);
+  const double lo = std::min(good.e.p, bad.e.p) - reach, hi = std::max(good.e.p, bad.e.p) + reach;
+  const bool doubled = c_.k > o_.period;
+  for (int it = 0; it < 60; ++it) {
+    const Good& last = g.back();
+    double p = 0.5 * (last.p + toward);
+    if (g.size() >= 2) {
+      const Good& prev = g[g.size() - 2];
+      if (last.f == prev.f) break;
+      const double root = last.p - last.f * (last.p - prev.p) / (last.f - prev.f);
+      if (std::abs(root - last.p) <= 0.5 * o_.locate_tolerance) {
+        located_p_ = root;
+        bracket_low_ = std::min(last.p, root);
+        bracket_high_ = std::max(last.p, root);
+        return last.node;
+      }
+      if (!(root >= lo && root <= hi)) return std::nullopt;
+      p = root;
+    }
+    bool stepped = false;
+    for (int attempt = 0; attempt < 40 && !stepped; ++attempt) {
+      if (std::abs(p - last.p) <= 0.5 * o_.locate_tolerance) break;
+      std::optional<Node> m = at_p(last.node, p, along);
+      if (count) ++*count;
+      const double fm = m ? f(*m) : kNaN;
+      if (m && on_good(*m) && std::isfinite(fm) && !(doubled && c_.closes_after(m->e, c_.k / 2))) {
+        g.push_back({p, fm, *m});
+        stepped = true;
+      } else {
+        p = last.p + 0.5 * (p - last.p);
+      }
+    }
+    if (!stepped) {  // the good side ends within the tolerance of the last good point
+      located_p_ = p;
+      bracket_low_ = std::min(g.back().p, p);
+      bracket_high_ = std::max(g.back().p, p);
+      return g.back().node;
+    }
+  }
+  return std::nullopt;
+}
+
+/// Bisection in p on a discrete property (same_as_a: whether a point is on a's side), each
+/// point by Newton at fixed p from the nearer bracket end's orbit (or the farther one's if
+/// that fails). Returns a's-side end of the final bracket; where no orbit can be found inside
+/// the bracket it stops there and reports the bracket reached.
+std::optional<Node> BranchRunner::bisect(const Node& a, const Node& b, const std::function<bool(const Node&)>& same_as_a,
+                           int* count) {
+  Node lo = a, hi = b;
+  for (int it = 0; it < 80 && std::abs(hi.e.p - lo.e.p) > o_.locate_tolerance; ++it) {
+    const double p = 0.5 * (lo.e.p + hi.e.p);
+    std::optional<Node> m = at_p(lo, p, lo.t);
+    if (count) ++*count;
+    if (!m) {
+      m = at_p(hi, p, hi.t);
+      if (count) ++*count;
+    }
+    if (!m) break;
+    if (same_as_a(*m)) lo = *m;
+    else hi = *m;
+  }
+  bracket_low_ = std::min(lo.e.p, hi.e.p);
+  bracket_high_ = std::max(lo.e.p, hi.e.p);
+  located_smooth_ = false;
+  return lo;
+}
+
+void BranchRunner::record(BifurcationKind kind, int stop, const Node& a, const Node& b, int branch_index,
+            const TestFunction& f, Mode mode, const std::function<bool(const Node&)>& same_as_a,
+            const std::string& note) {
+  Bifurcation bif;
+  bif.kind = kind;
+  bif.stop = stop;
+  bif.branch = branch_index;
+  bif.note = note;
+  bif.p_low = std::min(a.e.p, b.e.p);
+  bif.p_high = std::max(a.e.p, b.e.p);
+  bif.p = 0.5 * (a.e.p + b.e.p);
+  bif.smooth = false;
+  bif.value = kNaN;
+  bif.point = b.b;
+  if (!o_.locate) {
+    result_.bifurcations.push_back(bif);
+    return;
+  }
+  int count = 0;
+  std::optional<Node> at;
+  located_p_ = kNaN;
+  if (mode == Mode::one_sided) {
+    const bool a_good = same_as_a(a);  // same_as_a tells the good side here
+    at = a_good ? one_sided(a, b, f, same_as_a, &count) : one_sided(b, a, f, same_as_a, &count);
+    located_smooth_ = at.has_value();
+    if (!at) {
+      at = bisect(a, b, same_as_a, &count);
+      bif.note += std::string(bif.note.empty() ? "" : "; ") + "the smooth location failed: bracketed by bisection";
+    }
+  } else if (mode == Mode::bisection) {
+    at = bisect(a, b, same_as_a, &count);
+  } else {
+    at = illinois(a, b, f, true, &count, same_as_a);
+  }
+  bif.evaluations = count;
+  if (!at) {
+    bif.note += (bif.note.empty() ? "" : "; ") + std::string("not located (a corrector failed in the bracket)");
+  } else {
+    bif.p = std::isfinite(located_p_) ? located_p_ : at->e.p;
+    bif.point = at->b;
+    bif.smooth = located_smooth_;
+    bif.p_low = bracket_low_;
+    bif.p_high = bracket_high_;
+    bif.value = located_smooth_ ? f(*at) : kNaN;
+    if (!located_smooth_) bif.p = 0.5 * (bif.p_low + bif.p_high);
+    last_located_ = *at;
+  }
+  result_.bifurcations.push_back(bif);
+}
+
+}  // namespace vibro::detail

@@ -1,0 +1,317 @@
+/// \file branch_runner.cpp
+/// Following one branch by pseudo-arclength steps (Keller 1977): from the point y with unit
+/// tangent t, the predictor y + h t, the corrector in the hyperplane through it normal to t
+/// (corrector.hpp), the step h grown by 1.5 after ≤ 3 corrector iterations and cut by 0.6 after
+/// ≥ 6, halved on failure. Around that loop the guards that keep it on this branch: a corrector
+/// that travels further than the step, or a point nearer to an earlier point than to the last,
+/// is refused; where the steps stall at a grazing or rising corner (the map's derivative blows up
+/// on one side) the branch is continued by a jump in p with Newton at fixed p (shooting.hpp);
+/// where an event drifts into the section, the section is moved into the longest event-free
+/// stretch of the orbit and the tangent carried to it by the tangent map of the stretch.
+#include "branch_runner.hpp"
+
+#include "section.hpp"
+#include "test_functions.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace vibro::detail {
+
+/// Follows the branch from `start` along `t` (unit, scaled), appending to `branch`.
+void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_index, int depth,
+            std::vector<std::pair<Node, int>>* doublings) {
+  Node cur = std::move(start);
+  cur.t = c_.tangent(cur.e, t);
+  double h = std::min(std::max(o_.step, o_.min_step), o_.max_step);
+  double last_dp = h * c_.P;
+  bool jump_tried = false, resection_tried = false;
+  std::vector<VectorXd> trail{c_.scaled(cur.e)};  // the points of this half, scaled
+  while (static_cast<int>(branch.points.size()) < o_.max_points) {
+    int iterations = 0;
+    Node next;
+    const VectorXd y_pred = c_.scaled(cur.e) + h * cur.t;
+    next.e = c_.correct(y_pred, cur.t, &iterations);
+    // A corrector that travels further than the step has found another branch crossing the
+    // hyperplane (near corners and folds): not the continuation of this one.
+    if (next.e.ok && (c_.scaled(next.e) - y_pred).norm() > h) {
+      next.e.ok = false;
+      next.e.why = "the corrector left the predictor by more than the step";
+    }
+    if (!next.e.ok) {
+      h *= 0.5;
+      // Across a grazing or a rising the branch has a corner and the map's derivative blows up
+      // on one side: arclength steps shrink towards it. Past a few halvings near such a point,
+      // step over it in p (the orbit on the far side is found by Newton at fixed p).
+      // An event drifting into the section faster than the margin allows makes the map jump
+      // within the step: move the section further from it (once per stall) and go on.
+      // Near a grazing or a rising the jump comes first (it keeps the section, and with it the
+      // guard against landing back on the branch); once it has failed, or landed on the part
+      // already followed, an event on the section is the cause left. (The three-mass chain of
+      // experiments/examples at Ω ≈ 0.18446: an impact of s3 reaches the section on the
+      // unstable side of a fold, where every orbit found at fixed p is the stable one; and
+      // near_nonsmooth holds all along that branch, whose chatter bounces are slow.)
+      const bool on_event =
+          detail::section_clearance(cur.e.map) < kSectionOnEvent * kTwoPi / cur.e.omega;
+      if (h < 1e-2 * o_.max_step && !resection_tried && (!near_nonsmooth(cur) || (jump_tried && on_event))) {
+        resection_tried = true;
+        const double old_theta = c_.theta;
+        if (std::optional<Node> moved = resection(cur, kSectionMargin)) {
+          cur = std::move(*moved);
+          carry(trail, old_theta);
+          trail.push_back(c_.scaled(cur.e));
+          continue;
+        }
+      }
+      std::optional<Node> jumped;
+      if (h < 1e-3 * o_.max_step && !jump_tried && near_nonsmooth(cur)) {
+        jump_tried = true;
+        jumped = jump(cur, last_dp);
+      }
+      if (!jumped) {
+        if (h < o_.min_step) {
+          branch.end = "step below min_step at p = " + number_text(cur.e.p) + " (" + next.e.why + ")";
+          if (near_nonsmooth(cur)) locate_at_end(cur, last_dp, branch_index);
+          return;
+        }
+        continue;
+      }
+      next = std::move(*jumped);
+      h = std::clamp(std::abs(next.e.p - cur.e.p) / c_.P, o_.min_step, o_.max_step);
+    } else {
+      // Oriented along cur's tangent on a smooth stretch; where the step crossed a grazing or
+      // a rising (the events changed) the branch may turn back in p at the corner: for now
+      // along the step in p, and examine() turns it away from the point it locates there.
+      next.b = c_.point(next.e, cur.t, iterations);
+      VectorXd along = cur.t;
+      if (!(next.b.signature == cur.b.signature)) {
+        along.setZero();
+        along(along.size() - 1) = next.e.p > cur.e.p ? 1.0 : -1.0;
+      }
+      next.t = c_.tangent(next.e, along);
+      next.b.tangent_p = next.t(next.t.size() - 1);
+    }
+    // Near a fold beside a corner the two parts of the branch come close: a step (or a jump)
+    // that lands back on a part already followed is not the continuation. Refused if the new
+    // point is nearer to an earlier point than to the last one.
+    // (The last few points are left out: at a sharp corner the new part starts beside them.)
+    if (trail.size() >= 5) {
+      const VectorXd y = c_.scaled(next.e);
+      const double from_cur = (y - trail.back()).norm();
+      bool back = false;
+      for (std::size_t i = 0; i + 4 < trail.size(); ++i) back |= (y - trail[i]).norm() < 0.25 * from_cur;
+      if (back) {
+        h *= 0.5;
+        if (h < o_.min_step) {
+          branch.end = "step below min_step at p = " + number_text(cur.e.p) + " (steps land on the branch already followed)";
+          return;
+        }
+        continue;
+      }
+    }
+    // A doubled branch that closes after half its period has merged back into its parent
+    // (at a period doubling of the parent: doubled branches often join two of them).
+    if (c_.k > o_.period && c_.closes_after(next.e, c_.k / 2)) {
+      branch.end = "merged into the period-" + std::to_string(c_.k / 2) + "T branch near p = " + number_text(next.e.p);
+      return;
+    }
+    // Leaving the scan limits: place the last point on the limit.
+    const bool out = next.e.p < o_.p_min || next.e.p > o_.p_max;
+    if (out) {
+      const double limit = next.e.p > o_.p_max ? o_.p_max : o_.p_min;
+      if (auto last = on_limit(cur, next, limit)) {
+        examine(cur, *last, branch_index, depth, doublings);
+        append(branch, *last);
+      }
+      branch.end = std::string("reached p_") + (limit == o_.p_max ? "max" : "min") + " = " + number_text(limit);
+      return;
+    }
+    examine(cur, next, branch_index, depth, doublings);
+    append(branch, next);
+    last_dp = std::max(std::abs(next.e.p - cur.e.p), 1e-9 * c_.P);
+    trail.push_back(c_.scaled(next.e));
+    cur = std::move(next);
+    jump_tried = resection_tried = false;
+    if (iterations <= 3) h = std::min(1.5 * h, o_.max_step);
+    else if (iterations >= 6) h = std::max(0.6 * h, o_.min_step);
+  }
+  branch.end = "max_points (" + std::to_string(o_.max_points) + ") reached";
+}
+
+/// An orbit near a grazing (an impact slower than 1e-3 V, or a gap maximum within 1e-3 L of
+/// its stop) or a rising (an interior contact-force minimum within 1e-3 F of zero).
+bool BranchRunner::near_nonsmooth(const Node& n) {
+  const TangentMap& m = n.e.map;
+  const double L = m.summary.length_scale, F = m.summary.force_scale;
+  if (m.least_guard_rate < 1e-3) return true;
+  for (const GapPeak& g : m.gap_peaks)
+    if (g.value > -1e-3 * L) return true;
+  for (const ForceDip& d : m.force_dips)
+    if (!d.past_release && d.value < 1e-3 * F) return true;
+  return false;
+}
+
+/// The orbit a little further in p, by Newton at fixed p from cur's state: steps of 4, 8, 16 …
+/// times the last step in p, up to 2 % of the parameter scale, first onwards; then backwards,
+/// where only an orbit with other events counts (at a grazing corner the branch beyond the
+/// non-smooth point turns back in p; an orbit with cur's events there is the way we came).
+/// A doubled branch accepts no orbit that closes after half its period (its parent's).
+std::optional<Node> BranchRunner::jump(const Node& cur, double last_dp) {
+  const double dir = cur.t(cur.t.size() - 1);
+  if (std::abs(dir) < 1e-6) return std::nullopt;  // at a fold p cannot be stepped
+  for (const double sign : {1.0, -1.0}) {
+    for (double dp = 4.0 * last_dp; dp <= 0.02 * c_.P; dp *= 2.0) {
+      const double p = cur.e.p + sign * (dir > 0.0 ? dp : -dp);
+      // The far side's tangent points away from the non-smooth point: along the jump in p.
+      VectorXd away = VectorXd::Zero(cur.t.size());
+      away(away.size() - 1) = p > cur.e.p ? 1.0 : -1.0;
+      std::optional<Node> m = shoot_at(cur, p, away);
+      if (!m) continue;
+      if (sign < 0.0 && m->b.signature == cur.b.signature) continue;
+      if (c_.k > o_.period && c_.closes_after(m->e, c_.k / 2)) continue;
+      return m;
+    }
+  }
+  return std::nullopt;
+}
+
+/// The orbit at p by Newton shooting with its trust region (shooting.hpp) from `from`'s state:
+/// more patient than the corrector where the map is steep on one side (near grazing).
+std::optional<Node> BranchRunner::shoot_at(const Node& from, double p, const VectorXd& along) {
+  ShootingOptions so;
+  so.period = c_.k;
+  so.phase = c_.theta;
+  so.free_section = false;
+  so.tolerance = o_.tolerance;
+  so.solver = o_.solver;
+  const Index n = c_.n_;
+  ShootingResult r;
+  try {
+    r = c_.engine_at(p).shoot(so, from.e.t0, from.e.z.head(n), from.e.z.tail(n));
+  } catch (const InvalidInput&) {
+    return std::nullopt;
+  }
+  if (!r.converged()) return std::nullopt;
+  Node m;
+  m.e = c_.evaluate(stacked(r.x, r.v), p);
+  if (!m.e.ok) return std::nullopt;
+  m.t = c_.tangent(m.e, along);
+  m.b = c_.point(m.e, m.t, r.iterations);
+  return m;
+}
+
+/// Where a branch cannot be continued past a grazing or a rising (its steps shrink to nothing
+/// against the non-smooth point), the point is still located, from this side: the orbit's
+/// nearest approach to a stop (or its least interior contact force) extrapolated to zero.
+void BranchRunner::locate_at_end(const Node& cur, double last_dp, int branch_index) {
+  const TangentMap& m = cur.e.map;
+  const double L = m.summary.length_scale, F = m.summary.force_scale;
+  int graze = -1, rise = -1;
+  double best_gap = -1e-3 * L, best_force = 1e-3 * F;
+  for (const GapPeak& g : m.gap_peaks)
+    if (g.value > best_gap) best_gap = g.value, graze = g.stop;
+  for (const ForceDip& d : m.force_dips)
+    if (!d.past_release && d.value < best_force) best_force = d.value, rise = d.stop;
+  const double dir = cur.t(cur.t.size() - 1) > 0.0 ? 1.0 : -1.0;
+  Node beyond = cur;
+  beyond.e.p = cur.e.p + dir * std::max(last_dp, 1e-9 * c_.P);
+  const std::string note = "the branch could not be continued past it; located from this side";
+  if (graze >= 0) {
+    const auto j = static_cast<std::size_t>(graze);
+    const int fewer = cur.b.signature.impacts[j];
+    const TestFunction f = [stops = c_.stops_, j, fewer](const Node& n) { return grazing_function(n, stops, j, fewer, fewer + 1); };
+    record(BifurcationKind::grazing, graze, cur, beyond, branch_index, f, Mode::one_sided,
+           same_counts(cur.b.signature, j, &Signature::impacts), note);
+  }
+  if (rise >= 0) {
+    const auto j = static_cast<std::size_t>(rise);
+    const int fewer = cur.b.signature.phases[j];
+    const TestFunction f = [j, fewer](const Node& n) { return rising_function(n, j, fewer); };
+    record(BifurcationKind::rising, rise, cur, beyond, branch_index, f, Mode::one_sided,
+           same_counts(cur.b.signature, j, &Signature::phases), note);
+  }
+}
+
+/// The branch's section moved into the middle of the longest stretch of cur's orbit free of
+/// events and held phases, if an event has come within margin·T of it (events drift with p; an
+/// impact crossing the section makes the map over kT jump, and a section on a held stop is not
+/// free). The state there is cur's orbit at the new time; the tangent is carried to it by the
+/// tangent map of the stretch between and the section's own motion with Ω, so the orientation
+/// along the branch survives a move at a fold. nullopt (the section unchanged) when no move is
+/// needed or none is better.
+std::optional<Node> BranchRunner::resection(const Node& cur, double margin) {
+  const TangentMap& g = cur.e.map;
+  const double T = kTwoPi / cur.e.omega, clearance = detail::section_clearance(g);
+  if (clearance >= margin * T) return std::nullopt;
+  const auto [mid, half] = detail::free_section(g);
+  if (half <= clearance || mid <= cur.e.t0) return std::nullopt;
+  const Index n = c_.n_, N = 2 * n;
+  FamilyEngine& engine = c_.engine_at(cur.e.p);
+  LinearisationOptions lo;
+  lo.parameter = engine.derivative;
+  const TangentMap m = engine.linearise(cur.e.t0, cur.e.z.head(n), cur.e.z.tail(n), mid, lo);
+  ++result_.maps;
+  if (m.summary.status != RunStatus::completed) return std::nullopt;
+  // z'(p) = φ(t'(p); t0(p), z(p), p) with t0 = θ/Ω and t' = θ'/Ω (θ' = Ω·mid, unwrapped).
+  // (`engine` is not used after the corrector below, which may replace it.)
+  const double w = cur.e.omega, dw = engine.derivative.frequency, theta_mid = w * mid;
+  const double dt0 = -c_.theta / (w * w) * dw, dt1 = -theta_mid / (w * w) * dw;
+  const VectorXd Pp = m.parameter + m.rate_end * dt1 - m.jacobian * (m.rate_start * dt0);
+  const VectorXd d = c_.D();
+  VectorXd along(N + 1);
+  along.head(N) = (m.jacobian * d.cwiseProduct(cur.t.head(N)) + Pp * (c_.P * cur.t(N))).cwiseQuotient(d);
+  along(N) = cur.t(N);
+  along.normalize();
+  const double old_theta = c_.theta;
+  c_.theta = std::fmod(theta_mid, kTwoPi);
+  VectorXd y(N + 1);
+  y << stacked(m.x1, m.v1).cwiseQuotient(d), cur.e.p / c_.P;
+  Node moved;
+  int iterations = 0;
+  moved.e = c_.correct(y, along, &iterations);  // a polish: it starts on the orbit
+  if (!moved.e.ok || std::abs(moved.e.p - cur.e.p) > 1e-6 * c_.P) {
+    c_.theta = old_theta;
+    return std::nullopt;
+  }
+  moved.t = c_.tangent(moved.e, along);
+  moved.b = c_.point(moved.e, moved.t, iterations);
+  return moved;
+}
+
+/// The trail's points (scaled, at the section phase old_theta) carried to the branch's section
+/// now, each by a run of its own orbit from the old section time to the new one, so that the
+/// guard against steps landing back on the branch still sees the part followed before a move
+/// (reset instead, it let a jump from the unstable side of a fold land on the stable side
+/// already followed and retrace it). The last point (cur, in the old section) is dropped: the
+/// caller appends its moved state. A point whose run fails is dropped too.
+void BranchRunner::carry(std::vector<VectorXd>& trail, double old_theta) const {
+  const Index n = c_.n_, N = 2 * n;
+  const VectorXd d = c_.D();
+  double turn = std::fmod(c_.theta - old_theta, kTwoPi);
+  if (turn < 0.0) turn += kTwoPi;
+  std::vector<VectorXd> carried;
+  for (std::size_t i = 0; i + 1 < trail.size(); ++i) {
+    const double p = trail[i](N) * c_.P;
+    FamilyEngine& engine = c_.engine_at(p);
+    const double w = engine.frequency();
+    const VectorXd z = trail[i].head(N).cwiseProduct(d);
+    RunSummary r;
+    try {
+      r = engine.run(old_theta / w, z.head(n), z.tail(n), (old_theta + turn) / w);
+    } catch (const InvalidInput&) {
+      continue;
+    }
+    if (r.status != RunStatus::completed) continue;
+    VectorXd y(N + 1);
+    y << stacked(r.x, r.v).cwiseQuotient(d), trail[i](N);
+    carried.push_back(std::move(y));
+  }
+  trail = std::move(carried);
+}
+
+void BranchRunner::append(Branch& branch, const Node& n) {
+  branch.points.push_back(n.b);
+  if (progress_) progress_(branch, n.b);
+}
+
+}  // namespace vibro::detail

@@ -1,0 +1,86 @@
+#pragma once
+/// \file branch_runner.hpp
+/// One branch followed by pseudo-arclength steps, its bifurcations detected between neighbouring
+/// points and located (private to the analysis layer; continuation.hpp describes the method).
+/// The work is split by concept over three files:
+///  * branch_runner.cpp: the stepping (predictor y + h t, the corrector, the step control, the
+///    guards against landing back on the branch, jumps over grazing corners, section moves);
+///  * bifurcation_detection.cpp: what changed between two neighbours (test functions changing
+///    sign, the event signature) and how each change is to be located;
+///  * bifurcation_location.cpp: the location itself (Illinois on the arclength, the one-sided
+///    secant in p, bisection on the signature) and the record of the result.
+#include "corrector.hpp"
+
+#include <cstddef>
+#include <functional>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace vibro::detail {
+
+/// The scalar whose zero is located between two branch points (NaN: not defined at this point,
+/// the location falls back to bisection on the event signature).
+using TestFunction = std::function<double(const Node&)>;
+
+class BranchRunner {
+ public:
+  BranchRunner(Continuer& c, const ContinuationOptions& o, ContinuationResult& result,
+               const ContinuationProgress& progress)
+      : c_(c), o_(o), result_(result), progress_(progress) {}
+
+  /// Follows the branch from `start` along `t` (unit, scaled), appending to `branch`. Period
+  /// doublings located on it (while depth < max_doublings) are added to *doublings with the
+  /// branch's index, for branch switching.
+  void follow(Node start, VectorXd t, Branch& branch, int branch_index, int depth,
+              std::vector<std::pair<Node, int>>* doublings);
+  /// Appends n to the branch and reports it to the progress callback.
+  void append(Branch& branch, const Node& n);
+
+ private:
+  /// How a bifurcation between two neighbours is located.
+  enum class Mode {
+    two_sided,   ///< Illinois on the arclength: f smooth through the zero (fold, PD, NS)
+    one_sided,   ///< secant in p from the side where f is defined and smooth (grazing, rising)
+    bisection    ///< on the event signature: the condition is not smooth in p
+  };
+
+  // Stepping (branch_runner.cpp).
+  static bool near_nonsmooth(const Node& n);
+  std::optional<Node> jump(const Node& cur, double last_dp);
+  std::optional<Node> shoot_at(const Node& from, double p, const VectorXd& along);
+  void locate_at_end(const Node& cur, double last_dp, int branch_index);
+  std::optional<Node> resection(const Node& cur, double margin);
+  void carry(std::vector<VectorXd>& trail, double old_theta) const;
+
+  // Detection (bifurcation_detection.cpp).
+  void examine(const Node& a, Node& b, int branch_index, int depth, std::vector<std::pair<Node, int>>* doublings);
+  void point_away(const Node& a, Node& b, std::size_t first) const;
+  static std::function<bool(const Node&)> same_counts(const Signature& s, std::size_t j,
+                                                     std::vector<int> Signature::*field);
+
+  // Location (bifurcation_location.cpp).
+  std::optional<Node> on_limit(const Node& a, const Node& b, double limit);
+  std::optional<Node> illinois(const Node& a, const Node& b, const TestFunction& f, bool smooth, int* count,
+                               const std::function<bool(const Node&)>& same_as_a = {});
+  std::optional<Node> at_p(const Node& from, double p, const VectorXd& along);
+  std::optional<Node> one_sided(const Node& good, const Node& bad, const TestFunction& f,
+                                const std::function<bool(const Node&)>& on_good, int* count);
+  std::optional<Node> bisect(const Node& a, const Node& b, const std::function<bool(const Node&)>& same_as_a,
+                             int* count);
+  void record(BifurcationKind kind, int stop, const Node& a, const Node& b, int branch_index,
+              const TestFunction& f, Mode mode, const std::function<bool(const Node&)>& same_as_a,
+              const std::string& note);
+
+  Continuer& c_;
+  const ContinuationOptions& o_;
+  ContinuationResult& result_;
+  const ContinuationProgress& progress_;
+  Node last_located_;
+  double located_p_ = kNaN;  ///< one-sided location: the extrapolated zero
+  double bracket_low_ = 0.0, bracket_high_ = 0.0;
+  bool located_smooth_ = true;
+};
+
+}  // namespace vibro::detail

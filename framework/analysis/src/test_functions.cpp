@@ -1,0 +1,65 @@
+/// \file test_functions.cpp
+/// The scalars whose zeros are continuation's smooth bifurcations: the multipliers' products for
+/// period doubling and Neimark–Sacker, the nearest approach to a stop for grazing and the least
+/// contact force for rising (the maths in test_functions.hpp).
+#include "test_functions.hpp"
+
+#include "event_signature.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <limits>
+#include <vector>
+
+namespace vibro::detail {
+
+double doubling_test(const FloquetMultipliers& f) {
+  const Index d = f.values.size() - f.structural_zeros;
+  std::complex<double> p = 1.0;
+  for (Index i = 0; i < d; ++i) p *= 1.0 + f.values(i);
+  return p.real();
+}
+double torus_test(const FloquetMultipliers& f) {
+  const Index d = f.values.size() - f.structural_zeros;
+  std::complex<double> p = 1.0;
+  for (Index i = 0; i < d; ++i)
+    for (Index j = i + 1; j < d; ++j) p *= f.values(i) * f.values(j) - 1.0;
+  return p.real();
+}
+bool has_unit_pair(const FloquetMultipliers& f, double tol) {
+  const Index d = f.values.size() - f.structural_zeros;
+  for (Index i = 0; i < d; ++i)
+    if (std::abs(f.values(i).imag()) > tol && std::abs(std::abs(f.values(i)) - 1.0) < tol) return true;
+  return false;
+}
+
+double grazing_function(const Node& n, std::size_t stops, std::size_t j, int fewer, int more) {
+  const int count = n.b.signature.impacts[j];
+  if (count == fewer) {
+    double best = -std::numeric_limits<double>::infinity();
+    for (const GapPeak& g : n.e.map.gap_peaks)
+      if (g.stop == static_cast<int>(j)) best = std::max(best, g.value);
+    return std::isfinite(best) ? best : kNaN;
+  }
+  if (count == more) {
+    const std::vector<StopEvents> ev = per_stop(n.e.map, stops);
+    double best = std::numeric_limits<double>::infinity();
+    for (const ImpactRecord& r : ev[j].free_impacts)
+      if (r.acceleration < 0.0) best = std::min(best, r.speed * r.speed / (2.0 * -r.acceleration));
+    return std::isfinite(best) ? best : kNaN;
+  }
+  return kNaN;
+}
+
+/// Rising of stop j: the least interior minimum of its contact force with `fewer` phases, the
+/// least force the held flow continued past a release would need with more.
+double rising_function(const Node& n, std::size_t j, int fewer) {
+  const int count = n.b.signature.phases[j];
+  double best = std::numeric_limits<double>::infinity();
+  for (const ForceDip& d : n.e.map.force_dips)
+    if (d.stop == static_cast<int>(j) && d.past_release == (count != fewer)) best = std::min(best, d.value);
+  return std::isfinite(best) ? best : kNaN;
+}
+
+}  // namespace vibro::detail

@@ -1,0 +1,36 @@
+#pragma once
+/// \file test_functions.hpp
+/// The test functions of continuation's bifurcations (private to the analysis layer;
+/// continuation.hpp lists them): scalars of a branch point that change sign at the bifurcation,
+/// located as their zeros between two neighbours. Over the d non-structural Floquet
+/// multipliers μ_i (the structural zeros of held coordinates left out):
+///  * period doubling: Π_i (1 + μ_i), zero where a multiplier passes −1;
+///  * Neimark–Sacker:  Π_{i<j} (μ_i μ_j − 1), zero where a complex pair crosses the unit circle
+///    (μ μ̄ = 1), and also at a real pair with μ_i μ_j = 1 (a neutral saddle, told apart by
+///    has_unit_pair);
+///  * grazing of stop j: the orbit's nearest approach to the stop, continuous through the
+///    grazing: with `fewer` free impacts the largest interior maximum of the gap (< 0), with
+///    `more` the least u²/(2|g''|) over the free impacts (> 0: the height the slowest impact's
+///    free parabola would rise past the stop, u its approach speed, g'' the gap's free
+///    acceleration at impact);
+///  * rising of stop j (Wagg 2004): with `fewer` contact phases the least interior minimum of
+///    its contact force (> 0), with more the least force the held flow continued past a
+///    release would need (< 0).
+/// The fold's test function, the tangent's p component, is read off the node directly.
+/// NaN where the function is not defined at a point (location then falls back to bisection).
+#include "corrector.hpp"
+
+#include <cstddef>
+
+namespace vibro::detail {
+
+double doubling_test(const FloquetMultipliers& f);
+double torus_test(const FloquetMultipliers& f);
+/// Whether a complex pair (|Im μ| > tol) lies on the unit circle to tol.
+bool has_unit_pair(const FloquetMultipliers& f, double tol);
+/// Grazing of stop j of a system with `stops` stops (see above).
+double grazing_function(const Node& n, std::size_t stops, std::size_t j, int fewer, int more);
+/// Rising of stop j (see above).
+double rising_function(const Node& n, std::size_t j, int fewer);
+
+}  // namespace vibro::detail
