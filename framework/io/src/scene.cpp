@@ -1,7 +1,10 @@
 #include "vibro/io/scene.hpp"
 
-#include "vibro/io/continuation.hpp"
+#include "scene_reader.hpp"
+#include "run_section.hpp"
+
 #include "vibro/io/resources.hpp"
+#include "vibro/io/run_kinds.hpp"
 
 #include "vibro/models/chain.hpp"
 
@@ -25,214 +28,10 @@
 #include <sstream>
 
 namespace vibro::io {
+
+using namespace detail;
+
 namespace {
-
-std::size_t edit_distance(const std::string& a, const std::string& b) {
-  std::vector<std::size_t> row(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    std::size_t diag = row[0];
-    row[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j) {
-      const std::size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diag = up;
-    }
-  }
-  return row[b.size()];
-}
-
-/// Reads a whole string as a double (strtod's syntax, no leading or trailing space). Accepts
-/// subnormal values (1e-308: strtod reports ERANGE for them); refuses what over- or underflows
-/// to a value other than the one written (1e999 → ∞, 1e-999 → 0). Empty `why` on success.
-double parse_number(const std::string& s, std::string& why) {
-  why.clear();
-  if (s.empty() || std::isspace(static_cast<unsigned char>(s.front()))) {
-    why = "expected a number, found '" + s + "'";
-    return 0.0;
-  }
-  errno = 0;
-  char* end = nullptr;
-  const double v = std::strtod(s.c_str(), &end);
-  const bool range = errno == ERANGE;
-  if (end != s.c_str() + s.size() || end == s.c_str()) {
-    why = "expected a number, found '" + s + "'";
-  } else if (!std::isfinite(v) || (range && std::abs(v) > 1.0)) {
-    why = "expected a finite number, found '" + s + "'";
-  } else if (range && v == 0.0 && s.find_first_of("123456789") < s.find_first_of("eE")) {
-    why = "'" + s + "' is below the smallest double (4.9e-324): write 0 if 0 is meant";
-  }
-  return v;
-}
-
-std::string describe(const YAML::Node& n) {
-  switch (n.Type()) {
-    case YAML::NodeType::Null: return "nothing";
-    case YAML::NodeType::Scalar: return "'" + n.Scalar() + "'";
-    case YAML::NodeType::Sequence: return "a list of " + std::to_string(n.size());
-    case YAML::NodeType::Map: return "a mapping";
-    default: return "an undefined value";
-  }
-}
-
-/// Reads the YAML tree of one scene, with the file name and key paths in every error.
-class Reader {
- public:
-  explicit Reader(std::string file, std::vector<std::pair<std::string, double>> overrides = {})
-      : file_(std::move(file)), overrides_(std::move(overrides)) {}
-
-  [[noreturn]] void fail(const YAML::Node& node, const std::string& path,
-                         const std::string& problem) const {
-    YAML::Mark m = node.Mark();
-    if (m.is_null() || node.IsNull()) {
-      // A key with no value has no position of its own: point at the key.
-      const auto it = key_marks_.find(path);
-      if (it != key_marks_.end()) m = it->second;
-    }
-    const int line = m.is_null() ? last_line_ : m.line + 1;
-    const int col = m.is_null() ? last_col_ : m.column + 1;
-    std::string note;
-    for (const auto& [p, v] : overrides_)
-      if (p == path || path.rfind(p, 0) == 0)
-        note = " (the value comes from --set " + p + "=" + number_text(v) + ")";
-    throw SceneError(file_, line, col, path, problem + note);
-  }
-
-  void note(const YAML::Node& node) {
-    const YAML::Mark m = node.Mark();
-    if (!m.is_null()) {
-      last_line_ = m.line + 1;
-      last_col_ = m.column + 1;
-    }
-  }
-
-  /// A mapping whose keys must be among `allowed`.
-  void expect_map(const YAML::Node& node, const std::string& path,
-                  const std::vector<std::string>& allowed) {
-    note(node);
-    if (!node.IsMap()) fail(node, path, "expected a mapping, found " + describe(node));
-    std::set<std::string> seen;
-    for (auto it = node.begin(); it != node.end(); ++it) {
-      const std::string key = it->first.Scalar();
-      if (!seen.insert(key).second)
-        fail(it->first, join(path, key), "duplicate key '" + key + "' (each key may appear once)");
-      key_marks_[join(path, key)] = it->first.Mark();
-      if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
-      std::string best;
-      std::size_t best_d = 3;
-      for (const auto& a : allowed) {
-        const std::size_t d = edit_distance(key, a);
-        if (d < best_d) {
-          best_d = d;
-          best = a;
-        }
-      }
-      std::string list;
-      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      fail(it->first, join(path, key),
-           "unknown key '" + key + "'" + (best.empty() ? "" : "; did you mean '" + best + "'?") +
-               " (allowed: " + list + ")");
-    }
-  }
-
-  /// A plain (unquoted, untagged) scalar that reads whole as a finite double. A quoted "0.5"
-  /// or `!!str 0.5` is text in YAML, and refused as such.
-  double number(const YAML::Node& node, const std::string& path) {
-    note(node);
-    if (!node.IsScalar()) fail(node, path, "expected a number, found " + describe(node));
-    const std::string& s = node.Scalar();
-    const std::string& tag = node.Tag();
-    if (tag == "!" || tag == "tag:yaml.org,2002:str")
-      fail(node, path, "expected a number, found the text '" + s + "' (" + (tag == "!" ? "quoted" : "tagged !!str") +
-                           "; write the number without quotes)");
-    if (!tag.empty() && tag != "?" && tag != "tag:yaml.org,2002:float" && tag != "tag:yaml.org,2002:int")
-      fail(node, path, "expected a number, found '" + s + "' tagged " + tag);
-    std::string why;
-    const double v = parse_number(s, why);
-    if (!why.empty()) fail(node, path, why);
-    return v;
-  }
-
-  double number_in(const YAML::Node& node, const std::string& path, double lo, double hi,
-                   const std::string& rule) {
-    const double v = number(node, path);
-    if (!(v >= lo && v <= hi)) fail(node, path, "expected " + rule + ", found " + node.Scalar());
-    return v;
-  }
-
-  long integer(const YAML::Node& node, const std::string& path, long lo, long hi) {
-    const double v = number(node, path);
-    if (v != std::floor(v) || v < static_cast<double>(lo) || v > static_cast<double>(hi))
-      fail(node, path, "expected a whole number in [" + std::to_string(lo) + ", " +
-                           std::to_string(hi) + "], found " + node.Scalar());
-    return static_cast<long>(v);
-  }
-
-  bool boolean(const YAML::Node& node, const std::string& path) {
-    note(node);
-    if (node.IsScalar()) {
-      const std::string& s = node.Scalar();
-      if (s == "true" || s == "yes" || s == "on") return true;
-      if (s == "false" || s == "no" || s == "off") return false;
-    }
-    fail(node, path, "expected true or false, found " + describe(node));
-  }
-
-  std::string text(const YAML::Node& node, const std::string& path) {
-    note(node);
-    if (!node.IsScalar()) fail(node, path, "expected a text, found " + describe(node));
-    return node.Scalar();
-  }
-
-  std::string choice(const YAML::Node& node, const std::string& path,
-                     const std::vector<std::string>& options) {
-    const std::string s = text(node, path);
-    if (std::find(options.begin(), options.end(), s) != options.end()) return s;
-    std::string list;
-    for (const auto& o : options) list += (list.empty() ? "" : ", ") + o;
-    fail(node, path, "expected one of " + list + ", found '" + s + "'");
-  }
-
-  /// A list of numbers, of length `size` when size ≥ 0.
-  std::vector<double> numbers(const YAML::Node& node, const std::string& path, long size,
-                              const std::string& what) {
-    note(node);
-    if (!node.IsSequence())
-      fail(node, path, "expected a list of numbers (" + what + "), found " + describe(node));
-    if (size >= 0 && static_cast<long>(node.size()) != size)
-      fail(node, path, "expected a list of " + std::to_string(size) + " numbers (" + what +
-                           "), found " + std::to_string(node.size()));
-    std::vector<double> out;
-    for (std::size_t i = 0; i < node.size(); ++i)
-      out.push_back(number(node[i], path + "[" + std::to_string(i) + "]"));
-    return out;
-  }
-
-  Eigen::MatrixXd matrix(const YAML::Node& node, const std::string& path, long n) {
-    note(node);
-    if (!node.IsSequence() || (n >= 0 && static_cast<long>(node.size()) != n))
-      fail(node, path, "expected a list of " + (n >= 0 ? std::to_string(n) : std::string("n")) +
-                           " rows, found " + describe(node));
-    const long rows = static_cast<long>(node.size());
-    Eigen::MatrixXd m(rows, rows);
-    for (long i = 0; i < rows; ++i) {
-      const auto row = numbers(node[static_cast<std::size_t>(i)], path + "[" + std::to_string(i) + "]",
-                               rows, "one entry per degree of freedom");
-      for (long j = 0; j < rows; ++j) m(i, j) = row[static_cast<std::size_t>(j)];
-    }
-    return m;
-  }
-
-  static std::string join(const std::string& path, const std::string& key) {
-    return path.empty() ? key : path + "." + key;
-  }
-
- private:
-  std::string file_;
-  std::vector<std::pair<std::string, double>> overrides_;
-  std::map<std::string, YAML::Mark> key_marks_;
-  int last_line_ = 1, last_col_ = 1;
-};
 
 /// Splits "a.b[2].c" into keys and indices.
 struct PathStep {
@@ -268,28 +67,6 @@ std::vector<PathStep> split_path(const std::string& path) {
   return steps;
 }
 
-Eigen::VectorXd to_vector(const std::vector<double>& v) {
-  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
-}
-
-std::vector<double> spaced(const std::vector<double>& spec, bool logarithmic, Reader& r,
-                           const YAML::Node& node, const std::string& path) {
-  const double a = spec[0], b = spec[1];
-  const double count = spec[2];
-  if (count != std::floor(count) || count < 1 || count > 1e7)
-    r.fail(node, path, "expected [start, stop, count] with a whole count in [1, 1e7], found count " + number_text(count));
-  if (logarithmic && !(a > 0 && b > 0))
-    r.fail(node, path, "expected positive start and stop for a logarithmic spacing, found " + number_text(a) + ", " + number_text(b));
-  const auto n = static_cast<long>(count);
-  std::vector<double> out;
-  for (long i = 0; i < n; ++i) {
-    const double f = n == 1 ? 0.0 : static_cast<double>(i) / static_cast<double>(n - 1);
-    out.push_back(logarithmic ? std::exp(std::log(a) + f * (std::log(b) - std::log(a)))
-                              : (i == n - 1 ? b : a + f * (b - a)));
-  }
-  return out;
-}
-
 }  // namespace
 
 SceneError::SceneError(std::string file, int line, int column, std::string path, std::string problem)
@@ -312,20 +89,6 @@ std::unique_ptr<vibro::Engine> make_engine(const Scene& scene) {
     return std::make_unique<ModalEngine>(*scene.chain, scene.stops, modal_options(scene.solver));
   }
   return std::make_unique<DenseEngine>(scene.impact_system(), scene.solver);
-}
-
-const char* to_string(RunSpec::Kind kind) {
-  switch (kind) {
-    case RunSpec::Kind::sweep: return "sweep";
-    case RunSpec::Kind::locate: return "locate";
-    case RunSpec::Kind::continuation: return "continue";
-    case RunSpec::Kind::basin: return "basin";
-    case RunSpec::Kind::diagram: return "diagram";
-    case RunSpec::Kind::lyapunov: return "lyapunov";
-    case RunSpec::Kind::orbit: return "orbit";
-    case RunSpec::Kind::simulate: break;
-  }
-  return "simulate";
 }
 
 const char* to_string(EngineKind engine) { return engine == EngineKind::modal ? "modal" : "dense"; }
@@ -849,293 +612,33 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
                "per-period statistics and Poincaré points need a forcing frequency > 0 (forcing.frequency)");
   }
 
-  // --- run ---
+  // --- run: its common keys, then the section of its kind (run_kinds.hpp) ---
   RunSpec run;
-  // One varied value: `path` and exactly one of linspace, logspace, values (sweeps and locate).
-  auto parse_axis = [&](const YAML::Node& p, const std::string& path, const std::vector<SweepAxis>& others,
-                        std::vector<std::string> keys) {
-    keys.insert(keys.end(), {"path", "linspace", "logspace", "values"});
-    r.expect_map(p, path, keys);
-    if (!p["path"]) r.fail(p, path + ".path", "missing: the scene value to vary, e.g. forcing.frequency");
-    SweepAxis axis;
-    axis.path = r.text(p["path"], path + ".path");
-    for (const SweepAxis& other : others)
-      if (other.path == axis.path) r.fail(p["path"], path + ".path", "'" + axis.path + "' is swept twice");
-    if (axis.path.rfind("run.", 0) == 0) r.fail(p["path"], path + ".path", "the run section cannot be swept");
-    try {
-      (void)get(axis.path);
-    } catch (const SceneError& e) {
-      r.fail(p["path"], path + ".path", "'" + axis.path + "' does not name a number in this scene: " + e.problem());
-    }
-    const int given = (p["linspace"] ? 1 : 0) + (p["logspace"] ? 1 : 0) + (p["values"] ? 1 : 0);
-    if (given != 1) r.fail(p, path, "give exactly one of linspace, logspace, values");
-    if (p["values"]) {
-      axis.values = r.numbers(p["values"], path + ".values", -1, "the values to visit");
-      if (axis.values.empty()) r.fail(p["values"], path + ".values", "expected at least one value");
-    } else {
-      const bool lg = static_cast<bool>(p["logspace"]);
-      const std::string key = lg ? "logspace" : "linspace";
-      const auto spec = r.numbers(p[key], path + "." + key, 3, "start, stop, count");
-      axis.values = spaced(spec, lg, r, p[key], path + "." + key);
-    }
-    return axis;
-  };
-  // Every value must make a valid scene: find out now, at the value, not mid-run. Each value's
-  // engine is kept to check, once this scene's is resolved, that the whole grid runs on one.
-  struct PointEngine {
-    YAML::Node at;
-    std::string path, what;
-    EngineKind engine;
-  };
   std::vector<PointEngine> point_engines;
-  // Continuation's parameters with their place and dD/dp (checked against the engine below).
-  struct ContinuationPath {
-    YAML::Node at;
-    std::string key, path;
-    SystemDerivative derivative;
-  };
-  std::vector<ContinuationPath> continuation_paths;
-  auto check_values = [&](const SweepAxis& axis, const YAML::Node& p, const std::string& path) {
-    SceneDocument point(*this);  // one copy, its value replaced per point: no re-parse per point
-    for (std::size_t i = 0; i < axis.values.size(); ++i) {
-      point.set(axis.path, axis.values[i]);
-      const bool listed = static_cast<bool>(p["values"]);
-      const YAML::Node at = listed ? p["values"][i] : p[p["linspace"] ? "linspace" : "logspace"];
-      const std::string where = listed ? path + ".values[" + std::to_string(i) + "]" : path;
-      try {
-        const Scene built = point.build_checked(false);
-        point_engines.push_back({at, where, axis.path + " = " + number_text(axis.values[i]), built.engine});
-      } catch (const SceneError& e) {
-        r.fail(at, where,
-               axis.path + " = " + number_text(axis.values[i]) + " makes the scene invalid: " + e.problem() +
-                   " (" + e.path() + ")");
-      }
-    }
-  };
+  std::vector<std::function<void(EngineKind, const std::string&)>> engine_checks;
   if (const YAML::Node rn = root["run"]) {
-    r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep", "locate", "continue", "basin", "diagram", "lyapunov", "orbit"});
-    if (rn["kind"]) {
-      const std::string kind = r.choice(rn["kind"], "run.kind", {"simulate", "sweep", "locate", "continue", "basin", "diagram", "lyapunov", "orbit"});
-      run.kind = kind == "sweep"      ? RunSpec::Kind::sweep
-                 : kind == "locate"   ? RunSpec::Kind::locate
-                 : kind == "continue" ? RunSpec::Kind::continuation
-                 : kind == "basin"    ? RunSpec::Kind::basin
-                 : kind == "diagram"  ? RunSpec::Kind::diagram
-                 : kind == "lyapunov" ? RunSpec::Kind::lyapunov
-                 : kind == "orbit"    ? RunSpec::Kind::orbit
-                                      : RunSpec::Kind::simulate;
+    std::vector<std::string> keys{"kind", "transient_periods", "periods"}, names;
+    for (const RunKindInfo& k : run_kinds()) {
+      names.emplace_back(k.name);
+      if (k.section) keys.emplace_back(k.section);
     }
+    r.expect_map(rn, "run", keys);
+    if (rn["kind"]) run.kind = find_run_kind(r.choice(rn["kind"], "run.kind", names))->kind;
     if (rn["transient_periods"]) run.transient_periods = r.number_in(rn["transient_periods"], "run.transient_periods", 0, 1e9, "a number of periods ≥ 0");
     if (rn["periods"]) run.periods = r.number_in(rn["periods"], "run.periods", 1e-12, 1e9, "a number of periods > 0");
-    const YAML::Node sw = rn["sweep"], lc = rn["locate"], ct = rn["continue"], bs = rn["basin"];
-    if (run.kind == RunSpec::Kind::basin && !bs)
-      r.fail(rn, "run.basin", "missing: run.kind: basin needs run.basin.parameters (two scene values and their grids)");
-    if (run.kind != RunSpec::Kind::basin && bs) r.fail(bs, "run.basin", "only for run.kind: basin");
-    const YAML::Node dg = rn["diagram"], ly = rn["lyapunov"];
-    if (run.kind == RunSpec::Kind::diagram && !dg)
-      r.fail(rn, "run.diagram", "missing: run.kind: diagram needs run.diagram (path and grid)");
-    if (run.kind != RunSpec::Kind::diagram && dg) r.fail(dg, "run.diagram", "only for run.kind: diagram");
-    if (run.kind != RunSpec::Kind::lyapunov && ly) r.fail(ly, "run.lyapunov", "only for run.kind: lyapunov");
-    if (const YAML::Node ob = rn["orbit"]) {
-      if (run.kind != RunSpec::Kind::orbit) r.fail(ob, "run.orbit", "only for run.kind: orbit");
-      r.expect_map(ob, "run.orbit", {"period", "phase", "tolerance", "max_iterations", "multipliers"});
-      OrbitSpec& o = run.orbit;
-      if (ob["period"]) o.period = static_cast<int>(r.integer(ob["period"], "run.orbit.period", 1, 1024));
-      if (ob["phase"]) o.phase = r.number_in(ob["phase"], "run.orbit.phase", -1e3, 1e3, "a phase in radians");
-      if (ob["tolerance"]) o.tolerance = r.number_in(ob["tolerance"], "run.orbit.tolerance", 1e-15, 1e-4, "a relative tolerance in [1e-15, 1e-4]");
-      if (ob["max_iterations"]) o.max_iterations = static_cast<int>(r.integer(ob["max_iterations"], "run.orbit.max_iterations", 1, 1000));
-      if (ob["multipliers"]) o.multipliers = static_cast<int>(r.integer(ob["multipliers"], "run.orbit.multipliers", 1, 100));
+    // Each kind's section: required where the kind says so, refused under any other kind.
+    for (const RunKindInfo& k : run_kinds()) {
+      if (!k.section) continue;
+      const std::string path = std::string("run.") + k.section;
+      const YAML::Node node = rn[k.section];
+      if (k.kind == run.kind && k.missing && !node) r.fail(rn, path, k.missing);
+      if (k.kind != run.kind && node) r.fail(node, path, std::string("only for run.kind: ") + k.name);
     }
-    if (run.kind == RunSpec::Kind::orbit && !(f.frequency > 0.0))
-      r.fail(rn["kind"], "run.kind", "a periodic orbit's period is 2π/Ω: it needs a forcing frequency > 0 (forcing.frequency)");
-    // A grid along which a run follows its attractor: at least two values, strictly monotonic.
-    auto monotonic = [&](const YAML::Node& node, const std::string& path) {
-      const auto& v = run.axes[0].values;
-      if (v.size() < 2) r.fail(node, path, "expected at least two grid values");
-      for (std::size_t i = 1; i < v.size(); ++i)
-        if (!((v[i] - v[i - 1]) * (v[1] - v[0]) > 0.0))
-          r.fail(node, path, "the grid must be strictly increasing or decreasing (value " + std::to_string(i) + ")");
-    };
-    if (dg && check_sweep) {
-      DiagramSpec& d = run.diagram;
-      run.axes.push_back(parse_axis(dg, "run.diagram", {}, {"transient", "points", "directions", "max_period", "tolerance"}));
-      monotonic(dg, "run.diagram");
-      if (dg["transient"]) d.transient = r.integer(dg["transient"], "run.diagram.transient", 0, 100000000);
-      if (dg["points"]) d.points = static_cast<int>(r.integer(dg["points"], "run.diagram.points", 1, 100000));
-      if (dg["directions"]) {
-        const std::string dir = r.choice(dg["directions"], "run.diagram.directions", {"both", "up", "down"});
-        d.up = dir != "down";
-        d.down = dir != "up";
-      }
-      if (dg["max_period"]) d.max_period = static_cast<int>(r.integer(dg["max_period"], "run.diagram.max_period", 1, 50000));
-      if (2 * d.max_period > d.points)
-        r.fail(dg["max_period"] ? dg["max_period"] : dg, "run.diagram.max_period",
-               "expected at most points / 2 = " + std::to_string(d.points / 2) +
-                   " (a period k is recognised on 2k recorded points)");
-      if (dg["tolerance"]) d.tolerance = r.number_in(dg["tolerance"], "run.diagram.tolerance", 1e-15, 0.1, "a relative tolerance in [1e-15, 0.1]");
-      check_values(run.axes[0], dg, "run.diagram");
-      if (!(f.frequency > 0.0))
-        r.fail(rn["kind"], "run.kind", "a diagram records stroboscopic points: it needs a forcing frequency > 0 (forcing.frequency)");
-    }
-    if (check_sweep && run.kind == RunSpec::Kind::lyapunov) {
-      LyapunovSpec& l = run.lyapunov;
-      if (!(f.frequency > 0.0))
-        r.fail(rn["kind"], "run.kind", "Lyapunov exponents are averaged over forcing periods: they need a forcing frequency > 0 (forcing.frequency)");
-      if (ly) {
-        r.expect_map(ly, "run.lyapunov", {"count", "transient", "align", "periods", "follow", "path", "linspace", "logspace", "values"});
-        if (ly["count"]) l.count = static_cast<int>(r.integer(ly["count"], "run.lyapunov.count", 0, 2 * static_cast<long>(n)));
-        if (ly["transient"]) l.transient = r.integer(ly["transient"], "run.lyapunov.transient", 0, 100000000);
-        if (ly["align"]) l.align = r.integer(ly["align"], "run.lyapunov.align", 0, 100000000);
-        if (ly["periods"]) l.periods = r.integer(ly["periods"], "run.lyapunov.periods", 1, 100000000);
-        if (ly["path"] || ly["linspace"] || ly["logspace"] || ly["values"]) {
-          run.axes.push_back(parse_axis(ly, "run.lyapunov", {}, {"count", "transient", "align", "periods", "follow"}));
-          monotonic(ly, "run.lyapunov");
-          check_values(run.axes[0], ly, "run.lyapunov");
-          l.along = true;
-        }
-        if (ly["follow"]) {
-          l.follow = r.boolean(ly["follow"], "run.lyapunov.follow");
-          if (!l.along) r.fail(ly["follow"], "run.lyapunov.follow", "only with a grid (run.lyapunov.path and its values)");
-        }
-      }
-    }
-    if (bs && check_sweep) {
-      BasinSpec& b = run.basin;
-      r.expect_map(bs, "run.basin", {"parameters", "max_period", "max_periods", "tolerance", "match", "seed_stride"});
-      const YAML::Node ps = bs["parameters"];
-      if (!ps || !ps.IsSequence() || ps.size() != 2)
-        r.fail(ps ? ps : bs, "run.basin.parameters",
-               "expected a list of two parameters (the image's rows and columns), found " + (ps ? describe(ps) : std::string("nothing")));
-      for (std::size_t a = 0; a < 2; ++a)
-        run.axes.push_back(parse_axis(ps[a], "run.basin.parameters[" + std::to_string(a) + "]", run.axes, {}));
-      if (bs["max_period"]) b.max_period = static_cast<int>(r.integer(bs["max_period"], "run.basin.max_period", 1, 64));
-      if (bs["max_periods"]) b.max_periods = r.integer(bs["max_periods"], "run.basin.max_periods", 2, 100000000);
-      if (b.max_periods < b.max_period + 1)
-        r.fail(bs["max_periods"] ? bs["max_periods"] : bs, "run.basin.max_periods",
-               "expected at least max_period + 1 = " + std::to_string(b.max_period + 1) +
-                   " periods (a period-k orbit is recognised after k + 1)");
-      if (bs["tolerance"]) b.tolerance = r.number_in(bs["tolerance"], "run.basin.tolerance", 1e-15, 1e-2, "a relative tolerance in [1e-15, 1e-2]");
-      if (bs["match"]) b.match = r.number_in(bs["match"], "run.basin.match", 1e-15, 1e-1, "a relative distance in [1e-15, 0.1]");
-      if (b.match < b.tolerance)
-        r.fail(bs["match"] ? bs["match"] : bs, "run.basin.match",
-               "must not be below run.basin.tolerance (" +
-                   (bs["tolerance"] ? bs["tolerance"].Scalar() : number_text(b.tolerance)) +
-                   "): a run that repeats within the tolerance must also match its attractor");
-      if (bs["seed_stride"]) b.seed_stride = static_cast<int>(r.integer(bs["seed_stride"], "run.basin.seed_stride", 1, 1000000));
-      for (std::size_t a = 0; a < 2; ++a)
-        check_values(run.axes[a], ps[a], "run.basin.parameters[" + std::to_string(a) + "]");
-      if (!(f.frequency > 0.0))
-        r.fail(rn["kind"], "run.kind", "a basin compares stroboscopic points: it needs a forcing frequency > 0 (forcing.frequency)");
-    }
-    if (run.kind == RunSpec::Kind::continuation && !ct)
-      r.fail(rn, "run.continue", "missing: run.kind: continue needs run.continue (path and range)");
-    if (run.kind != RunSpec::Kind::continuation && ct) r.fail(ct, "run.continue", "only for run.kind: continue");
-    if (run.kind == RunSpec::Kind::sweep && !sw) r.fail(rn, "run.sweep", "missing: a sweep needs run.sweep.parameters");
-    if (run.kind != RunSpec::Kind::sweep && sw) r.fail(sw, "run.sweep", "only for run.kind: sweep");
-    if (run.kind == RunSpec::Kind::locate && !lc) r.fail(rn, "run.locate", "missing: run.kind: locate needs run.locate (path and grid)");
-    if (run.kind != RunSpec::Kind::locate && lc) r.fail(lc, "run.locate", "only for run.kind: locate");
-    if (sw && check_sweep) {
-      r.expect_map(sw, "run.sweep", {"parameters", "follow", "reverse"});
-      if (sw["follow"]) run.follow = r.boolean(sw["follow"], "run.sweep.follow");
-      if (sw["reverse"]) run.reverse = r.boolean(sw["reverse"], "run.sweep.reverse");
-      const YAML::Node ps = sw["parameters"];
-      if (!ps || !ps.IsSequence() || ps.size() == 0 || ps.size() > 2)
-        r.fail(ps ? ps : sw, "run.sweep.parameters", "expected a list of one or two parameters, found " + (ps ? describe(ps) : std::string("nothing")));
-      for (std::size_t a = 0; a < ps.size(); ++a)
-        run.axes.push_back(parse_axis(ps[a], "run.sweep.parameters[" + std::to_string(a) + "]", run.axes, {}));
-      for (std::size_t a = 0; a < run.axes.size(); ++a)
-        check_values(run.axes[a], ps[a], "run.sweep.parameters[" + std::to_string(a) + "]");
-    }
-    if (lc && check_sweep) {
-      LocateSpec& l = run.locate;
-      run.axes.push_back(parse_axis(lc, "run.locate", {}, {"tolerance", "periodicity", "max_period", "max_periods", "jump"}));
-      if (run.axes[0].values.size() < 2) r.fail(lc, "run.locate", "expected at least two grid values to scan between");
-      for (std::size_t i = 1; i < run.axes[0].values.size(); ++i) {
-        const auto& v = run.axes[0].values;
-        if ((v[i] - v[i - 1]) * (v[1] - v[0]) <= 0.0)
-          r.fail(lc, "run.locate", "the grid must be strictly increasing or decreasing (value " + std::to_string(i) + ")");
-      }
-      if (lc["tolerance"]) l.tolerance = r.number_in(lc["tolerance"], "run.locate.tolerance", 1e-15, 1e300, "a bracket width > 0 in the parameter's units");
-      if (lc["periodicity"]) l.periodicity = r.number_in(lc["periodicity"], "run.locate.periodicity", 1e-15, 1e-2, "a relative tolerance in [1e-15, 1e-2]");
-      if (lc["max_period"]) l.max_period = static_cast<int>(r.integer(lc["max_period"], "run.locate.max_period", 1, 64));
-      if (lc["max_periods"]) l.max_periods = r.integer(lc["max_periods"], "run.locate.max_periods", 2, 100000000);
-      // The first orbit is searched after the transient, each for up to max_period periods:
-      // a budget below that would have to be raised behind the user's back (bifurcation.cpp).
-      const long needed = static_cast<long>(std::ceil(run.transient_periods)) + l.max_period + 1;
-      if (l.max_periods < needed)
-        r.fail(lc["max_periods"] ? lc["max_periods"] : lc, "run.locate.max_periods",
-               "expected at least " + std::to_string(needed) + " periods (run.transient_periods " +
-                   number_text(run.transient_periods) + " + max_period " + std::to_string(l.max_period) +
-                   " + 1: the first orbit is tested after the transient), found " + std::to_string(l.max_periods));
-      if (lc["jump"]) l.jump = r.number_in(lc["jump"], "run.locate.jump", 0, 1, "a fraction of the period in [0, 1] (0: no jump search)");
-      check_values(run.axes[0], lc, "run.locate");
-    }
-    if (ct && check_sweep) {
-      ContinueSpec& c = run.continuation;
-      r.expect_map(ct, "run.continue", {"path", "range", "direction", "period", "phase", "step", "min_step", "max_step",
-                                        "max_points", "tolerance", "locate", "locate_tolerance", "max_doublings", "curve"});
-      // A continuation parameter: a number the file sets, outside `run` (and, below, one that
-      // moves the system: continuation.cpp checks that through the parameter's derivative).
-      auto parameter = [&](const YAML::Node& node, const std::string& path) {
-        if (!node) r.fail(ct, path, "missing: the scene value to continue in, e.g. forcing.frequency");
-        const std::string text = r.text(node, path);
-        if (text.rfind("run.", 0) == 0) r.fail(node, path, "the run section cannot be a parameter");
-        try {
-          (void)get(text);
-        } catch (const SceneError& e) {
-          r.fail(node, path, "'" + text + "' does not name a number in this scene: " + e.problem());
-        }
-        return text;
-      };
-      auto range = [&](const YAML::Node& node, const std::string& path, double& lo, double& hi, double value) {
-        if (!node) r.fail(ct, path, "missing: [min, max], the limits of the parameter");
-        const std::vector<double> v = r.numbers(node, path, 2, "min, max");
-        if (!(v[0] < v[1])) r.fail(node, path, "expected min < max, found [" + number_text(v[0]) + ", " + number_text(v[1]) + "]");
-        if (!(value >= v[0] && value <= v[1]))
-          r.fail(node, path, "the scene's value " + number_text(value) + " lies outside [" + number_text(v[0]) + ", " +
-                                 number_text(v[1]) + "]: the branch starts there");
-        lo = v[0];
-        hi = v[1];
-      };
-      // The parameter must move the system, linearly or in closed form (io/continuation.hpp).
-      // Kept, with their place, for the engine's check below (what the modal engine differentiates).
-      auto moves = [&](const YAML::Node& node, const std::string& key, const std::string& path) {
-        try {
-          continuation_paths.push_back({node, key, path, parameter_derivative(*this, path)});
-        } catch (const SceneError& e) {
-          r.fail(node, key, "'" + path + "' " + e.problem());
-        }
-      };
-      c.path = parameter(ct["path"], "run.continue.path");
-      moves(ct["path"], "run.continue.path", c.path);
-      range(ct["range"], "run.continue.range", c.p_min, c.p_max, get(c.path));
-      if (ct["direction"]) c.direction = r.choice(ct["direction"], "run.continue.direction", {"up", "down"}) == "up" ? 1 : -1;
-      if (ct["period"]) c.period = static_cast<int>(r.integer(ct["period"], "run.continue.period", 1, 1024));
-      if (ct["phase"]) c.phase = r.number_in(ct["phase"], "run.continue.phase", -1e3, 1e3, "a phase in radians");
-      if (ct["step"]) c.step = r.number_in(ct["step"], "run.continue.step", 1e-12, 1.0, "a step in (0, 1] (scaled arclength)");
-      if (ct["min_step"]) c.min_step = r.number_in(ct["min_step"], "run.continue.min_step", 1e-15, 1.0, "a step in (0, 1]");
-      if (ct["max_step"]) c.max_step = r.number_in(ct["max_step"], "run.continue.max_step", 1e-12, 1.0, "a step in (0, 1]");
-      if (c.min_step > c.max_step) r.fail(ct, "run.continue.min_step", "must not exceed run.continue.max_step");
-      if (ct["max_points"]) c.max_points = static_cast<int>(r.integer(ct["max_points"], "run.continue.max_points", 2, 1000000));
-      if (ct["tolerance"]) c.tolerance = r.number_in(ct["tolerance"], "run.continue.tolerance", 1e-15, 1e-4, "a relative tolerance in [1e-15, 1e-4]");
-      if (ct["locate"]) c.locate = r.boolean(ct["locate"], "run.continue.locate");
-      if (ct["locate_tolerance"]) c.locate_tolerance = r.number_in(ct["locate_tolerance"], "run.continue.locate_tolerance", 1e-15, 1e300, "a width > 0 in the parameter's units");
-      if (ct["max_doublings"]) c.max_doublings = static_cast<int>(r.integer(ct["max_doublings"], "run.continue.max_doublings", 0, 8));
-      if (const YAML::Node cv = ct["curve"]) {
-        r.expect_map(cv, "run.continue.curve", {"path", "range", "step", "max_points", "kinds"});
-        c.curve_path = parameter(cv["path"], "run.continue.curve.path");
-        if (c.curve_path == c.path) r.fail(cv["path"], "run.continue.curve.path", "must differ from run.continue.path");
-        moves(cv["path"], "run.continue.curve.path", c.curve_path);
-        range(cv["range"], "run.continue.curve.range", c.curve_min, c.curve_max, get(c.curve_path));
-        if (cv["step"]) c.curve_step = r.number_in(cv["step"], "run.continue.curve.step", 1e-9, 1.0, "a step in (0, 1] (scaled)");
-        if (cv["max_points"]) c.curve_max_points = static_cast<int>(r.integer(cv["max_points"], "run.continue.curve.max_points", 2, 100000));
-        if (const YAML::Node k = cv["kinds"]) {
-          if (!k.IsSequence() || k.size() == 0) r.fail(k, "run.continue.curve.kinds", "expected a list of grazing and/or rising");
-          c.curve_kinds.clear();
-          for (std::size_t i = 0; i < k.size(); ++i)
-            c.curve_kinds.push_back(r.choice(k[i], "run.continue.curve.kinds[" + std::to_string(i) + "]", {"grazing", "rising"}));
-        }
-      }
+    const RunKindInfo& kind = run_kind(run.kind);
+    if (kind.parse) {
+      RunSection section{r, *this, rn, kind.section ? rn[kind.section] : YAML::Node(), run, n, f.frequency,
+                         check_sweep, point_engines, engine_checks};
+      kind.parse(section);
     }
   }
 
@@ -1187,22 +690,8 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
              std::to_string(kModalAutomaticMinimumDof) + ")";
   }
 
-  // Continuation on the modal engine differentiates along Ω, the forcing and the stops' data only:
-  // a path that moves M, C or K moves the chain's modes (analysis/modal_tangent.hpp).
-  if (run.kind == RunSpec::Kind::continuation && engine == EngineKind::modal)
-    for (const ContinuationPath& c : continuation_paths) {
-      std::vector<std::string> moved;
-      const SystemDerivative& d = c.derivative;
-      for (const auto& [m, name] : {std::pair{&d.mass, "mass"}, {&d.damping, "damping"}, {&d.stiffness, "stiffness"}})
-        if (m->size() > 0 && !m->isZero(0.0)) moved.emplace_back(name);
-      if (moved.empty()) continue;
-      std::string list = moved.front();
-      for (std::size_t i = 1; i < moved.size(); ++i) list += (i + 1 == moved.size() ? " and " : ", ") + moved[i];
-      r.fail(c.at, c.key,
-             "'" + c.path + "' moves the " + list + (moved.size() > 1 ? " matrices" : " matrix") + ", and this scene resolves to the modal engine (" + reason +
-                 "), whose continuation differentiates only along the forcing frequency, the forcing and the stops' "
-                 "data (M, C and K fix its modes): set solver.engine: dense, or continue in one of those");
-    }
+  // What the run's section asked to check on the engine (e.g. what continuation differentiates).
+  for (const auto& check : engine_checks) check(engine, reason);
   for (const PointEngine& p : point_engines)
     if (p.engine != engine)
       r.fail(p.at, p.path, p.what + " runs with the " + to_string(p.engine) + " engine, the base scene with the " +
