@@ -12,6 +12,7 @@
 /// handler raises is re-raised once the worker is done. Signals reach Python's main thread
 /// only, so a run in another thread is stopped by its own flag, never by Ctrl-C.
 #include "vibro/io/result_file.hpp"
+#include "vibro/io/run_kinds.hpp"
 #include "vibro/io/session.hpp"
 
 #include <pybind11/numpy.h>
@@ -236,6 +237,16 @@ class Image {
 PYBIND11_MODULE(_vibro, m) {
   m.doc() = "Compiled bindings of the vibro package (use `import vibro`; see help(vibro)).";
   m.attr("__version__") = VIBRO_VERSION;
+  m.def(
+      "run_kinds",
+      [] {
+        py::list kinds;
+        for (const vibro::io::RunKindInfo& k : vibro::io::run_kinds())
+          kinds.append(py::make_tuple(k.name, k.summary, k.section ? py::object(py::str(k.section)) : py::object(py::none())));
+        return kinds;
+      },
+      "The run kinds (run.kind, docs/scenes.md), from the table `vibro run` dispatches on: a list of "
+      "(name, summary, section) with section the kind's own key under run (None: none).");
 
   scene_error_type = PyErr_NewExceptionWithDoc(
       "vibro.SceneError",

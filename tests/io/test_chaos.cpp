@@ -6,8 +6,9 @@
 // diagram, lyapunov and orbit: the files hold what the engine and the library give when called directly
 // (to the bit), the detected periods are the orbits' (a period doubling, hysteresis between the
 // up and down sweeps), and chaos has a positive exponent.
-#include "vibro/io/basin.hpp"
+#include "vibro/io/kinds/basin.hpp"
 #include "vibro/io/result_file.hpp"
+#include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"
 #include "vibro/lyapunov.hpp"
 #include "vibro/running_orbit.hpp"

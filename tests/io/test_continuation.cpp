@@ -2,7 +2,7 @@
 // library finds; parameters are refused, with their place in the file, when continuation cannot
 // differentiate the system along them.
 #include "vibro/continuation.hpp"
-#include "vibro/io/continuation.hpp"
+#include "vibro/io/kinds/continue.hpp"
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"

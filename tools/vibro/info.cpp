@@ -1,5 +1,7 @@
 #include "info.hpp"
 
+#include "vibro/io/run_kinds.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 
@@ -82,10 +84,20 @@ std::string describe_modal(const io::Scene& scene) {
 
 }  // namespace
 
+std::string run_text(const io::Scene& scene) {
+  const io::RunKindInfo& kind = io::run_kind(scene.run.kind);
+  std::string out = fmt::format("Run: {}: {}\n", kind.name, kind.summary);
+  out += "Run kinds (run.kind):\n";
+  for (const io::RunKindInfo& k : io::run_kinds())
+    out += fmt::format("  {:<9} {}{}\n", k.name, k.summary, k.section ? fmt::format(" (run.{})", k.section) : "");
+  return out;
+}
+
 std::string describe_scene(const io::Scene& scene) {
   std::string out = fmt::format("Scene {}{}: {} degrees of freedom, {} stops\n", scene.file,
                                 scene.name.empty() ? "" : " (" + scene.name + ")", scene.dof(), scene.stops.size());
   out += fmt::format("Engine: {} ({})\n", to_string(scene.engine), scene.engine_reason);
+  out += run_text(scene);
   if (scene.engine == io::EngineKind::modal) return out + describe_modal(scene);
   const LinearSystem& sys = scene.system();
   const Eigen::Index n = sys.dof();

@@ -1,6 +1,6 @@
 #pragma once
 // Private to vibro_io: the processes of an MPI run, for the run kinds that split their work
-// across them (run.kind: sweep in runner.cpp, basin in basin.cpp).
+// across them (run.kind: sweep in kinds/sweep.cpp and mpi_sweep.cpp, basin in kinds/basin.cpp).
 #include <utility>
 
 namespace vibro::io::detail {

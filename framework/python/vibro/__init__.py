@@ -29,8 +29,9 @@ import numpy as np
 from ._vibro import ResultError, SceneError, __version__
 from ._vibro import Image as _Image
 from ._vibro import SceneDocument as _Document
+from ._vibro import run_kinds as _run_kinds
 
-__all__ = ["Scene", "Result", "Group", "simulate", "sweep", "locate", "run", "read",
+__all__ = ["Scene", "Result", "Group", "simulate", "sweep", "locate", "run", "read", "run_kinds",
            "SceneError", "ResultError", "Interrupted", "__version__"]
 
 _OBSERVERS = ("events", "contacts", "statistics", "poincare")
@@ -274,10 +275,7 @@ def simulate(scene, *, periods=None, transient_periods=None, threads=None, **rec
     ValueError) for a bad scene or keyword, ValueError for a start the engine refuses.
     """
     doc = _prepared(scene, periods, transient_periods, record)
-    doc.replace("run.kind", "simulate")
-    doc.replace("run.sweep", "")
-    doc.replace("run.locate", "")
-    doc.replace("run.continue", "")
+    _only_kind(doc, "simulate")
     return _run(doc, threads)
 
 
@@ -313,9 +311,7 @@ def sweep(scene, parameters=None, *, follow=None, reverse=None, periods=None, tr
     for key, flag in (("follow", follow), ("reverse", reverse)):
         if flag is not None:
             doc.replace("run.sweep." + key, json.dumps(bool(flag)))
-    doc.replace("run.kind", "sweep")
-    doc.replace("run.locate", "")
-    doc.replace("run.continue", "")
+    _only_kind(doc, "sweep")
     return _run(doc, threads)
 
 
@@ -339,9 +335,7 @@ def locate(scene, path=None, values=None, *, threads=None, **options):
         raise ValueError("locate: give path and values; the scene has no run.locate")
     for key, value in options.items():
         doc.replace("run.locate." + key, json.dumps(_plain(value, "run.locate." + key)))
-    doc.replace("run.kind", "locate")
-    doc.replace("run.sweep", "")
-    doc.replace("run.continue", "")
+    _only_kind(doc, "locate")
     return _run(doc, threads)
 
 
@@ -373,15 +367,28 @@ def continuation(scene, path=None, range=None, **options):
         raise ValueError("continuation: give path and range; the scene has no run.continue")
     for key, value in options.items():
         doc.replace("run.continue." + key, json.dumps(_plain(value, "run.continue." + key)))
-    doc.replace("run.kind", "continue")
-    doc.replace("run.sweep", "")
-    doc.replace("run.locate", "")
+    _only_kind(doc, "continue")
     return _run(doc, None)
 
 
 def run(scene, *, threads=None):
     """Runs the scene as ``vibro run`` does: its own run.kind, record and settings."""
     return _run(scene._doc.copy(), threads)
+
+
+def run_kinds():
+    """The run kinds ``vibro run`` knows (run.kind, docs/scenes.md): a dict name -> one-line summary,
+    in the order of the table the command dispatches on."""
+    return {name: summary for name, summary, _ in _run_kinds()}
+
+
+def _only_kind(doc, kind):
+    """Makes `doc` a run of `kind`: run.kind set and every other kind's own section of run removed
+    (the scene may come from a file of another kind: a diagram's run.diagram would be refused)."""
+    doc.replace("run.kind", kind)
+    for name, _, section in _run_kinds():
+        if section is not None and name != kind:
+            doc.replace("run." + section, "")
 
 
 def read(path):

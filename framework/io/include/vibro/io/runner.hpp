@@ -1,6 +1,10 @@
 #pragma once
 /// \file runner.hpp
-/// Runs a scene and writes its result file: the engine behind `vibro run`.
+/// Runs a scene and writes its result file: the engine behind `vibro run`. run_scene() looks the
+/// scene's run.kind up in the table of run kinds (run_kinds.hpp) and runs it: what every kind
+/// shares (the resource check before anything is allocated, which MPI processes run it, the
+/// signal handlers of long runs, --resume only where it means something) is decided here, from
+/// the table's entries, never by naming a kind.
 ///
 /// simulate: the transient periods are simulated without recording, then the recorded periods
 /// with the observers the scene asks for; one file.
@@ -31,51 +35,15 @@
 /// is split by rows. Interruption, `--resume`, validation before writing and `.partial` +
 /// rename are as above. Only /meta's `threads` (the sum over the processes), `wall_time` and
 /// `date` differ from a one-process run, as they do between any two runs.
-#include "vibro/io/scene.hpp"
-
-#include <atomic>
-#include <string>
-#include <vector>
+#include "vibro/io/run_request.hpp"
 
 namespace vibro::io {
-
-struct RunRequest {
-  std::string output;      ///< result file path
-  int threads = 0;         ///< 0: OpenMP's default
-  bool resume = false;     ///< continue OUT.partial of an interrupted sweep
-  bool progress = false;   ///< progress bar with ETA on stderr
-  /// Behave as if interrupted once this many points are written (0: never). For tests of
-  /// interruption and --resume, which must not depend on timing a real signal.
-  std::size_t interrupt_after = 0;
-  /// Write the result file into memory (RunReport::image) instead of `output`, for programs
-  /// using the library (session.hpp); a sweep is then not resumable and `resume` must be false.
-  bool in_memory = false;
-  /// The caller's stop flag (null for `vibro run`, where SIGINT/SIGTERM stop sweeps): set from
-  /// another thread, it ends a simulation at its next event (status interrupted) and a sweep
-  /// before its next point; the runner raises it too when it stops a sweep itself. No signal
-  /// handler is installed when it is given.
-  std::atomic<bool>* interrupt = nullptr;
-  /// Replace an existing output file (--force); never the scene file itself.
-  bool force = false;
-};
-
-struct RunReport {
-  int exit_code = 0;       ///< 0 all completed, 1 some run stopped early, 130 interrupted
-  std::string summary;     ///< one paragraph for the user
-  std::vector<char> image; ///< RunRequest::in_memory: the result file's bytes
-};
 
 /// `doc` is the (already --set) scene document, `scene` its build(). Throws SceneError for bad
 /// input found while preparing sweep points (before any file is created). Under MPI every
 /// process calls it with the same arguments; the ranks other than 0 write nothing and return
 /// exit code 0 and an empty summary (rank 0's report is the run's).
 RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunRequest& request);
-
-class ResultFile;
-struct RunMeta;
-/// The result file of a run (for each run kind's code): `request.output`, written as OUT.partial
-/// until finished, or in memory (RunRequest::in_memory).
-ResultFile open_result_file(const RunRequest& request, const Scene& scene, const RunMeta& meta);
 
 /// The processes of this run. In a build with MPI, MPI is started (MPI_THREAD_FUNNELED) only
 /// when the process was launched by an MPI launcher, which sets OMPI_COMM_WORLD_SIZE (Open MPI)

@@ -103,7 +103,7 @@ struct ContinueSpec {
 };
 
 /// run.kind: basin — basins of attraction over a 2-D grid of two scene values (usually initial
-/// state components), each run stopped as soon as it has converged (vibro/io/basin.hpp).
+/// state components), each run stopped as soon as it has converged (vibro/io/kinds/basin.hpp).
 struct BasinSpec {
   int max_period = 8;        ///< periods kT looked for: k = 1 … max_period
   long max_periods = 1000;   ///< forcing periods per grid point, at most ("not converged" after)
@@ -113,7 +113,7 @@ struct BasinSpec {
 };
 
 /// run.kind: diagram — a brute-force bifurcation diagram: the attractor followed along one
-/// parameter up and/or down, its stroboscopic points, period and impacts (vibro/io/diagram.hpp).
+/// parameter up and/or down, its stroboscopic points, period and impacts (vibro/io/kinds/diagram.hpp).
 struct DiagramSpec {
   long transient = 100;        ///< periods run at every point after the first (from the previous end)
   int points = 32;             ///< P: stroboscopic points recorded per grid point
@@ -123,7 +123,7 @@ struct DiagramSpec {
 };
 
 /// run.kind: lyapunov — the Lyapunov spectrum (vibro/lyapunov.hpp) at the scene's values or
-/// along a parameter, each point from the previous one's end (vibro/io/lyapunov_run.hpp).
+/// along a parameter, each point from the previous one's end (vibro/io/kinds/lyapunov.hpp).
 struct LyapunovSpec {
   int count = 0;           ///< the p largest exponents; 0: all 2n
   long transient = 100;    ///< periods before each point's frame starts (first point: also run.transient_periods)

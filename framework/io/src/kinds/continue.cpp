@@ -1,6 +1,9 @@
-#include "vibro/io/continuation.hpp"
+#include "vibro/io/kinds/continue.hpp"
 
-#include "datasets.hpp"
+#include "kinds.hpp"
+#include "../run_section.hpp"
+
+#include "../datasets.hpp"
 
 #include "vibro/io/result_file.hpp"
 
@@ -431,3 +434,124 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
 }
 
 }  // namespace vibro::io
+
+namespace vibro::io::detail {
+namespace {
+
+/// run.continue (docs/scenes.md).
+void parse_continue_section(RunSection& s) {
+  Reader& r = s.r;
+  RunSpec& run = s.run;
+  // The parameters with their place and dD/dp, checked once the engine is known: continuation
+  // on the modal engine differentiates along Ω, the forcing and the stops' data only, and a path
+  // that moves M, C or K moves the chain's modes (analysis/modal_tangent.hpp).
+  struct ContinuationPath {
+    YAML::Node at;
+    std::string key, path;
+    SystemDerivative derivative;
+  };
+  auto paths = std::make_shared<std::vector<ContinuationPath>>();
+  const YAML::Node ct = s.node;
+  if (ct && s.full) {
+    ContinueSpec& c = run.continuation;
+    r.expect_map(ct, "run.continue", {"path", "range", "direction", "period", "phase", "step", "min_step", "max_step",
+                                      "max_points", "tolerance", "locate", "locate_tolerance", "max_doublings", "curve"});
+    // A continuation parameter: a number the file sets, outside `run` (and, below, one that
+    // moves the system: kinds/continue.cpp checks that through the parameter's derivative).
+    auto parameter = [&](const YAML::Node& node, const std::string& path) {
+      if (!node) r.fail(ct, path, "missing: the scene value to continue in, e.g. forcing.frequency");
+      const std::string text = r.text(node, path);
+      if (text.rfind("run.", 0) == 0) r.fail(node, path, "the run section cannot be a parameter");
+      try {
+        (void)s.doc.get(text);
+      } catch (const SceneError& e) {
+        r.fail(node, path, "'" + text + "' does not name a number in this scene: " + e.problem());
+      }
+      return text;
+    };
+    auto range = [&](const YAML::Node& node, const std::string& path, double& lo, double& hi, double value) {
+      if (!node) r.fail(ct, path, "missing: [min, max], the limits of the parameter");
+      const std::vector<double> v = r.numbers(node, path, 2, "min, max");
+      if (!(v[0] < v[1])) r.fail(node, path, "expected min < max, found [" + number_text(v[0]) + ", " + number_text(v[1]) + "]");
+      if (!(value >= v[0] && value <= v[1]))
+        r.fail(node, path, "the scene's value " + number_text(value) + " lies outside [" + number_text(v[0]) + ", " +
+                               number_text(v[1]) + "]: the branch starts there");
+      lo = v[0];
+      hi = v[1];
+    };
+    // The parameter must move the system, linearly or in closed form (vibro/io/kinds/continue.hpp).
+    // Kept, with their place, for the engine's check below (what the modal engine differentiates).
+    auto moves = [&](const YAML::Node& node, const std::string& key, const std::string& path) {
+      try {
+        paths->push_back({node, key, path, parameter_derivative(s.doc, path)});
+      } catch (const SceneError& e) {
+        r.fail(node, key, "'" + path + "' " + e.problem());
+      }
+    };
+    c.path = parameter(ct["path"], "run.continue.path");
+    moves(ct["path"], "run.continue.path", c.path);
+    range(ct["range"], "run.continue.range", c.p_min, c.p_max, s.doc.get(c.path));
+    if (ct["direction"]) c.direction = r.choice(ct["direction"], "run.continue.direction", {"up", "down"}) == "up" ? 1 : -1;
+    if (ct["period"]) c.period = static_cast<int>(r.integer(ct["period"], "run.continue.period", 1, 1024));
+    if (ct["phase"]) c.phase = r.number_in(ct["phase"], "run.continue.phase", -1e3, 1e3, "a phase in radians");
+    if (ct["step"]) c.step = r.number_in(ct["step"], "run.continue.step", 1e-12, 1.0, "a step in (0, 1] (scaled arclength)");
+    if (ct["min_step"]) c.min_step = r.number_in(ct["min_step"], "run.continue.min_step", 1e-15, 1.0, "a step in (0, 1]");
+    if (ct["max_step"]) c.max_step = r.number_in(ct["max_step"], "run.continue.max_step", 1e-12, 1.0, "a step in (0, 1]");
+    if (c.min_step > c.max_step) r.fail(ct, "run.continue.min_step", "must not exceed run.continue.max_step");
+    if (ct["max_points"]) c.max_points = static_cast<int>(r.integer(ct["max_points"], "run.continue.max_points", 2, 1000000));
+    if (ct["tolerance"]) c.tolerance = r.number_in(ct["tolerance"], "run.continue.tolerance", 1e-15, 1e-4, "a relative tolerance in [1e-15, 1e-4]");
+    if (ct["locate"]) c.locate = r.boolean(ct["locate"], "run.continue.locate");
+    if (ct["locate_tolerance"]) c.locate_tolerance = r.number_in(ct["locate_tolerance"], "run.continue.locate_tolerance", 1e-15, 1e300, "a width > 0 in the parameter's units");
+    if (ct["max_doublings"]) c.max_doublings = static_cast<int>(r.integer(ct["max_doublings"], "run.continue.max_doublings", 0, 8));
+    if (const YAML::Node cv = ct["curve"]) {
+      r.expect_map(cv, "run.continue.curve", {"path", "range", "step", "max_points", "kinds"});
+      c.curve_path = parameter(cv["path"], "run.continue.curve.path");
+      if (c.curve_path == c.path) r.fail(cv["path"], "run.continue.curve.path", "must differ from run.continue.path");
+      moves(cv["path"], "run.continue.curve.path", c.curve_path);
+      range(cv["range"], "run.continue.curve.range", c.curve_min, c.curve_max, s.doc.get(c.curve_path));
+      if (cv["step"]) c.curve_step = r.number_in(cv["step"], "run.continue.curve.step", 1e-9, 1.0, "a step in (0, 1] (scaled)");
+      if (cv["max_points"]) c.curve_max_points = static_cast<int>(r.integer(cv["max_points"], "run.continue.curve.max_points", 2, 100000));
+      if (const YAML::Node k = cv["kinds"]) {
+        if (!k.IsSequence() || k.size() == 0) r.fail(k, "run.continue.curve.kinds", "expected a list of grazing and/or rising");
+        c.curve_kinds.clear();
+        for (std::size_t i = 0; i < k.size(); ++i)
+          c.curve_kinds.push_back(r.choice(k[i], "run.continue.curve.kinds[" + std::to_string(i) + "]", {"grazing", "rising"}));
+      }
+    }
+  }
+  s.engine_checks.push_back([paths, &r](EngineKind engine, const std::string& reason) {
+    if (engine == EngineKind::modal)
+      for (const ContinuationPath& c : *paths) {
+        std::vector<std::string> moved;
+        const SystemDerivative& d = c.derivative;
+        for (const auto& [m, name] : {std::pair{&d.mass, "mass"}, {&d.damping, "damping"}, {&d.stiffness, "stiffness"}})
+          if (m->size() > 0 && !m->isZero(0.0)) moved.emplace_back(name);
+        if (moved.empty()) continue;
+        std::string list = moved.front();
+        for (std::size_t i = 1; i < moved.size(); ++i) list += (i + 1 == moved.size() ? " and " : ", ") + moved[i];
+        r.fail(c.at, c.key,
+               "'" + c.path + "' moves the " + list + (moved.size() > 1 ? " matrices" : " matrix") + ", and this scene resolves to the modal engine (" + reason +
+                   "), whose continuation differentiates only along the forcing frequency, the forcing and the stops' "
+                   "data (M, C and K fix its modes): set solver.engine: dense, or continue in one of those");
+      }
+  });
+}
+
+}  // namespace
+
+RunKindInfo continue_kind() {
+  RunKindInfo k;
+  k.name = "continue";
+  k.kind = RunSpec::Kind::continuation;
+  k.summary = "branches of periodic orbits by shooting and pseudo-arclength continuation, their stability and bifurcations";
+  k.section = "continue";
+  k.missing = "missing: run.kind: continue needs run.continue (path and range)";
+  k.groups = {"branch", "branches", "bifurcations", "curve"};
+  k.every_process = false;
+  k.stoppable = true;
+  k.parse = parse_continue_section;
+  k.run = run_continuation;
+  return k;
+}
+
+}  // namespace vibro::io::detail

@@ -1,5 +1,5 @@
 #pragma once
-/// \file lyapunov_run.hpp
+/// \file kinds/lyapunov.hpp
 /// run.kind: lyapunov — the Lyapunov spectrum through impacts and sticking (vibro/lyapunov.hpp:
 /// QR method on the exact tangent maps) at the scene's values, or along one parameter.
 ///
@@ -22,7 +22,7 @@
 /// written as 0 with `finite` 0 (HDF5 files hold finite values only). Both engines (on the modal
 /// one the frame is carried matrix-free in modal coordinates, analysis/modal_tangent.hpp).
 /// Layout of /lyapunov: docs/results.md.
-#include "vibro/io/runner.hpp"
+#include "vibro/io/run_request.hpp"
 
 namespace vibro::io {
 

@@ -1,6 +1,9 @@
-#include "vibro/io/locate.hpp"
+#include "vibro/io/kinds/locate.hpp"
 
-#include "datasets.hpp"
+#include "kinds.hpp"
+#include "../run_section.hpp"
+
+#include "../datasets.hpp"
 
 #include "vibro/running_locate.hpp"
 #include "vibro/io/result_file.hpp"
@@ -207,3 +210,56 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
 }
 
 }  // namespace vibro::io
+
+namespace vibro::io::detail {
+namespace {
+
+/// run.locate (docs/scenes.md).
+void parse_locate_section(RunSection& s) {
+  Reader& r = s.r;
+  RunSpec& run = s.run;
+  const YAML::Node lc = s.node;
+  if (lc && s.full) {
+    LocateSpec& l = run.locate;
+    run.axes.push_back(s.axis(lc, "run.locate", {}, {"tolerance", "periodicity", "max_period", "max_periods", "jump"}));
+    if (run.axes[0].values.size() < 2) r.fail(lc, "run.locate", "expected at least two grid values to scan between");
+    for (std::size_t i = 1; i < run.axes[0].values.size(); ++i) {
+      const auto& v = run.axes[0].values;
+      if ((v[i] - v[i - 1]) * (v[1] - v[0]) <= 0.0)
+        r.fail(lc, "run.locate", "the grid must be strictly increasing or decreasing (value " + std::to_string(i) + ")");
+    }
+    if (lc["tolerance"]) l.tolerance = r.number_in(lc["tolerance"], "run.locate.tolerance", 1e-15, 1e300, "a bracket width > 0 in the parameter's units");
+    if (lc["periodicity"]) l.periodicity = r.number_in(lc["periodicity"], "run.locate.periodicity", 1e-15, 1e-2, "a relative tolerance in [1e-15, 1e-2]");
+    if (lc["max_period"]) l.max_period = static_cast<int>(r.integer(lc["max_period"], "run.locate.max_period", 1, 64));
+    if (lc["max_periods"]) l.max_periods = r.integer(lc["max_periods"], "run.locate.max_periods", 2, 100000000);
+    // The first orbit is searched after the transient, each for up to max_period periods:
+    // a budget below that would have to be raised behind the user's back (running_locate.cpp).
+    const long needed = static_cast<long>(std::ceil(run.transient_periods)) + l.max_period + 1;
+    if (l.max_periods < needed)
+      r.fail(lc["max_periods"] ? lc["max_periods"] : lc, "run.locate.max_periods",
+             "expected at least " + std::to_string(needed) + " periods (run.transient_periods " +
+                 number_text(run.transient_periods) + " + max_period " + std::to_string(l.max_period) +
+                 " + 1: the first orbit is tested after the transient), found " + std::to_string(l.max_periods));
+    if (lc["jump"]) l.jump = r.number_in(lc["jump"], "run.locate.jump", 0, 1, "a fraction of the period in [0, 1] (0: no jump search)");
+    s.check_values(run.axes[0], lc, "run.locate");
+  }
+}
+
+}  // namespace
+
+RunKindInfo locate_kind() {
+  RunKindInfo k;
+  k.name = "locate";
+  k.kind = RunSpec::Kind::locate;
+  k.summary = "periodic orbits followed along one parameter, their bifurcations located";
+  k.section = "locate";
+  k.missing = "missing: run.kind: locate needs run.locate (path and grid)";
+  k.groups = {"scan", "phases", "transitions"};
+  k.every_process = false;
+  k.stoppable = true;
+  k.parse = parse_locate_section;
+  k.run = run_locate;
+  return k;
+}
+
+}  // namespace vibro::io::detail

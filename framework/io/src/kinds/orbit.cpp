@@ -1,6 +1,9 @@
-#include "vibro/io/orbit_run.hpp"
+#include "vibro/io/kinds/orbit.hpp"
 
-#include "datasets.hpp"
+#include "kinds.hpp"
+#include "../run_section.hpp"
+
+#include "../datasets.hpp"
 
 #include "vibro/engine.hpp"
 #include "vibro/io/result_file.hpp"
@@ -111,3 +114,42 @@ RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunR
 }
 
 }  // namespace vibro::io
+
+namespace vibro::io::detail {
+namespace {
+
+/// run.orbit (docs/scenes.md).
+void parse_orbit_section(RunSection& s) {
+  Reader& r = s.r;
+  RunSpec& run = s.run;
+  if (const YAML::Node ob = s.node) {
+    r.expect_map(ob, "run.orbit", {"period", "phase", "tolerance", "max_iterations", "multipliers"});
+    OrbitSpec& o = run.orbit;
+    if (ob["period"]) o.period = static_cast<int>(r.integer(ob["period"], "run.orbit.period", 1, 1024));
+    if (ob["phase"]) o.phase = r.number_in(ob["phase"], "run.orbit.phase", -1e3, 1e3, "a phase in radians");
+    if (ob["tolerance"]) o.tolerance = r.number_in(ob["tolerance"], "run.orbit.tolerance", 1e-15, 1e-4, "a relative tolerance in [1e-15, 1e-4]");
+    if (ob["max_iterations"]) o.max_iterations = static_cast<int>(r.integer(ob["max_iterations"], "run.orbit.max_iterations", 1, 1000));
+    if (ob["multipliers"]) o.multipliers = static_cast<int>(r.integer(ob["multipliers"], "run.orbit.multipliers", 1, 100));
+  }
+  if (!(s.frequency > 0.0))
+    r.fail(s.run_node["kind"], "run.kind", "a periodic orbit's period is 2π/Ω: it needs a forcing frequency > 0 (forcing.frequency)");
+}
+
+}  // namespace
+
+RunKindInfo orbit_kind() {
+  RunKindInfo k;
+  k.name = "orbit";
+  k.kind = RunSpec::Kind::orbit;
+  k.summary = "one periodic orbit by Newton shooting, with its Floquet multipliers";
+  k.section = "orbit";
+  k.missing = nullptr;
+  k.groups = {"orbit"};
+  k.every_process = false;
+  k.stoppable = true;
+  k.parse = parse_orbit_section;
+  k.run = run_orbit;
+  return k;
+}
+
+}  // namespace vibro::io::detail

@@ -1,6 +1,9 @@
-#include "vibro/io/lyapunov_run.hpp"
+#include "vibro/io/kinds/lyapunov.hpp"
 
-#include "datasets.hpp"
+#include "kinds.hpp"
+#include "../run_section.hpp"
+
+#include "../datasets.hpp"
 
 #include "vibro/io/result_file.hpp"
 #include "vibro/engine.hpp"
@@ -135,3 +138,54 @@ RunReport run_lyapunov(const SceneDocument& doc, const Scene& scene, const RunRe
 }
 
 }  // namespace vibro::io
+
+namespace vibro::io::detail {
+namespace {
+
+/// run.lyapunov (docs/scenes.md).
+void parse_lyapunov_section(RunSection& s) {
+  Reader& r = s.r;
+  RunSpec& run = s.run;
+  const YAML::Node ly = s.node;
+  if (s.full) {
+    LyapunovSpec& l = run.lyapunov;
+    if (!(s.frequency > 0.0))
+      r.fail(s.run_node["kind"], "run.kind", "Lyapunov exponents are averaged over forcing periods: they need a forcing frequency > 0 (forcing.frequency)");
+    if (ly) {
+      r.expect_map(ly, "run.lyapunov", {"count", "transient", "align", "periods", "follow", "path", "linspace", "logspace", "values"});
+      if (ly["count"]) l.count = static_cast<int>(r.integer(ly["count"], "run.lyapunov.count", 0, 2 * s.dof));
+      if (ly["transient"]) l.transient = r.integer(ly["transient"], "run.lyapunov.transient", 0, 100000000);
+      if (ly["align"]) l.align = r.integer(ly["align"], "run.lyapunov.align", 0, 100000000);
+      if (ly["periods"]) l.periods = r.integer(ly["periods"], "run.lyapunov.periods", 1, 100000000);
+      if (ly["path"] || ly["linspace"] || ly["logspace"] || ly["values"]) {
+        run.axes.push_back(s.axis(ly, "run.lyapunov", {}, {"count", "transient", "align", "periods", "follow"}));
+        s.monotonic(ly, "run.lyapunov");
+        s.check_values(run.axes[0], ly, "run.lyapunov");
+        l.along = true;
+      }
+      if (ly["follow"]) {
+        l.follow = r.boolean(ly["follow"], "run.lyapunov.follow");
+        if (!l.along) r.fail(ly["follow"], "run.lyapunov.follow", "only with a grid (run.lyapunov.path and its values)");
+      }
+    }
+  }
+}
+
+}  // namespace
+
+RunKindInfo lyapunov_kind() {
+  RunKindInfo k;
+  k.name = "lyapunov";
+  k.kind = RunSpec::Kind::lyapunov;
+  k.summary = "the Lyapunov spectrum at the scene's values or along one parameter";
+  k.section = "lyapunov";
+  k.missing = nullptr;
+  k.groups = {"lyapunov"};
+  k.every_process = false;
+  k.stoppable = true;
+  k.parse = parse_lyapunov_section;
+  k.run = run_lyapunov;
+  return k;
+}
+
+}  // namespace vibro::io::detail

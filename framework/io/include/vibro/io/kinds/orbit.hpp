@@ -1,5 +1,5 @@
 #pragma once
-/// \file orbit_run.hpp
+/// \file kinds/orbit.hpp
 /// run.kind: orbit — one periodic orbit by Newton shooting (vibro/shooting.hpp), stable or not,
 /// with its Floquet multipliers, on either engine:
 ///
@@ -18,7 +18,7 @@
 /// matrix-free tangent maps and gives the leading multipliers (analysis/modal_tangent.hpp). A run
 /// that does not converge writes what it reached (status not_converged, the message says why) and
 /// exits with code 1: never a false orbit. Layout of /orbit: docs/results.md.
-#include "vibro/io/runner.hpp"
+#include "vibro/io/run_request.hpp"
 
 namespace vibro::io {
 

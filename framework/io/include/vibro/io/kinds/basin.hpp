@@ -1,5 +1,5 @@
 #pragma once
-/// \file basin.hpp
+/// \file kinds/basin.hpp
 /// run.kind: basin — basins of attraction: which attractor each start of a 2-D grid of two scene
 /// values (usually components of the initial state) ends on, written as an integer image and the
 /// list of attractors found.
@@ -36,7 +36,7 @@
 /// results and writes the file). Every point's scene is rebuilt from the document and validated;
 /// when both paths are of `initial.` the engine of the base scene is reused for all points of a
 /// thread (its set-up is paid once). Layout of /basin and /attractors: docs/results.md.
-#include "vibro/io/runner.hpp"
+#include "vibro/io/run_request.hpp"
 
 namespace vibro::io {
 

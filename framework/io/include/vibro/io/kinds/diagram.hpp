@@ -1,5 +1,5 @@
 #pragma once
-/// \file diagram.hpp
+/// \file kinds/diagram.hpp
 /// run.kind: diagram — a brute-force bifurcation diagram: the attractor followed along one
 /// parameter, up and down in one run, with its stroboscopic points, its least period and its
 /// impacts per period at every grid point.
@@ -27,7 +27,7 @@
 /// that of t0 at every point). Each direction is one chain of runs (one thread each). A run that
 /// stops early (event cap, numerical failure) ends its direction: the points after it are marked
 /// not reached. Layout of /diagram: docs/results.md.
-#include "vibro/io/runner.hpp"
+#include "vibro/io/run_request.hpp"
 
 namespace vibro::io {
 

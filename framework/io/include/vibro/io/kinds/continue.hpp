@@ -1,5 +1,5 @@
 #pragma once
-/// \file continuation.hpp
+/// \file kinds/continue.hpp
 /// run.kind: continue — a scene's branch of periodic orbits followed in one parameter, with the
 /// stability of every point and its bifurcations located (vibro/continuation.hpp), written to one
 /// HDF5 file; optionally each located grazing or rising point followed in a second parameter.
@@ -28,7 +28,7 @@
 /// Progress: one line per branch point on stderr (p, k, stable, largest |μ|) and one per located
 /// bifurcation. Layout of /branch, /branches, /bifurcations and /curve: docs/results.md.
 #include "vibro/continuation.hpp"
-#include "vibro/io/runner.hpp"
+#include "vibro/io/run_request.hpp"
 
 #include <string>
 

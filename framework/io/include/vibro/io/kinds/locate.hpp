@@ -1,5 +1,5 @@
 #pragma once
-/// \file locate.hpp
+/// \file kinds/locate.hpp
 /// run.kind: locate — the bifurcations of a scene's periodic orbits along one parameter, found
 /// and located automatically (vibro/running_locate.hpp), written to one HDF5 file.
 ///
@@ -14,7 +14,7 @@
 /// The scan is a continuation (each grid point starts from the previous orbit), so it runs in
 /// order; the bisections between grid points are independent and run in parallel (OpenMP).
 /// Layout of /scan, /phases and /transitions: docs/results.md.
-#include "vibro/io/runner.hpp"
+#include "vibro/io/run_request.hpp"
 
 namespace vibro::io {
 

@@ -1,6 +1,9 @@
-#include "vibro/io/diagram.hpp"
+#include "vibro/io/kinds/diagram.hpp"
 
-#include "datasets.hpp"
+#include "kinds.hpp"
+#include "../run_section.hpp"
+
+#include "../datasets.hpp"
 
 #include "vibro/io/result_file.hpp"
 
@@ -179,3 +182,53 @@ RunReport run_diagram(const SceneDocument& doc, const Scene& scene, const RunReq
 }
 
 }  // namespace vibro::io
+
+namespace vibro::io::detail {
+namespace {
+
+/// run.diagram (docs/scenes.md).
+void parse_diagram_section(RunSection& s) {
+  Reader& r = s.r;
+  RunSpec& run = s.run;
+  const YAML::Node dg = s.node;
+  if (dg && s.full) {
+    DiagramSpec& d = run.diagram;
+    run.axes.push_back(s.axis(dg, "run.diagram", {}, {"transient", "points", "directions", "max_period", "tolerance"}));
+    s.monotonic(dg, "run.diagram");
+    if (dg["transient"]) d.transient = r.integer(dg["transient"], "run.diagram.transient", 0, 100000000);
+    if (dg["points"]) d.points = static_cast<int>(r.integer(dg["points"], "run.diagram.points", 1, 100000));
+    if (dg["directions"]) {
+      const std::string dir = r.choice(dg["directions"], "run.diagram.directions", {"both", "up", "down"});
+      d.up = dir != "down";
+      d.down = dir != "up";
+    }
+    if (dg["max_period"]) d.max_period = static_cast<int>(r.integer(dg["max_period"], "run.diagram.max_period", 1, 50000));
+    if (2 * d.max_period > d.points)
+      r.fail(dg["max_period"] ? dg["max_period"] : dg, "run.diagram.max_period",
+             "expected at most points / 2 = " + std::to_string(d.points / 2) +
+                 " (a period k is recognised on 2k recorded points)");
+    if (dg["tolerance"]) d.tolerance = r.number_in(dg["tolerance"], "run.diagram.tolerance", 1e-15, 0.1, "a relative tolerance in [1e-15, 0.1]");
+    s.check_values(run.axes[0], dg, "run.diagram");
+    if (!(s.frequency > 0.0))
+      r.fail(s.run_node["kind"], "run.kind", "a diagram records stroboscopic points: it needs a forcing frequency > 0 (forcing.frequency)");
+  }
+}
+
+}  // namespace
+
+RunKindInfo diagram_kind() {
+  RunKindInfo k;
+  k.name = "diagram";
+  k.kind = RunSpec::Kind::diagram;
+  k.summary = "a brute-force bifurcation diagram along one parameter, up and down";
+  k.section = "diagram";
+  k.missing = "missing: run.kind: diagram needs run.diagram (path and grid)";
+  k.groups = {"diagram"};
+  k.every_process = false;
+  k.stoppable = true;
+  k.parse = parse_diagram_section;
+  k.run = run_diagram;
+  return k;
+}
+
+}  // namespace vibro::io::detail

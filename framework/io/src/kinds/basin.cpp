@@ -1,7 +1,10 @@
-#include "vibro/io/basin.hpp"
+#include "vibro/io/kinds/basin.hpp"
 
-#include "datasets.hpp"
-#include "mpi_world.hpp"
+#include "kinds.hpp"
+#include "../run_section.hpp"
+
+#include "../datasets.hpp"
+#include "../mpi_world.hpp"
 
 #include "vibro/io/result_file.hpp"
 
@@ -378,3 +381,60 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
 }
 
 }  // namespace vibro::io
+
+namespace vibro::io::detail {
+namespace {
+
+/// run.basin (docs/scenes.md).
+void parse_basin_section(RunSection& s) {
+  Reader& r = s.r;
+  RunSpec& run = s.run;
+  const YAML::Node bs = s.node;
+  if (bs && s.full) {
+    BasinSpec& b = run.basin;
+    r.expect_map(bs, "run.basin", {"parameters", "max_period", "max_periods", "tolerance", "match", "seed_stride"});
+    const YAML::Node ps = bs["parameters"];
+    if (!ps || !ps.IsSequence() || ps.size() != 2)
+      r.fail(ps ? ps : bs, "run.basin.parameters",
+             "expected a list of two parameters (the image's rows and columns), found " + (ps ? describe(ps) : std::string("nothing")));
+    for (std::size_t a = 0; a < 2; ++a)
+      run.axes.push_back(s.axis(ps[a], "run.basin.parameters[" + std::to_string(a) + "]", run.axes, {}));
+    if (bs["max_period"]) b.max_period = static_cast<int>(r.integer(bs["max_period"], "run.basin.max_period", 1, 64));
+    if (bs["max_periods"]) b.max_periods = r.integer(bs["max_periods"], "run.basin.max_periods", 2, 100000000);
+    if (b.max_periods < b.max_period + 1)
+      r.fail(bs["max_periods"] ? bs["max_periods"] : bs, "run.basin.max_periods",
+             "expected at least max_period + 1 = " + std::to_string(b.max_period + 1) +
+                 " periods (a period-k orbit is recognised after k + 1)");
+    if (bs["tolerance"]) b.tolerance = r.number_in(bs["tolerance"], "run.basin.tolerance", 1e-15, 1e-2, "a relative tolerance in [1e-15, 1e-2]");
+    if (bs["match"]) b.match = r.number_in(bs["match"], "run.basin.match", 1e-15, 1e-1, "a relative distance in [1e-15, 0.1]");
+    if (b.match < b.tolerance)
+      r.fail(bs["match"] ? bs["match"] : bs, "run.basin.match",
+             "must not be below run.basin.tolerance (" +
+                 (bs["tolerance"] ? bs["tolerance"].Scalar() : number_text(b.tolerance)) +
+                 "): a run that repeats within the tolerance must also match its attractor");
+    if (bs["seed_stride"]) b.seed_stride = static_cast<int>(r.integer(bs["seed_stride"], "run.basin.seed_stride", 1, 1000000));
+    for (std::size_t a = 0; a < 2; ++a)
+      s.check_values(run.axes[a], ps[a], "run.basin.parameters[" + std::to_string(a) + "]");
+    if (!(s.frequency > 0.0))
+      r.fail(s.run_node["kind"], "run.kind", "a basin compares stroboscopic points: it needs a forcing frequency > 0 (forcing.frequency)");
+  }
+}
+
+}  // namespace
+
+RunKindInfo basin_kind() {
+  RunKindInfo k;
+  k.name = "basin";
+  k.kind = RunSpec::Kind::basin;
+  k.summary = "basins of attraction over a 2-D grid of two scene values";
+  k.section = "basin";
+  k.missing = "missing: run.kind: basin needs run.basin.parameters (two scene values and their grids)";
+  k.groups = {"basin", "attractors"};
+  k.every_process = true;
+  k.stoppable = true;
+  k.parse = parse_basin_section;
+  k.run = run_basin;
+  return k;
+}
+
+}  // namespace vibro::io::detail

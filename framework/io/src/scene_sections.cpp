@@ -1,0 +1,414 @@
+// The sections of a scene file, each read by a function of its own (scene_sections.hpp); a new
+// section copies one of them and adds one call to SceneDocument::build_checked (scene.cpp).
+#include "scene_sections.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <utility>
+
+namespace vibro::io::detail {
+
+/// `model`: model.chain (kept as links, assembled on demand) or model.matrices.
+void read_model(Reader& r, const YAML::Node& root, SceneParts& p) {
+  auto& n = p.n;
+  auto& M = p.M;
+  auto& C = p.C;
+  auto& K = p.K;
+  auto& chain_links = p.chain_links;
+  // --- model ---
+  const YAML::Node model = root["model"];
+  if (!model) r.fail(root, "model", "missing: a scene needs a model (model.chain or model.matrices)");
+  r.expect_map(model, "model", {"chain", "matrices"});
+  if (model["chain"] && model["matrices"])
+    r.fail(model, "model", "give either model.chain or model.matrices, not both");
+  if (const YAML::Node chain = model["chain"]) {
+    r.expect_map(chain, "model.chain", {"masses", "springs", "dampers", "left_wall", "right_wall"});
+    if (!chain["masses"]) r.fail(chain, "model.chain.masses", "missing: one mass per degree of freedom");
+    models::Chain c;
+    c.masses = r.numbers(chain["masses"], "model.chain.masses", -1, "one mass per degree of freedom");
+    n = static_cast<long>(c.masses.size());
+    if (n == 0) r.fail(chain["masses"], "model.chain.masses", "expected at least one mass, found an empty list");
+    for (long i = 0; i < n; ++i)
+      if (!(c.masses[static_cast<std::size_t>(i)] > 0.0))
+        r.fail(chain["masses"][static_cast<std::size_t>(i)], "model.chain.masses[" + std::to_string(i) + "]",
+               "expected a mass > 0, found " + chain["masses"][static_cast<std::size_t>(i)].Scalar());
+    auto links = [&](const char* key, std::vector<double>& out) {
+      const std::string path = std::string("model.chain.") + key;
+      if (!chain[key]) return;
+      out = r.numbers(chain[key], path, n - 1, "one per link between neighbouring masses");
+      for (std::size_t i = 0; i < out.size(); ++i)
+        if (out[i] < 0.0)
+          r.fail(chain[key][i], path + "[" + std::to_string(i) + "]", "expected a value ≥ 0, found " + chain[key][i].Scalar());
+    };
+    links("springs", c.springs);
+    links("dampers", c.dampers);
+    if (c.springs.empty() && n > 1) c.springs.assign(static_cast<std::size_t>(n - 1), 0.0);
+    auto wall = [&](const char* key, double& spring, double& damper) {
+      const YAML::Node w = chain[key];
+      if (!w) return;
+      const std::string path = std::string("model.chain.") + key;
+      r.expect_map(w, path, {"spring", "damper"});
+      if (w["spring"]) spring = r.number_in(w["spring"], path + ".spring", 0, 1e300, "a value ≥ 0");
+      if (w["damper"]) damper = r.number_in(w["damper"], path + ".damper", 0, 1e300, "a value ≥ 0");
+    };
+    wall("left_wall", c.left_spring, c.left_damper);
+    wall("right_wall", c.right_spring, c.right_damper);
+    // What LinearSystem would refuse in the assembled matrices, checked on the links in O(n):
+    // every diagonal entry (a sum of two links and a wall) must be finite.
+    for (long i = 0; i < n; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      double k = (i == 0 ? c.left_spring : 0.0) + (i == n - 1 ? c.right_spring : 0.0);
+      double d = (i == 0 ? c.left_damper : 0.0) + (i == n - 1 ? c.right_damper : 0.0);
+      if (i > 0) k += c.springs[u - 1], d += c.dampers.empty() ? 0.0 : c.dampers[u - 1];
+      if (i < n - 1) k += c.springs[u], d += c.dampers.empty() ? 0.0 : c.dampers[u];
+      if (!std::isfinite(k) || !std::isfinite(d))
+        r.fail(chain, "model.chain", "the links of mass " + std::to_string(i) +
+                                         " add up to an infinite stiffness or damping (values too large)");
+    }
+    chain_links = std::move(c);
+  } else if (const YAML::Node mats = model["matrices"]) {
+    r.expect_map(mats, "model.matrices", {"mass", "damping", "stiffness"});
+    if (!mats["mass"]) r.fail(mats, "model.matrices.mass", "missing: the mass matrix");
+    M = r.matrix(mats["mass"], "model.matrices.mass", -1);
+    n = M.rows();
+    C = mats["damping"] ? r.matrix(mats["damping"], "model.matrices.damping", n) : Eigen::MatrixXd::Zero(n, n);
+    K = mats["stiffness"] ? r.matrix(mats["stiffness"], "model.matrices.stiffness", n) : Eigen::MatrixXd::Zero(n, n);
+  } else {
+    r.fail(model, "model", "expected model.chain or model.matrices");
+  }
+}
+
+/// `forcing`, and the system it completes: the chain in banded form where its damping allows, the dense system built on demand (model.matrices: now, its errors pointed at the entry they name).
+void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p) {
+  auto& n = p.n;
+  auto& M = p.M;
+  auto& C = p.C;
+  auto& K = p.K;
+  auto& chain_links = p.chain_links;
+  auto& f = p.f;
+  auto& dense = p.dense;
+  auto& banded = p.banded;
+  auto& not_banded = p.not_banded;
+  const YAML::Node model = root["model"];
+  // --- forcing ---
+  f = HarmonicForcing::zero(n);
+  if (const YAML::Node fn = root["forcing"]) {
+    r.expect_map(fn, "forcing", {"frequency", "constant", "cosine", "sine"});
+    if (fn["frequency"]) f.frequency = r.number_in(fn["frequency"], "forcing.frequency", 0, 1e300, "a frequency ≥ 0 (rad per unit time)");
+    if (fn["constant"]) f.constant = to_vector(r.numbers(fn["constant"], "forcing.constant", n, "one force per mass"));
+    if (fn["cosine"]) f.cosine = to_vector(r.numbers(fn["cosine"], "forcing.cosine", n, "one amplitude per mass"));
+    if (fn["sine"]) f.sine = to_vector(r.numbers(fn["sine"], "forcing.sine", n, "one amplitude per mass"));
+  }
+  if (chain_links) {
+    models::Chain& c = *chain_links;
+    auto list = [](const Eigen::VectorXd& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
+    c.force_constant = list(f.constant);
+    c.force_cosine = list(f.cosine);
+    c.force_sine = list(f.sine);
+    c.frequency = f.frequency;
+    try {
+      banded = BandedChain::from_links(c.masses, c.springs, c.dampers, c.left_spring, c.left_damper,
+                                       c.right_spring, c.right_damper, f);
+      banded->validate();
+    } catch (const InvalidInput& e) {
+      banded.reset();
+      not_banded = e.what();
+    }
+    dense = LazySystem(n, f, [c] { return models::build_chain(c); });
+  } else try {
+    dense = LazySystem(LinearSystem(M, C, K, f));
+  } catch (const InvalidInput& e) {
+    // Point at the matrix or forcing entry the message names.
+    const std::string msg = e.what();
+    const YAML::Node mats = model["matrices"];
+    const YAML::Node fn = root["forcing"];
+    const std::pair<const char*, const char*> where[] = {
+        {"mass matrix", "mass"}, {"damping matrix", "damping"}, {"stiffness matrix", "stiffness"}};
+    for (const auto& [prefix, key] : where)
+      if (msg.rfind(prefix, 0) == 0 && mats && mats[key])
+        r.fail(mats[key], std::string("model.matrices.") + key, msg.substr(msg.find(':') + 2));
+    for (const char* key : {"constant", "cosine", "sine", "frequency"})
+      if (msg.rfind(std::string("forcing.") + key, 0) == 0 && fn && fn[key])
+        r.fail(fn[key], std::string("forcing.") + key, msg.substr(msg.find(':') + 2));
+    r.fail(model, "model", msg);
+  }
+}
+
+/// `stops`, validated together (stops[j] errors point at that stop).
+void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
+  auto& n = p.n;
+  auto& f = p.f;
+  auto& stops = p.stops;
+  // --- stops ---
+  if (const YAML::Node sn = root["stops"]) {
+    if (!sn.IsSequence()) r.fail(sn, "stops", "expected a list of stops, found " + describe(sn));
+    for (std::size_t j = 0; j < sn.size(); ++j) {
+      const YAML::Node s = sn[j];
+      const std::string path = "stops[" + std::to_string(j) + "]";
+      r.expect_map(s, path, {"mass", "side", "between", "position", "gap", "restitution", "amplitude", "phase", "name"});
+      Stop stop;
+      if (s["between"]) {
+        if (s["mass"] || s["side"] || s["position"])
+          r.fail(s, path, "a stop between masses takes 'between' and 'gap', not 'mass', 'side' or 'position'");
+        const auto pair = r.numbers(s["between"], path + ".between", 2, "the two masses i, k of x_i - x_k ≤ gap");
+        for (int q = 0; q < 2; ++q)
+          r.integer(s["between"][static_cast<std::size_t>(q)], path + ".between[" + std::to_string(q) + "]", 0, n - 1);
+        if (pair[0] == pair[1])
+          r.fail(s["between"], path + ".between", "expected two different masses, found mass " +
+                                                      s["between"][0].Scalar() + " twice");
+        if (!s["gap"]) r.fail(s, path + ".gap", "missing: the gap of x_i - x_k ≤ gap");
+        stop = Stop::between(static_cast<Eigen::Index>(pair[0]), static_cast<Eigen::Index>(pair[1]),
+                             r.number(s["gap"], path + ".gap"), 1.0);
+      } else {
+        if (!s["mass"]) r.fail(s, path + ".mass", "missing: the mass the stop limits (0-based)");
+        if (!s["side"]) r.fail(s, path + ".side", "missing: 'upper' (x ≤ position) or 'lower' (x ≥ position)");
+        if (!s["position"]) r.fail(s, path + ".position", "missing: where the stop is");
+        if (s["gap"]) r.fail(s["gap"], path + ".gap", "'gap' is for stops between masses; use 'position'");
+        const long i = r.integer(s["mass"], path + ".mass", 0, n - 1);
+        const std::string side = r.choice(s["side"], path + ".side", {"upper", "lower"});
+        const double p = r.number(s["position"], path + ".position");
+        stop = side == "upper" ? Stop::upper(i, p, 1.0) : Stop::lower(i, p, 1.0);
+      }
+      if (!s["restitution"]) r.fail(s, path + ".restitution", "missing: the restitution coefficient r ∈ [0, 1]");
+      stop.restitution = r.number_in(s["restitution"], path + ".restitution", 0, 1, "a restitution coefficient in [0, 1]");
+      if (s["amplitude"]) {
+        stop.amplitude = r.number_in(s["amplitude"], path + ".amplitude", 0, 1e300, "an amplitude ≥ 0");
+        if (stop.amplitude > 0.0 && !(f.frequency > 0.0))
+          r.fail(s["amplitude"], path + ".amplitude",
+                 "a moving stop moves at the forcing frequency: set forcing.frequency > 0");
+      }
+      if (s["phase"]) stop.phase = r.number(s["phase"], path + ".phase");
+      if (s["name"]) stop.name = r.text(s["name"], path + ".name");
+      stops.push_back(stop);
+    }
+  }
+  try {
+    stops = validated_stops(std::move(stops), n, f.frequency);  // O(m log m), no n × m normals
+  } catch (const InvalidInput& e) {
+    // The message starts with the stop ("stops[j] (name): ..."); point at that stop and do not
+    // repeat its label.
+    std::string msg = e.what();
+    YAML::Node where = root["stops"];
+    std::string path = "stops";
+    if (msg.rfind("stops[", 0) == 0) {
+      const std::size_t j = std::stoul(msg.substr(6));
+      if (where && j < where.size()) {
+        path = "stops[" + std::to_string(j) + "]";
+        where = where[j];
+        const std::size_t colon = msg.find("): ");
+        if (colon != std::string::npos && msg.find(" and ") > colon) msg = msg.substr(colon + 3);
+      }
+    }
+    r.fail(where ? where : root, path, msg);
+  }
+}
+
+/// `initial`: time, x, v (rest at 0 by default).
+void read_initial(Reader& r, const YAML::Node& root, SceneParts& p) {
+  auto& n = p.n;
+  auto& t0 = p.t0;
+  auto& x0 = p.x0;
+  auto& v0 = p.v0;
+  // --- initial state ---
+  x0 = Eigen::VectorXd::Zero(n);
+  v0 = Eigen::VectorXd::Zero(n);
+  if (const YAML::Node in = root["initial"]) {
+    r.expect_map(in, "initial", {"time", "x", "v"});
+    if (in["time"]) t0 = r.number(in["time"], "initial.time");
+    if (in["x"]) x0 = to_vector(r.numbers(in["x"], "initial.x", n, "one displacement per mass"));
+    if (in["v"]) v0 = to_vector(r.numbers(in["v"], "initial.v", n, "one velocity per mass"));
+  }
+}
+
+/// `solver`: the tolerances, the flow method, the chatter rule and `solver.engine` as asked for.
+void read_solver(Reader& r, const YAML::Node& root, SceneParts& p) {
+  auto& opt = p.opt;
+  auto& engine_choice = p.engine_choice;
+  // --- solver ---
+  if (const YAML::Node sv = root["solver"]) {
+    r.expect_map(sv, "solver", {"trigger", "simultaneity", "chatter_height", "chatter_velocity", "contact_velocity",
+                                "max_events", "event_window", "length_scale", "flow_method", "max_condition", "engine",
+                                "chatter_rule"});
+    if (sv["trigger"]) opt.trigger = r.number_in(sv["trigger"], "solver.trigger", 1e-16, 1e-4, "a relative tolerance in [1e-16, 1e-4]");
+    if (sv["simultaneity"]) opt.simultaneity = r.number_in(sv["simultaneity"], "solver.simultaneity", 0, 1e-2, "a relative time in [0, 1e-2]");
+    if (sv["chatter_height"]) opt.chatter_height = r.number_in(sv["chatter_height"], "solver.chatter_height", 0, 1e-1, "a relative height in [0, 0.1]");
+    if (sv["chatter_velocity"]) opt.chatter_velocity = r.number_in(sv["chatter_velocity"], "solver.chatter_velocity", 0, 1e-1, "a relative speed in [0, 0.1]");
+    if (sv["contact_velocity"]) opt.contact_velocity = r.number_in(sv["contact_velocity"], "solver.contact_velocity", 0, 1e-3, "a relative speed in [0, 1e-3]");
+    if (sv["max_events"]) opt.max_events = r.integer(sv["max_events"], "solver.max_events", 1, 1000000000L);
+    if (sv["event_window"]) opt.event_window = r.number_in(sv["event_window"], "solver.event_window", 0, 1e300, "a time ≥ 0 (0: one forcing period)");
+    if (sv["length_scale"]) opt.length_scale = r.number_in(sv["length_scale"], "solver.length_scale", 0, 1e300, "a length ≥ 0 (0: automatic)");
+    if (sv["flow_method"]) {
+      const std::string m = r.choice(sv["flow_method"], "solver.flow_method", {"automatic", "spectral", "exponential"});
+      opt.flow.method = m == "spectral" ? FlowMethod::spectral : m == "exponential" ? FlowMethod::exponential : FlowMethod::automatic;
+    }
+    if (sv["max_condition"]) opt.flow.max_condition = r.number_in(sv["max_condition"], "solver.max_condition", 1, 1e16, "a condition number in [1, 1e16]");
+    if (sv["chatter_rule"]) {
+      const std::string c =
+          r.choice(sv["chatter_rule"], "solver.chatter_rule", {"third_order", "second_order", "first_order"});
+      opt.chatter_rule = c == "first_order"    ? ChatterRule::first_order
+                         : c == "second_order" ? ChatterRule::second_order
+                                               : ChatterRule::third_order;
+    }
+    if (sv["engine"]) {
+      const std::string e = r.choice(sv["engine"], "solver.engine", {"auto", "dense", "modal"});
+      engine_choice = e == "dense" ? EngineChoice::dense : e == "modal" ? EngineChoice::modal : EngineChoice::automatic;
+    }
+  }
+}
+
+/// The initial state against the stops, with the tolerance the run will use.
+void check_initial_state(Reader& r, const YAML::Node& root, SceneParts& p) {
+  auto& n = p.n;
+  auto& M = p.M;
+  auto& K = p.K;
+  auto& chain_links = p.chain_links;
+  auto& f = p.f;
+  auto& stops = p.stops;
+  auto& t0 = p.t0;
+  auto& x0 = p.x0;
+  auto& v0 = p.v0;
+  auto& opt = p.opt;
+  // The initial state, with the tolerance the run will use (trigger × L): what `check` accepts,
+  // the run accepts. L is the engines' (run_length_scale); for an unforced scene the engines take
+  // the fastest mode's frequency, unknown here, and the stops' and x0's part of L is used: a lower
+  // bound, so the loader is never the more lenient.
+  try {
+    double kmax = 0.0, mmax = 0.0;
+    if (chain_links) {
+      const models::Chain& c = *chain_links;
+      for (long i = 0; i < n; ++i) {
+        const auto u = static_cast<std::size_t>(i);
+        double k = (i == 0 ? c.left_spring : 0.0) + (i == n - 1 ? c.right_spring : 0.0);
+        if (i > 0) k += c.springs[u - 1];
+        if (i < n - 1) k += c.springs[u];
+        kmax = std::max({kmax, k, i < n - 1 ? c.springs[u] : 0.0});
+        mmax = std::max(mmax, c.masses[u]);
+      }
+    } else {
+      kmax = K.cwiseAbs().maxCoeff();
+      mmax = M.cwiseAbs().maxCoeff();
+    }
+    const bool forced = f.frequency > 0.0;
+    const double fmax = forced ? f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff() : 0.0;
+    const double L = run_length_scale(opt, forced ? f.frequency : 1.0, kmax, mmax, fmax, stops, x0,
+                                      forced ? v0 : Eigen::VectorXd::Zero(n).eval());
+    check_admissible(stops, f.frequency, t0, x0, opt.trigger * L);
+  } catch (const InvalidInput& e) {
+    const YAML::Node in = root["initial"];
+    if (in && in["x"]) r.fail(in["x"], "initial.x", e.what());
+    // The default initial state (rest at 0) violates a stop: point at that stop's position.
+    const std::string msg = e.what();
+    const std::size_t at = msg.find("stops[");
+    const YAML::Node sn = root["stops"];
+    if (at != std::string::npos && sn) {
+      const std::size_t j = std::stoul(msg.substr(at + 6));
+      if (j < sn.size()) {
+        const char* key = sn[j]["between"] ? "gap" : "position";
+        r.fail(sn[j][key], "stops[" + std::to_string(j) + "]." + key,
+               msg + "; the initial state defaults to rest at x = 0 (set initial.x)");
+      }
+    }
+    r.fail(root, "initial.x", msg);
+  }
+}
+
+/// `record`: the observers.
+void read_record(Reader& r, const YAML::Node& root, SceneParts& p) {
+  auto& f = p.f;
+  auto& rec = p.rec;
+  // --- record ---
+  if (const YAML::Node rn = root["record"]) {
+    r.expect_map(rn, "record", {"events", "contacts", "statistics", "poincare", "samples"});
+    if (rn["events"]) rec.events = r.boolean(rn["events"], "record.events");
+    if (rn["contacts"]) rec.contacts = r.boolean(rn["contacts"], "record.contacts");
+    if (rn["statistics"]) rec.statistics = r.boolean(rn["statistics"], "record.statistics");
+    if (rn["poincare"]) rec.poincare = r.boolean(rn["poincare"], "record.poincare");
+    if (const YAML::Node sm = rn["samples"]) {
+      r.expect_map(sm, "record.samples", {"per_period", "times"});
+      if (sm["per_period"] && sm["times"]) r.fail(sm, "record.samples", "give either per_period or times, not both");
+      if (sm["per_period"]) rec.samples_per_period = static_cast<int>(r.integer(sm["per_period"], "record.samples.per_period", 1, 1000000));
+      if (sm["times"]) {
+        rec.sample_times = r.numbers(sm["times"], "record.samples.times", -1, "times from the start of recording");
+        for (std::size_t i = 0; i < rec.sample_times.size(); ++i)
+          if (rec.sample_times[i] < 0.0)
+            r.fail(sm["times"][i], "record.samples.times[" + std::to_string(i) + "]",
+                   "expected a time ≥ 0 (from the start of recording), found " + sm["times"][i].Scalar());
+        if (!std::is_sorted(rec.sample_times.begin(), rec.sample_times.end()))
+          r.fail(sm["times"], "record.samples.times", "expected times in increasing order");
+      }
+    }
+    for (const char* key : {"statistics", "poincare"})
+      if (rn[key] && r.boolean(rn[key], std::string("record.") + key) && !(f.frequency > 0.0))
+        r.fail(rn[key], std::string("record.") + key,
+               "per-period statistics and Poincaré points need a forcing frequency > 0 (forcing.frequency)");
+  }
+}
+
+/// The engine the scene runs on (docs/scenes.md, solver.engine), then the checks the run section asked to make on it.
+void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
+  auto& n = p.n;
+  auto& chain_links = p.chain_links;
+  auto& banded = p.banded;
+  auto& not_banded = p.not_banded;
+  auto& engine_choice = p.engine_choice;
+  auto& point_engines = p.point_engines;
+  auto& engine_checks = p.engine_checks;
+  auto& engine = p.engine;
+  auto& reason = p.reason;
+  // --- engine (docs/scenes.md, solver.engine) ---
+  // The modal engine also needs a stiffness matrix without rigid-body modes (ChainModes refuses
+  // them): every mass tied to a wall through springs > 0. Checked on the links in O(n).
+  std::string floating;  // a group of masses no spring ties to a wall, if any
+  if (chain_links) {
+    const models::Chain& c = *chain_links;
+    long first = 0;
+    bool walled = c.left_spring > 0.0;
+    for (long i = 0; i < n; ++i) {
+      const bool last = i == n - 1 || !(c.springs[static_cast<std::size_t>(i)] > 0.0);
+      if (i == n - 1) walled = walled || c.right_spring > 0.0;
+      if (!last) continue;
+      if (!walled && floating.empty())
+        floating = first == i ? "mass " + std::to_string(i) : "masses " + std::to_string(first) + "…" + std::to_string(i);
+      first = i + 1;
+      walled = false;
+    }
+  }
+  const YAML::Node engine_node = root["solver"] ? root["solver"]["engine"] : YAML::Node();
+  if (engine_choice == EngineChoice::modal) {
+    auto refuse = [&](const std::string& why) {
+      r.fail(engine_node, "solver.engine", "the modal engine cannot run this scene: " + why +
+                                               " (use solver.engine: dense or auto)");
+    };
+    if (!chain_links) refuse("it needs model.chain (M diagonal, K tridiagonal), this scene gives model.matrices");
+    if (!banded) refuse(not_banded);
+    if (!floating.empty()) refuse(floating + " tied to no wall by springs: a rigid-body mode (give the chain a wall spring)");
+    engine = EngineKind::modal;
+    reason = "solver.engine: modal";
+  } else if (engine_choice == EngineChoice::dense) {
+    reason = "solver.engine: dense";
+  } else if (!chain_links) {
+    reason = "auto: model.matrices (the modal engine needs model.chain)";
+  } else if (!banded) {
+    reason = "auto: the chain's damping is not proportional (" + not_banded + ")";
+  } else if (!floating.empty()) {
+    reason = "auto: " + floating + " tied to no wall (a rigid-body mode; the modal engine needs none)";
+  } else if (n < kModalAutomaticMinimumDof) {
+    reason = "auto: " + std::to_string(n) + " masses (< " + std::to_string(kModalAutomaticMinimumDof) +
+             ": the dense engine is cheap and handles every contact set)";
+  } else {
+    engine = EngineKind::modal;
+    reason = "auto: a proportionally damped chain of " + std::to_string(n) + " masses (≥ " +
+             std::to_string(kModalAutomaticMinimumDof) + ")";
+  }
+
+  // What the run's section asked to check on the engine (e.g. what continuation differentiates).
+  for (const auto& check : engine_checks) check(engine, reason);
+  for (const PointEngine& point : point_engines)
+    if (point.engine != engine)
+      r.fail(point.at, point.path, point.what + " runs with the " + to_string(point.engine) + " engine, the base scene with the " +
+                               to_string(engine) + " engine (" + reason + "): one run uses one engine; " +
+                               "set solver.engine to dense or modal");
+}
+
+}  // namespace vibro::io::detail

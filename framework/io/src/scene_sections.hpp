@@ -1,0 +1,54 @@
+#pragma once
+// Private to vibro_io: the sections of a scene file (docs/scenes.md), one function each, in the
+// order SceneDocument::build_checked calls them: model, forcing, stops, initial, solver, the
+// initial state's check, record, run (scene.cpp: it consults the table of run kinds, whose
+// sections kinds/<name>.cpp read), the engine. Each reads its section of the tree into
+// SceneParts, given what the sections before it resolved, and reports bad input as SceneError
+// (file:line:col: key.path: problem) through the Reader.
+#include "run_section.hpp"
+#include "scene_reader.hpp"
+
+#include "vibro/models/chain.hpp"
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace vibro::io::detail {
+
+/// What the sections resolve, filled in their order.
+struct SceneParts {
+  const SceneDocument* doc = nullptr;  ///< the document being built (run sections check grid values on copies)
+  bool full = true;                    ///< build() (grids checked value by value) or build_point()
+  long n = 0;                          ///< degrees of freedom
+  Eigen::MatrixXd M, C, K;             ///< model.matrices
+  std::optional<models::Chain> chain_links;  ///< model.chain, assembled only on demand
+  HarmonicForcing f;
+  LazySystem dense;
+  std::optional<BandedChain> banded;
+  std::string not_banded;  ///< why a chain is not in banded form (its damping is not proportional)
+  std::vector<Stop> stops;
+  double t0 = 0.0;
+  Eigen::VectorXd x0, v0;
+  SimulatorOptions opt;
+  EngineChoice engine_choice = EngineChoice::automatic;
+  RecordSpec rec;
+  RunSpec run;
+  std::vector<PointEngine> point_engines;  ///< each grid value's engine (one run, one engine)
+  std::vector<std::function<void(EngineKind, const std::string&)>> engine_checks;
+  EngineKind engine = EngineKind::dense;
+  std::string reason;  ///< why the engine resolved so
+};
+
+void read_model(Reader& r, const YAML::Node& root, SceneParts& p);
+void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p);
+void read_stops(Reader& r, const YAML::Node& root, SceneParts& p);
+void read_initial(Reader& r, const YAML::Node& root, SceneParts& p);
+void read_solver(Reader& r, const YAML::Node& root, SceneParts& p);
+void check_initial_state(Reader& r, const YAML::Node& root, SceneParts& p);
+void read_record(Reader& r, const YAML::Node& root, SceneParts& p);
+void read_run(Reader& r, const YAML::Node& root, SceneParts& p);  // scene.cpp: the run kinds' table
+void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p);
+
+}  // namespace vibro::io::detail

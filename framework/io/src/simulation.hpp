@@ -1,0 +1,23 @@
+#pragma once
+// Private to vibro_io: one simulation of a scene, the transient (not recorded) then the recorded
+// periods with the observers the scene asks for. run.kind: simulate is one of them; every point
+// of a sweep is one (kinds/simulate.cpp, kinds/sweep.cpp, mpi_sweep.cpp).
+#include "vibro/io/results.hpp"
+
+#include <Eigen/Dense>
+
+#include <atomic>
+
+namespace vibro::io::detail {
+
+struct StartState {
+  double t;
+  Eigen::VectorXd x, v;
+};
+
+/// Transient (unrecorded) then recorded periods of one scene from `start`. The engine polls the
+/// interrupt flag (the scene's solver.interrupt, else SIGINT and SIGTERM) at every event and
+/// search step, and stores the time it reached in `reached` (if given) for a progress line.
+Recording simulate(const Scene& base, const StartState& start, std::atomic<double>* reached = nullptr);
+
+}  // namespace vibro::io::detail
