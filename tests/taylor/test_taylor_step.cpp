@@ -129,6 +129,36 @@ TEST_CASE("the order and step follow Jorba and Zou's rule") {
                     "TaylorSettings.tolerance = 0.500000: must lie in (0, 0.01) (it sets the order p = ceil(-ln(tolerance)/2 + 1))");
 }
 
+TEST_CASE("the guard's remainder bound covers the truncated tail") {
+  // x'' = -x from (1, 0): the guard x0 is cos τ exactly; G(τ) − cos τ is the tail beyond τ^p
+  // (plus rounding) and must lie within guard_remainder at every τ of the step; at the coarse
+  // tolerances the tail is far above rounding, so the truncation part of the bound is tested.
+  TaylorSystem system = one_mass("", 1.0, 0.0, {}, 0.0, {"x0", "3*x0 - 2*v0"});
+  for (double tolerance : {1e-16, 1e-12, 1e-8}) {
+    TaylorStep step(system, {.tolerance = tolerance});
+    REQUIRE(step.expand(0.0, Eigen::Vector2d(1.0, 0.0)) == StepStatus::ok);
+    const int p = step.order();
+    for (int g = 0; g < 2; ++g) {
+      const double* c = step.guard_coefficients(g);
+      const double bound = step.guard_remainder(g);
+      double worst = 0.0;
+      for (int i = 0; i <= 50; ++i) {
+        const double tau = step.step_size() * i / 50;
+        double value = c[p];
+        for (int k = p - 1; k >= 0; --k) value = value * tau + c[k];
+        const long double exact = g == 0 ? std::cos((long double)tau) : 3 * std::cos((long double)tau) + 2 * std::sin((long double)tau);
+        worst = std::max(worst, static_cast<double>(std::fabs(value - exact)));
+      }
+      INFO("tolerance " << tolerance << ", guard " << g << ": |G − g| ≤ " << worst << ", bound " << bound);
+      CHECK(worst <= bound);
+      // Not vacuous: within 100 tolerances of the guard's amplitude (1 and √13), and at the
+      // default below 1e-13 of it, the trigger level the event search uses (events.hpp).
+      const double amplitude = g == 0 ? 1.0 : std::sqrt(13.0);
+      CHECK(bound <= std::max(100 * tolerance, 1e-13) * amplitude);
+    }
+  }
+}
+
 TEST_CASE("undamped Duffing oscillator against Jacobi's cn over 100 periods") {
   // Round-off makes the energy (hence the frequency of a nonlinear oscillator) random-walk, so
   // the phase error of any double-precision integration grows like t^{3/2} (Brouwer's law,

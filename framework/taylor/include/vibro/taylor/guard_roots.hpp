@@ -8,13 +8,15 @@
 /// q goes from below to above, with the following guarantee:
 ///
 ///   - `none`: q(τ) < −δ on all of [0, h], so g < ε throughout: no event in the step;
-///   - `crossing` at τ*: q ≤ −δ… is certified below on [0, a], q has exactly one simple root in
-///     [a, b] with q(a) < −δ and q(b) > δ, and τ* is that root to rounding (safeguarded Newton).
-///     The true guard's crossing lies within δ/|q'(τ*)| of τ* (reported as `uncertainty`);
+///   - `crossing` at τ*: q < −δ is certified on [0, a]; on [a, b], q(a) < −δ, q(b) > δ and q has
+///     exactly one root; τ* is that root to rounding (safeguarded Newton). The true guard rises
+///     above ε within δ/|q'(τ*)| of τ* (reported as `uncertainty`);
 ///   - `at_start`: q(0) > δ — the guard is already above the trigger at τ = 0;
-///   - `grazing` on [a, b]: before any certified crossing, q comes within δ of 0 over an interval
-///     that cannot be split further (width ~ rounding of τ): the guard touches the trigger
-///     level within the uncertainty and the caller applies its grazing rule.
+///   - `grazing` on [a, b]: before any certified crossing, q comes within δ of 0 on an interval
+///     that cannot be split further (width ~ rounding of τ): the guard touches the trigger level
+///     within the uncertainty and the caller applies its grazing rule. A transversal crossing
+///     closer than δ/|q'| to the step's end h is reported so too (at [h − ulp, h]); the caller
+///     then starts the next step there, where the crossing is `at_start` or certified.
 ///
 /// Method (never sampling): q is written in the Bernstein basis on [0, h],
 /// q(h s) = Σ_i b_i C(p, i) s^i (1 − s)^{p−i}, b_i = Σ_{k≤i} [C(i, k)/C(p, k)] q_k h^k (Farouki &
@@ -23,7 +25,8 @@
 /// most the number of sign changes of (b_i), with the same parity (Lane & Riesenfeld 1981). The
 /// search is depth first, left half first, splitting by de Casteljau's algorithm at the midpoint:
 /// an interval with max b_i < −δ is discarded; one with b_0 < −δ, b_p > δ and exactly one sign
-/// change holds exactly one root, which is refined; any other is split. Rounding in the
+/// change holds exactly one root, which is refined; any other is split. The scratch is allocated
+/// once (first_crossing allocates nothing). Rounding in the
 /// conversion and the splits (convex combinations, each coefficient's error ≤ (p + depth) u Σ|b|)
 /// is added to δ.
 ///

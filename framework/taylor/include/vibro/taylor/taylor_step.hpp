@@ -42,6 +42,14 @@
 /// A step whose coefficients k ≥ 1 all vanish (a polynomial solution) has h = ∞; the caller caps
 /// it (advance() stops at its end time).
 ///
+/// ## Dense output and accuracy
+/// z(t₀ + τ) for any τ ∈ [0, h] is the polynomial evaluated by compensated Horner (Graillat,
+/// Langlois & Louvet 2005): as if in twice the working precision, so a state carries only the
+/// rounding of the coefficients themselves. Round-off still makes conserved quantities random-walk
+/// (≈ ε per step), and for a nonlinear oscillator, whose frequency depends on its energy, the
+/// phase error then grows like t^{3/2} (Brouwer's law): measured for x'' + x + x³ = 0 (A = 1),
+/// 5e-14 after 20 periods and 2.5e-13 after 100 (tests/taylor/test_taylor_step.cpp).
+///
 /// ## Guards and their remainder
 /// A guard g(z, t) (taylor_system.hpp) is a Dag output: its coefficients g_[0…p] come from the
 /// same pass. The polynomial G(τ) = Σ_{k≤p} g_[k] τ^k differs from g(z(t₀ + τ), t₀ + τ) by the
@@ -51,10 +59,13 @@
 ///
 ///     |R(τ)| ≤ Σ_{k>p} B r^k = B r^{p+1} / (1 − r)    for 0 ≤ τ ≤ h.
 ///
-/// ρ is the state's radius estimate above and B = 2 max_{k≤p} |g_[k]| ρ^k (the constant that fits
-/// every computed coefficient, doubled). This is rigorous under the hypothesis that the decay seen
-/// in orders 0…p continues (the same hypothesis that sets the step size), not an interval-
-/// arithmetic proof; its size is ~ε of the guard's scale. To it is added the rounding of the
+/// ρ is the state's radius estimate above and B = 2 max_{k ∈ {p−1, p}} |g_[k]| ρ^k (the constant
+/// fitted to the last two orders, doubled; two consecutive orders, so that a series with only
+/// even or only odd terms is still seen). This is rigorous under the hypothesis that the decay
+/// seen at orders p − 1 and p continues — the hypothesis that sets the step size — not an
+/// interval-arithmetic proof. Its size is ~ε of the guard's scale: for x'' = −x and the guard
+/// x0 = cos τ, 2e-16 against a true tail of 7e-17 (tests/taylor/test_taylor_step.cpp checks the
+/// bound against the exact tail at tolerances 1e-16, 1e-12 and 1e-8). To it is added the rounding of the
 /// polynomial's evaluation, 4(p + 1) u Σ_k |g_[k]| h^k (Higham 2002, §5.1, with a margin).
 /// guard_roots.hpp isolates G's first crossing with both bounds folded in.
 ///
