@@ -1,0 +1,178 @@
+#include "vibro/taylor/guard_roots.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace vibro::taylor {
+
+namespace {
+
+constexpr int kMaxDepth = 80;
+constexpr double kUnit = std::numeric_limits<double>::epsilon() / 2;
+
+/// q(x) and q'(x) for q = Σ c_k x^k − trigger (Horner).
+void evaluate(const double* c, int degree, double trigger, double x, double& value, double& slope) {
+  double v = c[degree], d = 0.0;
+  for (int k = degree - 1; k >= 0; --k) {
+    d = d * x + v;
+    v = v * x + c[k];
+  }
+  value = v - trigger;
+  slope = d;
+}
+
+}  // namespace
+
+GuardRootFinder::GuardRootFinder(int max_degree) : max_degree_(max_degree) {
+  if (max_degree < 1) throw std::invalid_argument("GuardRootFinder: max_degree must be at least 1");
+  const std::size_t entries = kMaxDepth + 4;
+  stack_.resize(entries * (max_degree + 1));
+  lo_.resize(entries);
+  hi_.resize(entries);
+  depth_.resize(entries);
+  work_.resize(max_degree + 1);
+}
+
+double GuardRootFinder::refine(const double* c, int degree, double trigger, double a, double b) {
+  double fa, fb, slope;
+  evaluate(c, degree, trigger, a, fa, slope);
+  evaluate(c, degree, trigger, b, fb, slope);
+  if (fa == 0.0) return a;
+  if (fb == 0.0) return b;
+  const double orientation = fa < 0.0 ? 1.0 : -1.0;  // q·orientation rises through the root
+  double x = 0.5 * (a + b), best = x, best_value = std::numeric_limits<double>::infinity();
+  double width_before = b - a;
+  for (int iteration = 0; iteration < 200; ++iteration) {
+    double f;
+    evaluate(c, degree, trigger, x, f, slope);
+    if (std::abs(f) < best_value) {
+      best_value = std::abs(f);
+      best = x;
+    }
+    if (f == 0.0) return x;
+    if (f * orientation < 0.0) a = x;
+    else b = x;
+    const double width = b - a;
+    if (width <= 2.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(a), std::abs(b)) ||
+        width <= std::numeric_limits<double>::denorm_min())
+      break;
+    const double newton = x - f / slope;
+    const bool inside = std::isfinite(newton) && newton > a && newton < b;
+    // Newton while it stays in the bracket and the bracket at least halves every two steps.
+    if (inside && width <= 0.5 * width_before) {
+      x = newton;
+      width_before = width;
+    } else if (inside && iteration % 2 == 0) {
+      x = newton;
+    } else {
+      x = a + 0.5 * width;
+      width_before = width;
+    }
+    if (x <= a || x >= b) break;
+  }
+  return best;
+}
+
+GuardCrossing GuardRootFinder::first_crossing(const double* c, int degree, double h, double trigger,
+                                              double remainder) {
+  if (degree < 0 || degree > max_degree_)
+    throw std::invalid_argument("GuardRootFinder: degree " + std::to_string(degree) + " beyond the scratch's " +
+                                std::to_string(max_degree_));
+  GuardCrossing result;
+  const int width = degree + 1;
+  // q in the scaled variable s = τ/h: a_k = q_k h^k, then its Bernstein coefficients on [0, 1].
+  double* root = &stack_[0];
+  double scale = 0.0, power = 1.0;
+  for (int k = 0; k <= degree; ++k, power *= h) {
+    root[k] = (c[k] - (k == 0 ? trigger : 0.0)) * power;
+    scale += std::abs(root[k]);
+  }
+  if (!std::isfinite(scale) || !(remainder >= 0.0))
+    throw std::invalid_argument("GuardRootFinder: coefficients, step or remainder not finite");
+  const double q0 = root[0];
+  // b_i = Σ_{k≤i} C(i,k)/C(p,k) a_k, from the top down so that root[] can be overwritten.
+  for (int i = degree; i >= 1; --i) {
+    double s = 0.0, ratio = 1.0;  // ratio = C(i,k)/C(p,k), k = 0 first
+    for (int k = 0; k <= i; ++k) {
+      s += ratio * root[k];
+      ratio *= static_cast<double>(i - k) / static_cast<double>(degree - k);
+    }
+    root[i] = s;
+  }
+  const auto band = [&](int depth) { return remainder + 2.0 * (2 * degree + depth + 4) * kUnit * scale; };
+  if (q0 > band(0)) {
+    result.kind = CrossingKind::at_start;
+    return result;
+  }
+  int top = 0;
+  lo_[0] = 0.0;
+  hi_[0] = 1.0;
+  depth_[0] = 0;
+  while (top >= 0) {
+    double* b = &stack_[static_cast<std::size_t>(top) * width];
+    const double lo = lo_[top], hi = hi_[top];
+    const int depth = depth_[top];
+    --top;
+    ++result.splits;
+    const double tol = band(depth);
+    double largest = b[0];
+    int changes = 0, last_sign = 0;
+    for (int i = 0; i <= degree; ++i) {
+      largest = std::max(largest, b[i]);
+      const int sign = b[i] > 0.0 ? 1 : (b[i] < 0.0 ? -1 : 0);
+      if (sign != 0) {
+        if (last_sign != 0 && sign != last_sign) ++changes;
+        last_sign = sign;
+      }
+    }
+    if (largest < -tol) continue;  // q + R < 0 here: no event
+    if (changes == 1 && b[0] < -tol && b[degree] > tol) {
+      // Exactly one root of q in [lo, hi] (Descartes in the Bernstein basis), rising.
+      result.kind = CrossingKind::crossing;
+      result.lower = lo * h;
+      result.upper = hi * h;
+      result.tau = refine(c, degree, trigger, result.lower, result.upper);
+      double value, slope;
+      evaluate(c, degree, trigger, result.tau, value, slope);
+      result.uncertainty = slope != 0.0 ? remainder / std::abs(slope) : std::numeric_limits<double>::infinity();
+      return result;
+    }
+    const double tau_lo = lo * h, tau_hi = hi * h;
+    if (depth >= kMaxDepth ||
+        tau_hi - tau_lo <= 4.0 * std::numeric_limits<double>::epsilon() * std::max(tau_hi, std::abs(h) * 1e-300)) {
+      result.kind = CrossingKind::grazing;
+      result.tau = tau_lo;
+      result.lower = tau_lo;
+      result.upper = tau_hi;
+      return result;
+    }
+    // de Casteljau at s = 1/2 (Farouki & Rajan 1988): after r rounds of midpoint averaging,
+    // work[i] is the triangle's entry (r, i); the left half's coefficient r is entry (r, 0),
+    // the right half's coefficient degree − r is entry (r, degree − r). The right half goes
+    // where b was (b copied to work first), the left half above it, to be examined next.
+    double* right = &stack_[static_cast<std::size_t>(top + 1) * width];
+    double* left = &stack_[static_cast<std::size_t>(top + 2) * width];
+    double* work = work_.data();
+    std::copy(b, b + width, work);
+    left[0] = work[0];
+    right[degree] = work[degree];
+    for (int r = 1; r <= degree; ++r) {
+      for (int i = 0; i <= degree - r; ++i) work[i] = 0.5 * (work[i] + work[i + 1]);
+      left[r] = work[0];
+      right[degree - r] = work[degree - r];
+    }
+    ++top;
+    lo_[top] = 0.5 * (lo + hi);
+    hi_[top] = hi;
+    depth_[top] = depth + 1;
+    ++top;
+    lo_[top] = lo;
+    hi_[top] = 0.5 * (lo + hi);
+    depth_[top] = depth + 1;
+  }
+  return result;
+}
+
+}  // namespace vibro::taylor

@@ -1,0 +1,388 @@
+#include "vibro/taylor/taylor_step.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+namespace vibro::taylor {
+
+void TaylorSettings::validate() const {
+  if (!(tolerance > 0.0 && tolerance < 1e-2))
+    throw std::invalid_argument("TaylorSettings.tolerance = " + std::to_string(tolerance) +
+                                ": must lie in (0, 0.01) (it sets the order p = ceil(-ln(tolerance)/2 + 1))");
+}
+
+namespace {
+
+/// Σ_{j=lo}^{hi} x_j y_{k−j}
+inline double convolution(const double* x, const double* y, int k, int lo, int hi) {
+  double s = 0.0;
+  for (int j = lo; j <= hi; ++j) s += x[j] * y[k - j];
+  return s;
+}
+/// Σ_{j=1}^{k} j a_j y_{k−j} / k
+inline double weighted(const double* a, const double* y, int k) {
+  double s = 0.0;
+  for (int j = 1; j <= k; ++j) s += j * a[j] * y[k - j];
+  return s / k;
+}
+
+std::string number(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.17g", v);
+  return text;
+}
+
+}  // namespace
+
+TaylorStep::TaylorStep(const TaylorSystem& system, TaylorSettings settings)
+    : system_(&system), settings_(settings) {
+  settings_.validate();
+  p_ = static_cast<int>(std::ceil(-0.5 * std::log(settings_.tolerance) + 1.0));
+  dim_ = system.state_size();
+  parameters_ = system.parameter_values();
+  const std::size_t nodes = static_cast<std::size_t>(system.dag().size());
+  const std::size_t width = static_cast<std::size_t>(p_) + 1;
+  c_.assign(nodes * width, 0.0);
+  aux_.assign(nodes * width, 0.0);
+  z_.assign(static_cast<std::size_t>(dim_) * width, 0.0);
+  force_k_.resize(system.coordinates());
+  if (settings_.variational) {
+    dc_.assign(nodes * dim_ * width, 0.0);  // time-constant nodes' tangents stay 0
+    y_.assign(static_cast<std::size_t>(dim_) * dim_ * width, 0.0);
+    dforce_k_.resize(system.coordinates(), dim_);
+  }
+}
+
+const double* TaylorStep::guard_coefficients(int g) const {
+  return &c_[static_cast<std::size_t>(system_->guard_nodes()[g]) * (p_ + 1)];
+}
+
+bool TaylorStep::compute_order(int k) {
+  const std::vector<DagNode>& nodes = system_->dag().nodes();
+  const int count = static_cast<int>(nodes.size());
+  const bool tangents = settings_.variational;
+  for (int id = 0; id < count; ++id) {
+    const DagNode& n = nodes[id];
+    double* C = c(id);
+    if (n.time_constant && k > 0) {
+      C[k] = 0.0;
+      aux(id)[k] = 0.0;
+      continue;
+    }
+    const double* A = n.a >= 0 ? c(n.a) : nullptr;
+    const double* B = n.b >= 0 ? c(n.b) : nullptr;
+    double* U = aux(id);
+    auto domain = [&](const std::string& what) {
+      trouble_ = system_->dag().describe(id) + ": " + what + " at t = " + number(t0_);
+      return false;
+    };
+    switch (n.op) {
+      case Op::Constant: C[k] = k == 0 ? n.value : 0.0; break;
+      case Op::Parameter: C[k] = k == 0 ? parameters_[n.index] : 0.0; break;
+      case Op::Time: C[k] = k == 0 ? t0_ : (k == 1 ? 1.0 : 0.0); break;
+      case Op::State: C[k] = zc(n.index)[k]; break;
+      case Op::Add: C[k] = A[k] + B[k]; break;
+      case Op::Subtract: C[k] = A[k] - B[k]; break;
+      case Op::Negate: C[k] = -A[k]; break;
+      case Op::Multiply:
+        if (nodes[n.a].time_constant) C[k] = A[0] * B[k];
+        else if (nodes[n.b].time_constant) C[k] = A[k] * B[0];
+        else C[k] = convolution(A, B, k, 0, k);
+        break;
+      case Op::Square: {
+        double s = 0.0;
+        for (int j = 0; j < (k + 1) / 2; ++j) s += A[j] * A[k - j];
+        C[k] = 2.0 * s + (k % 2 == 0 ? A[k / 2] * A[k / 2] : 0.0);
+        break;
+      }
+      case Op::Divide:
+        if (k == 0 && B[0] == 0.0) return domain("division by zero");
+        C[k] = nodes[n.b].time_constant ? A[k] / B[0] : (A[k] - convolution(B, C, k, 1, k)) / B[0];
+        break;
+      case Op::PowerReal:
+        if (k == 0) {
+          if (A[0] == 0.0) return domain("base 0 of a real power (its derivatives are unbounded)");
+          C[0] = std::pow(A[0], n.value);
+          if (!std::isfinite(C[0])) return domain("real power of the base " + number(A[0]));
+        } else {
+          double s = 0.0;
+          for (int j = 0; j < k; ++j) s += (n.value * (k - j) - j) * A[k - j] * C[j];
+          C[k] = s / (k * A[0]);
+        }
+        break;
+      case Op::Sqrt:
+        if (k == 0) {
+          if (!(A[0] > 0.0)) return domain("square root of " + number(A[0]) + " (needs a positive argument)");
+          C[0] = std::sqrt(A[0]);
+        } else {
+          C[k] = (A[k] - convolution(C, C, k, 1, k - 1)) / (2.0 * C[0]);
+        }
+        break;
+      case Op::Exp: C[k] = k == 0 ? std::exp(A[0]) : weighted(A, C, k); break;
+      case Op::Log:
+        if (k == 0) {
+          if (!(A[0] > 0.0)) return domain("logarithm of " + number(A[0]) + " (needs a positive argument)");
+          C[0] = std::log(A[0]);
+        } else {
+          double s = 0.0;
+          for (int j = 1; j < k; ++j) s += j * C[j] * A[k - j];
+          C[k] = (A[k] - s / k) / A[0];
+        }
+        break;
+      case Op::Sin:  // U holds cos a
+        if (k == 0) {
+          C[0] = std::sin(A[0]);
+          U[0] = std::cos(A[0]);
+        } else {
+          C[k] = weighted(A, U, k);
+          U[k] = -weighted(A, C, k);
+        }
+        break;
+      case Op::Cos: C[k] = aux(n.a)[k]; break;
+      case Op::Tan:  // U = 1 + tan²
+        if (k == 0) {
+          C[0] = std::tan(A[0]);
+          U[0] = 1.0 + C[0] * C[0];
+        } else {
+          C[k] = weighted(A, U, k);
+          U[k] = convolution(C, C, k, 0, k);
+        }
+        break;
+      case Op::Tanh:  // U = 1 − tanh²
+        if (k == 0) {
+          C[0] = std::tanh(A[0]);
+          U[0] = 1.0 - C[0] * C[0];
+        } else {
+          C[k] = weighted(A, U, k);
+          U[k] = -convolution(C, C, k, 0, k);
+        }
+        break;
+      case Op::Atan:  // U = 1 + a²
+        if (k == 0) {
+          U[0] = 1.0 + A[0] * A[0];
+          C[0] = std::atan(A[0]);
+        } else {
+          U[k] = convolution(A, A, k, 0, k);
+          double s = 0.0;
+          for (int j = 1; j < k; ++j) s += (k - j) * U[j] * C[k - j];
+          C[k] = (A[k] - s / k) / U[0];
+        }
+        break;
+    }
+    if (!tangents || n.time_constant || n.op == Op::Time) continue;
+    for (int d = 0; d < dim_; ++d) {
+      double* dC = dc(id, d);
+      const double* dA = n.a >= 0 ? dc(n.a, d) : nullptr;
+      const double* dB = n.b >= 0 ? dc(n.b, d) : nullptr;
+      switch (n.op) {
+        case Op::State: dC[k] = yc(n.index, d)[k]; break;
+        case Op::Add: dC[k] = dA[k] + dB[k]; break;
+        case Op::Subtract: dC[k] = dA[k] - dB[k]; break;
+        case Op::Negate: dC[k] = -dA[k]; break;
+        case Op::Multiply:
+          if (nodes[n.a].time_constant) dC[k] = A[0] * dB[k];
+          else if (nodes[n.b].time_constant) dC[k] = dA[k] * B[0];
+          else dC[k] = convolution(dA, B, k, 0, k) + convolution(A, dB, k, 0, k);
+          break;
+        case Op::Square: dC[k] = 2.0 * convolution(A, dA, k, 0, k); break;
+        case Op::Divide:  // ċ b = ȧ − c ḃ
+          dC[k] = nodes[n.b].time_constant
+                      ? dA[k] / B[0]
+                      : (dA[k] - convolution(C, dB, k, 0, k) - convolution(B, dC, k, 1, k)) / B[0];
+          break;
+        case Op::PowerReal:  // ċ a = α c ȧ
+          dC[k] = (n.value * convolution(C, dA, k, 0, k) - convolution(A, dC, k, 1, k)) / A[0];
+          break;
+        case Op::Sqrt:  // 2 c ċ = ȧ
+          dC[k] = (dA[k] - 2.0 * convolution(C, dC, k, 1, k)) / (2.0 * C[0]);
+          break;
+        case Op::Exp: dC[k] = convolution(C, dA, k, 0, k); break;
+        case Op::Log: dC[k] = (dA[k] - convolution(A, dC, k, 1, k)) / A[0]; break;
+        case Op::Sin: case Op::Tan: case Op::Tanh: dC[k] = convolution(U, dA, k, 0, k); break;
+        case Op::Cos: {  // ċ = −sin(x) ẋ, x the argument of the Sin node n.a
+          const int x = nodes[n.a].a;
+          dC[k] = -convolution(c(n.a), dc(x, d), k, 0, k);
+          break;
+        }
+        case Op::Atan: dC[k] = (dA[k] - convolution(U, dC, k, 1, k)) / U[0]; break;
+        default: break;
+      }
+    }
+  }
+  if (k == p_) return true;
+
+  // z_[k+1] = f_[k] / (k + 1), the linear part applied to the k-th coefficients.
+  const int n = system_->coordinates();
+  const Eigen::MatrixXd& ax = system_->position_matrix();
+  const Eigen::MatrixXd& av = system_->velocity_matrix();
+  const Eigen::MatrixXd& minv = system_->inverse_mass();
+  const std::vector<int>& forces = system_->force_nodes();
+  const double scale = 1.0 / (k + 1);
+  for (int i = 0; i < n; ++i) force_k_[i] = forces[i] >= 0 ? c(forces[i])[k] : 0.0;
+  for (int i = 0; i < n; ++i) {
+    double a = 0.0;
+    for (int j = 0; j < n; ++j) a += ax(i, j) * zc(j)[k] + av(i, j) * zc(n + j)[k] + minv(i, j) * force_k_[j];
+    zc(i)[k + 1] = zc(n + i)[k] * scale;
+    zc(n + i)[k + 1] = a * scale;
+  }
+  if (tangents) {
+    for (int i = 0; i < n; ++i)
+      for (int d = 0; d < dim_; ++d) dforce_k_(i, d) = forces[i] >= 0 ? dc(forces[i], d)[k] : 0.0;
+    for (int i = 0; i < n; ++i) {
+      for (int d = 0; d < dim_; ++d) {
+        double a = 0.0;
+        for (int j = 0; j < n; ++j)
+          a += ax(i, j) * yc(j, d)[k] + av(i, j) * yc(n + j, d)[k] + minv(i, j) * dforce_k_(j, d);
+        yc(i, d)[k + 1] = yc(n + i, d)[k] * scale;
+        yc(n + i, d)[k + 1] = a * scale;
+      }
+    }
+  }
+  return true;
+}
+
+StepStatus TaylorStep::expand(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0) {
+  trouble_.clear();
+  t0_ = t0;
+  for (int i = 0; i < dim_; ++i) zc(i)[0] = z0[i];
+  if (settings_.variational)
+    for (int i = 0; i < dim_; ++i)
+      for (int d = 0; d < dim_; ++d) yc(i, d)[0] = i == d ? 1.0 : 0.0;
+  if (!z0.allFinite()) {
+    trouble_ = "the state is not finite at t = " + number(t0);
+    return StepStatus::not_finite;
+  }
+  for (int k = 0; k <= p_; ++k)
+    if (!compute_order(k)) return StepStatus::domain_error;
+
+  // Order-p and order-(p−1) norms over z (and Φ), the step from their decay.
+  auto norm = [&](int k) {
+    double m = 0.0;
+    for (int i = 0; i < dim_; ++i) m = std::max(m, std::abs(zc(i)[k]));
+    if (settings_.variational)
+      for (int i = 0; i < dim_; ++i)
+        for (int d = 0; d < dim_; ++d) m = std::max(m, std::abs(yc(i, d)[k]));
+    return m;
+  };
+  double scale = 1.0;
+  for (int i = 0; i < dim_; ++i) scale = std::max(scale, std::abs(z0[i]));
+  const double tolerance = settings_.tolerance * scale;
+  double h = std::numeric_limits<double>::infinity();
+  double rho = std::numeric_limits<double>::infinity();
+  for (int k : {p_ - 1, p_}) {
+    const double m = norm(k);
+    if (!std::isfinite(m)) {
+      trouble_ = "a Taylor coefficient of order " + std::to_string(k) + " overflows at t = " + number(t0);
+      return StepStatus::not_finite;
+    }
+    if (m > 0.0) {
+      h = std::min(h, std::pow(tolerance / m, 1.0 / k));
+      rho = std::min(rho, std::pow(scale / m, 1.0 / k));
+    }
+  }
+  h_ = h * std::exp(-0.7 / (p_ - 1));
+  rho_ = rho;
+  if (h_ == 0.0 || std::isnan(h_)) {
+    trouble_ = "step size " + number(h_) + " at t = " + number(t0);
+    return StepStatus::not_finite;
+  }
+  return StepStatus::ok;
+}
+
+void TaylorStep::state(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
+  // Compensated Horner (Graillat, Langlois & Louvet 2005, Alg. 4): the rounding error of each
+  // product (by an FMA) and each sum (TwoSum, Knuth) is carried along and added at the end, so
+  // the value is as accurate as if computed in twice the working precision and then rounded.
+  // The state update then carries only the coefficients' own rounding (z_[1] = v exact, v_[1]
+  // = f(z) to ε|f|, entering as ε|f|h).
+  for (int i = 0; i < dim_; ++i) {
+    const double* a = state_coefficients(i);
+    double s = a[p_], c = 0.0;
+    for (int k = p_ - 1; k >= 0; --k) {
+      const double product = s * tau;
+      const double product_error = std::fma(s, tau, -product);
+      const double sum = product + a[k];
+      const double virtual_a = sum - product;
+      const double sum_error = (product - (sum - virtual_a)) + (a[k] - virtual_a);
+      c = c * tau + (product_error + sum_error);
+      s = sum;
+    }
+    out[i] = s + c;
+  }
+}
+
+void TaylorStep::derivative(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
+  for (int i = 0; i < dim_; ++i) {
+    const double* a = state_coefficients(i);
+    double s = p_ * a[p_];
+    for (int k = p_ - 1; k >= 1; --k) s = s * tau + k * a[k];
+    out[i] = s;
+  }
+}
+
+void TaylorStep::transition(double tau, Eigen::Ref<Eigen::MatrixXd> out) const {
+  if (!settings_.variational) throw std::logic_error("TaylorStep::transition needs TaylorSettings.variational");
+  for (int i = 0; i < dim_; ++i)
+    for (int d = 0; d < dim_; ++d) {
+      const double* a = &y_[(static_cast<std::size_t>(i) * dim_ + d) * (p_ + 1)];
+      double s = a[p_];
+      for (int k = p_ - 1; k >= 0; --k) s = s * tau + a[k];
+      out(i, d) = s;
+    }
+}
+
+double TaylorStep::guard_remainder(int g, double tau_max) const {
+  const double* a = guard_coefficients(g);
+  const double h = std::min(h_, tau_max);
+  // Rounding of the polynomial's evaluation: 4(p + 1) u Σ |g_k| h^k.
+  double absolute_sum = 0.0, power = 1.0;
+  for (int k = 0; k <= p_; ++k, power *= h) absolute_sum += std::abs(a[k]) * power;
+  const double rounding = 4.0 * (p_ + 1) * std::numeric_limits<double>::epsilon() * 0.5 * absolute_sum;
+  if (!std::isfinite(rho_)) return rounding;  // polynomial solution: no tail
+  // Truncation: Cauchy estimate B r^{p+1} / (1 − r), r = h/ρ, with B = 2 max_{k ∈ {p−1, p}}
+  // |g_k| ρ^k fitted to the last two orders (those that set the step).
+  const double r = h / rho_;
+  if (!(r < 1.0)) return std::numeric_limits<double>::infinity();
+  const double bound = std::max(std::abs(a[p_ - 1]) * std::pow(rho_, p_ - 1), std::abs(a[p_]) * std::pow(rho_, p_));
+  return 2.0 * bound * std::pow(r, p_ + 1) / (1.0 - r) + rounding;
+}
+
+StepStatus advance(TaylorStep& step, double t0, const Eigen::Ref<const Eigen::VectorXd>& z0, double t1,
+                   Eigen::Ref<Eigen::VectorXd> z1, Eigen::MatrixXd* phi, long* steps) {
+  const int dim = step.system().state_size();
+  Eigen::VectorXd z = z0;
+  Eigen::MatrixXd step_phi;
+  if (phi) {
+    phi->setIdentity(dim, dim);
+    step_phi.resize(dim, dim);
+  }
+  double t = t0, carry = 0.0;  // time reached: t − carry (Kahan: carry holds what t lost)
+  long taken = 0;
+  while (true) {
+    const double remaining = (t1 - t) + carry;  // t1 − (t − carry)
+    if (!(remaining > 0.0)) break;
+    const StepStatus status = step.expand(t, z);
+    if (status != StepStatus::ok) {
+      if (steps) *steps = taken;
+      return status;
+    }
+    const double h = std::min(step.step_size(), remaining);
+    step.state(h, z);
+    if (phi) {
+      step.transition(h, step_phi);
+      *phi = step_phi * *phi;
+    }
+    const double y = h - carry;
+    const double sum = t + y;
+    carry = (sum - t) - y;
+    t = sum;
+    ++taken;
+  }
+  z1 = z;
+  if (steps) *steps = taken;
+  return StepStatus::ok;
+}
+
+}  // namespace vibro::taylor
