@@ -368,6 +368,15 @@ def main():
       "LCPs). Its error does not grow with the run, so its curve is flat, while the baseline's cost grows like "
       "rtol^(-1/5) (RK 4(5)) or rtol^(-1/8) (DOP853). The ratio table above says where each wins in this run; "
       "the dashed curves are the framework before issue 13 (docs/data/work_precision_before_issue13.csv).")
+    w("- **High-order steps and events.** DOP853 (and ARKODE's Fehlberg 7(8)) can plateau over a range of "
+      "tolerances (e.g. on (a), DOP853's state error stays at 2e-3 from rtol 1e-7 to 1e-9 and falls to ~1e-9 at "
+      "1e-10): an event that their long steps do not resolve the same way, the plateau ending where the steps "
+      "become short enough (not traced to the event here). The ratio at 1e-9 takes the cheapest run below it, "
+      "whichever rtol and chatter height that is.")
+    w("- **The SUNDIALS peer** runs the same right-hand side and the same event rules; what it adds is its own "
+      "machinery: generic N_Vector operations, a root-function evaluation for every stop at every step, its "
+      "interpolant and root iterations, and a restart (ReInit) at every event, after which CVODE's Adams "
+      "method starts again at order 1. Where its time goes was not profiled here.")
     w("- **Floors.** Errors at or below the cross-check table's values (state ~1e-12 to 5e-12; impact times "
       "and sticking proportion ~3e-10 on a and d, ~4e-9 on b, where the only independent check is the DOP853 "
       "baseline, which does not beat that) are at the level to which the reference itself is confirmed: the "
