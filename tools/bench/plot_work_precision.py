@@ -370,8 +370,12 @@ def main():
       "the dashed curves are the framework before issue 13 (docs/data/work_precision_before_issue13.csv).")
     w("- **High-order steps and events.** DOP853 (and ARKODE's Fehlberg 7(8)) can plateau over a range of "
       "tolerances (e.g. on (a), DOP853's state error stays at 2e-3 from rtol 1e-7 to 1e-9 and falls to ~1e-9 at "
-      "1e-10): an event that their long steps do not resolve the same way, the plateau ending where the steps "
-      "become short enough (not traced to the event here). The ratio at 1e-9 takes the cheapest run below it, "
+      "1e-10): a slow impact at t = 41.77 (approach speed 4.5e-4, at the end of a sequence of bounces) whose "
+      "excursion past the stop begins and ends inside one of its long steps, so the step-end check misses it: the "
+      "mass passes slightly into the stop and out again without its rebound, and the states differ from there on "
+      "(the next large impact, on the other stop at t = 45.03, comes 0.002 late); at rtol 1e-10 the steps are short "
+      "enough to catch it (traced with a one-off driver comparing DOP853's events at rtol 1e-8 with the "
+      "reference's). The ratio at 1e-9 takes the cheapest run below it, "
       "whichever rtol and chatter height that is.")
     w("- **The SUNDIALS peer** runs the same right-hand side and the same event rules; what it adds is its own "
       "machinery: generic N_Vector operations, a root-function evaluation for every stop at every step, its "
