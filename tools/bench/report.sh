@@ -9,7 +9,7 @@
 #        (median), events per period, bounces per chatter sequence, state error against the
 #        engine's 1e-13 run and the independent RK8 hybrid reference (--reference);
 #        then the same at solver.trigger = 1e-9 (the candidate default), and a perf profile of (a);
-#     2. the work-precision report against Boost.Odeint RK 4(5) / RK 7(8) on (a)–(d)
+#     2. the work-precision report against RK 4(5), DOP853 and SUNDIALS (ARKODE, CVODE) on (a)–(d)
 #        (tools/bench/work_precision.sh: docs/accuracy-work-precision.md and its figures, with
 #        the engine's curves before issue 13 drawn dashed from docs/data/);
 #     3. the allocation test (vibro_tests_allocations: replaced operator new / malloc);

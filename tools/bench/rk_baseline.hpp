@@ -1,63 +1,50 @@
 #pragma once
 /// \file rk_baseline.hpp
-/// A conventional baseline for the work-precision report: adaptive Runge–Kutta with event
-/// location, applying the SAME impact and sticking rules as vibro::Simulator.
+/// Conventional baselines for the work-precision report: adaptive embedded Runge–Kutta pairs
+/// with dense output and event location, applying the framework's OWN event rules.
 ///
-/// What is shared with the framework: the scene (matrices, forcing, stops), the contact-set
-/// algebra of contact.hpp (Delassus matrix G = Wᵀ M⁻¹ W, M⁻¹ W, the LCP solver) and the event
-/// rules (written out again below, not called). What is the baseline's own: the time integration
-/// and the event location.
+///  * Motion between events: the index-reduced equations of the current contact mode in full
+///    coordinates (baseline_events.hpp), x'' = f0 + f_c cos Ωt + f_s sin Ωt − K_S x − C_S v, in
+///    fixed-size storage for 1, 2 and 10 degrees of freedom (Eigen::Matrix<double, n, n>; other
+///    sizes dynamic): a right-hand side is two n × n products and one cos and sin.
+///  * Time integration (rk_steppers.hpp, written here from the published tables): Dormand–Prince
+///    5(4) with its 4th-order dense output, or Prince–Dormand 8(5,3) (DOP853) with its
+///    7th-order dense output; Hairer's error norm (RMS of err_i / (atol + rtol·max(|y0_i|, |y1_i|))),
+///    atol = rtol · min(L, V) (L, V the framework's length and velocity scales).
+///  * Guards as in the framework: g_j = w_jᵀ x − s_j(t) for free stops (s_j evaluated only for
+///    moving stops), −λ_j for held ones. An event is a guard above its trigger level at the END
+///    of an accepted step that was ≤ 0 at its start (or, for a guard that starts on zero just
+///    after an event, ≤ 0 at some point 2^-k into the step): the conventional check of step
+///    ends, so an excursion past a stop that begins and ends inside one step is missed (the
+///    framework's certified search does not miss it). The crossing is located by Brent's method
+///    (Brent 1973, ch. 4) on the dense output, down to a few ulps of t.
+///  * At an event: vibro::detail::resolve_event, the framework's own rules (baseline_events.hpp):
+///    simultaneity window, impulse LCP, the chatter test against chatter_height (a setting of
+///    its own, not tied to rtol), the third-order chatter rule with its state correction and
+///    Budd–Dux accumulation time, the acceleration LCP for the held set. The dense output is
+///    restarted from the post-event state.
 ///
-///  * Motion in contact set S (stops held): M x'' = f(t) - C v - K x - W_S λ with
-///        λ = G_S⁻¹ (W_Sᵀ a_free - s_S''(t)),   a_free = M⁻¹ (f - C v - K x),
-///    i.e. the index-reduced constrained equations in full coordinates, integrated by a
-///    Boost.Odeint controlled stepper: runge_kutta_dopri5 (with its dense output, 4th-order
-///    continuous extension) or runge_kutta_fehlberg78 (no dense output: states inside a step are
-///    obtained by re-stepping from the step start with a step of the wanted length, which keeps
-///    the method's order). Error control: odeint's default, |err_i| ≤ atol + rtol·(|z_i| + h|z_i'|),
-///    atol = rtol·min(L, V) (L, V the framework's length and velocity scales).
-///  * Guards as in the framework: g_j = w_jᵀ x - s_j(t) for free stops, -λ_j for held ones. An
-///    event is a guard > 0 at the END of an accepted step that was ≤ 0 at its start (or, for a
-///    guard that starts on zero just after an event, ≤ 0 at some point 2^-k into the step):
-///    the conventional check of step ends, so an excursion past a stop that begins and ends
-///    inside one step is missed (the framework's certified search does not miss it). The
-///    crossing is located by Brent's method (Brent 1973, ch. 4) on the interpolated or
-///    re-stepped guard, down to a few ulps of t.
-///  * At an event the framework's rules: guards within the simultaneity window fire together;
-///    impacts by the impulse LCP over S ∪ I (Newton restitution per stop); chatter → sticking
-///    when the stop would hold and the next bounce would rise less than chatter_height·L
-///    (that stop's r is then taken as 0, and a chatter_limit event is logged at the Budd–Dux
-///    accumulation time t + 2 r u / (a (1 - r))); impacting gaps placed exactly at zero; the held
-///    set from the acceleration LCP; the residual normal velocity of held stops removed.
-///
-/// Numerical trouble (non-finite state, an event cap like the framework's Zeno guard, a step
-/// budget) ends the run with ok = false and a message: never a silent NaN.
-#include "vibro/contact.hpp"
-#include "vibro/observers.hpp"
+/// Numerical trouble (non-finite state, the framework's Zeno guard, a step budget, step-size
+/// underflow) ends the run with ok = false and a message: never a silent NaN.
+#include "baseline_events.hpp"
 
 #include <string>
 #include <vector>
 
 namespace vibro::bench {
 
-enum class RkMethod { dopri5, fehlberg78 };
+enum class RkMethod { dopri5, dop853 };
 const char* to_string(RkMethod m);
 
 struct RkOptions {
   RkMethod method = RkMethod::dopri5;
   double rtol = 1e-6;
   double atol = 0.0;  ///< absolute; 0 = rtol · min(L, V)
-  /// The framework's rules and their defaults (fractions of L, V, T).
-  double chatter_height = 1e-9;
-  double contact_velocity = 1e-11;
-  double simultaneity = 1e-12;
-  double trigger = 1e-13;  ///< rounding allowance: a guard must exceed this (× L or F) to fire
-  long max_events = 100000;  ///< per time scale T, as the framework's Zeno guard
   long max_steps = 50000000;
-  /// Scales L, V, F, T (take them from the framework's RunSummary for the same start).
-  double length_scale = 1.0, velocity_scale = 1.0, force_scale = 1.0, time_scale = 1.0;
+  BaselineRules rules;  ///< chatter_height, trigger, …, and the scales L, V, F, T
 };
 
+/// What a baseline run produced (also the SUNDIALS peer's, sundials_peer.hpp).
 struct RkResult {
   bool ok = true;
   std::string message;
@@ -77,7 +64,6 @@ class RkBaseline {
                const std::vector<double>& sample_times);
 
  private:
-  struct Impl;
   const ImpactSystem* scene_;
   RkOptions options_;
 };

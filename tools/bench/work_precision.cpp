@@ -1,7 +1,11 @@
 /// \file work_precision.cpp
-/// Work-precision data: the framework (vibro::Simulator) at a range of its settings against a
-/// conventional adaptive Runge–Kutta baseline with the same impact and sticking rules
-/// (rk_baseline.hpp: Boost.Odeint dopri5 and Fehlberg 7(8), rtol = 1e-3 … 1e-12).
+/// Work-precision data: the framework (vibro::Simulator) at a range of its chatter heights
+/// against conventional integrators that apply the framework's own event rules
+/// (baseline_events.hpp): Dormand–Prince 5(4) and DOP853 with their dense outputs
+/// (rk_baseline.hpp) and, when built with SUNDIALS, ARKODE's Dormand–Prince 5(4) and Fehlberg
+/// 7(8) and CVODE's Adams method with their own root finding (sundials_peer.hpp); each at
+/// rtol = 1e-3 … 1e-12 crossed with chatter_height 1e-5, 1e-8, 1e-11 (the report keeps each
+/// method's lower envelope of CPU time against error).
 ///
 /// Problems (all from rest unless said):
 ///   a  the paper's system (Wagg 2004) at Ω = 0.255, 100 forcing periods
@@ -11,7 +15,7 @@
 ///   d  the paper's system at Ω = 0.27 (after rising), 100 periods
 ///
 /// Reference: the framework at its tightest setting (trigger 1e-13, chatter_height 1e-13), except
-/// for c where the closed form is exact. It is cross-checked (i) against the RK 7(8) baseline at
+/// for c where the closed form is exact. It is cross-checked (i) against the DOP853 baseline at
 /// rtol = 1e-13 on the same sample grid and events, and (ii) for a, c, d against the independent
 /// long-double fixed-step RK8 hybrid integrator of tests/support/reference_hybrid.hpp (events:
 /// impact, release and chatter-limit times; the final state).
@@ -26,17 +30,18 @@
 /// CPU time: the median over repeated runs of this thread's CPU time (CLOCK_THREAD_CPUTIME_ID),
 /// including recording the grid samples and the events. Both sides store the samples alike: in
 /// an n × samples matrix sized once before the run and filled in place (vibro::Samples; the
-/// baseline's RkResult), which Trajectory keeps and compare() reads. Until issue 13 both pushed
-/// two vectors per sample: on c (2000 samples, ~50 µs of simulation) their allocations were a
-/// third of the framework's time and timed storage more than integration. The framework's
+/// baseline's RkResult), which Trajectory keeps and compare() reads. The framework's
 /// states come from a per-segment table of the contact mode's [x; v] (Segment::evaluate): a few
-/// real operations a sample, where the baseline evaluates its dense output (or re-steps).
+/// real operations a sample, where the baselines evaluate their dense output.
 ///
 /// Usage: work_precision [--quick] [--out DIR] [--problems abcd]
 ///   writes DIR/work_precision.csv (one line per run setting) and DIR/work_precision.json
 ///   (problems, reference cross-checks, build); tools/bench/work_precision.sh makes the report.
 #include "rk_baseline.hpp"
 #include "support/reference_hybrid.hpp"
+#ifdef VIBRO_BENCH_WITH_SUNDIALS
+#include "sundials_peer.hpp"
+#endif
 #include "vibro/models/chain.hpp"
 #include "vibro/simulator.hpp"
 
@@ -197,17 +202,17 @@ Trajectory run_framework(const Problem& p, FrameworkSetting s) {
   return t;
 }
 
-Trajectory run_baseline(const Problem& p, vibro::bench::RkMethod method, double rtol, double chatter_height) {
-  vibro::bench::RkOptions o;
-  o.method = method;
-  o.rtol = rtol;
-  o.chatter_height = chatter_height;
-  o.length_scale = p.L;
-  o.velocity_scale = p.V;
-  o.force_scale = p.F;
-  o.time_scale = p.T;
-  vibro::bench::RkBaseline rk(*p.scene, o);
-  vibro::bench::RkResult r = rk.run(0.0, p.x0, p.v0, p.t_end, p.grid);
+vibro::bench::BaselineRules baseline_rules(const Problem& p, double chatter_height) {
+  vibro::bench::BaselineRules r;
+  r.chatter_height = chatter_height;
+  r.length_scale = p.L;
+  r.velocity_scale = p.V;
+  r.force_scale = p.F;
+  r.time_scale = p.T;
+  return r;
+}
+
+Trajectory from_result(vibro::bench::RkResult&& r) {
   Trajectory t;
   t.ok = r.ok;
   t.message = r.message;
@@ -219,6 +224,25 @@ Trajectory run_baseline(const Problem& p, vibro::bench::RkMethod method, double 
   t.rhs = r.rhs;
   return t;
 }
+
+Trajectory run_baseline(const Problem& p, vibro::bench::RkMethod method, double rtol, double chatter_height) {
+  vibro::bench::RkOptions o;
+  o.method = method;
+  o.rtol = rtol;
+  o.rules = baseline_rules(p, chatter_height);
+  vibro::bench::RkBaseline rk(*p.scene, o);
+  return from_result(rk.run(0.0, p.x0, p.v0, p.t_end, p.grid));
+}
+
+#ifdef VIBRO_BENCH_WITH_SUNDIALS
+Trajectory run_sundials(const Problem& p, vibro::bench::SundialsMethod method, double rtol, double chatter_height) {
+  vibro::bench::SundialsOptions o;
+  o.method = method;
+  o.rtol = rtol;
+  o.rules = baseline_rules(p, chatter_height);
+  return from_result(vibro::bench::run_sundials(*p.scene, o, 0.0, p.x0, p.v0, p.t_end, p.grid));
+}
+#endif
 
 /// Closed form for problem c: x'' = -g above the stop x ≥ 0, dropped from h, restitution r.
 Trajectory closed_form_bounce(const Problem& p) {
@@ -382,17 +406,17 @@ std::unique_ptr<Problem> bounce() {
 
 std::FILE* csv = nullptr;
 
-void write_row(const Problem& p, const char* method, const char* setting_name, double setting, const Timed& t,
-               const Errors& e) {
+void write_row(const Problem& p, const char* method, const char* setting_name, double setting, double height,
+               const Timed& t, const Errors& e) {
   std::string status = t.result.ok ? "ok" : t.result.message;
   std::replace(status.begin(), status.end(), ',', ';');
   std::replace(status.begin(), status.end(), '\n', ' ');
-  std::fprintf(csv, "%s,%s,%s,%.3e,%.6e,%d,%.3e,%.3e,%.3e,%ld,%ld,%.3e,%ld,%ld,%ld,%s\n", p.key.c_str(), method,
-               setting_name, setting, t.cpu, t.reps, e.state, e.velocity, e.impact, e.matched, e.unmatched,
+  std::fprintf(csv, "%s,%s,%s,%.3e,%.3e,%.6e,%d,%.3e,%.3e,%.3e,%ld,%ld,%.3e,%ld,%ld,%ld,%s\n", p.key.c_str(), method,
+               setting_name, setting, height, t.cpu, t.reps, e.state, e.velocity, e.impact, e.matched, e.unmatched,
                e.sticking, t.result.impacts, t.result.work, t.result.rhs, status.c_str());
   std::fflush(csv);
-  std::fprintf(stderr, "  %s %-9s %s=%.0e  cpu %.4f s (%d)  state %.2e  impact %.2e  stick %.2e  %s\n", p.key.c_str(),
-               method, setting_name, setting, t.cpu, t.reps, e.state, e.impact, e.sticking, status.c_str());
+  std::fprintf(stderr, "  %s %-9s %s=%.0e h=%.0e  cpu %.4f s (%d)  state %.2e  impact %.2e  stick %.2e  %s\n", p.key.c_str(),
+               method, setting_name, setting, height, t.cpu, t.reps, e.state, e.impact, e.sticking, status.c_str());
 }
 
 std::string json_number(double v) {
@@ -461,7 +485,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "work_precision: cannot write to %s\n", out_dir.c_str());
     return 1;
   }
-  std::fprintf(csv, "problem,method,setting_name,setting,cpu_s,reps,state_err,velocity_err,impact_err,matched,"
+  std::fprintf(csv, "problem,method,setting_name,setting,chatter_height,cpu_s,reps,state_err,velocity_err,impact_err,matched,"
                     "unmatched,sticking_err,impacts,work,rhs,status\n");
   std::fprintf(js, "{\n  \"quick\": %s,\n  \"periods\": %d,\n  \"compiler\": \"%s %s\",\n  \"problems\": [\n",
                quick ? "true" : "false", periods,
@@ -478,6 +502,12 @@ int main(int argc, char** argv) {
   std::vector<double> rtols = quick ? std::vector<double>{1e-3, 1e-5, 1e-7, 1e-9, 1e-11}
                                     : std::vector<double>{1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12};
 
+  // The baselines' chatter heights, each paired with every rtol (the framework's own curve
+  // sweeps the height at its default trigger).
+  const std::vector<double> baseline_heights = quick ? std::vector<double>{1e-5, 1e-9}
+                                                     : std::vector<double>{1e-5, 1e-8, 1e-11};
+  const double baseline_budget = quick ? 0.02 : 0.1;
+
   bool first_problem = true;
   for (const auto& pp : problems) {
     const Problem& p = *pp;
@@ -489,8 +519,8 @@ int main(int argc, char** argv) {
       return 1;
     }
     const Trajectory ref = p.closed_form ? closed_form_bounce(p) : fw_tight.result;
-    // Cross-check (i): RK 7(8) at rtol 1e-13 (chatter_height 1e-13).
-    const Timed rk_tight = timed([&] { return run_baseline(p, vibro::bench::RkMethod::fehlberg78, 1e-13, 1e-13); }, 1, 1, 0.0);
+    // Cross-check (i): DOP853 at rtol 1e-13 (chatter_height 1e-13).
+    const Timed rk_tight = timed([&] { return run_baseline(p, vibro::bench::RkMethod::dop853, 1e-13, 1e-13); }, 1, 1, 0.0);
     const Errors check_rk = compare(p, rk_tight.result, fw_tight.result);
     Errors check_fw_closed;
     if (p.closed_form) check_fw_closed = compare(p, fw_tight.result, ref);
@@ -549,12 +579,12 @@ int main(int argc, char** argv) {
                     std::to_string(lim.unmatched) + "}";
       std::fprintf(stderr, "  hybrid reference: %s\n", hybrid_json.c_str());
     }
-    std::fprintf(stderr, "  RK78 at 1e-13 vs framework tightest: %s\n", json_errors(check_rk).c_str());
+    std::fprintf(stderr, "  DOP853 at 1e-13 vs framework tightest: %s\n", json_errors(check_rk).c_str());
     std::fprintf(js,
                  "%s    {\"key\": \"%s\", \"title\": \"%s\", \"t_end\": %.17g, \"grid_points\": %zu, \"dof\": %ld, "
                  "\"stops\": %zu, \"L\": %.6g, \"V\": %.6g, \"T\": %.6g, \"closed_form\": %s,\n"
                  "     \"reference_impacts\": %ld, \"reference_events\": %zu, \"framework_tightest_cpu_s\": %s,\n"
-                 "     \"rk78_1e-13_vs_framework_tightest\": %s, \"rk78_1e-13_cpu_s\": %s,\n"
+                 "     \"dop853_1e-13_vs_framework_tightest\": %s, \"dop853_1e-13_cpu_s\": %s,\n"
                  "     \"framework_tightest_vs_closed_form\": %s,\n     \"hybrid_reference_vs_framework_tightest\": %s}",
                  first_problem ? "" : ",\n", p.key.c_str(), p.title.c_str(), p.t_end, p.grid.size(),
                  static_cast<long>(p.scene->dof()), p.scene->stop_count(), p.L, p.V, p.T,
@@ -569,15 +599,29 @@ int main(int argc, char** argv) {
       // both time and accuracy (docs/performance.md); before it, trigger = clamp(h, 1e-13, 1e-5).
       const FrameworkSetting s{vibro::SimulatorOptions{}.trigger, h};
       const Timed t = timed([&] { return run_framework(p, s); }, min_reps, max_reps, budget);
-      write_row(p, "framework", "chatter_height", h, t, compare(p, t.result, ref));
+      write_row(p, "framework", "chatter_height", h, h, t, compare(p, t.result, ref));
     }
-    for (auto method : {vibro::bench::RkMethod::dopri5, vibro::bench::RkMethod::fehlberg78}) {
+    // The baselines: each tolerance with each chatter height (a setting of its own, as the
+    // framework's); the report takes each method's lower envelope of cost against error.
+    for (auto method : {vibro::bench::RkMethod::dopri5, vibro::bench::RkMethod::dop853}) {
       for (double rtol : rtols) {
-        const Timed t = timed([&] { return run_baseline(p, method, rtol, std::max(rtol, 1e-13)); }, min_reps,
-                              max_reps, budget);
-        write_row(p, vibro::bench::to_string(method), "rtol", rtol, t, compare(p, t.result, ref));
+        for (double h : baseline_heights) {
+          const Timed t = timed([&] { return run_baseline(p, method, rtol, h); }, min_reps, max_reps, baseline_budget);
+          write_row(p, vibro::bench::to_string(method), "rtol", rtol, h, t, compare(p, t.result, ref));
+        }
       }
     }
+#ifdef VIBRO_BENCH_WITH_SUNDIALS
+    for (auto method : {vibro::bench::SundialsMethod::arkode_dp5, vibro::bench::SundialsMethod::arkode_f78,
+                        vibro::bench::SundialsMethod::cvode_adams}) {
+      for (double rtol : rtols) {
+        for (double h : baseline_heights) {
+          const Timed t = timed([&] { return run_sundials(p, method, rtol, h); }, min_reps, max_reps, baseline_budget);
+          write_row(p, vibro::bench::to_string(method), "rtol", rtol, h, t, compare(p, t.result, ref));
+        }
+      }
+    }
+#endif
   }
   std::fprintf(js, "\n  ]\n}\n");
   std::fclose(js);

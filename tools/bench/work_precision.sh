@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Work-precision report: the framework against an adaptive Runge–Kutta baseline (Boost.Odeint)
-# with the same impact and sticking rules, on four problems. ONE command; builds nothing.
+# Work-precision report: the framework against conventional integrators with its own event rules
+# (Dormand–Prince 5(4) and DOP853 with dense output, and SUNDIALS' ARKODE and CVODE when built
+# with it), on four problems. ONE command; builds nothing.
 #
-#   bash tools/bench/work_precision.sh            # full run (~10 min on 2 cores): writes
+#   bash tools/bench/work_precision.sh            # full run (~10-30 min on 2 shared cores): writes
 #                                                 #   docs/accuracy-work-precision.md and
 #                                                 #   docs/figures/work_precision_<a|b|c|d>.png
 #   bash tools/bench/work_precision.sh --quick    # smoke test (~1 min): 20 periods, fewer settings;
