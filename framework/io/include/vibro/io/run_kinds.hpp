@@ -15,10 +15,14 @@
 /// docs/scenes.md and docs/results.md.
 ///
 /// Layers (each includes only those before it):
-///   HDF5 layer (src/hdf5_store) ← scene model (scene.hpp) ← result file (result_file.hpp) ←
-///   scene reading (src/scene_reader.hpp, src/scene_sections, src/run_section) ← run kinds
-///   (src/kinds/) ← this table (run_kinds.cpp) ← scene building (SceneDocument::build), runner,
-///   session, `vibro`.
+///   scene model (scene.hpp) ← result file (results.hpp, result_file.hpp: HDF5 inside results.cpp)
+///   ← run request (run_request.hpp) ← scene reading (src/scene_reader.hpp, src/scene_sections,
+///   src/run_section) and what runs share (src/simulation, src/progress, src/interrupt,
+///   src/sweep_plan.hpp) ← run kinds (src/kinds/) ← this table (run_kinds.cpp) ← scene building
+///   (SceneDocument::build_checked, read_run in scene.cpp), runner, session, `vibro`.
+/// Building a scene calls its kind's parser through the table, and some parsers build the scenes
+/// of their grid values (SceneDocument::build_point): a recursion through the table at run time,
+/// not an include or link cycle.
 #include "vibro/io/run_request.hpp"
 
 #include <string>
