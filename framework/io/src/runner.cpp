@@ -10,6 +10,7 @@
 #include "vibro/io/result_file.hpp"
 
 #include "mpi_world.hpp"
+#include "vibro/io/recorded_gaps.hpp"
 
 #include <fmt/format.h>
 #ifdef _OPENMP
@@ -108,6 +109,7 @@ Recording simulate(const Scene& base, const StartState& start, std::atomic<doubl
     // Counts are the recorded run's (docs/results.md), as the recorded events are.
     rec.summary = sim.run(t1, transient.x, transient.v, t1 + scene.run.periods * T, rec.observers());
   }
+  check_recorded_gaps(scene, rec);  // no state past a stop is stored as a result
   for (const std::string& w : transient.warnings)
     if (std::find(rec.summary.warnings.begin(), rec.summary.warnings.end(), w) == rec.summary.warnings.end())
       rec.summary.warnings.insert(rec.summary.warnings.begin(), "during the transient: " + w);
@@ -350,12 +352,24 @@ void run_chain(const SweepPlan& plan, const SweepStart& from, std::size_t c, Del
 template <class Take, class Deliver>
 void run_chains(int threads, const SweepPlan& plan, const SweepStart& from, Take& take, Deliver& deliver) {
   (void)threads;  // without OpenMP: one thread
+  // An exception must not leave an OpenMP region (std::terminate): the first one ends the sweep
+  // (the others stop before their next point, the partial file keeps what was written) and is
+  // rethrown here, where the caller reports it like any error.
+  std::exception_ptr failure;
+  std::mutex failure_lock;
 #ifdef _OPENMP
 #pragma omp parallel num_threads(threads)
 #endif
   {
-    while (const std::optional<std::size_t> c = take()) run_chain(plan, from, *c, deliver);
+    try {
+      while (const std::optional<std::size_t> c = take()) run_chain(plan, from, *c, deliver);
+    } catch (...) {
+      std::lock_guard<std::mutex> hold(failure_lock);
+      if (!failure) failure = std::current_exception();
+      plan.interrupted->store(true);
+    }
   }
+  if (failure) std::rethrow_exception(failure);
 }
 
 /// Hands out the chains in grid order, one per call, from any thread.

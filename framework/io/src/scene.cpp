@@ -823,6 +823,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
 
   // --- record ---
   RecordSpec rec;
+  YAML::Node sample_times_node;  // record.samples.times, checked against the run's span below
   if (const YAML::Node rn = root["record"]) {
     r.expect_map(rn, "record", {"events", "contacts", "statistics", "poincare", "samples"});
     if (rn["events"]) rec.events = r.boolean(rn["events"], "record.events");
@@ -834,6 +835,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       if (sm["per_period"] && sm["times"]) r.fail(sm, "record.samples", "give either per_period or times, not both");
       if (sm["per_period"]) rec.samples_per_period = static_cast<int>(r.integer(sm["per_period"], "record.samples.per_period", 1, 1000000));
       if (sm["times"]) {
+        sample_times_node = sm["times"];
         rec.sample_times = r.numbers(sm["times"], "record.samples.times", -1, "times from the start of recording");
         for (std::size_t i = 0; i < rec.sample_times.size(); ++i)
           if (rec.sample_times[i] < 0.0)
@@ -912,6 +914,18 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       }
     }
   };
+  // Sample times lie in the recorded span run.periods × period (Recording::for_scene): checked as
+  // soon as run.periods is known — before the sweep values, so that times outside every point's
+  // span are reported as such — and a sweep checks it at each value (build_checked per value).
+  auto check_sample_times = [&] {
+    if ((run.kind != RunSpec::Kind::simulate && run.kind != RunSpec::Kind::sweep) || !sample_times_node) return;
+    const double span = run.periods * (f.frequency > 0.0 ? 2.0 * std::numbers::pi / f.frequency : 1.0);
+    for (std::size_t i = 0; i < rec.sample_times.size(); ++i)
+      if (!(rec.sample_times[i] <= span))
+        r.fail(sample_times_node[i], "record.samples.times[" + std::to_string(i) + "]",
+               "must lie in the recorded span [0, " + number_text(span) + "] (run.periods × the forcing period), found " +
+                   number_text(rec.sample_times[i]));
+  };
   if (const YAML::Node rn = root["run"]) {
     r.expect_map(rn, "run", {"kind", "transient_periods", "periods", "sweep", "locate", "continue", "basin", "diagram", "lyapunov", "orbit"});
     if (rn["kind"]) {
@@ -927,6 +941,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
     }
     if (rn["transient_periods"]) run.transient_periods = r.number_in(rn["transient_periods"], "run.transient_periods", 0, 1e9, "a number of periods ≥ 0");
     if (rn["periods"]) run.periods = r.number_in(rn["periods"], "run.periods", 1e-12, 1e9, "a number of periods > 0");
+    check_sample_times();
     const YAML::Node sw = rn["sweep"], lc = rn["locate"], ct = rn["continue"], bs = rn["basin"];
     if (run.kind == RunSpec::Kind::basin && !bs)
       r.fail(rn, "run.basin", "missing: run.kind: basin needs run.basin.parameters (two scene values and their grids)");
@@ -1138,6 +1153,8 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
       }
     }
   }
+
+  check_sample_times();  // (with the default run.periods when there is no run section)
 
   // --- engine (docs/scenes.md, solver.engine) ---
   // The modal engine also needs a stiffness matrix without rigid-body modes (ChainModes refuses
