@@ -19,6 +19,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -27,6 +28,7 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <vector>
 
 namespace py = pybind11;
 using vibro::io::SceneDocument;
@@ -114,10 +116,78 @@ struct Work {
   std::exception_ptr failure;
 };
 
+/// The runs in progress, so that the interpreter's exit can stop them (stop_all_runs).
+std::mutex g_runs_lock;
+std::vector<std::weak_ptr<Work>> g_runs;
+
+/// Registered with Python's atexit: raises every running run's stop flag and waits (GIL
+/// released) up to 10 s for their workers to end. Python runs it before it finalizes, while a
+/// daemon thread may still wait in run_watched; once finalizing, such a thread is ended by the
+/// interpreter where it next takes the GIL (Python ≤ 3.11: pthread_exit, an unwind through
+/// run_watched), and the engine must not still be running then.
+void stop_all_runs() {
+  std::vector<std::shared_ptr<Work>> running;
+  {
+    const std::lock_guard<std::mutex> hold(g_runs_lock);
+    for (const std::weak_ptr<Work>& w : g_runs)
+      if (std::shared_ptr<Work> work = w.lock()) running.push_back(std::move(work));
+  }
+  py::gil_scoped_release release;
+  for (const auto& work : running) work->stop.store(true);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  for (const auto& work : running) {
+    std::unique_lock<std::mutex> hold(work->lock);
+    work->finished.wait_until(hold, deadline, [&] { return work->done; });
+  }
+}
+
+/// Keeps a run in g_runs while it runs.
+class RunListed {
+ public:
+  explicit RunListed(const std::shared_ptr<Work>& work) : work_(work.get()) {
+    const std::lock_guard<std::mutex> hold(g_runs_lock);
+    g_runs.push_back(work);
+  }
+  ~RunListed() {
+    const std::lock_guard<std::mutex> hold(g_runs_lock);
+    g_runs.erase(std::remove_if(g_runs.begin(), g_runs.end(),
+                                [this](const std::weak_ptr<Work>& w) {
+                                  const std::shared_ptr<Work> p = w.lock();
+                                  return !p || p.get() == work_;
+                                }),
+                 g_runs.end());
+  }
+  RunListed(const RunListed&) = delete;
+  RunListed& operator=(const RunListed&) = delete;
+
+ private:
+  const Work* work_;
+};
+
+/// Joins the worker on every way out of run_watched, the stop flag raised first if it still
+/// runs: also when the interpreter ends a daemon thread that waits here (an unwind; a joinable
+/// std::thread destroyed then would call std::terminate).
+class WorkerJoin {
+ public:
+  WorkerJoin(std::thread& worker, Work& work) : worker_(worker), work_(work) {}
+  ~WorkerJoin() {
+    if (!worker_.joinable()) return;
+    work_.stop.store(true);
+    worker_.join();
+  }
+  WorkerJoin(const WorkerJoin&) = delete;
+  WorkerJoin& operator=(const WorkerJoin&) = delete;
+
+ private:
+  std::thread& worker_;
+  Work& work_;
+};
+
 /// Runs `task(work)` on a worker thread with the GIL released; see the file's comment.
 /// Returns whether a signal handler's KeyboardInterrupt stopped it.
 template <class Task>
 bool run_watched(const std::shared_ptr<Work>& work, Task task) {
+  const RunListed listed(work);
   std::thread worker([work, task]() mutable {
     try {
       task(*work);
@@ -130,24 +200,29 @@ bool run_watched(const std::shared_ptr<Work>& work, Task task) {
     }
     work->finished.notify_all();
   });
+  const WorkerJoin join(worker, *work);
   std::optional<py::error_already_set> raised;  // by a signal handler while the run went on
   {
-    py::gil_scoped_release release;
+    // The GIL is released and taken back by hand, not by pybind11's scoped guards: a finalizing
+    // interpreter ends a daemon thread inside PyEval_RestoreThread, and a guard's destructor
+    // taking the GIL again during that unwind would abort the process.
+    PyThreadState* state = PyEval_SaveThread();
     std::unique_lock<std::mutex> hold(work->lock);
     while (!work->finished.wait_for(hold, std::chrono::milliseconds(50), [&] { return work->done; })) {
       if (raised) continue;  // stopping: wait for the engine's next event
       hold.unlock();
-      {
-        py::gil_scoped_acquire acquire;
-        if (PyErr_CheckSignals() != 0) {
-          raised.emplace();
-          work->stop.store(true);
-        }
+      PyEval_RestoreThread(state);
+      if (PyErr_CheckSignals() != 0) {
+        raised.emplace();
+        work->stop.store(true);
       }
+      state = PyEval_SaveThread();
       hold.lock();
     }
+    hold.unlock();
+    worker.join();  // before the GIL is taken back (where a finalizing interpreter ends the thread)
+    PyEval_RestoreThread(state);
   }
-  worker.join();
   if (raised && !raised->matches(PyExc_KeyboardInterrupt)) throw *raised;
   if (work->failure && !raised) std::rethrow_exception(work->failure);
   return raised.has_value();
@@ -258,6 +333,8 @@ PYBIND11_MODULE(_vibro, m) {
   m.attr("SceneError") = py::reinterpret_borrow<py::object>(scene_error_type);
   m.attr("ResultError") = py::reinterpret_borrow<py::object>(result_error_type);
   py::register_exception_translator(translate);
+  // Runs still going when the interpreter exits (in daemon threads) are stopped first.
+  py::module_::import("atexit").attr("register")(py::cpp_function(&stop_all_runs));
 
   py::class_<SceneDocument>(m, "SceneDocument", "A scene's YAML tree, editable by path (vibro::io::SceneDocument).")
       .def_static("load", &SceneDocument::load, py::arg("path"), "Reads a scene file.")

@@ -118,11 +118,19 @@ RunScales run_scales(const SimulatorOptions& o, double omega, double kmax, doubl
   if (!(omega > 0.0)) omega = 1.0;
   const double stiff = std::max(kmax, mmax * omega * omega);
   double L = o.length_scale;
-  if (L == 0.0) {
-    L = stops_length_scale(stops, x0.cwiseAbs().maxCoeff());
-    L = std::max({L, v0.cwiseAbs().maxCoeff() / omega, fmax / stiff});
-  }
   RunScales s;
+  for (const Stop& st : stops) s.L_stops = std::max({s.L_stops, std::abs(st.position), st.amplitude});
+  if (L == 0.0) {
+    const double x_max = x0.size() > 0 ? x0.cwiseAbs().maxCoeff() : 0.0;
+    const double v_term = (v0.size() > 0 ? v0.cwiseAbs().maxCoeff() : 0.0) / omega, f_term = fmax / stiff;
+    L = stops_length_scale(stops, x_max);
+    L = std::max({L, v_term, f_term});
+    // What set L, for the messages of check_resolution (the largest term; ties go to the stops).
+    const double top = std::max({s.L_stops, x_max, v_term, f_term});
+    s.L_from = top == s.L_stops ? "the stops" : top == x_max ? "initial.x" : top == v_term ? "initial.v" : "the forcing";
+  } else {
+    s.L_from = "solver.length_scale";
+  }
   s.L = L;
   s.V = L * omega;
   s.F = std::max(stiff * L, fmax);
@@ -164,15 +172,34 @@ void check_resolution(const RunScales& s, const RunScales& automatic, const Simu
   }
   // A stop is located no better than its gap moves in one spacing of doubles near t: V·ulp(t).
   const double t_far = std::max(std::abs(t0), std::abs(t_end));
+  const double t_named = std::abs(t0) > std::abs(t_end) ? t0 : t_end;  // the far end, with its sign
   const double ulp = std::nextafter(t_far, std::numeric_limits<double>::infinity()) - t_far;
   const double drift = s.V * ulp;  // ≈ |g'| ulp(t)
   if (drift > 1e-6 * s.L)
-    throw InvalidInput("time " + number_text(t_far) + " is too large for this run: doubles near it are " +
+    throw InvalidInput("time " + number_text(t_named) + " is too large for this run: doubles near it are " +
                        number_text(ulp) + " apart, " + number_text(drift / s.L) +
                        " of the length scale per step at the run's speeds (1e-6 at most); start the run near "
                        "t = 0 (initial.time)");
+  // The stops' own scale against the rounding of the run's positions and times: a run whose
+  // motion (automatic.L, set by a large initial state or forcing) dwarfs its stops places events
+  // no better than max(V·ulp(t), ε·L), and recorded states may lie that far past a stop.
+  if (automatic.L_stops > 0.0) {
+    const double eps = std::numeric_limits<double>::epsilon();
+    const double place = std::max({automatic.V * ulp, eps * automatic.L, drift, eps * s.L});
+    if (place > 1e-6 * automatic.L_stops)
+      throw InvalidInput((std::string(automatic.L_from) == "the forcing"
+                              ? "the forcing's static deflection fmax/k = " + number_text(automatic.L) + " sets the run's length scale"
+                              : std::string(automatic.L_from) + " sets the run's length scale to " + number_text(automatic.L)) +
+                         ", " + number_text(automatic.L / automatic.L_stops) + " × the stops' own scale " +
+                         number_text(automatic.L_stops) + " (their largest offset or amplitude): near t = " +
+                         number_text(t_named) + " doubles place an event only to " + number_text(place) + ", " +
+                         number_text(place / automatic.L_stops) +
+                         " of the stops' scale (1e-6 at most), so the stops would be crossed between two "
+                         "representable times; bring " + automatic.L_from + " within about 1e6 × the stops' scale, "
+                         "or scale the stops with it");
+  }
   if (drift > 10.0 * s.eps_gap)
-    warnings.push_back("time resolution: near t = " + number_text(t_far) + " doubles are " + number_text(ulp) +
+    warnings.push_back("time resolution: near t = " + number_text(t_named) + " doubles are " + number_text(ulp) +
                        " apart, so events are placed to " + number_text(drift) + " in the gaps (" +
                        number_text(drift / s.eps_gap) + " × the trigger tolerance " + number_text(s.eps_gap) + ")");
 }

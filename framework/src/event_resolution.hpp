@@ -67,6 +67,11 @@ struct EventRules {
 /// |v0|/ω and f/k (k = max(‖K‖, ‖M‖ω²)); V = Lω; F = max(kL, f); T = 2π/ω.
 struct RunScales {
   double L = 0.0, V = 0.0, F = 0.0, T = 0.0;
+  /// The stops' own scale (largest offset or amplitude; 0 if every stop sits at 0 unmoving) and
+  /// what set L (for messages): "solver.length_scale", "the stops", "initial.x", "initial.v"
+  /// (|v0|/ω) or "the forcing" (its static deflection f/k).
+  double L_stops = 0.0;
+  const char* L_from = "the stops";
   double eps_gap = 0.0, eps_force = 0.0;  ///< trigger·L, trigger·F
   double dt_simultaneous = 0.0;           ///< simultaneity·T
   double window = 0.0;                    ///< the Zeno guard's window (event_window, or T)
@@ -104,6 +109,11 @@ struct EventWorkspace {
 /// that an explicit solver.length_scale is sane against the scene's own (`automatic`, the L of
 /// the same run with length_scale = 0). Throws InvalidInput where the result would be
 /// meaningless (errors above 1e-6 L); appends a warning where it only misses the trigger.
+/// The stops themselves must be resolved too: where the motion's scale (a large initial
+/// velocity or position, or forcing) dwarfs the stops' own scale L_stops, the rounding of an
+/// event's place — a gap moves V·ulp(t) per spacing of doubles in time, and a position near L
+/// is known to ε·L — must stay below 1e-6 L_stops, or the stops would be crossed between two
+/// representable times (events below the time resolution) and states recorded far past them.
 void check_resolution(const RunScales& s, const RunScales& automatic, const SimulatorOptions& options,
                       double t0, double t_end, std::vector<std::string>& warnings);
 

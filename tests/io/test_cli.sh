@@ -84,9 +84,29 @@ case "$case_name" in
     expect 2 "error: missing.yaml: cannot open the scene file: No such file or directory" "$vibro" info missing.yaml
     files_are fifo folder
     ;;
-  threads)  # was: --threads 100000 segfaulted
+  threads)  # was: --threads 100000 segfaulted; -1 and a 20-digit count gave the parser's raw text, exits 105, 104
     small_sweep "" 3 > sweep.yaml
     expect 4 "--threads 100000: at most 1024 threads" "$vibro" run sweep.yaml -o s.h5 --threads 100000
+    expect 4 "--threads 99999999999999999999: at most 1024 threads" "$vibro" run sweep.yaml -o s.h5 --threads 99999999999999999999
+    expect 2 "error: --threads -1: expected a whole number of threads ≥ 0" "$vibro" run sweep.yaml -o s.h5 --threads -1
+    expect 2 "error: --threads 1.5: expected a whole number" "$vibro" run sweep.yaml -o s.h5 --threads 1.5
+    files_are sweep.yaml
+    ;;
+  arguments)  # was: CLI11's raw text over several lines, exit codes 106 (no scene), 109 (unknown option)
+    for args in "run" "run --frobnicate x.yaml" "check" "info a.yaml b.yaml" "" "nonsense x.yaml" "run x.yaml --threads"; do
+      # shellcheck disable=SC2086 (the words of each case are its arguments)
+      expect 2 "(vibro --help lists the arguments)" "$vibro" $args
+      [ "$(wc -l < err.txt)" -eq 1 ] || fail "vibro $args: not one line: $(cat err.txt)"
+      grep -q '^error: ' err.txt || fail "vibro $args: no error: line: $(cat err.txt)"
+    done
+    expect 0 "" "$vibro" --help
+    grep -qF "Exit codes: 0 success" out.txt || fail "--help does not list the exit codes: $(cat out.txt)"
+    expect 0 "" "$vibro" run --help
+    ;;
+  sample_times_in_sweep)  # was: a sample time past one sweep value's span: terminate in a worker thread, exit 134
+    small_sweep ", samples: {times: [0.5, 120]}" 3 > sweep.yaml  # span 5 × 2π/Ω: 125.7 at Ω = 0.25, 116.4 at 0.27
+    expect 2 "record.samples.times[1]" "$vibro" run sweep.yaml -o s.h5 --threads 2
+    grep -qF "forcing.frequency = 0.27" err.txt && grep -qF "makes the scene invalid" err.txt || fail "sample times: $(cat err.txt)"
     files_are sweep.yaml
     ;;
   memory)  # was: bad_alloc (exit 134) from a 100 000-mass chain with a wall, and from 1e6 × 1e9 samples

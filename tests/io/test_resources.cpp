@@ -14,6 +14,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -119,6 +120,20 @@ TEST_CASE("a run that doubles cannot resolve is refused, and one that misses the
     }
     CHECK(run_for(build(one_mass("1", "solver: {length_scale: 10}\n")), 1).status == RunStatus::completed);
   }
+  SECTION("an initial velocity that dwarfs the stops: they would be crossed between representable times") {
+    // v0 = 1e18 against a stop at 0.5: L = |v0|/Ω ≈ 1.25e18, and an event is placed to ε·L ≈ 280
+    // at best (recorded states 400 … 1200 past the stops, exit 0, before this was refused).
+    CHECK_THAT(what_of([&] { (void)run_for(build(one_mass("1", "initial: {v: [1e18]}\n")), 1); }),
+               Contains("initial.v sets the run's length scale") && Contains("the stops' own scale 0.5"));
+    CHECK_THAT(what_of([&] { (void)run_for(build(one_mass("1", "initial: {x: [-1e12]}\n")), 1); }),
+               Contains("initial.x sets the run's length scale"));
+    // 1e4 × the stops' scale is resolved (ε·L and V·ulp(t) ≈ 1e-12 of it).
+    CHECK(run_for(build(one_mass("1", "initial: {v: [4000]}\n")), 1).status == RunStatus::completed);
+  }
+  SECTION("t0 = -1e15: the message keeps the sign") {
+    CHECK_THAT(what_of([&] { (void)run_for(build(one_mass("1", "initial: {time: -1e15}\n")), 1); }),
+               Contains("time -1000000000000000 is too large for this run"));
+  }
   SECTION("the modal engine refuses alike") {
     std::string chain = "model: {chain: {masses: [1, 1], springs: [1], left_wall: {spring: 1}}}\n"
                         "forcing: {frequency: 0.8, cosine: [1, 0]}\nsolver: {engine: modal}\ninitial: {time: 1e15}\n";
@@ -135,6 +150,27 @@ TEST_CASE("a stiff run says so from its start, with the search steps per period"
   CHECK_THAT(s.warnings[0], Contains("stiff: the certified event search steps by 1/ρ") &&
                                 Contains("about 78539816 search steps per forcing period"));
   CHECK(run_for(build(one_mass("1")), 1).warnings.empty());
+}
+
+TEST_CASE("a run of more than 1e12 search steps is refused before it starts, with the estimate", "[resources]") {
+  // Found by fuzzing: dampers of 1e15, springs of 1e308, a subnormal mass, Ω = 1e-300 ran for
+  // minutes at ~0 % progress. The bound a + √b (a, b the largest row sums of M⁻¹|C|, M⁻¹|K|).
+  const std::string chain = "model: {chain: {masses: [1, 2], springs: [1], dampers: [DAMPER], left_wall: {spring: 1}}}\n"
+                            "forcing: {frequency: 0.8, cosine: [1, 0]}\nrun: {periods: 10}\n";
+  auto with = [&](const std::string& damper) {
+    std::string text = chain;
+    return build(text.replace(text.find("DAMPER"), 6, damper));
+  };
+  const WorkEstimate w = estimate_run_work(with("0.1"));
+  CHECK(w.rate == Approx(0.2 + std::sqrt(3.0)));  // row 0: |c| sums 0.1 + 0.1, |k| sums 2 + 1 (mass 1)
+  CHECK(w.span == Approx(10 * 2 * std::numbers::pi / 0.8));
+  CHECK_NOTHROW(check_run_resources(with("1e7"), 1));  // ≈ 2e9 steps: stiff, but it runs
+  CHECK_THAT(what_of([&] { check_run_resources(with("1e15"), 1); }),
+             Contains("this run needs about 1.57e+17 steps of the certified event search") &&
+                 Contains("from the damping of mass 0") && Contains("refused above 1e+12"));
+  const Scene tiny = build("model: {chain: {masses: [5e-324], left_wall: {spring: 1}}}\n"
+                           "forcing: {frequency: 0.8, cosine: [1]}\n");
+  CHECK_THAT(what_of([&] { check_run_resources(tiny, 1); }), Contains("stiffness over the mass of mass 0"));
 }
 
 TEST_CASE("per-period statistics of a scene without stops are written (an empty stop axis)", "[resources]") {

@@ -2,6 +2,7 @@
 // give the same data on 1 and 2 threads; an interrupted and resumed sweep equals an
 // uninterrupted one; bad sweep input leaves no file behind.
 #include "vibro/io/result_file.hpp"
+#include "vibro/io/recorded_gaps.hpp"
 #include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"
 
@@ -15,6 +16,7 @@
 
 using namespace vibro;
 using namespace vibro::io;
+using Catch::Contains;
 
 namespace {
 
@@ -180,4 +182,39 @@ TEST_CASE("a sweep value that makes the scene invalid is refused before any file
   REQUIRE_THROWS_AS(doc.build(), SceneError);
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK_FALSE(std::filesystem::exists(out + ".partial"));
+}
+
+TEST_CASE("sample times past one sweep value's recorded span are refused before the sweep starts", "[runner]") {
+  // Two periods: a span of 50.3 at Ω = 0.25, 46.5 at Ω = 0.27; a sample at 47 fits every value but the last
+  // (it made a worker thread throw, and the process abort, mid-sweep).
+  std::string text = sweep_scene(false);
+  text.replace(text.find("samples: {per_period: 50}"), 25, "samples: {times: [0.5, 47]}");
+  const SceneDocument doc = SceneDocument::parse(text, "times.yaml");
+  try {
+    (void)doc.build();
+    FAIL("not refused");
+  } catch (const SceneError& e) {
+    CHECK_THAT(e.what(), Contains("forcing.frequency = 0.27") && Contains("makes the scene invalid") &&
+                             Contains("record.samples.times[1]") && Contains("must lie in the recorded span"));
+  }
+  text.replace(text.find("[0.5, 47]"), 9, "[0.5, 46]");
+  CHECK_NOTHROW(SceneDocument::parse(text, "times.yaml").build());
+}
+
+TEST_CASE("a recorded state past a stop beyond the gap tolerance fails the run before it is written", "[runner]") {
+  const Scene scene = SceneDocument::parse(kScene, "gaps.yaml").build();
+  Recording rec = Recording::for_scene(scene, 0.0);
+  rec.summary = make_engine(scene)->run(0.0, scene.x0, scene.v0, rec.t_end, rec.observers());
+  REQUIRE(rec.summary.status == RunStatus::completed);
+  REQUIRE(rec.samples->t.size() > 10);
+  Recording checked = rec;
+  check_recorded_gaps(scene, checked);
+  CHECK(checked.summary.status == RunStatus::completed);  // the engine's own states pass
+  // One sample moved past stop 1 (upper, mass 1) by 1e-6 L, far beyond trigger × L = 1e-13 L.
+  const Stop& stop = scene.stops[1];
+  const double t = rec.samples->t[7];
+  rec.samples->x(stop.mass, 7) = stop.position + 1e-6 * rec.summary.length_scale;
+  check_recorded_gaps(scene, rec);
+  CHECK(rec.summary.status == RunStatus::numerical_failure);
+  CHECK_THAT(rec.summary.message, Contains("past stop 1") && Contains("at t = " + number_text(t)));
 }

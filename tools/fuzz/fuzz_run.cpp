@@ -4,9 +4,11 @@
 // would, interrupted through SimulatorOptions::interrupt after 2 s of wall time (a stiff scene
 // may legitimately need millions of search steps): what is fuzzed is that every path ends in a
 // status or a SceneError / InvalidInput / ResourceError, never in a crash, a hang (an interrupt
-// not honoured) or a sanitizer report. Build and run: docs/fuzzing.md.
+// not honoured), a completed run with a non-finite state or a recorded state past a stop, or a
+// sanitizer report. Build and run: docs/fuzzing.md.
 #include "fuzz_input.hpp"
 
+#include "vibro/io/recorded_gaps.hpp"
 #include "vibro/io/resources.hpp"
 #include "vibro/io/results.hpp"
 
@@ -76,6 +78,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     rec.summary = engine->run(scene.t0, scene.x0, scene.v0, rec.t_end, rec.observers());
     if (rec.summary.status == RunStatus::completed && !(rec.summary.x.allFinite() && rec.summary.v.allFinite()))
       __builtin_trap();  // a completed run never ends on a non-finite state
+    // Nor records a state past a stop beyond the trigger tolerance (the runner's check before
+    // writing, recorded_gaps.hpp, would turn it into a numerical failure: the engine lost a stop).
+    if (rec.summary.status == RunStatus::completed) {
+      io::check_recorded_gaps(scene, rec);
+      if (rec.summary.status != RunStatus::completed) __builtin_trap();
+    }
   } catch (const io::SceneError&) {
   } catch (const InvalidInput&) {     // an initial state or a time the engine refuses
   } catch (const io::ResourceError&) {

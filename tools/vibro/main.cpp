@@ -4,11 +4,12 @@
 //   vibro check SCENE [--set PATH=VALUE ...]
 //   vibro info SCENE [--set PATH=VALUE ...]
 //
-// Exit codes: 0 success, 1 a run stopped early (event cap, numerical failure), 2 bad input,
-// 3 the result file could not be written (or exists: --force), 4 not enough memory or threads
-// for this run (the message gives the numbers), 5 an internal error (a bug: please report it),
-// 130 interrupted (a sweep keeps OUT.partial). Every failure is one line on stderr, "error: …";
-// no exception ever leaves main().
+// Exit codes: 0 success, 1 a run stopped early (event cap, numerical failure), 2 bad input (the
+// scene, a --set, or the command's own arguments: a missing scene, an unknown option, a value
+// that is not a number), 3 the result file could not be written (or exists: --force), 4 not
+// enough memory or threads for this run, or too much work (the message gives the numbers), 5 an internal error
+// (a bug: please report it), 130 interrupted (a sweep keeps OUT.partial). Every failure is one
+// line on stderr, "error: …"; no exception ever leaves main().
 #include "info.hpp"
 
 #include "vibro/io/resources.hpp"
@@ -21,9 +22,11 @@
 
 #include <unistd.h>
 
+#include <charconv>
 #include <cstdio>
 #include <exception>
 #include <new>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -64,6 +67,41 @@ std::size_t sweep_units(const vibro::io::Scene& s) {
   return axes[0].values.size() * (axes.size() > 1 ? axes[1].values.size() : 1);
 }
 
+/// The exit codes (the top of this file), for --help.
+constexpr const char* kExitCodes =
+    "Exit codes: 0 success, 1 the run stopped early (event cap, numerical failure), 2 bad input (scene, --set or\n"
+    "arguments), 3 the result file cannot be written, 4 not enough memory or threads, or too much work, 5\n"
+    "internal error, 130 interrupted. Every failure is one line on stderr starting with \"error:\".\n";
+
+/// An error in the command's own arguments (exit code 2).
+struct ArgumentError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// --threads N as typed: a whole number ≥ 0 (0: all cores). Throws ArgumentError for
+/// anything else (a sign, a fraction, text) and ResourceError, with the number as typed, above
+/// kMaxThreads (resources.hpp), so that a 20-digit count neither wraps nor prints a bound of
+/// hundreds of digits.
+int parse_threads(const std::string& text) {
+  int value = 0;
+  const char* end = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+  const bool digits = !text.empty() && text.find_first_not_of("0123456789") == std::string::npos;
+  if (!digits || (ec != std::errc() && ec != std::errc::result_out_of_range) || ptr != end)
+    throw ArgumentError("--threads " + text + ": expected a whole number of threads ≥ 0 (0: all cores)");
+  if (ec == std::errc::result_out_of_range || value > vibro::io::kMaxThreads)
+    throw vibro::io::ResourceError(fmt::format("--threads {}: at most {} threads", text, vibro::io::kMaxThreads));
+  return value;
+}
+
+/// One line for an argument error: CLI11's text without its own newlines.
+std::string one_line(std::string text) {
+  for (char& c : text)
+    if (c == '\n' || c == '\r') c = ' ';
+  while (!text.empty() && text.back() == ' ') text.pop_back();
+  return text;
+}
+
 }  // namespace
 
 int run_command(int argc, char** argv);
@@ -98,18 +136,20 @@ int run_command(int argc, char** argv) {
                "  vibro check experiments/wagg2004/fig2_sticking_orbit.yaml --set forcing.frequency=0.26\n",
                "vibro"};
   app.require_subcommand(1);
+  app.footer(kExitCodes);
   std::string scene_path;
   std::vector<std::string> sets;
 
   std::string output;
   int threads_requested = 0;
+  std::string threads_text;
   bool resume = false;
   bool force = false;
   CLI::App* run = app.add_subcommand("run", "Simulate a scene (or sweep it) and write an HDF5 result file");
   run->add_option("scene", scene_path, "scene file (YAML)")->required();
   run->add_option("-o,--output", output, "result file (default: the scene's name with .h5, in the current folder)");
   run->add_option("--set", sets, "override a value: PATH=VALUE (repeatable)");
-  run->add_option("--threads", threads_requested, "threads for sweeps (default: all cores)")->check(CLI::NonNegativeNumber);
+  run->add_option("--threads", threads_text, "threads for sweeps (default, or 0: all cores; at most 1024)");
   run->add_flag("--resume", resume, "finish an interrupted sweep from OUT.partial");
   run->add_flag("--force", force, "replace an existing OUT (and a stale OUT.partial); never the scene file");
 
@@ -121,14 +161,29 @@ int run_command(int argc, char** argv) {
   info->add_option("scene", scene_path, "scene file (YAML)")->required();
   info->add_option("--set", sets, "override a value: PATH=VALUE");
 
-  CLI11_PARSE(app, argc, argv);
+  // Argument errors are bad input (exit code 2) in one "error:" line; --help prints the usage.
   try {
+    app.parse(argc, argv);
+  } catch (const CLI::Success& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    if (speaks) std::fprintf(stderr, "error: %s (vibro --help lists the arguments)\n", one_line(e.what()).c_str());
+    return 2;
+  }
+  try {
+    if (!threads_text.empty()) threads_requested = parse_threads(threads_text);
     vibro::io::SceneDocument doc = vibro::io::SceneDocument::load(scene_path);
     for (std::size_t k = 0; k < sets.size(); ++k) doc.set_assignment(sets[k], static_cast<int>(k + 1));
     const vibro::io::Scene scene = doc.build();
     // Threads and memory are checked by `check` and `info` too: they say whether `run` can start.
     const int threads = vibro::io::checked_threads(threads_requested, sweep_units(scene));
     vibro::io::check_run_resources(scene, threads);
+    if (const vibro::io::WorkEstimate work = vibro::io::estimate_run_work(scene);
+        speaks && work.steps > vibro::io::kWarnSearchSteps)
+      std::fprintf(stderr,
+                   "warning: this run needs about %.3g steps of the certified event search (fastest rate up to %.3g per "
+                   "time unit over %.3g time units): minutes to hours%s\n",
+                   work.steps, work.rate, work.span, run->parsed() ? "; a progress line follows on a terminal" : "");
     if (run->parsed()) {
       if (output.empty()) {
         std::string base = scene_path.substr(scene_path.find_last_of('/') + 1);
@@ -155,6 +210,9 @@ int run_command(int argc, char** argv) {
   } catch (const vibro::io::ResourceError& e) {
     if (speaks) std::fprintf(stderr, "error: %s: %s\n", scene_path.c_str(), e.what());
     return 4;
+  } catch (const ArgumentError& e) {
+    if (speaks) std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
   }
   return 0;
 }

@@ -127,6 +127,53 @@ std::vector<MemoryNeed> estimate_run_memory(const Scene& scene, int threads) {
   return needs;
 }
 
+WorkEstimate estimate_run_work(const Scene& scene) {
+  WorkEstimate w;
+  // Row sums of M⁻¹|C| and M⁻¹|K| (M diagonal), row by row: the largest of each and its mass.
+  double a = 0.0, b = 0.0;
+  auto row = [&](Eigen::Index i, double mass, double c_sum, double k_sum) {
+    const double ai = c_sum / mass, bi = k_sum / mass;
+    if (!(ai <= a)) {
+      a = ai;
+      w.damping_mass = i;
+    }
+    if (!(bi <= b)) {
+      b = bi;
+      w.stiffness_mass = i;
+    }
+  };
+  if (scene.engine == EngineKind::modal && scene.chain) {
+    const BandedChain& c = *scene.chain;
+    const Eigen::Index n = c.dof();
+    for (Eigen::Index i = 0; i < n; ++i) {
+      double k = std::abs(c.stiffness_diagonal(i));
+      if (i > 0) k += std::abs(c.stiffness_off(i - 1));
+      if (i + 1 < n) k += std::abs(c.stiffness_off(i));
+      row(i, c.mass(i), c.rayleigh_mass * c.mass(i) + c.rayleigh_stiffness * k, k);
+    }
+  } else if (scene.engine == EngineKind::dense) {
+    const LinearSystem& sys = scene.system();
+    const Eigen::MatrixXd& M = sys.mass();
+    if (!M.isDiagonal(0.0)) return w;  // (a bound would need M's least eigenvalue: not estimated)
+    for (Eigen::Index i = 0; i < M.rows(); ++i)
+      row(i, M(i, i), sys.damping().row(i).cwiseAbs().sum(), sys.stiffness().row(i).cwiseAbs().sum());
+  } else {
+    return w;
+  }
+  // Every eigenvalue λ of the first-order flow (λ² M x + λ C x + K x = 0) has |λ|² ≤ a|λ| + b
+  // (the row of x's largest entry), so |λ| ≤ a + √b: an upper bound of the rate the certified
+  // event search steps by (one step per 1/ρ, simulator.cpp), within a small factor for chains.
+  w.rate = a + std::sqrt(b);
+  w.damping_rate = a;
+  w.stiffness_rate = std::sqrt(b);
+  // A simulation (or sweep point) runs its transient and recorded periods; every other kind
+  // integrates at least one forcing period per point (a lower bound of its work).
+  const bool simulates = scene.run.kind == RunSpec::Kind::simulate || scene.run.kind == RunSpec::Kind::sweep;
+  w.span = (simulates ? scene.run.transient_periods + scene.run.periods : 1.0) * scene.period();
+  w.steps = w.rate * w.span;
+  return w;
+}
+
 void check_run_resources(const Scene& scene, int threads) {
   const std::vector<MemoryNeed> needs = estimate_run_memory(scene, threads);
   double total = 0.0;
@@ -139,6 +186,19 @@ void check_run_resources(const Scene& scene, int threads) {
     require_memory(total, "this run");
   } catch (const ResourceError& e) {
     throw ResourceError(std::string(e.what()) + " (" + parts + ")");
+  }
+  // Then the time (after the memory: a dense scene's bound builds its n × n system).
+  const WorkEstimate work = estimate_run_work(scene);
+  if (!(work.steps <= kMaxSearchSteps)) {
+    const bool damped = work.damping_rate >= work.stiffness_rate;
+    throw ResourceError(fmt::format(
+        "this run needs about {:.3g} steps of the certified event search (its fastest rate is up to {:.3g} per time "
+        "unit, from the {} of mass {}, over {:.3g} time units); refused above {:.0e} "
+        "(days to months of computing): lower the {} at mass {} (or raise that mass), raise the forcing frequency "
+        "(the period is {:.3g} time units), or shorten the run",
+        work.steps, work.rate, damped ? "damping" : "stiffness over the mass",
+        damped ? work.damping_mass : work.stiffness_mass, work.span, kMaxSearchSteps, damped ? "dampers" : "springs",
+        damped ? work.damping_mass : work.stiffness_mass, scene.period()));
   }
 }
 

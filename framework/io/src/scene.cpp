@@ -345,6 +345,7 @@ void detail::read_run(Reader& r, const YAML::Node& root, SceneParts& p) {
       if (k.kind == run.kind && k.missing && !node) r.fail(rn, path, k.missing);
       if (k.kind != run.kind && node) r.fail(node, path, std::string("only for run.kind: ") + k.name);
     }
+    check_sample_times(r, root, p);
     const RunKindInfo& kind = run_kind(run.kind);
     if (kind.parse) {
       RunSection section{r, *p.doc, rn, kind.section ? rn[kind.section] : YAML::Node(), run, n, f.frequency,
@@ -369,6 +370,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   check_initial_state(r, root, p);
   read_record(r, root, p);
   read_run(r, root, p);
+  check_sample_times(r, root, p);  // (with the default run.periods when there is no run section)
   resolve_engine(r, root, p);
   return Scene{impl_->file, impl_->text, root["name"] ? r.text(root["name"], "name") : std::string(),
                std::move(p.dense), std::move(p.banded), std::move(p.stops), p.t0, p.x0, p.v0, p.opt, p.rec, p.run,

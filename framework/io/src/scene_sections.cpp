@@ -3,6 +3,7 @@
 #include "scene_sections.hpp"
 
 #include <algorithm>
+#include <numbers>
 #include <cmath>
 #include <string>
 #include <utility>
@@ -311,6 +312,23 @@ void check_initial_state(Reader& r, const YAML::Node& root, SceneParts& p) {
     }
     r.fail(root, "initial.x", msg);
   }
+}
+
+/// Sample times lie in the recorded span run.periods × period (Recording::for_scene): checked as
+/// soon as run.periods is known — before the sweep values, so that times outside every point's
+/// span are reported as such — and again for each sweep value (each is built on its own).
+void check_sample_times(Reader& r, const YAML::Node& root, const SceneParts& p) {
+  if (p.run.kind != RunSpec::Kind::simulate && p.run.kind != RunSpec::Kind::sweep) return;
+  const YAML::Node rn = root["record"];
+  const YAML::Node sm = rn ? rn["samples"] : YAML::Node();
+  const YAML::Node times = sm ? sm["times"] : YAML::Node();
+  if (!times) return;
+  const double span = p.run.periods * (p.f.frequency > 0.0 ? 2.0 * std::numbers::pi / p.f.frequency : 1.0);
+  for (std::size_t i = 0; i < p.rec.sample_times.size(); ++i)
+    if (!(p.rec.sample_times[i] <= span))
+      r.fail(times[i], "record.samples.times[" + std::to_string(i) + "]",
+             "must lie in the recorded span [0, " + number_text(span) + "] (run.periods × the forcing period), found " +
+                 number_text(p.rec.sample_times[i]));
 }
 
 /// `record`: the observers.

@@ -48,6 +48,7 @@ void read_initial(Reader& r, const YAML::Node& root, SceneParts& p);
 void read_solver(Reader& r, const YAML::Node& root, SceneParts& p);
 void check_initial_state(Reader& r, const YAML::Node& root, SceneParts& p);
 void read_record(Reader& r, const YAML::Node& root, SceneParts& p);
+void check_sample_times(Reader& r, const YAML::Node& root, const SceneParts& p);
 void read_run(Reader& r, const YAML::Node& root, SceneParts& p);  // scene.cpp: the run kinds' table
 void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p);
 

@@ -66,7 +66,12 @@ MemoryRun run_in_memory(const SceneDocument& doc, const Scene& scene, const Memo
 void save_image(const std::vector<char>& image, const std::string& path, bool overwrite) {
   errno = 0;
   struct stat existing {};
-  if (!overwrite && ::lstat(path.c_str(), &existing) == 0)
+  const bool exists = ::lstat(path.c_str(), &existing) == 0;
+  // Like `vibro run --force`: only a regular file is ever replaced (never a device, a FIFO, a
+  // folder or a link; renaming over a device node would replace the node itself).
+  if (exists && !S_ISREG(existing.st_mode))
+    throw ResultError(path + ": exists and is not a regular file: not replaced");
+  if (!overwrite && exists)
     throw ResultError(path + ": exists; not replaced (pass overwrite=True to replace it)");
   TemporaryFile file(path + ".partial-XXXXXX");
   file.write_all(image);

@@ -3,6 +3,7 @@
 #include "interrupt.hpp"
 
 #include "vibro/engine.hpp"
+#include "vibro/io/recorded_gaps.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -36,6 +37,7 @@ Recording simulate(const Scene& base, const StartState& start, std::atomic<doubl
     // Counts are the recorded run's (docs/results.md), as the recorded events are.
     rec.summary = sim.run(t1, transient.x, transient.v, t1 + scene.run.periods * T, rec.observers());
   }
+  check_recorded_gaps(scene, rec);  // no state past a stop is stored as a result
   for (const std::string& w : transient.warnings)
     if (std::find(rec.summary.warnings.begin(), rec.summary.warnings.end(), w) == rec.summary.warnings.end())
       rec.summary.warnings.insert(rec.summary.warnings.begin(), "during the transient: " + w);

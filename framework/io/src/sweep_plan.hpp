@@ -13,6 +13,7 @@
 #include <atomic>
 #include <cstddef>
 #include <map>
+#include <exception>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -82,12 +83,24 @@ void run_chain(const SweepPlan& plan, const SweepStart& from, std::size_t c, Del
 template <class Take, class Deliver>
 void run_chains(int threads, const SweepPlan& plan, const SweepStart& from, Take& take, Deliver& deliver) {
   (void)threads;  // without OpenMP: one thread
+  // An exception must not leave an OpenMP region (std::terminate): the first one ends the sweep
+  // (the others stop before their next point, the partial file keeps what was written) and is
+  // rethrown here, where the caller reports it like any error.
+  std::exception_ptr failure;
+  std::mutex failure_lock;
 #ifdef _OPENMP
 #pragma omp parallel num_threads(threads)
 #endif
   {
-    while (const std::optional<std::size_t> c = take()) run_chain(plan, from, *c, deliver);
+    try {
+      while (const std::optional<std::size_t> c = take()) run_chain(plan, from, *c, deliver);
+    } catch (...) {
+      std::lock_guard<std::mutex> hold(failure_lock);
+      if (!failure) failure = std::current_exception();
+      plan.interrupted->store(true);
+    }
   }
+  if (failure) std::rethrow_exception(failure);
 }
 
 /// Hands out the chains in grid order, one per call, from any thread.

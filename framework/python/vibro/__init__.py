@@ -23,6 +23,7 @@ as groups of a Result, like any group of a result file.
 """
 import json
 import math
+import warnings
 
 import numpy as np
 
@@ -208,9 +209,19 @@ def _vector(name, value, n):
     return a
 
 
+# numpy's warning for a complex array converted to float (it drops the imaginary part).
+_COMPLEX_WARNING = getattr(getattr(np, "exceptions", np), "ComplexWarning")
+
+
 def _array(name, value):
+    if np.iscomplexobj(value):
+        raise ValueError(f"{name}: expected real numbers, found a complex array")
     try:
-        a = np.asarray(value, dtype=float)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", _COMPLEX_WARNING)
+            a = np.asarray(value, dtype=float)
+    except _COMPLEX_WARNING:
+        raise ValueError(f"{name}: expected real numbers, found complex ones") from None
     except (TypeError, ValueError) as e:
         raise ValueError(f"{name}: expected an array of numbers ({e})") from None
     bad = np.argwhere(~np.isfinite(a))
@@ -218,6 +229,15 @@ def _array(name, value):
         where = tuple(int(i) for i in bad[0])
         raise ValueError(f"{name}{list(where)}: expected a finite number, found {a[where]!r}")
     return a
+
+
+def _values(name, values):
+    """A grid of values (a sweep's, a scan's, sample times) as a list of floats: a number or a
+    1-D sequence. A 2-D array is refused rather than flattened (its order would be a guess)."""
+    a = _array(name, values)
+    if a.ndim > 1:
+        raise ValueError(f"{name}: expected a 1-D sequence of values, got an array of shape {a.shape}")
+    return _plain(list(a.ravel()), name)
 
 
 def _number(name, value):
@@ -305,7 +325,7 @@ def sweep(scene, parameters=None, *, follow=None, reverse=None, periods=None, tr
     else:
         if not isinstance(parameters, dict) or not 1 <= len(parameters) <= 2:
             raise ValueError("sweep: parameters must be a dict {path: values} of one or two paths")
-        axes = [{"path": str(path), "values": _plain(list(np.asarray(values, dtype=float).ravel()), str(path))}
+        axes = [{"path": str(path), "values": _values(str(path), values)}
                 for path, values in parameters.items()]
         doc.replace("run.sweep.parameters", json.dumps(axes))
     for key, flag in (("follow", follow), ("reverse", reverse)):
@@ -330,7 +350,7 @@ def locate(scene, path=None, values=None, *, threads=None, **options):
     if path is not None:
         if values is None:
             raise ValueError("locate: give the grid values with the path")
-        doc.replace("run.locate", json.dumps({"path": str(path), "values": _plain(list(np.asarray(values, dtype=float).ravel()), str(path))}))
+        doc.replace("run.locate", json.dumps({"path": str(path), "values": _values(str(path), values)}))
     elif scene.run_kind != "locate":
         raise ValueError("locate: give path and values; the scene has no run.locate")
     for key, value in options.items():
@@ -439,7 +459,7 @@ def _record(current, given):
             raise TypeError(f"samples: expected a number of samples per period ≥ 0, found {count!r}")
         out["samples"] = {"per_period": int(count)}
     if "sample_times" in given:
-        out["samples"] = {"times": _plain(list(np.asarray(given["sample_times"], dtype=float).ravel()), "sample_times")}
+        out["samples"] = {"times": _values("sample_times", given["sample_times"])}
     if out.get("samples") in ({"per_period": 0}, {"times": []}):
         del out["samples"]
     return {k: v for k, v in out.items() if v is not False}
