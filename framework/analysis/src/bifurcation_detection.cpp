@@ -21,7 +21,7 @@
 namespace vibro::detail {
 
 void BranchRunner::examine(const Node& a, Node& b, int branch_index, int depth,
-             std::vector<std::pair<Node, int>>* doublings) {
+                           std::vector<std::pair<Node, int>>* doublings) {
   const std::size_t stops = a.b.signature.impacts.size();
   // Fold: the tangent's p component changes sign on a smooth stretch. Across a change of the
   // event signature a sign change is the corner where two branches meet (at a grazing the
@@ -129,7 +129,7 @@ void BranchRunner::point_away(const Node& a, Node& b, std::size_t first) const {
 }
 
 std::function<bool(const Node&)> BranchRunner::same_counts(const Signature& s, std::size_t j,
-                                                   std::vector<int> Signature::*field) {
+                                                           std::vector<int> Signature::*field) {
   const int count = (s.*field)[j];
   return [count, j, field](const Node& n) { return (n.b.signature.*field)[j] == count; };
 }

@@ -30,8 +30,8 @@ std::optional<Node> BranchRunner::on_limit(const Node& a, const Node& b, double 
 /// Illinois iteration on σ ∈ [0, σ_b] for a zero of f between a and b (f(a) f(b) < 0), each
 /// evaluation the branch point in the hyperplane a + σ t_a (normal t_a). With bisect, or
 /// where f is NaN, it halves instead.
-std::optional<Node> BranchRunner::illinois(const Node& a, const Node& b, const TestFunction& f, bool smooth, int* count,
-                             const std::function<bool(const Node&)>& same_as_a) {
+std::optional<Node> BranchRunner::illinois(const Node& a, const Node& b, const TestFunction& f, bool smooth,
+                                           int* count, const std::function<bool(const Node&)>& same_as_a) {
   const VectorXd ya = c_.scaled(a.e);
   double s_lo = 0.0, s_hi = a.t.dot(c_.scaled(b.e) - ya);
   double f_lo = smooth ? f(a) : -1.0, f_hi = smooth ? f(b) : 1.0;
@@ -112,7 +112,7 @@ std::optional<Node> BranchRunner::at_p(const Node& from, double p, const VectorX
 /// from the same side in p. Ends when the secant's next step is below half the tolerance; the
 /// zero is that step's end, the orbit the last good point's.
 std::optional<Node> BranchRunner::one_sided(const Node& good, const Node& bad, const TestFunction& f,
-                              const std::function<bool(const Node&)>& on_good, int* count) {
+                                            const std::function<bool(const Node&)>& on_good, int* count) {
   struct Good {
     double p, f;
     Node node;
@@ -171,8 +171,8 @@ std::optional<Node> BranchRunner::one_sided(const Node& good, const Node& bad, c
 /// point by Newton at fixed p from the nearer bracket end's orbit (or the farther one's if
 /// that fails). Returns a's-side end of the final bracket; where no orbit can be found inside
 /// the bracket it stops there and reports the bracket reached.
-std::optional<Node> BranchRunner::bisect(const Node& a, const Node& b, const std::function<bool(const Node&)>& same_as_a,
-                           int* count) {
+std::optional<Node> BranchRunner::bisect(const Node& a, const Node& b,
+                                         const std::function<bool(const Node&)>& same_as_a, int* count) {
   Node lo = a, hi = b;
   for (int it = 0; it < 80 && std::abs(hi.e.p - lo.e.p) > o_.locate_tolerance; ++it) {
     const double p = 0.5 * (lo.e.p + hi.e.p);
@@ -193,8 +193,8 @@ std::optional<Node> BranchRunner::bisect(const Node& a, const Node& b, const std
 }
 
 void BranchRunner::record(BifurcationKind kind, int stop, const Node& a, const Node& b, int branch_index,
-            const TestFunction& f, Mode mode, const std::function<bool(const Node&)>& same_as_a,
-            const std::string& note) {
+                          const TestFunction& f, Mode mode, const std::function<bool(const Node&)>& same_as_a,
+                          const std::string& note) {
   Bifurcation bif;
   bif.kind = kind;
   bif.stop = stop;

@@ -20,7 +20,7 @@ namespace vibro::detail {
 
 /// Follows the branch from `start` along `t` (unit, scaled), appending to `branch`.
 void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_index, int depth,
-            std::vector<std::pair<Node, int>>* doublings) {
+                          std::vector<std::pair<Node, int>>* doublings) {
   Node cur = std::move(start);
   cur.t = c_.tangent(cur.e, t);
   double h = std::min(std::max(o_.step, o_.min_step), o_.max_step);

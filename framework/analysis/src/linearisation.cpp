@@ -1,10 +1,12 @@
 #include "vibro/linearisation.hpp"
 
 #include "mechanics.hpp"
+#include "orthonormal_frame.hpp"
 #include "transition.hpp"
 #include "vibro/contact.hpp"
 #include "vibro/flow.hpp"
 
+#include <Eigen/QR>
 #include <Eigen/SVD>
 #include <unsupported/Eigen/MatrixFunctions>
 
@@ -164,6 +166,10 @@ class TangentRecorder final : public Observer {
     if (options.parameter) mechp_ = std::make_unique<Mechanics<Dual>>(system, &*options.parameter);
   }
 
+  /// Re-orthonormalise the carried directions after every event, adding log|R_ii| to *log_growth
+  /// (orthonormal_frame.hpp). Before the run.
+  void orthonormalise_into(VectorXd* log_growth) { log_growth_ = log_growth; }
+
   void begin(const RunContext& /*run*/, double t0) override {
     t0_ = t0;
     K_ = MatrixXd::Identity(2 * n_, 2 * n_);
@@ -171,6 +177,7 @@ class TangentRecorder final : public Observer {
     if (frame_) K_ = options_.directions;
     min_dim_ = 2 * n_;
     basis_ = K_;
+    if (log_growth_) log_growth_->setZero(K_.cols());
     zeta_ = VectorXd::Zero(2 * n_);
     least_rate_ = std::numeric_limits<double>::infinity();
   }
@@ -476,6 +483,7 @@ class TangentRecorder final : public Observer {
     rec.guard_rate = total.rate;
     if (rec.impact) least_rate_ = std::min(least_rate_, total.rate);
     if (carries()) K_ = total.S * K_;
+    if (frame_ && log_growth_) orthonormalise();
     if (mechp_) zeta_ = total.S * zeta_ + total.sp;
     out_.saltations.push_back(rec);
     held_ = held_after;
@@ -551,6 +559,16 @@ class TangentRecorder final : public Observer {
   /// Tangent vectors are carried: the whole Jacobian, or the given directions.
   bool carries() const { return options_.jacobian || frame_; }
 
+  /// K ← Q for the Householder QR K = Q R of the carried directions, log|R_ii| added to
+  /// *log_growth_ (orthonormal_frame.hpp). A direction the event annihilated (sticking) has
+  /// R_ii = 0: its log growth is −∞ from then on.
+  void orthonormalise() {
+    const Eigen::HouseholderQR<MatrixXd> qr(K_);
+    const Index p = K_.cols();
+    for (Index i = 0; i < p; ++i) (*log_growth_)(i) += std::log(std::abs(qr.matrixQR()(i, i)));
+    K_ = qr.householderQ() * MatrixXd::Identity(K_.rows(), p);
+  }
+
   const ImpactSystem& system_;
   SimulatorOptions solver_;
   const LinearisationOptions& options_;
@@ -568,6 +586,7 @@ class TangentRecorder final : public Observer {
   VectorXd xe_, ve_;
   std::vector<Event> events_;
   MatrixXd K_, Jmid_, basis_;
+  VectorXd* log_growth_ = nullptr;  ///< re-orthonormalise the frame at events, logs here
   Index min_dim_ = 0;
   VectorXd zeta_;
   double least_rate_ = 0.0;
@@ -595,5 +614,31 @@ TangentMap linearise(const ImpactSystem& system, const SimulatorOptions& solver,
   if (out.summary.velocity_scale > 0.0) out.least_guard_rate /= out.summary.velocity_scale;
   return out;
 }
+
+namespace detail {
+
+CarriedFrame carry_orthonormal_frame(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
+                                     const VectorXd& x0, const VectorXd& v0, double t1,
+                                     const Eigen::MatrixXd& directions) {
+  if (directions.rows() != 2 * system.dof() || directions.cols() == 0)
+    throw InvalidInput("linearisation: directions have " + std::to_string(directions.rows()) +
+                       " rows, expected 2n = " + std::to_string(2 * system.dof()));
+  LinearisationOptions options;
+  options.jacobian = false;
+  options.directions = directions;
+  CarriedFrame frame;
+  TangentMap& out = frame.map;
+  out.t0 = t0;
+  out.x0 = x0;
+  out.v0 = v0;
+  Simulator sim(system, solver);
+  TangentRecorder recorder(system, solver, options, out);
+  recorder.orthonormalise_into(&frame.log_growth);
+  out.summary = sim.run(t0, x0, v0, t1, {&recorder});
+  if (out.summary.velocity_scale > 0.0) out.least_guard_rate /= out.summary.velocity_scale;
+  return frame;
+}
+
+}  // namespace detail
 
 }  // namespace vibro
