@@ -1,6 +1,5 @@
 #pragma once
-// Private to vibro_core: the Zeno guard shared by the dense (simulator.cpp) and modal
-// (modal_simulator.cpp) engines.
+// Private to vibro_core: the Zeno guard of the event loop (event_loop.hpp) of both engines.
 #include <algorithm>
 #include <cstddef>
 #include <memory>

@@ -1,7 +1,6 @@
 #include "vibro/simulator.hpp"
 
-#include "event_rate.hpp"
-#include "event_resolution.hpp"
+#include "event_loop.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -14,15 +13,6 @@
 
 namespace vibro {
 namespace {
-
-std::string vector_text(const Eigen::VectorXd& v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << "[";
-  for (Eigen::Index i = 0; i < v.size(); ++i) s << (i ? ", " : "") << v(i);
-  s << "]";
-  return s.str();
-}
 
 void require_positive(double value, const char* field, bool allow_zero = false) {
   if (!std::isfinite(value) || value < 0.0 || (!allow_zero && value == 0.0))
@@ -253,229 +243,191 @@ ContactSet Simulator::settle(double t, const Eigen::VectorXd& x, const Eigen::Ve
   return held;
 }
 
-RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
-                          double t_end, const std::vector<Observer*>& observers) {
-  const ImpactSystem& scene = *scene_;
-  const LinearSystem& sys = scene.system();
-  const Eigen::Index n = sys.dof();
-  const int stops = static_cast<int>(scene.stop_count());
-  if (x0.size() != n || v0.size() != n)
-    throw InvalidInput("initial state: x has " + std::to_string(x0.size()) + " and v has " +
-                       std::to_string(v0.size()) + " entries, expected " + std::to_string(n));
-  if (!x0.allFinite() || !v0.allFinite())
-    throw InvalidInput("initial state: x = " + vector_text(x0) + ", v = " + vector_text(v0) + " is not finite");
-  if (!std::isfinite(t0) || !std::isfinite(t_end) || t_end < t0)
-    throw InvalidInput("time span: [" + number_text(t0) + ", " + number_text(t_end) + "] must be finite with t_end ≥ t0");
+/// The dense engine's side of the event loop (event_loop.hpp): exact flows of the contact modes
+/// (ContactModes, flow.hpp), one Segment and CrossingFinder per mode visited, the stops' algebra
+/// of DenseAlgebra.
+class Simulator::Loop {
+ public:
+  Loop(Simulator& sim, const std::vector<Observer*>& observers, RunSummary& summary, double t_end)
+      : sim_(sim), scene_(*sim.scene_), sys_(scene_.system()), observers_(observers), summary_(summary),
+        t_end_(t_end) {}
 
-  const HarmonicForcing& f = sys.forcing();
-  const double omega = scale_frequency(), kmax = sys.stiffness().cwiseAbs().maxCoeff();
-  const double mmax = sys.mass().cwiseAbs().maxCoeff();
-  const double fmax = f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff();
-  const detail::RunScales sc = detail::run_scales(options_, omega, kmax, mmax, fmax, scene.stops(), x0, v0);
-  SimulatorOptions automatic = options_;
-  automatic.length_scale = 0.0;
-  std::vector<std::string> warnings;
-  detail::check_resolution(sc, detail::run_scales(automatic, omega, kmax, mmax, fmax, scene.stops(), x0, v0),
-                           options_, t0, t_end, warnings);
-  {
+  Eigen::Index dof() const { return sys_.dof(); }
+  const std::vector<Stop>& stops() const { return scene_.stops(); }
+  double frequency() const { return sys_.forcing().frequency; }
+  detail::ScaleInputs scale_inputs() {
+    const HarmonicForcing& f = sys_.forcing();
+    in_ = {sim_.scale_frequency(), sys_.stiffness().cwiseAbs().maxCoeff(), sys_.mass().cwiseAbs().maxCoeff(),
+           f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff()};
+    return in_;
+  }
+  void check_scene(const detail::RunScales& /*sc*/, std::vector<std::string>& warnings) const {
     // The exact flow carries the forcing as a unit oscillator (z = [x; v; cos; sin; 1]), so its
     // rounding is relative to max(1, fmax/k) in the scene's length unit: measured 12 ε fmax/k
     // relative (one mass, k = 1, F = 1e6 … 1e15: 3.6e-9 … 0.67; tests/framework/test_resolution.cpp).
-    const double stiff = std::max(kmax, mmax * omega * omega);
-    const double deflection = stiff > 0.0 ? fmax / stiff : 0.0;
+    const SimulatorOptions& options = sim_.options_;
+    const double stiff = std::max(in_.kmax, in_.mmax * in_.omega * in_.omega);
+    const double deflection = stiff > 0.0 ? in_.fmax / stiff : 0.0;
     const double relative = 12.0 * std::numeric_limits<double>::epsilon() * deflection;
-    if (relative > std::min(options_.trigger, 1e-6)) {  // the message only where used (~2 µs a run)
+    if (relative > std::min(options.trigger, 1e-6)) {  // the message only where used (~2 µs a run)
       const std::string why = "the forcing's static deflection fmax/k = " + number_text(deflection) +
                               " (in the scene's length unit) costs the exact flow about 12 ε × " +
                               number_text(deflection) + " = " + number_text(relative) + " relative rounding";
       const std::string hint = "; scale lengths (stops, initial state) and forces by one factor so that the "
                                "deflection is of order 1 (the motion scales exactly)";
       if (relative > 1e-6) throw InvalidInput(why + " (1e-6 at most)" + hint);
-      if (relative > options_.trigger) warnings.push_back(why + ", above the trigger " + number_text(options_.trigger) + hint);
+      if (relative > options.trigger)
+        warnings.push_back(why + ", above the trigger " + number_text(options.trigger) + hint);
     }
   }
-  const double eps_gap = sc.eps_gap, eps_force = sc.eps_force, v_contact = sc.rules.v_contact;
-  const double dt_simultaneous = sc.dt_simultaneous, window = sc.window;
-  scene.check_admissible(t0, x0, eps_gap);
-
-  RunSummary summary;
-  guard_evaluations_ = 0;
-  summary.warnings = std::move(warnings);
-  summary.length_scale = sc.L;
-  summary.velocity_scale = sc.V;
-  summary.force_scale = sc.F;
-  summary.time_scale = sc.T;
-  const RunContext context{n, scene.stop_count(), sys.forcing().frequency};
-  for (Observer* o : observers) o->begin(context, t0);
-
-  double t = t0;
-  Eigen::VectorXd x = x0, v = v0;
-  ContactSet stuck, impacting, releasing;
-  for (ContactSet* set : {&stuck, &impacting, &releasing}) set->reserve(static_cast<std::size_t>(stops));
-  detail::EventRate rate(options_.max_events, window);
-  auto emit = [&](const Event& e) {
-    for (Observer* o : observers) o->event(e);
-  };
-  auto finish = [&](RunStatus status, std::string message) {
-    for (Observer* o : observers) o->end(t);
-    summary.status = status;
-    summary.message = std::move(message);
-    summary.t = t;
-    summary.x = x;
-    summary.v = v;
-    summary.stuck = stuck;
-    summary.contact_sets_built = modes_.built();
-    summary.sticking_flows_built = modes_.reduced_built();
-    return summary;
-  };
-
-  // Scratch sized once: the largest reduced state is the full one (2n + 3).
-  Eigen::VectorXd reduced_state(2 * n + 3), zr(2 * n + 3), z_full(2 * n + 3), view_scratch(4 * n + 6);
-  std::vector<std::unique_ptr<ModeSlot>> slots;
-
-  // Events are resolved by the rules shared with the modal engine (event_resolution.hpp).
-  const StopTables tables(scene);
-  DenseAlgebra algebra(scene, modes_, tables);
-  detail::EventWorkspace work;
-  work.reserve(stops, n);
-  const detail::EventRules& rules = sc.rules;
-  const std::function<void(const Event&)> emit_event = emit;
-  // Impact sets are visited sets too (RunSummary::contact_sets_built): their restitution data.
-  const std::function<void(const ContactSet&)> visit = [this](const ContactSet& set) { modes_.get(set); };
-  auto resolve = [&](const ContactSet& impacts, const ContactSet& releases, const ContactSet& resting) {
-    std::string unused;
-    detail::resolve_event(algebra, scene.stops(), rules, t, x, v, stuck, impacts, releases, resting,
-                          emit_event, summary, &unused, work, visit);
-  };
-
-  try {
-    // Initial contacts: stops touched at t0 (within ε) that are approached or resting.
-    {
-      const Eigen::VectorXd g = scene.gaps(t, x), gd = scene.gap_rates(t, v);
-      ContactSet resting;
-      for (int j = 0; j < stops; ++j) {
-        if (g(j) < -eps_gap) continue;
-        if (gd(j) > v_contact) impacting.push_back(j);
-        else if (gd(j) >= -v_contact) resting.push_back(j);
-      }
-      resolve(impacting, {}, resting);
-    }
-
-    // Stiff or heavily damped: the certified search steps by 1/ρ (ρ the flow's spectral radius).
-    if (const double steps = sc.T * modes_.get(stuck).reduced().flow->spectral_radius();
-        steps > detail::kStiffStepsPerPeriod)
-      summary.warnings.push_back(detail::stiff_warning(steps, (t_end - t0) / sc.T));
-    auto interrupted = [&] { return options_.interrupt && options_.interrupt->load(std::memory_order_relaxed); };
-    const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end), sc.T);
-    auto report = [&](double reached) {
-      if (options_.reached) options_.reached->store(reached, std::memory_order_relaxed);
+  void start(const detail::RunScales& sc, detail::RunState& /*st*/) {
+    const Eigen::Index n = sys_.dof();
+    sim_.guard_evaluations_ = 0;
+    eps_gap_ = sc.eps_gap;
+    eps_force_ = sc.eps_force;
+    rules_ = sc.rules;
+    resolution_ = 8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end_), sc.T);
+    // Scratch sized once: the largest reduced state is the full one (2n + 3).
+    for (Eigen::VectorXd* z : {&reduced_state_, &zr_, &z_full_}) z->resize(2 * n + 3);
+    view_scratch_.resize(4 * n + 6);
+    tables_ = std::make_unique<StopTables>(scene_);
+    algebra_ = std::make_unique<DenseAlgebra>(scene_, sim_.modes_, *tables_);
+    work_.reserve(static_cast<Eigen::Index>(scene_.stop_count()), n);
+    emit_ = [this](const Event& e) {
+      for (Observer* o : observers_) o->event(e);
     };
-    while (true) {
-      report(t);
-      if (interrupted()) return finish(RunStatus::interrupted, "interrupted at t = " + number_text(t));
-      const ContactMode& mode = modes_.get(stuck);
-      const ContactMode::Reduced& red = mode.reduced();
-      // One segment and finder per contact mode, reused: re-targeting them allocates nothing.
-      ModeSlot* slot = nullptr;
-      for (const auto& s : slots)
-        if (s->watch == red.watch.get()) slot = s.get();
-      const Eigen::Index size = red.flow->size();
-      auto z0 = reduced_state.head(size);
-      mode.reduce(t, x, v, z0);
-      if (!slot) {
-        slots.push_back(std::make_unique<ModeSlot>());
-        slot = slots.back().get();
-        slot->watch = red.watch.get();
-        slot->segment = std::make_unique<Segment>(*red.watch, t, z0);
-      } else {
-        slot->segment->reset(t, z0);
-      }
-      const Segment& segment = *slot->segment;
-      const Eigen::Index rows = red.watch->count();
-      Eigen::VectorXd& base = slot->triggers;
-      base.resize(rows);
-      for (Eigen::Index i = 0; i < rows; ++i) base(i) = i < red.gap_rows ? eps_gap : eps_force;
-      // A guard that starts inside its tolerance band while moving away (just after an impact or
-      // a release) is only re-armed above where it starts, so rounding cannot re-fire it.
-      CrossingFinder& finder = slot->finder;
-      finder.retarget(segment, base, resolution, true);
-      const long guards_before = segment.guard_evaluations(), points_before = segment.evaluations();
-      const double step = 1.0 / std::max(red.flow->spectral_radius(), 1e-300);
-      const double span = t_end - t;
-      // The closed-form exponential of a nearly defective flow holds up to its horizon
-      // (flow.hpp): a longer free flight is continued as a new segment from there.
-      const double reach = std::min(span, red.flow->horizon());
-      std::optional<Crossing> hit;
-      for (double a = 0.0; a < reach && !hit;) {
-        if (interrupted()) return finish(RunStatus::interrupted, "interrupted at t = " + number_text(t));
-        report(t + a);
-        const double b = std::min(a + step, reach);
-        if (rows > 0) hit = finder.first(a, b);
-        a = b;
-      }
-      summary.guard_evaluations += segment.guard_evaluations() - guards_before;
-      summary.evaluation_points += segment.evaluations() - points_before;
-      guard_evaluations_ = summary.guard_evaluations;
-      const double tau = hit ? hit->tau : reach;
-      const double t_next = hit ? t + tau : (reach < span ? t + reach : t_end);
-      ++summary.segments;
-      if (!observers.empty()) {
-        const DenseSegmentView view(mode, segment, t, t_next, eps_force, &view_scratch);
-        for (Observer* o : observers) o->segment(view);
-      }
-      auto z = zr.head(size);
-      // The state at t_next exactly as the observers' view gives it (at t_next - t, which may
-      // differ from tau by an ulp of t): the analysis layer's saltation matrices combine the
-      // view's pre-event state with the engine's post-event one, and a state an ulp of t
-      // apart (|ż|·ulp(t), ~1e-12 at t ~ 1e4) biases, e.g., a conservative system's Lyapunov sum (test_lyapunov.cpp).
-      // The crossing's own exponentials are reused where the two times agree.
-      const double elapsed = t_next - t;
-      if (hit && elapsed == hit->tau) segment.state(finder.crossing_sample(), z);
-      else segment.state(elapsed, z);
-      mode.expand(z, z_full);
-      x = z_full.head(n);
-      v = z_full.segment(n, n);
-      t = t_next;
-      if (!x.allFinite() || !v.allFinite())
-        return finish(RunStatus::numerical_failure,
-                      "non-finite state at t = " + number_text(t) + " in contact set of " +
-                          std::to_string(stuck.size()) + " stops");
-      if (!hit) {
-        if (reach < span) continue;
-        break;
-      }
-
-      // Which guards fire together (within the simultaneity window), from the crossing's sample.
-      const SegmentSample& at = finder.crossing_sample();
-      const Eigen::VectorXd& triggers = finder.triggers();
-      impacting.clear();
-      releasing.clear();
-      for (Eigen::Index i = 0; i < rows; ++i) {
-        const double h = at.h(i), hd = at.d(i);
-        const bool fired = i == hit->row ||
-                           (hd > 0.0 && h >= -std::max(triggers(i), hd * dt_simultaneous));
-        if (!fired) continue;
-        (i < red.gap_rows ? impacting : releasing).push_back(red.watched[static_cast<std::size_t>(i)]);
-      }
-      std::sort(impacting.begin(), impacting.end());
-      std::sort(releasing.begin(), releasing.end());
-      resolve(impacting, releasing, {});
-      if (rate.exceeded(t)) {
-        const int j = !impacting.empty() ? impacting.front() : releasing.front();
-        return finish(RunStatus::event_cap,
-                      "event cap: more than " + std::to_string(options_.max_events) +
-                          " events within " + number_text(window) + " time units, at t = " + number_text(t) +
-                          ", stop " + std::to_string(j) + " (" +
-                          scene.stops()[static_cast<std::size_t>(j)].name + "), x = " + vector_text(x) +
-                          ", v = " + vector_text(v) +
-                          " (Zeno behaviour the chatter rule did not resolve: raise "
-                          "solver.chatter_velocity or solver.max_events)");
-      }
-    }
-  } catch (const std::runtime_error& e) {
-    return finish(RunStatus::numerical_failure, std::string(e.what()) + " (at t = " + number_text(t) + ")");
+    // Impact sets are visited sets too (RunSummary::contact_sets_built): their restitution data.
+    visit_ = [this](const ContactSet& set) { sim_.modes_.get(set); };
   }
-  return finish(RunStatus::completed, "");
+  void initial_guards(const detail::RunState& st, Eigen::VectorXd& g, Eigen::VectorXd& gd) const {
+    g = scene_.gaps(st.t, st.x);
+    gd = scene_.gap_rates(st.t, st.v);
+  }
+  /// Events are resolved by the rules shared with the modal engine (event_resolution.hpp); every
+  /// contact set has a dense mode.
+  bool resolve(detail::RunState& st, const ContactSet& impacts, const ContactSet& releases, const ContactSet& resting,
+               std::string* /*why*/) {
+    std::string unused;
+    detail::resolve_event(*algebra_, scene_.stops(), rules_, st.t, st.x, st.v, st.stuck, impacts, releases, resting,
+                          emit_, summary_, &unused, work_, visit_);
+    return true;
+  }
+  bool event(detail::RunState& st, const ContactSet& impacts, const ContactSet& releases, std::string* why) {
+    return resolve(st, impacts, releases, {}, why);
+  }
+  double stiffness(const detail::RunState& st, double T) {
+    return T * sim_.modes_.get(st.stuck).reduced().flow->spectral_radius();
+  }
+
+  detail::SegmentPlan begin_segment(const detail::RunState& st, double t_end) {
+    mode_ = &sim_.modes_.get(st.stuck);
+    const ContactMode::Reduced& red = mode_->reduced();
+    // One segment and finder per contact mode, reused: re-targeting them allocates nothing.
+    ModeSlot* slot = nullptr;
+    for (const auto& s : slots_)
+      if (s->watch == red.watch.get()) slot = s.get();
+    const Eigen::Index size = red.flow->size();
+    auto z0 = reduced_state_.head(size);
+    mode_->reduce(st.t, st.x, st.v, z0);
+    if (!slot) {
+      slots_.push_back(std::make_unique<ModeSlot>());
+      slot = slots_.back().get();
+      slot->watch = red.watch.get();
+      slot->segment = std::make_unique<Segment>(*red.watch, st.t, z0);
+    } else {
+      slot->segment->reset(st.t, z0);
+    }
+    slot_ = slot;
+    rows_ = red.watch->count();
+    Eigen::VectorXd& base = slot->triggers;
+    base.resize(rows_);
+    for (Eigen::Index i = 0; i < rows_; ++i) base(i) = i < red.gap_rows ? eps_gap_ : eps_force_;
+    // A guard that starts inside its tolerance band while moving away (just after an impact or
+    // a release) is only re-armed above where it starts, so rounding cannot re-fire it.
+    slot->finder.retarget(*slot->segment, base, resolution_, true);
+    guards_before_ = slot->segment->guard_evaluations();
+    points_before_ = slot->segment->evaluations();
+    // The closed-form exponential of a nearly defective flow holds up to its horizon
+    // (flow.hpp): a longer free flight is continued as a new segment from there.
+    return {1.0 / std::max(red.flow->spectral_radius(), 1e-300), std::min(t_end - st.t, red.flow->horizon())};
+  }
+  bool search(double a, double b, Crossing* hit) {
+    if (rows_ == 0) return false;
+    const std::optional<Crossing> c = slot_->finder.first(a, b);
+    if (c) *hit = *c;
+    return c.has_value();
+  }
+  void end_search() {
+    const Segment& segment = *slot_->segment;
+    summary_.guard_evaluations += segment.guard_evaluations() - guards_before_;
+    summary_.evaluation_points += segment.evaluations() - points_before_;
+    sim_.guard_evaluations_ = summary_.guard_evaluations;
+  }
+  void report(double t, double t_next, const std::vector<Observer*>& observers) {
+    const DenseSegmentView view(*mode_, *slot_->segment, t, t_next, eps_force_, &view_scratch_);
+    for (Observer* o : observers) o->segment(view);
+  }
+  bool advance(detail::RunState& st, const Crossing* hit, double /*tau*/, double t_next) {
+    const Segment& segment = *slot_->segment;
+    const Eigen::Index n = sys_.dof();
+    auto z = zr_.head(mode_->reduced().flow->size());
+    // The state at t_next exactly as the observers' view gives it (at t_next - t, which may
+    // differ from tau by an ulp of t): the analysis layer's saltation matrices combine the
+    // view's pre-event state with the engine's post-event one, and a state an ulp of t
+    // apart (|ż|·ulp(t), ~1e-12 at t ~ 1e4) biases, e.g., a conservative system's Lyapunov sum
+    // (test_lyapunov.cpp). The crossing's own exponentials are reused where the two times agree.
+    const double elapsed = t_next - st.t;
+    if (hit && elapsed == hit->tau) segment.state(slot_->finder.crossing_sample(), z);
+    else segment.state(elapsed, z);
+    mode_->expand(z, z_full_);
+    st.x = z_full_.head(n);
+    st.v = z_full_.segment(n, n);
+    return st.x.allFinite() && st.v.allFinite();
+  }
+  detail::FiredGuards fired() const {
+    const SegmentSample& at = slot_->finder.crossing_sample();
+    const ContactMode::Reduced& red = mode_->reduced();
+    return {at.h, at.d, slot_->finder.triggers(), red.gap_rows, red.watched};
+  }
+  bool stop_requested(std::string* /*why*/) const { return false; }
+  void state(const detail::RunState& st, bool /*physical*/, Eigen::VectorXd& x, Eigen::VectorXd& v) const {
+    x = st.x;
+    v = st.v;
+  }
+  void finish(RunSummary& summary) const {
+    summary.contact_sets_built = sim_.modes_.built();
+    summary.sticking_flows_built = sim_.modes_.reduced_built();
+  }
+
+ private:
+  Simulator& sim_;
+  const ImpactSystem& scene_;
+  const LinearSystem& sys_;
+  const std::vector<Observer*>& observers_;
+  RunSummary& summary_;
+  double t_end_;
+  detail::ScaleInputs in_;
+  double eps_gap_ = 0.0, eps_force_ = 0.0, resolution_ = 0.0;
+  detail::EventRules rules_;
+  Eigen::VectorXd reduced_state_, zr_, z_full_, view_scratch_;
+  std::vector<std::unique_ptr<ModeSlot>> slots_;
+  std::unique_ptr<StopTables> tables_;
+  std::unique_ptr<DenseAlgebra> algebra_;
+  detail::EventWorkspace work_;
+  std::function<void(const Event&)> emit_;
+  std::function<void(const ContactSet&)> visit_;
+  const ContactMode* mode_ = nullptr;
+  ModeSlot* slot_ = nullptr;
+  Eigen::Index rows_ = 0;
+  long guards_before_ = 0, points_before_ = 0;
+};
+
+RunSummary Simulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                          double t_end, const std::vector<Observer*>& observers) {
+  RunSummary summary;
+  Loop loop(*this, observers, summary, t_end);
+  detail::run_event_loop(loop, options_, t0, x0, v0, t_end, observers, summary);
+  return summary;
 }
 
 }  // namespace vibro

@@ -1207,7 +1207,7 @@ TEST_CASE("where the method cannot deliver: the event cap stops a Zeno run with 
   const std::string& m = run.summary.message;
   INFO(m);
   CHECK(m.find("more than 2000 events within 0.5 time units") != std::string::npos);
-  CHECK(m.find("stop 0") != std::string::npos);
+  CHECK(m.find("stops[0]") != std::string::npos);
   CHECK(run.summary.t < 10.0);
   CHECK(run.seconds < 20.0);
 }

@@ -1432,7 +1432,7 @@ TEST_CASE(
   INFO(m);
   CHECK(m.find("event cap") != std::string::npos);
   CHECK(m.find("t = ") != std::string::npos);
-  CHECK(m.find("stop 0 (lower x0)") != std::string::npos);
+  CHECK(m.find("stops[0] (lower x0)") != std::string::npos);
   CHECK(m.find(std::to_string(20000)) != std::string::npos);
   // The run stops where it reached the cap, and the message gives that time.
   char t_text[64];

@@ -84,12 +84,13 @@
 /// **Events.** A single impact in free flight after which the stop leaves (no chatter, no rest)
 /// is the O(N) rank-1 update above. Every other event (an impact while stops hold, a release,
 /// several simultaneous impacts, a stop coming to rest, chatter caught by the chatter rule) is
-/// resolved in physical coordinates with the dense engine's rules (simulator.cpp: the
-/// generalised Newton law over held and impacting stops, the acceleration LCP, the first- or
-/// second-order chatter rule), each O(N) there with diagonal M and tridiagonal K, plus two
+/// resolved in physical coordinates with the dense engine's rules (event_resolution.cpp: the
+/// generalised Newton law over held and impacting stops, the acceleration LCP, the chatter
+/// rule), each O(N) there with diagonal M and tridiagonal K, plus two
 /// basis changes, O(N n_r) (ModalRunSummary::general_events counts these events). Between
-/// events the motion in any contact set is the exact modal flow. A Zeno run ends with
-/// `event_cap`.
+/// events the motion in any contact set is the exact modal flow. The event loop around them (the
+/// checks of the input, the statuses and their messages, the Zeno guard ending a run with
+/// `event_cap`, interruption, observers) is the dense engine's, written once for both.
 ///
 /// Output: the observers of observers.hpp, through ModalSegmentView (a full state O(N n_r), one
 /// gap or force O(n_r); force minima by the same certified search as events).
@@ -452,10 +453,11 @@ class ModalChainSimulator {
   double force_tolerance() const { return force_tolerance_; }
   double gap_tolerance() const { return gap_tolerance_; }
 
-  class Search;  // the certified crossing search (modal_simulator.cpp)
+  class Search;  // the certified crossing search (modal_search.hpp)
 
  private:
   struct Cache;
+  class Loop;  // the engine's side of the event loop (modal_simulator.cpp)
   const ModalContactMode* mode_for(const ContactSet& set, std::string* why_not,
                                    ModalRunSummary& summary);
 

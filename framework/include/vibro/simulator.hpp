@@ -23,6 +23,11 @@
 ///         log sticks (S grew) and releases (S shrank)
 ///         if more than max_events events within one event window: stop (Zeno guard)
 ///
+/// Both engines run this loop (framework/src/event_loop.hpp; the dense engine here, the modal
+/// chain engine of modal.hpp); they differ only in how a mode's segment is built, searched and
+/// evaluated, and in their stops' algebra. What each guard's crossing means, and where a contact
+/// law other than the rigid stop would plug in, is contact_law.hpp.
+///
 /// Tolerances are relative to scales of the problem: length L (stops, initial state, static and
 /// forced response), velocity V = L·ω_ref, force F = (largest stiffness or mass·ω²)·L, time
 /// T = 2π/ω_ref with ω_ref the forcing frequency (or the fastest natural frequency if unforced).
@@ -52,7 +57,7 @@ namespace vibro {
 ///    systems with complete chattering", Nonlinear Dyn. 58): with A(t_k) = A + A'(t_k - t),
 ///    one flight lasts τ_k = 2w_k/A_k - (4/3) A' w_k²/A³ + (2/3) α w_k²/A² and ends at the speed
 ///    u_{k+1} = w_k + (2/3)(A'/A² + α/A) w_k², so that, summed over the geometric series to first
-///    order in w0 (derivation in simulator.cpp),
+///    order in w0 (derivation in event_resolution.cpp),
 ///        T = T0 + T0² (α/6 - A'/(3A)),   error O(T0³) = O(w0³);
 ///    and the bounces' displacement δg (∫ δg dt = -(2/3) w0³ / (A² (1 - r³)) over the whole tail)
 ///    acts on the rest of the system. Derivation: the true motion minus the sticking motion
@@ -187,6 +192,7 @@ class Simulator {
                     const ContactSet& candidates, Eigen::VectorXd* forces) const;
 
  private:
+  class Loop;  // the engine's side of the event loop (simulator.cpp)
   /// ω for the run's scales: the forcing frequency, or the fastest mode's when unforced.
   double scale_frequency() const;
 

@@ -1,0 +1,130 @@
+#pragma once
+// Private to vibro_core: the modal chain engine's pieces shared by its files: the stops' sparse
+// normals and harmonic motions, the chain's banded products, a contact set's modal form
+// (build_mode, modal_modes.cpp), the basis changes between physical and modal states and the
+// guards' values (modal_modes.cpp), and the certified crossing search on modal guards
+// (modal_search.hpp).
+#include "vibro/modal.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace vibro::detail {
+
+inline double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+/// The nonzero entries of a stop's normal w: (mass, weight) pairs.
+struct Normal {
+  Eigen::Index i = 0, k = -1;
+  double wi = 1.0, wk = 0.0;
+};
+
+inline Normal normal_of(const Stop& s) {
+  switch (s.kind) {
+    case Stop::Kind::upper: return {s.mass, -1, 1.0, 0.0};
+    case Stop::Kind::lower: return {s.mass, -1, -1.0, 0.0};
+    case Stop::Kind::between: return {s.mass, s.other, 1.0, -1.0};
+  }
+  return {};
+}
+
+/// w_aᵀ M⁻¹ w_b for diagonal M.
+inline double delassus_entry(const Normal& a, const Normal& b, const Eigen::VectorXd& mass) {
+  double sum = 0.0;
+  auto add = [&](Eigen::Index ia, double wa) {
+    if (ia < 0) return;
+    if (ia == b.i) sum += wa * b.wi / mass(ia);
+    if (b.k >= 0 && ia == b.k) sum += wa * b.wk / mass(ia);
+  };
+  add(a.i, a.wi);
+  add(a.k, a.wk);
+  return sum;
+}
+
+/// c0 + cc cos Ωt + cs sin Ωt.
+struct Harmonic {
+  double c0 = 0.0, cc = 0.0, cs = 0.0;
+  Harmonic derivative(double W) const { return {0.0, W * cs, -W * cc}; }
+  Harmonic& operator+=(const Harmonic& o) {
+    c0 += o.c0;
+    cc += o.cc;
+    cs += o.cs;
+    return *this;
+  }
+  friend Harmonic operator*(double a, const Harmonic& h) { return {a * h.c0, a * h.cc, a * h.cs}; }
+};
+
+inline Harmonic stop_motion(const Stop& s) { return {s.s0(), s.s_cos(), s.s_sin()}; }
+
+inline double value_at(const Harmonic& h, double W, double t) {
+  return h.c0 + h.cc * std::cos(W * t) + h.cs * std::sin(W * t);
+}
+
+inline bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
+
+inline std::string stop_text(const std::vector<Stop>& stops, int j) {
+  return "stops[" + std::to_string(j) + "] (" + stops[static_cast<std::size_t>(j)].name + ")";
+}
+
+/// out = K x for the chain's tridiagonal K. O(n).
+inline void stiffness_times(const BandedChain& ch, const Eigen::VectorXd& x, Eigen::VectorXd& out) {
+  const Eigen::Index n = ch.dof();
+  out = ch.stiffness_diagonal.cwiseProduct(x);
+  for (Eigen::Index i = 0; i + 1 < n; ++i) {
+    out(i) += ch.stiffness_off(i) * x(i + 1);
+    out(i + 1) += ch.stiffness_off(i) * x(i);
+  }
+}
+
+/// K_{l,l'} of the tridiagonal K (0 off the band).
+inline double stiffness_entry(const BandedChain& ch, Eigen::Index l, Eigen::Index lp) {
+  if (l == lp) return ch.stiffness_diagonal(l);
+  if (std::abs(l - lp) == 1) return ch.stiffness_off(std::min(l, lp));
+  return 0.0;
+}
+
+/// Chains of at least this many masses build their contact sets' modes by the secular equation
+/// (ModalSimulatorOptions::contact_modes = automatic): at N = 1000 both routes take ~0.05 s,
+/// beyond it the tridiagonal one grows as N² in time and memory, the secular one in time only.
+inline constexpr Eigen::Index kSecularFromMasses = 1000;
+
+/// Buffers of the free chain's size for the basis changes and guard values of an event, so that
+/// no event allocates once they are warm (each use takes the head it needs).
+struct Buffers {
+  explicit Buffers(Eigen::Index n) : y(n), yd(n), u(n), ud(n), udd(n), fu(n), fud(n), z(n), kz(n) {}
+  Eigen::VectorXd y, yd, u, ud, udd, fu, fud, z, kz;
+  ChainModes::Workspace work;
+};
+
+/// Full physical state from a mode's homogeneous modal state at t. O(n·n_r).
+void to_physical(const ModalContactMode& mode, double W, double t, const Eigen::Ref<const Eigen::VectorXd>& u,
+                 const Eigen::Ref<const Eigen::VectorXd>& ud, Eigen::Ref<Eigen::VectorXd> x,
+                 Eigen::Ref<Eigen::VectorXd> v, Buffers& b);
+
+/// A mode's homogeneous modal state from the full state at t: each reduced coordinate is the
+/// mass-weighted mean of its masses (less their offsets), the M-orthogonal projection onto the
+/// constraints, so rounding drift off them is projected away. O(n·n_r).
+/// `u`, `ud` have the mode's size.
+void to_modal(const ModalContactMode& mode, const Eigen::VectorXd& mass, double W, double t,
+              const Eigen::VectorXd& x, const Eigen::VectorXd& v, Eigen::Ref<Eigen::VectorXd> u,
+              Eigen::Ref<Eigen::VectorXd> ud, Buffers& b);
+
+/// Value and slope of guard `row` at t0 + τ from the homogeneous state (u0, ud0) at t0, and
+/// its second derivative if `curvature` is given. O(n_r).
+void guard_at(const ModalContactMode& mode, double W, double t0, const Eigen::Ref<const Eigen::VectorXd>& u0,
+              const Eigen::Ref<const Eigen::VectorXd>& ud0, double tau, Eigen::Index row, double* value, double* slope,
+              Buffers& b, double* curvature = nullptr);
+
+/// Builds the modal form of contact set `set` (modal.hpp, ModalContactMode), or returns null and
+/// says why in `why_not` when the set is one the modal engine cannot reduce (modal_modes.cpp).
+std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::vector<Stop>& stops,
+                                             const ContactSet& set, std::string* why_not,
+                                             TridiagonalSolver route = TridiagonalSolver::automatic);
+
+}  // namespace vibro::detail

@@ -1,0 +1,184 @@
+// The modal chain engine's segments as observers see them (observers.hpp): ModalSegmentView
+// and ModalSegmentState, with the certified search of their guards' extrema.
+#include "modal_search.hpp"
+
+#include <limits>
+#include <vector>
+
+namespace vibro {
+using detail::Buffers;
+using detail::Harmonic;
+using detail::guard_at;
+using detail::to_physical;
+
+// ---------------------------------------------------------------------------------------------
+// Observers
+
+Eigen::Index ModalSegmentView::dof() const { return sim_->modes().dof(); }
+
+void ModalSegmentView::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const {
+  const Eigen::Index nr = mode_->size();
+  Eigen::VectorXd u(nr), ud(nr);
+  if (mode_->modes) mode_->modes->advance(t - t_begin(), sim_->segment_u(), sim_->segment_ud(), u, ud);
+  Buffers buffers(sim_->modes().dof());  // observers' own scratch (they may allocate)
+  to_physical(*mode_, sim_->modes().frequency(), t, u, ud, x, v, buffers);
+}
+
+ModalSegmentState ModalSegmentView::keep() const {
+  return {*sim_, *mode_, t_begin(), sim_->segment_u(), sim_->segment_ud()};
+}
+
+void ModalSegmentState::state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const {
+  const Eigen::Index nr = mode_->size();
+  Eigen::VectorXd u(nr), ud(nr);
+  if (mode_->modes) mode_->modes->advance(t - t_begin_, u_, ud_, u, ud);
+  Buffers buffers(sim_->modes().dof());
+  to_physical(*mode_, sim_->modes().frequency(), t, u, ud, x, v, buffers);
+}
+
+void ModalSegmentState::rows(double t, const std::vector<Eigen::Index>& masses, Eigen::VectorXd& x,
+                             Eigen::VectorXd& v) const {
+  const ModalContactMode& md = *mode_;
+  const double W = sim_->modes().frequency(), c = std::cos(W * t), s = std::sin(W * t);
+  const auto k = static_cast<Eigen::Index>(masses.size());
+  x.resize(k);
+  v.resize(k);
+  std::vector<Eigen::Index> coordinates;
+  for (Eigen::Index l : masses) {
+    const Eigen::Index r = md.coordinate[static_cast<std::size_t>(l)];
+    if (r >= 0) coordinates.push_back(r);
+  }
+  Eigen::MatrixXd phi;
+  Eigen::VectorXd q, qd;
+  if (md.modes && !coordinates.empty()) {
+    const ChainModes& m = *md.modes;
+    const Eigen::Index nr = md.size();
+    q.resize(nr);
+    qd.resize(nr);
+    m.advance(t - t_begin_, u_, ud_, q, qd);
+    q += m.particular_constant() + m.particular_cosine() * c + m.particular_sine() * s;
+    qd += W * (m.particular_sine() * c - m.particular_cosine() * s);
+    phi = m.phi_rows(coordinates);
+  }
+  Eigen::Index next = 0;
+  for (Eigen::Index i = 0; i < k; ++i) {
+    const Eigen::Index l = masses[static_cast<std::size_t>(i)];
+    x(i) = md.o0(l) + md.oc(l) * c + md.os(l) * s;
+    v(i) = W * (md.os(l) * c - md.oc(l) * s);
+    if (md.coordinate[static_cast<std::size_t>(l)] >= 0) {
+      x(i) += phi.row(next).dot(q);
+      v(i) += phi.row(next).dot(qd);
+      ++next;
+    }
+  }
+}
+
+double ModalSegmentView::force(Eigen::Index a, double t) const {
+  double value, slope;
+  Buffers buffers(mode_->size());
+  guard_at(*mode_, sim_->modes().frequency(), t_begin(), sim_->segment_u(), sim_->segment_ud(),
+           t - t_begin(), mode_->gap_rows + a, &value, &slope, buffers);
+  return -value;
+}
+
+namespace {
+
+/// The interior local maxima of guard `row` of `mode` in (from, to) for the homogeneous state (u0, ud0)
+/// at t0 (ModalSegmentState::guard_local_maxima). Guards −h' and h' (h = P u + D u' + harmonic; with
+/// u'' = −2σu' − ω²u, h' = (−D∘ω²)·u + (P − 2D∘σ)·u' + harmonic'; gaps have D = 0). A maximum is −h'
+/// crossing 0 upwards, a minimum h' crossing upwards; the search alternates between them, one armed
+/// at a time (the other's trigger is +∞), as DenseSegmentView::force_local_minima.
+std::vector<Minimum> guard_maxima(const ModalChainSimulator& sim, const ModalContactMode& mode, double t0,
+                                  const Eigen::Ref<const Eigen::VectorXd>& u0,
+                                  const Eigen::Ref<const Eigen::VectorXd>& ud0, Eigen::Index row, double from,
+                                  double to, double tolerance) {
+  const ModalGuards& g = mode.guards;
+  const Eigen::Index nr = mode.size(), first_d = g.rows() - g.D.rows();
+  const double W = sim.modes().frequency();
+  ModalGuards slope;
+  slope.P.resize(2, nr);
+  slope.D.resize(2, nr);
+  if (nr > 0) {
+    const Eigen::VectorXd& w2 = mode.modes->omega_squared();
+    const Eigen::VectorXd& sg = mode.modes->decay();
+    const Eigen::RowVectorXd d_row =
+        row >= first_d ? Eigen::RowVectorXd(g.D.row(row - first_d)) : Eigen::RowVectorXd::Zero(nr);
+    slope.P.row(0) = d_row.cwiseProduct(w2.transpose());                                   // −h'
+    slope.D.row(0) = -(g.P.row(row) - 2.0 * d_row.cwiseProduct(sg.transpose()));
+  }
+  slope.P.row(1) = -slope.P.row(0);
+  slope.D.row(1) = -slope.D.row(0);
+  const Harmonic h_slope = Harmonic{g.h0(row), g.hc(row), g.hs(row)}.derivative(W);
+  slope.h0 = Eigen::Vector2d(-h_slope.c0, h_slope.c0);
+  slope.hc = Eigen::Vector2d(-h_slope.cc, h_slope.cc);
+  slope.hs = Eigen::Vector2d(-h_slope.cs, h_slope.cs);
+  slope.finish(W);
+
+  long evaluations = 0;
+  ModalChainSimulator::Search s(W, &evaluations, nr);
+  const double start = from - t0, span = to - t0;
+  const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(to));
+  s.reset(mode.modes, slope, t0, u0, ud0, resolution);
+  ModalChainSimulator::Search::Point& p0 = s.point(0);
+  s.evaluate(start, p0);
+  const double top = std::max(W, mode.modes ? mode.modes->omega().maxCoeff() : 0.0);
+  // As DenseSegmentView: the trigger scaled to a slope (× 1e-3 × the fastest rate).
+  const double eps = std::max(1e-13 * std::abs(p0.h(0)), tolerance * 1e-3 * std::max(top, 1e-300));
+  const double step = top > 0.0 ? 1.0 / top : std::max(span, 1e-300);
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<Minimum> out;
+  bool seek_max = p0.h(0) <= 0.0;
+  double at = start;
+  Buffers buffers(nr);
+  for (int guard = 0; at < span && guard < 10000; ++guard) {
+    Eigen::VectorXd trigger(2);
+    trigger << (seek_max ? eps : inf), (seek_max ? inf : eps);
+    s.start(trigger, at);
+    double tau = span;
+    int which = -1;
+    if (!s.first(span, step, &tau, &which) || tau >= span) break;
+    if (seek_max && tau > start) {
+      const double t = t0 + tau;
+      double value, rate;
+      guard_at(mode, W, t0, u0, ud0, t - t0, row, &value, &rate, buffers);
+      out.push_back({value, t});
+    }
+    at = std::max(tau, at) + resolution;
+    seek_max = !seek_max;
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<Minimum> ModalSegmentView::force_local_minima(Eigen::Index a) const {
+  std::vector<Minimum> out = guard_maxima(*sim_, *mode_, t_begin(), sim_->segment_u(), sim_->segment_ud(),
+                                          mode_->gap_rows + a, t_begin(), t_end(), sim_->force_tolerance());
+  for (Minimum& m : out) m.value = -m.value;  // λ = −h
+  return out;
+}
+
+std::vector<Minimum> ModalSegmentState::guard_local_maxima(Eigen::Index row, double from, double to,
+                                                           double tolerance) const {
+  return guard_maxima(*sim_, *mode_, t_begin_, u_, ud_, row, from, to, tolerance);
+}
+
+double ModalSegmentState::guard(Eigen::Index row, double t) const {
+  double value, rate;
+  Buffers buffers(mode_->size());
+  guard_at(*mode_, sim_->modes().frequency(), t_begin_, u_, ud_, t - t_begin_, row, &value, &rate, buffers);
+  return value;
+}
+
+Minimum ModalSegmentView::force_minimum(Eigen::Index a) const {
+  // The least of the ends and the interior minima (each certified by the search above).
+  Minimum best{force(a, t_begin()), t_begin()};
+  const double end = force(a, t_end());
+  if (end < best.value) best = {end, t_end()};
+  for (const Minimum& m : force_local_minima(a))
+    if (m.value < best.value) best = m;
+  return best;
+}
+
+}  // namespace vibro
+
