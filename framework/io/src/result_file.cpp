@@ -85,7 +85,6 @@ std::vector<Dataset> scene_datasets(const Scene& scene) {
   return c;
 }
 
-/// Numeric attributes of /scene (the resolved run settings).
 std::vector<std::pair<std::string, double>> scene_numbers(const Scene& scene) {
   return {{"frequency", scene.forcing().frequency},
           {"t0", scene.t0},
@@ -120,7 +119,6 @@ const char* status_name(RunStatus status) {
   return "?";
 }
 
-/// Columns of /sweep/counts and the /meta attributes that sum them.
 const std::vector<std::string>& count_names() {
   static const std::vector<std::string> names{"impacts",  "sticks",   "releases",
                                               "chatters", "segments", "contact_sets_built",

@@ -114,7 +114,6 @@ std::vector<Table> recorded_tables(const Recording& rec, Eigen::Index dof,
   return tables;
 }
 
-/// The recorded groups of a scene, as named in the file.
 std::vector<std::string> recorded_groups(const RecordSpec& record) {
   std::vector<std::string> groups;
   if (record.events) groups.push_back("events");
@@ -127,7 +126,6 @@ std::vector<std::string> recorded_groups(const RecordSpec& record) {
 
 }  // namespace detail
 
-/// The recording must carry exactly the groups the scene records.
 void ResultFile::Impl::require_groups(const Recording& rec) const {
   const bool expected[] = {record.events, record.contacts, detail::records_samples(record),
                            record.poincare, record.statistics};
@@ -142,7 +140,8 @@ void ResultFile::Impl::require_groups(const Recording& rec) const {
                              ": use Recording::for_scene");
 }
 
-std::vector<detail::Table> ResultFile::Impl::checked_tables(const Recording& rec, const std::string& where) const {
+std::vector<detail::Table> ResultFile::Impl::checked_tables(const Recording& rec,
+                                                            const std::string& where) const {
   require_groups(rec);
   std::vector<Table> tables = detail::recorded_tables(rec, dof, stops);
   for (const Table& t : tables)

@@ -10,6 +10,8 @@
 
 namespace vibro::io {
 
+// The Impl members are documented in result_file_impl.hpp.
+
 void ResultFile::Impl::start_sweep(const std::vector<std::string>& names, std::size_t points) {
   store.create_group("/sweep");
   store.set_texts("/sweep", "parameters", names);
@@ -34,7 +36,6 @@ void ResultFile::Impl::start_sweep(const std::vector<std::string>& names, std::s
   parameters = names.size();
 }
 
-/// Appends one row (of shape row_shape) at index `row` of an extendible dataset, creating it.
 void ResultFile::Impl::put_row(const std::string& path, Type type, const Dims& row_shape,
                                hsize_t row, const void* data) const {
   Dims dims{0};
@@ -52,7 +53,6 @@ void ResultFile::Impl::put_row(const std::string& path, Type type, const Dims& r
   store.write_block(path, type, start, count, data);
 }
 
-/// Fixed-size data of point p at [p, 0 … rows, …] of (points × rows × …) datasets.
 void ResultFile::Impl::append_stacked(const Table& table, hsize_t p) const {
   const std::string group = "/" + table.group;
   if (!store.exists(group)) {
@@ -87,7 +87,6 @@ void ResultFile::Impl::append_stacked(const Table& table, hsize_t p) const {
   put_row(group + "/rows", Type::i64, {}, p, &rows);
 }
 
-/// Ragged data of point p appended to 1-D datasets, with a `point` column.
 void ResultFile::Impl::append_ragged(const Table& table, hsize_t p) const {
   const std::string group = "/" + table.group;
   if (!store.exists(group)) {
@@ -111,7 +110,6 @@ void ResultFile::Impl::append_ragged(const Table& table, hsize_t p) const {
   put_row(group + "/rows", Type::i64, {}, p, &rows);
 }
 
-/// Writes point p's data and its rows of /sweep (not yet counted: see commit).
 void ResultFile::Impl::write_point(hsize_t p, const PointRecord& point) const {
   for (const Table& table : point.tables)
     table.ragged ? append_ragged(table, p) : append_stacked(table, p);
@@ -124,9 +122,6 @@ void ResultFile::Impl::write_point(hsize_t p, const PointRecord& point) const {
   put_row("/sweep/v_end", Type::f64, {n}, p, point.v_end.data());
 }
 
-/// Counts the `completed` points, in this order: everything written is flushed, then the
-/// counter is set (in place) and flushed. A kill during the first flush leaves the old count,
-/// during the second either count, and each counted point is whole on disk.
 void ResultFile::Impl::commit() const {
   store.flush();
   if (sweep_begun) store.set_integer("/sweep", "completed", static_cast<std::int64_t>(completed));
