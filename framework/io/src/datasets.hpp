@@ -1,6 +1,7 @@
 #pragma once
-// Private to vibro_io: building the Datasets of run kinds that write their own groups
-// (run.kind: locate, continue; result_file.hpp, ResultFile::write_group).
+// Private to vibro_io: building Datasets (result_file.hpp), the one type every dataset of a result
+// file is written from (the recorded groups, /scene, and the groups run kinds write themselves
+// with ResultFile::write_group), and finishing a run kind's file.
 #include "vibro/io/result_file.hpp"
 
 #include <Eigen/Dense>
@@ -8,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -22,12 +24,30 @@ inline Dataset reals(std::string name, std::vector<double> values, std::vector<s
   return d;
 }
 
-inline Dataset integers(std::string name, std::vector<std::int64_t> values) {
+/// Integers of `shape`, stored as `type` (i32 or i64).
+inline Dataset integers(std::string name, std::vector<std::int64_t> values,
+                        std::vector<std::size_t> shape, Dataset::Type type = Dataset::Type::i64) {
   Dataset d;
   d.name = std::move(name);
-  d.shape = {values.size()};
+  d.type = type;
   d.integers = std::move(values);
-  d.integer = true;
+  d.shape = std::move(shape);
+  return d;
+}
+
+/// A 1-D dataset of 64-bit integers.
+inline Dataset integers(std::string name, std::vector<std::int64_t> values) {
+  const std::size_t n = values.size();
+  return integers(std::move(name), std::move(values), {n});
+}
+
+/// A 1-D dataset of strings.
+inline Dataset texts(std::string name, std::vector<std::string> values) {
+  Dataset d;
+  d.name = std::move(name);
+  d.type = Dataset::Type::str;
+  d.shape = {values.size()};
+  d.texts = std::move(values);
   return d;
 }
 
@@ -36,6 +56,45 @@ inline Dataset table(std::string name, const std::vector<Eigen::VectorXd>& rows,
   std::vector<double> values;
   for (const Eigen::VectorXd& r : rows) values.insert(values.end(), r.data(), r.data() + r.size());
   return reals(std::move(name), std::move(values), {rows.size(), cols});
+}
+
+/// A vector as a 1-D dataset.
+inline Dataset vector_dataset(std::string name, const Eigen::VectorXd& v) {
+  return reals(std::move(name), std::vector<double>(v.data(), v.data() + v.size()),
+               {static_cast<std::size_t>(v.size())});
+}
+
+/// A matrix as a rows × cols dataset.
+inline Dataset matrix_dataset(std::string name, const Eigen::MatrixXd& a) {
+  std::vector<double> values;
+  values.reserve(static_cast<std::size_t>(a.size()));
+  for (Eigen::Index i = 0; i < a.rows(); ++i)
+    for (Eigen::Index j = 0; j < a.cols(); ++j) values.push_back(a(i, j));
+  return reals(std::move(name), std::move(values),
+               {static_cast<std::size_t>(a.rows()), static_cast<std::size_t>(a.cols())});
+}
+
+/// rows.size() × cols, one vector per row; a row of another length is a programming error.
+inline Dataset rows_dataset(std::string name, const std::vector<Eigen::VectorXd>& rows, Eigen::Index cols) {
+  std::vector<double> values;
+  values.reserve(rows.size() * static_cast<std::size_t>(cols));
+  for (const Eigen::VectorXd& row : rows) {
+    if (row.size() != cols)
+      throw std::logic_error("results: " + name + ": a row has " + std::to_string(row.size()) +
+                             " entries, expected " + std::to_string(cols));
+    values.insert(values.end(), row.data(), row.data() + row.size());
+  }
+  return reals(std::move(name), std::move(values), {rows.size(), static_cast<std::size_t>(cols)});
+}
+
+/// columns.cols() × cols from the columns of an n × r matrix (Samples' layout, column-major: its
+/// storage is already the r × n array row by row).
+inline Dataset rows_dataset(std::string name, const Eigen::MatrixXd& columns, Eigen::Index cols) {
+  if (columns.cols() > 0 && columns.rows() != cols)
+    throw std::logic_error("results: " + name + ": the columns have " + std::to_string(columns.rows()) +
+                           " entries, expected " + std::to_string(cols));
+  return reals(std::move(name), std::vector<double>(columns.data(), columns.data() + columns.size()),
+               {static_cast<std::size_t>(columns.cols()), static_cast<std::size_t>(cols)});
 }
 
 /// A limit that may not exist: "none" is −1 in the file (the limits it stands for are ≥ 0).

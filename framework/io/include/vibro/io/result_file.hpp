@@ -37,6 +37,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace vibro::io {
@@ -47,14 +48,18 @@ class ResultError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// One dataset of a run kind that writes its own groups (run.kind: locate): row-major values of
-/// `shape`, reals or integers, with string-array attributes (e.g. `names` of an enumeration).
+/// One dataset of a result file: row-major values of `shape`, of one stored type, with
+/// string-array attributes (e.g. `names` of an enumeration). The writer builds every dataset it
+/// writes as one; run kinds that write their own groups pass them to ResultFile::write_group.
 struct Dataset {
+  /// The type stored in the file: 64-bit reals, 32- or 64-bit integers, UTF-8 strings.
+  enum class Type { f64, i32, i64, str };
   std::string name;
   std::vector<std::size_t> shape;
+  Type type = Type::f64;
   std::vector<double> reals;           ///< f64 values, or
-  std::vector<std::int64_t> integers;  ///< i64 values when `integer`
-  bool integer = false;
+  std::vector<std::int64_t> integers;  ///< i32 and i64 values, or
+  std::vector<std::string> texts;      ///< str values
   std::vector<std::pair<std::string, std::vector<std::string>>> labels;
 };
 

@@ -62,6 +62,6 @@ struct RunMeta {
 
 RunMeta current_meta(int threads);
 
-class ResultFile;  // HDF5 writer, defined in results.cpp
+class ResultFile;  // HDF5 writer (result_file.hpp)
 
 }  // namespace vibro::io

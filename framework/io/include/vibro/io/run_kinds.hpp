@@ -15,8 +15,10 @@
 /// docs/scenes.md and docs/results.md.
 ///
 /// Layers (each includes only those before it):
-///   scene model (scene.hpp) ← result file (results.hpp, result_file.hpp: HDF5 inside results.cpp)
-///   ← run request (run_request.hpp) ← scene reading (src/scene_reader.hpp, src/scene_sections,
+///   scene model (scene.hpp) ← result file (results.hpp, result_file.hpp; HDF5 only inside
+///   src/hdf5_file, used by src/result_file.cpp, src/resume.cpp, src/result_reader.cpp and the
+///   layouts src/kinds/{simulate,sweep}_layout.cpp) ← run request (run_request.hpp) ← scene
+///   reading (src/scene_reader.hpp, src/scene_sections,
 ///   src/run_section) and what runs share (src/simulation, src/progress, src/interrupt,
 ///   src/sweep_plan.hpp) ← run kinds (src/kinds/) ← this table (run_kinds.cpp) ← scene building
 ///   (SceneDocument::build_checked, read_run in scene.cpp), runner, session, `vibro`.

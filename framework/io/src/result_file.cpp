@@ -1,0 +1,284 @@
+// The result file's /scene and /meta, its life (create, create_in_memory, finish, the
+// destructor), and the groups of run kinds other than simulate and sweep (write_group). The
+// recorded groups are in kinds/simulate_layout.cpp, /sweep in kinds/sweep_layout.cpp, resuming in
+// resume.cpp; the layout is docs/results.md: change both together, and only compatibly.
+#include "datasets.hpp"
+#include "result_file_impl.hpp"
+
+#include <cstdio>
+#include <stdexcept>
+
+namespace vibro::io {
+
+namespace detail {
+
+namespace {
+
+const char* flow_method_name(FlowMethod method) {
+  switch (method) {
+    case FlowMethod::automatic: return "automatic";
+    case FlowMethod::spectral: return "spectral";
+    case FlowMethod::exponential: return "exponential";
+  }
+  return "?";
+}
+
+std::vector<std::string> stop_names(const Scene& scene) {
+  std::vector<std::string> names;
+  // Names defaulted as in messages; O(m log m), no dense system.
+  for (const Stop& stop : validated_stops(scene.stops, scene.dof(), scene.forcing().frequency))
+    names.push_back(stop.name);
+  return names;
+}
+
+}  // namespace
+
+/// The resolved scene as datasets of /scene.
+/// A scene run by the modal engine gives its chain in banded form (O(n)): its dense matrices are
+/// never built (at n = 10 000 each would take 800 MB).
+std::vector<Dataset> scene_datasets(const Scene& scene) {
+  std::vector<Dataset> c;
+  if (scene.engine == EngineKind::modal && scene.chain) {
+    const BandedChain& chain = *scene.chain;
+    c.push_back(vector_dataset("mass_diagonal", chain.mass));
+    c.push_back(vector_dataset("stiffness_diagonal", chain.stiffness_diagonal));
+    c.push_back(vector_dataset("stiffness_off_diagonal", chain.stiffness_off));
+    c.push_back(vector_dataset("rayleigh", Eigen::Vector2d(chain.rayleigh_mass, chain.rayleigh_stiffness)));
+  } else {
+    const LinearSystem& s = scene.system();
+    c.push_back(matrix_dataset("mass", s.mass()));
+    c.push_back(matrix_dataset("damping", s.damping()));
+    c.push_back(matrix_dataset("stiffness", s.stiffness()));
+  }
+  const HarmonicForcing& f = scene.forcing();
+  c.push_back(vector_dataset("forcing_constant", f.constant));
+  c.push_back(vector_dataset("forcing_cosine", f.cosine));
+  c.push_back(vector_dataset("forcing_sine", f.sine));
+
+  // Stop names defaulted as in messages (a Scene made in code may leave them empty).
+  const std::vector<Stop> stops = validated_stops(scene.stops, scene.dof(), f.frequency);
+  const std::size_t m = stops.size();
+  std::vector<std::int64_t> kind, mass, other;
+  std::vector<double> position, restitution, amplitude, phase;
+  std::vector<std::string> name;
+  for (const Stop& stop : stops) {
+    kind.push_back(static_cast<std::int64_t>(stop.kind));
+    mass.push_back(stop.mass);
+    other.push_back(stop.other);
+    position.push_back(stop.position);
+    restitution.push_back(stop.restitution);
+    amplitude.push_back(stop.amplitude);
+    phase.push_back(stop.phase);
+    name.push_back(stop.name);
+  }
+  c.push_back(integers("stop_kind", std::move(kind), {m}, Type::i32));
+  c.back().labels.emplace_back("names", std::vector<std::string>{"upper", "lower", "between"});
+  c.push_back(integers("stop_mass", std::move(mass), {m}));
+  c.push_back(integers("stop_other", std::move(other), {m}));
+  c.push_back(reals("stop_position", std::move(position), {m}));
+  c.push_back(reals("stop_restitution", std::move(restitution), {m}));
+  c.push_back(reals("stop_amplitude", std::move(amplitude), {m}));
+  c.push_back(reals("stop_phase", std::move(phase), {m}));
+  c.push_back(texts("stop_name", std::move(name)));
+  c.push_back(vector_dataset("x0", scene.x0));
+  c.push_back(vector_dataset("v0", scene.v0));
+  return c;
+}
+
+std::vector<std::pair<std::string, double>> scene_numbers(const Scene& scene) {
+  return {{"frequency", scene.forcing().frequency},
+          {"t0", scene.t0},
+          {"transient_periods", scene.run.transient_periods},
+          {"periods", scene.run.periods},
+          {"follow", scene.run.follow ? 1.0 : 0.0},
+          {"reverse", scene.run.reverse ? 1.0 : 0.0}};
+}
+
+/// The solver tolerances, written to /meta (and compared on resume); max_events is the one
+/// integer among them (stored as i64, compared here as a double: exact below 2^53).
+std::vector<std::pair<std::string, double>> tolerances(const SimulatorOptions& o) {
+  return {{"trigger", o.trigger},
+          {"simultaneity", o.simultaneity},
+          {"chatter_height", o.chatter_height},
+          {"chatter_velocity", o.chatter_velocity},
+          {"contact_velocity", o.contact_velocity},
+          {"max_events", static_cast<double>(o.max_events)},
+          {"event_window", o.event_window},
+          {"length_scale", o.length_scale},
+          {"flow_max_condition", o.flow.max_condition}};
+}
+
+const char* status_name(RunStatus status) {
+  switch (status) {
+    case RunStatus::completed: return "completed";
+    case RunStatus::event_cap: return "event_cap";
+    case RunStatus::numerical_failure: return "numerical_failure";
+    case RunStatus::unsupported: return "unsupported";
+    case RunStatus::interrupted: return "interrupted";
+  }
+  return "?";
+}
+
+const std::vector<std::string>& count_names() {
+  static const std::vector<std::string> names{"impacts",  "sticks",   "releases",
+                                              "chatters", "segments", "contact_sets_built",
+                                              "sticking_flows_built"};
+  return names;
+}
+
+std::vector<std::int64_t> counts(const RunSummary& s) {
+  return {s.impacts,
+          s.sticks,
+          s.releases,
+          s.chatters,
+          s.segments,
+          static_cast<std::int64_t>(s.contact_sets_built),
+          static_cast<std::int64_t>(s.sticking_flows_built)};
+}
+
+}  // namespace detail
+
+ResultFile::Impl::Impl(std::unique_ptr<detail::OutputLock> output_lock, std::string final_path, std::string file,
+     Store::Mode mode, const Scene& scene)
+    : lock(std::move(output_lock)),
+      path(std::move(final_path)),
+      partial(partial_path(path)),
+      file_name(std::move(file)),
+      store(file_name, mode),
+      record(scene.record),
+      sweep_run(scene.run.kind == RunSpec::Kind::sweep),
+      dof(scene.dof()),
+      stops(detail::stop_names(scene)) {}
+
+void ResultFile::Impl::write_scene(const Scene& scene) const {
+  store.create_group("/scene");
+  store.set_text("/scene", "yaml", scene.yaml_text);
+  store.set_text("/scene", "file", scene.file);
+  store.set_text("/scene", "name", scene.name);
+  store.set_text("/scene", "run_kind",
+                 to_string(scene.run.kind));
+  store.set_real("/scene", "period", scene.period());
+  for (const auto& [name, value] : detail::scene_numbers(scene)) store.set_real("/scene", name, value);
+  for (const Dataset& c : detail::scene_datasets(scene)) {
+    detail::require_finite(store.name(), "/scene/" + c.name, c);
+    store.write("/scene/" + c.name, c);
+  }
+}
+
+void ResultFile::Impl::write_meta(const RunMeta& meta, const Scene& scene) const {
+  store.create_group("/meta");
+  store.set_text("/meta", "version", meta.version);
+  store.set_text("/meta", "git_commit", meta.git_commit);
+  store.set_text("/meta", "date", meta.date);
+  store.set_text("/meta", "compiler", meta.compiler);
+  store.set_integer("/meta", "threads", meta.threads);
+  for (const auto& [name, value] : detail::tolerances(scene.solver))
+    if (name == "max_events")
+      store.set_integer("/meta", name, scene.solver.max_events);
+    else
+      store.set_real("/meta", name, value);
+  store.set_text("/meta", "flow_method", detail::flow_method_name(scene.solver.flow.method));
+  store.set_text("/meta", "chatter_rule", to_string(scene.solver.chatter_rule));
+  store.set_text("/meta", "engine", to_string(scene.engine));
+  store.set_text("/meta", "engine_choice", to_string(scene.engine_choice));
+  store.set_text("/meta", "status", "running");
+  store.set_text("/meta", "message", "");
+  store.set_integer("/meta", "resumed", 0);
+}
+
+ResultFile::ResultFile(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+ResultFile::ResultFile(ResultFile&&) noexcept = default;
+ResultFile& ResultFile::operator=(ResultFile&&) noexcept = default;
+
+ResultFile::~ResultFile() {
+  if (!impl_ || impl_->finished) return;
+  try {
+    impl_->store.close();
+  } catch (...) {
+    // Nothing better to do in a destructor; the file is abandoned either way.
+  }
+  if (!impl_->keep_unfinished && !impl_->in_memory) std::remove(impl_->file_name.c_str());
+}
+
+ResultFile ResultFile::create(const std::string& path, const Scene& scene, const RunMeta& meta, bool overwrite) {
+  const std::string partial = partial_path(path);
+  auto lock = std::make_unique<detail::OutputLock>(path, scene.file, overwrite);
+  lock->discard_stale_partial(scene.run.kind == RunSpec::Kind::sweep);
+  ResultFile file(std::make_unique<Impl>(std::move(lock), path, partial, detail::Store::Mode::create, scene));
+  Impl& f = *file.impl_;  // from here on, a failure removes the new file
+  f.write_scene(scene);
+  f.write_meta(meta, scene);
+  f.commit();
+  f.keep_unfinished = f.sweep_run;
+  return file;
+}
+
+ResultFile ResultFile::create_in_memory(const Scene& scene, const RunMeta& meta) {
+  const std::string name = detail::Store::memory_name("memory");
+  ResultFile file(std::make_unique<Impl>(nullptr, name, name, detail::Store::Mode::memory, scene));
+  Impl& f = *file.impl_;
+  f.in_memory = true;
+  f.write_scene(scene);
+  f.write_meta(meta, scene);
+  f.commit();
+  return file;
+}
+
+std::vector<char> ResultFile::image() const {
+  return impl_->finished ? impl_->final_image : impl_->store.image();
+}
+
+void ResultFile::write_group(const std::string& group, const std::vector<Dataset>& datasets,
+                             const std::vector<std::pair<std::string, std::string>>& attributes) {
+  Impl& f = *impl_;
+  if (f.sweep_run) throw std::logic_error("results: write_group on a sweep");
+  const std::string path = "/" + group;
+  for (const Dataset& d : datasets) detail::require_finite(f.store.name(), path + "/" + d.name, d);
+  f.store.create_group(path);
+  for (const Dataset& d : datasets) f.store.write(path + "/" + d.name, d);
+  for (const auto& [name, text] : attributes) f.store.set_text(path, name, text);
+  f.store.flush();
+}
+
+void ResultFile::set_outcome(const std::string& status, const std::string& message,
+                             const std::vector<std::pair<std::string, std::int64_t>>& counts) {
+  Impl& f = *impl_;
+  f.status = status;
+  f.message = message;
+  for (const auto& [name, value] : counts) f.store.set_integer("/meta", name, value);
+  f.simulation_written = true;  // finish() may now complete the file
+}
+
+void ResultFile::finish(const RunMeta& meta) {
+  Impl& f = *impl_;
+  if (f.finished) throw std::logic_error("results: finish called twice");
+  if (f.sweep_run) {
+    if (!f.sweep_begun || f.completed != f.total)
+      throw std::logic_error("results: finish: the sweep has " + std::to_string(f.completed) +
+                             " of " + std::to_string(f.total) + " points");
+    f.sum_sweep();
+  } else if (!f.simulation_written) {
+    throw std::logic_error("results: finish before write_simulation");
+  }
+  f.store.set_text("/meta", "status", f.status);
+  f.store.set_text("/meta", "message", f.message);
+  f.store.set_real("/meta", "wall_time", meta.wall_seconds);
+  f.store.set_integer("/meta", "threads", meta.threads);
+  f.store.flush();
+  if (f.in_memory) f.final_image = f.store.image();
+  f.store.close();
+  f.finished = true;  // closed: from here on the destructor leaves the file alone
+  if (f.in_memory) return;
+  try {
+    f.lock->publish(f.partial);
+  } catch (const ResultError&) {
+    if (!f.keep_unfinished) std::remove(f.partial.c_str());  // a sweep's stays, for --resume
+    f.lock.reset();
+    throw;
+  }
+  f.lock.reset();  // released and removed: the file is complete
+}
+
+const std::string& ResultFile::path() const { return impl_->path; }
+
+}  // namespace vibro::io
