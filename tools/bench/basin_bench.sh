@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Basin benchmark (issue 16): experiments/chaos/basin_wagg.yaml, the paper's system at Ω = 1.2,
+# Basin benchmark: experiments/chaos/basin_wagg.yaml, the paper's system at Ω = 1.2,
 # a 256 × 256 grid of starts on 2 threads (the target: ≤ 10 min on 2 cores), and points/s on
 # 1 thread, 2 threads and `mpirun -np 2` (1 thread each) over the first ROWS rows of the grid
 # (same rows, same files: the three are checked bit for bit equal).

@@ -176,7 +176,7 @@ def main():
     ap.add_argument("--wall", default="")
     ap.add_argument("--command", default="bash tools/bench/work_precision.sh")
     ap.add_argument("--before", default="", help="CSV of an earlier engine's framework curves, drawn dashed")
-    ap.add_argument("--before-label", default="framework before issue 13 (2de0370)")
+    ap.add_argument("--before-label", default="framework at 2de0370")
     args = ap.parse_args()
     rows, meta = load(args.data)
     figdir = os.path.join(args.docs, "figures")
@@ -197,7 +197,7 @@ def main():
     w("")
     w("- **framework**: `vibro::Simulator` (exact flows, certified event location) with `chatter_height` = h "
       "and the default `trigger` (1e-13), for h = 1e-3 … 1e-12 (the setting column). The dashed curves are the "
-      "engine before issue 13 (commit 2de0370, run with `trigger` = min(max(h, 1e-13), 1e-5), which cost it "
+      "engine at commit 2de0370 (before its certified search, run with `trigger` = min(max(h, 1e-13), 1e-5), which cost it "
       "nothing; the certified search since then is both slower and less accurate with a loose trigger, "
       "docs/performance.md).")
     w("- **The baselines** (`tools/bench/rk_baseline.hpp`, `sundials_peer.hpp`, `baseline_events.hpp`) all apply "
@@ -367,7 +367,7 @@ def main():
       "exact flow of a 23-dimensional augmented system, the certified bound of every guard, the contact "
       "LCPs). Its error does not grow with the run, so its curve is flat, while the baseline's cost grows like "
       "rtol^(-1/5) (RK 4(5)) or rtol^(-1/8) (DOP853). The ratio table above says where each wins in this run; "
-      "the dashed curves are the framework before issue 13 (docs/data/work_precision_before_issue13.csv).")
+      "the dashed curves are the framework at commit 2de0370 (docs/data/work_precision_at_2de0370.csv).")
     w("- **High-order steps and events.** DOP853 (and ARKODE's Fehlberg 7(8)) can plateau over a range of "
       "tolerances (e.g. on (a), DOP853's state error stays at 2e-3 from rtol 1e-7 to 1e-9 and falls to ~1e-9 at "
       "1e-10): a slow impact at t = 41.77 (approach speed 4.5e-4, at the end of a sequence of bounces) whose "

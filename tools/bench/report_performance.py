@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""docs/performance.md from the raw outputs of tools/bench/report.sh (issue 13's targets).
+"""docs/performance.md from the raw outputs of tools/bench/report.sh (the performance targets).
 
 Reads RAW/engine.md, RAW/engine_trigger.md, RAW/engine_second.md (bench_engine), RAW/allocations.txt
 (vibro_tests_allocations --success), RAW/chain.txt (bench_chain) and the work-precision report
@@ -8,7 +8,7 @@ Reads RAW/engine.md, RAW/engine_trigger.md, RAW/engine_second.md (bench_engine),
 import argparse
 import re
 
-# Issue 13's measurements of the engine before the work (main at 2de0370; the work-precision
+# Measurements of the engine before its certified search and allocation-free events (main at 2de0370; the work-precision
 # ratios from that commit's docs/accuracy-work-precision.md), quoted for comparison only.
 BEFORE = {
     "us_period": "236–240",
@@ -161,13 +161,13 @@ def main():
     p(f"- load (`uptime`) before: {args.load_before}; after: {args.load_after}")
     p(f"- commit {args.commit}, {args.date}; whole run {args.wall} s")
     p("")
-    p("## Issue 13's targets")
+    p("## Targets")
     p("")
     p("Problem (a): the paper's system (Wagg 2004) at Ω = 0.255, 100 forcing periods from rest, default "
       "settings (chatter_height 1e-9, trigger 1e-13, third-order chatter rule). A *search* is the certified "
       "event search between two located events (one per segment); events are impacts, sticks and releases.")
     p("")
-    p("| target | before (issue 13) | measured | |")
+    p("| target | before the certified search and allocation-free events (2de0370) | measured | |")
     p("|---|---|---|---|")
 
     def met(ok):
@@ -244,7 +244,7 @@ def main():
          f"{share(r'resolve_event|solve_lcp|settle|gap_rates|DenseAlgebra::gap|merge_into'):.0f} %. " if profile else
          "no profile was taken (perf missing). ")
       + "The other lever is fewer events: with the third-order chatter rule and the full state correction "
-      "(issue 13, stop 21) chatter_height 1e-7 has the default's errors on (a) and (d) (state "
+      "chatter_height 1e-7 has the default's errors on (a) and (d) (state "
       f"{coarse.get('error', float('nan')):.1e}, chatter limits {checks.get('a', {}).get('1e-07', ['', '?'])[1]} of T) at "
       f"{coarse.get('us_period', float('nan')):.1f} µs per period, but it moves the main command's split-phase "
       "vanishing points by 1.5e-6 to 3.6e-6 in Ω (docs/accuracy.md), so the default stays 1e-9. The RK ratios "
@@ -329,7 +329,7 @@ def main():
         p("**Chatter limits against the independent reference** (bench_engine --reference, (a), worst |Δt|/T over "
           "199 chatter limits): " + ", ".join(f"{h}: {v[1]}" for h, v in ca.items()) + ". At the default 1e-9 "
           "they agree to the reference's own noise; at chatter_height ≤ 1e-11 they get worse as the threshold "
-          "tightens (before issue 13 the 1e-13 run agreed to 7.8e-10): the deepest bounces, rising ~1e-12 L, are "
+          "tightens (at commit 2de0370 the 1e-13 run agreed to 7.8e-10): the deepest bounces, rising ~1e-12 L, are "
           "not resolved as well by the new search (not investigated further in this session). The work-precision "
           "report's reference is that 1e-13 run, so its impact-time and sticking columns have a floor near 1e-7 "
           "for every method; its state columns (the ratios) are unaffected (the cross-check table there: 3e-12).")

@@ -52,8 +52,8 @@ load_after=$(cut -d' ' -f1-3 /proc/loadavg)
 command="bash tools/bench/work_precision.sh"
 [[ ${#quick[@]} -gt 0 ]] && command+=" --quick"
 [[ "$problems" != abcd ]] && command+=" --problems $problems"
-# The engine's curves before issue 13 (kept data, docs/data/) are drawn dashed beside the new ones.
-before="$root/docs/data/work_precision_before_issue13.csv"
+# The engine's curves at commit 2de0370 (kept data, docs/data/) are drawn dashed beside the new ones.
+before="$root/docs/data/work_precision_at_2de0370.csv"
 /usr/bin/python3 "$root/tools/bench/plot_work_precision.py" --data "$data" --docs "$docs" \
   --load-before "$load_before" --load-after "$load_after" --wall "$wall" --command "$command" \
   $([[ -f "$before" ]] && printf -- '--before %s' "$before")

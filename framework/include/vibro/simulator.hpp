@@ -72,12 +72,12 @@ namespace vibro {
 ///    is taken by the held stops), so that the state errs by O(w0⁴) instead of O(w0³). On the
 ///    paper's system (damped), state error outside the chatter tails against chatter_height
 ///    = 1e-13: 9.6e-11 → 9.5e-12 L at chatter_height 1e-7, 2.3e-9 → 9.4e-11 at 1e-6 (bench_engine;
-///    the former value with Δv's K term alone, as before issue 13's stop 21: without damping
-///    d = 0 and that is the whole correction; tests/framework/test_chatter.cpp).
+///    the former value with Δv's K term alone: without damping d = 0 and that is the whole
+///    correction; tests/framework/test_chatter.cpp).
 ///    A' = G λ_j' comes exactly from
 ///    the reduced sticking flow (ℓ Â z of the force row). Where the expansion does not hold
 ///    (|T - T0| > T0/2: the holding force changes by O(1) within the tail) T0 is kept.
-///  * third_order (default; issue 13, stop 21): the state as second_order, the accumulation time
+///  * third_order (default): the state as second_order, the accumulation time
 ///    one order further, O(w0⁴). The same moment expansion, carried to the gap itself
 ///    (h = −g ≥ 0, s from the impact), closes at this order into a local equation without memory:
 ///        h'' = −A(s) + α h' + β h + O(w0³),   A(s) = A + A' s + ½ A'' s²,
