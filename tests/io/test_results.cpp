@@ -18,6 +18,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -454,6 +456,38 @@ TEST_CASE("An interrupted sweep resumes to the same file as an uninterrupted one
     append_points(file, 3, 5);
     file.finish(current_meta(1));
     require_identical(whole, resumed);
+  }
+
+  SECTION("a partial file with damaged bytes is refused, naming what is damaged") {
+    {
+      ResultFile file = ResultFile::create(resumed, sweep_point(0), current_meta(1));
+      file.begin_sweep({"forcing.frequency"}, 5);
+      append_points(file, 0, 3);
+    }
+    // Flip the lowest byte of every stored copy of point 1's end time (it is in /sweep/t_end
+    // and in the recorded samples): damage inside the data, the file's structure left intact.
+    const std::string partial = resumed + ".partial";
+    const double t_end = run(sweep_point(1)).summary.t;
+    char pattern[sizeof t_end];
+    std::memcpy(pattern, &t_end, sizeof t_end);
+    std::string bytes;
+    {
+      std::ifstream in(partial, std::ios::binary);
+      bytes.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    int flipped = 0;
+    for (std::size_t at = bytes.find(pattern, 0, sizeof t_end); at != std::string::npos;
+         at = bytes.find(pattern, at + 1, sizeof t_end), ++flipped)
+      bytes[at] = static_cast<char>(bytes[at] ^ 0x01);
+    REQUIRE(flipped > 0);
+    std::ofstream(partial, std::ios::binary | std::ios::trunc) << bytes;
+
+    CHECK_THROWS_WITH(ResultFile::open_partial(resumed, sweep_point(0)),
+                      Catch::StartsWith(partial + ": /") && Catch::Contains("damaged") &&
+                          Catch::Contains("checksum") && Catch::Contains("remove " + partial));
+    CHECK(fs::exists(partial));  // left as it was, for the user to inspect or remove
+    CHECK_FALSE(fs::exists(partial + ".resume"));
+    CHECK_FALSE(fs::exists(resumed));
   }
 
   SECTION("a killed process keeps the points it flushed") {

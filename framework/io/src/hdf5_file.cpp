@@ -153,6 +153,10 @@ std::vector<char> Store::image() const {
 
 void Store::fail(const std::string& object, const std::string& what) const {
   const std::string reason = hdf5_reason();
+  // HDF5's Fletcher32 filter says "data error detected by Fletcher32 checksum".
+  if (reason.find("checksum") != std::string::npos)
+    throw DamagedData(name_ + ": " + object + ": damaged: its stored checksum does not match its bytes (HDF5: " +
+                      reason + ")");
   throw ResultError(name_ + ": " + object + ": " + what +
                     (reason.empty() ? "" : " (HDF5: " + reason + ")"));
 }
@@ -262,6 +266,9 @@ void Store::create_extendible(const std::string& path, Type type, const Dims& di
   Hid dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   check(H5Pset_chunk(dcpl, static_cast<int>(chunk.size()), chunk.data()), path,
         "cannot set its chunks");
+  // A checksum per chunk: a sweep's datasets are what a resume reads back from a `.partial`
+  // file, and a damaged byte there must be refused, never carried into the result.
+  check(H5Pset_fletcher32(dcpl), path, "cannot set its checksum");
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const std::int64_t minus_one = -1;
   if (type == Type::f64)

@@ -19,7 +19,13 @@ namespace vibro::io::detail {
 using Dims = std::vector<hsize_t>;
 using Type = Dataset::Type;
 
-using Dims = std::vector<hsize_t>;
+/// A dataset whose stored bytes no longer match their checksum (a damaged file). Every extendible
+/// dataset (a sweep's, written point by point and kept in `.partial` files) is stored with HDF5's
+/// Fletcher32 filter, so damage is found on reading instead of read back as values.
+class DamagedData : public ResultError {
+ public:
+  using ResultError::ResultError;
+};
 
 /// An owned HDF5 identifier, closed by the function that matches its kind.
 class Hid {

@@ -82,6 +82,8 @@ class CompletedPoints {
         limit(rows_[group].size());
         offset_[group] = 0;
       }
+    } catch (const DamagedData&) {
+      throw;  // damage is refused, not recomputed over: see open_partial
     } catch (const ResultError&) {
       readable_ = 0;
     }
@@ -94,6 +96,8 @@ class CompletedPoints {
   std::optional<PointRecord> read(std::size_t p) {
     try {
       return read_checked(p);
+    } catch (const DamagedData&) {
+      throw;
     } catch (const ResultError&) {
       return std::nullopt;
     }
@@ -220,12 +224,19 @@ ResultFile ResultFile::open_partial(const std::string& path, const Scene& scene,
     const std::vector<std::string> names = old.texts_attribute("/sweep", "parameters");
     f.start_sweep(names, static_cast<std::size_t>(old.integer_attribute("/sweep", "points")));
     const auto counted = static_cast<std::size_t>(old.integer_attribute("/sweep", "completed"));
-    detail::CompletedPoints points(old, detail::recorded_groups(f.record), counted);
-    for (std::size_t p = 0; p < points.readable(); ++p) {
-      const std::optional<detail::PointRecord> point = points.read(p);
-      if (!point) break;
-      f.write_point(p, *point);
-      f.completed = p + 1;
+    // A point that cannot be read (metadata a kill left half-flushed) is computed again; a
+    // checksum that does not match is damage to the file, and nothing in it can be trusted.
+    try {
+      detail::CompletedPoints points(old, detail::recorded_groups(f.record), counted);
+      for (std::size_t p = 0; p < points.readable(); ++p) {
+        const std::optional<detail::PointRecord> point = points.read(p);
+        if (!point) break;
+        f.write_point(p, *point);
+        f.completed = p + 1;
+      }
+    } catch (const detail::DamagedData& e) {
+      throw ResultError(std::string(e.what()) + "; the interrupted run cannot be resumed from it: remove " +
+                        partial + " to run it again from the start");
     }
   }
   f.commit();
