@@ -173,6 +173,18 @@ EOF
     rm run.txt
     files_are l.h5.partial long.yaml
     ;;
+  signal_hangup)  # a closed terminal: SIGHUP stops a sweep as SIGTERM does, the lock removed
+    small_sweep "" 2 | sed 's/periods: 5/periods: 1e8/' > long.yaml
+    "$vibro" run long.yaml -o l.h5 --threads 1 2> run.txt &
+    pid=$!
+    for _ in $(seq 600); do [ -e l.h5.partial ] && break; sleep 0.1; done
+    sleep 1
+    stop $pid HUP
+    [ $code -eq 130 ] || fail "exit code $code after SIGHUP: $(cat run.txt)"
+    grep -qF "Interrupted: 0 of 2 sweep points are kept in l.h5.partial" run.txt || fail "$(cat run.txt)"
+    rm run.txt
+    files_are l.h5.partial long.yaml
+    ;;
   signal_in_continue)  # was: locate and continue ignored SIGTERM's flag, leaving a .partial behind
     # Steps of 1e-7 over the whole range: hours of continuation, ended only by the signal.
     sed -e 's/^    max_step: .*/    max_step: 1e-7\n    max_points: 1000000/' -e 's/^    step: .*/    step: 1e-7/' \

@@ -184,6 +184,16 @@ TEST_CASE("a lock left by a killed run is taken over, and a file of that name th
              Catch::Contains("other.h5.lock: exists and is not a vibro lock file: not touched"));
   CHECK(read_text(other + ".lock") == "my notes\n");
   CHECK_FALSE(fs::exists(other));
+  // A lock-like file with another name (a hard link) is not written through.
+  const std::string third = dir / "third.h5";
+  const std::string elsewhere = dir / "elsewhere.txt";
+  write_text(elsewhere, "vibro 4000000\n");
+  fs::create_hard_link(elsewhere, third + ".lock");
+  CHECK_THAT(result_error([&] { (void)run_scene(s.doc, s.scene, request(third, true)); }),
+             Catch::Contains("third.h5.lock: has other hard links: refused as a lock"));
+  CHECK(read_text(elsewhere) == "vibro 4000000\n");
+  CHECK(fs::hard_link_count(elsewhere) == 2);
+  CHECK_FALSE(fs::exists(third));
 }
 
 TEST_CASE("an output made by another program during the run is not replaced, and nothing is left", "[output]") {

@@ -14,11 +14,13 @@ InterruptGuard::InterruptGuard() {
   g_interrupted.store(false);
   old_int_ = std::signal(SIGINT, on_signal);
   old_term_ = std::signal(SIGTERM, on_signal);
+  old_hup_ = std::signal(SIGHUP, on_signal);  // a closed terminal or ssh session: stop cleanly too
 }
 
 InterruptGuard::~InterruptGuard() {
   std::signal(SIGINT, old_int_);
   std::signal(SIGTERM, old_term_);
+  std::signal(SIGHUP, old_hup_);
 }
 
 }  // namespace vibro::io::detail

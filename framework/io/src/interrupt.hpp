@@ -1,5 +1,5 @@
 #pragma once
-// Private to vibro_io: SIGINT and SIGTERM as a stop flag. A run that can be stopped (a
+// Private to vibro_io: SIGINT, SIGTERM and SIGHUP as a stop flag. A run that can be stopped (a
 // simulation, a sweep, the long run kinds) polls the flag at every event, search step or point;
 // `vibro run` raises it from the signal handlers an InterruptGuard installs. A caller with its own
 // flag (RunRequest::interrupt: the Python module) installs none.
@@ -7,10 +7,10 @@
 
 namespace vibro::io::detail {
 
-/// Raised by SIGINT or SIGTERM while an InterruptGuard lives (cleared when one is made).
+/// Raised by SIGINT, SIGTERM or SIGHUP while an InterruptGuard lives (cleared when one is made).
 extern std::atomic<bool> g_interrupted;
 
-/// Installs SIGINT/SIGTERM handlers that raise g_interrupted, for its lifetime.
+/// Installs SIGINT/SIGTERM/SIGHUP handlers that raise g_interrupted, for its lifetime.
 class InterruptGuard {
  public:
   InterruptGuard();
@@ -21,6 +21,7 @@ class InterruptGuard {
  private:
   void (*old_int_)(int);
   void (*old_term_)(int);
+  void (*old_hup_)(int);
 };
 
 }  // namespace vibro::io::detail

@@ -72,6 +72,10 @@ OutputLock::OutputLock(const std::string& path, const std::string& scene_file, b
       ::close(fd);
       throw ResultError(lock_path_ + ": is not a regular file: refused as a lock");
     }
+    if (opened.st_nlink > 1) {  // writing "vibro PID" into it would change the other names' file
+      ::close(fd);
+      throw ResultError(lock_path_ + ": has other hard links: refused as a lock (not touched; move it away)");
+    }
     struct flock lock {};
     lock.l_type = F_WRLCK;
     lock.l_whence = SEEK_SET;

@@ -6,7 +6,7 @@
 //     by an open-file-description lock (fcntl F_OFD_SETLK, so two writers in one process exclude
 //     each other too) for the life of the writer. It holds "vibro PID", so a refused second writer
 //     can name the first. A lock file left by a killed run is taken over; a file of that name that
-//     is not a vibro lock is refused, never written. Released and removed when the writer ends.
+//     is not a vibro lock, or has other hard links, is refused, never written. Released and removed when the writer ends.
 //  2. The target: an existing OUT is refused unless `overwrite` (--force); a directory or other
 //     non-regular file always; and OUT (or OUT.partial) that is the run's own scene file always.
 //  3. The partial, `OUT.partial`, is created by the caller with O_EXCL semantics (H5F_ACC_EXCL):
