@@ -218,3 +218,24 @@ TEST_CASE("a recorded state past a stop beyond the gap tolerance fails the run b
   CHECK(rec.summary.status == RunStatus::numerical_failure);
   CHECK_THAT(rec.summary.message, Contains("past stop 1") && Contains("at t = " + number_text(t)));
 }
+
+TEST_CASE("a sweep point that would run for days is recorded as stopped early, and the others run", "[runner]") {
+  // A damper of 1e20 at mass 0: about 1e21 steps of the event search for that point alone.
+  std::string text = sweep_scene(false);
+  text.replace(text.find("path: forcing.frequency"), 23, "path: 'model.chain.dampers[0]'");
+  text.replace(text.find("linspace: [0.25, 0.27, 6]"), 25, "values: [0.1, 1e20, 0.2]");
+  const SceneDocument doc = SceneDocument::parse(text, "stiff_point.yaml");
+  const Scene scene = doc.build();
+  const std::string out = temp_path("stiff_point.h5");
+  const RunReport report = run_scene(doc, scene, {out, 1, false, false});
+  CHECK(report.exit_code == 1);  // finished, with a point stopped early
+  const ResultReader file(out);
+  CHECK(file.read("/sweep/status") == std::vector<double>{0, 2, 0});
+  const std::vector<std::string> messages = file.read_strings("/sweep/message");
+  REQUIRE(messages.size() == 3);
+  CHECK(messages[0].empty());
+  CHECK_THAT(messages[1], Contains("not run: this run needs about") &&
+                              Contains("steps of the certified event search") && Contains("damping of mass 0"));
+  CHECK(messages[2].empty());
+  std::filesystem::remove(out);
+}

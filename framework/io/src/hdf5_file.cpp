@@ -267,16 +267,19 @@ void Store::create_extendible(const std::string& path, Type type, const Dims& di
   check(H5Pset_chunk(dcpl, static_cast<int>(chunk.size()), chunk.data()), path,
         "cannot set its chunks");
   // A checksum per chunk: a sweep's datasets are what a resume reads back from a `.partial`
-  // file, and a damaged byte there must be refused, never carried into the result.
-  check(H5Pset_fletcher32(dcpl), path, "cannot set its checksum");
+  // file, and a damaged byte there must be refused, never carried into the result. (HDF5 filters
+  // take no variable-length strings: a sweep's messages go unchecked, its numbers never.)
+  if (type != Type::str) check(H5Pset_fletcher32(dcpl), path, "cannot set its checksum");
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const std::int64_t minus_one = -1;
+  Hid strings = type == Type::str ? string_type() : Hid();
   if (type == Type::f64)
     check(H5Pset_fill_value(dcpl, H5T_NATIVE_DOUBLE, &nan), path, "cannot set its fill value");
-  else
+  else if (type != Type::str)  // (variable-length strings are filled with empty ones)
     check(H5Pset_fill_value(dcpl, H5T_NATIVE_INT64, &minus_one), path,
           "cannot set its fill value");
-  Hid dataset(check_id(H5Dcreate2(file_, path.c_str(), file_type(type), space, H5P_DEFAULT, dcpl,
+  const hid_t ftype = type == Type::str ? hid_t(strings) : file_type(type);
+  Hid dataset(check_id(H5Dcreate2(file_, path.c_str(), ftype, space, H5P_DEFAULT, dcpl,
                                   H5P_DEFAULT),
                        path, "cannot create the dataset"),
               H5Dclose);
@@ -309,8 +312,9 @@ void Store::write_block(const std::string& path, Type type, const Dims& start, c
   Hid memory_space(check_id(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr),
                             path, "cannot describe the block"),
                    H5Sclose);
-  check(H5Dwrite(dataset, held_type(type), memory_space, file_space, H5P_DEFAULT, data), path,
-        "cannot write");
+  Hid strings = type == Type::str ? string_type() : Hid();
+  const hid_t mtype = type == Type::str ? hid_t(strings) : held_type(type);
+  check(H5Dwrite(dataset, mtype, memory_space, file_space, H5P_DEFAULT, data), path, "cannot write");
 }
 
 void Store::read_block(const std::string& path, Type type, const Dims& start, const Dims& count,

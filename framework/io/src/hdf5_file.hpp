@@ -123,7 +123,7 @@ class Store {
   void write(const std::string& path, const Dataset& c) const;
 
   /// A new chunked dataset, every dimension extendible, starting at `dims`; missing entries
-  /// read as NaN (reals) or -1 (integers).
+  /// read as NaN (reals), -1 (integers) or "" (texts).
   void create_extendible(const std::string& path, Type type, const Dims& dims,
                          const Dims& chunk) const;
 
@@ -132,7 +132,7 @@ class Store {
   void set_extent(const std::string& path, const Dims& dims) const;
 
   /// Writes the block [start, start + count) of an existing dataset from values held the way a
-  /// Dataset of `type` holds them (held_type()).
+  /// Dataset of `type` holds them (held_type(); texts: an array of `const char*`).
   void write_block(const std::string& path, Type type, const Dims& start, const Dims& count,
                    const void* data) const;
 

@@ -188,18 +188,23 @@ void check_run_resources(const Scene& scene, int threads) {
     throw ResourceError(std::string(e.what()) + " (" + parts + ")");
   }
   // Then the time (after the memory: a dense scene's bound builds its n × n system).
+  if (std::string why = work_refusal(scene); !why.empty()) throw ResourceError(why);
+}
+
+std::string work_refusal(const Scene& scene) {
   const WorkEstimate work = estimate_run_work(scene);
   if (!(work.steps <= kMaxSearchSteps)) {
     const bool damped = work.damping_rate >= work.stiffness_rate;
-    throw ResourceError(fmt::format(
+    return fmt::format(
         "this run needs about {:.3g} steps of the certified event search (its fastest rate is up to {:.3g} per time "
         "unit, from the {} of mass {}, over {:.3g} time units); refused above {:.0e} "
         "(days to months of computing): lower the {} at mass {} (or raise that mass), raise the forcing frequency "
         "(the period is {:.3g} time units), or shorten the run",
         work.steps, work.rate, damped ? "damping" : "stiffness over the mass",
         damped ? work.damping_mass : work.stiffness_mass, work.span, kMaxSearchSteps, damped ? "dampers" : "springs",
-        damped ? work.damping_mass : work.stiffness_mass, scene.period()));
+        damped ? work.damping_mass : work.stiffness_mass, scene.period());
   }
+  return {};
 }
 
 int checked_threads(int requested, std::size_t units) {

@@ -38,6 +38,7 @@ struct PointRecord {
   std::vector<Table> tables;
   std::vector<double> values;
   std::int64_t status = 0;
+  std::string message;  ///< why the point stopped early; empty when it completed
   std::vector<std::int64_t> counts;
   double t_end = 0.0;
   std::vector<double> x_end, v_end;

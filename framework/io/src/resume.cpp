@@ -72,6 +72,10 @@ class CompletedPoints {
       values_ = old_.read_reals("/sweep/values");
       parameters_ = old_.extent("/sweep/values")[1];
       status_ = old_.read_integers("/sweep/status");
+      if (old_.exists("/sweep/message")) {
+        messages_ = old_.read_texts("/sweep/message");
+        limit(messages_.size());
+      }
       counts_ = old_.read_integers("/sweep/counts");
       t_end_ = old_.read_reals("/sweep/t_end");
       x_end_ = old_.read_reals("/sweep/x_end");
@@ -123,6 +127,7 @@ class CompletedPoints {
     const std::size_t ncounts = count_names().size();
     point.values = slice(values_, p, parameters_);
     point.status = status_[p];
+    if (p < messages_.size()) point.message = messages_[p];
     point.counts = slice(counts_, p, ncounts);
     point.t_end = t_end_[p];
     point.x_end = slice(x_end_, p, dof_);
@@ -190,6 +195,7 @@ class CompletedPoints {
   std::size_t readable_;
   std::vector<double> values_, t_end_, x_end_, v_end_;
   std::vector<std::int64_t> status_, counts_;
+  std::vector<std::string> messages_;  // (none in a file from before /sweep/message existed)
   std::size_t parameters_ = 0, dof_ = 0;
   std::map<std::string, std::vector<std::int64_t>> rows_;
   std::map<std::string, hsize_t> offset_;

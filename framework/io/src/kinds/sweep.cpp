@@ -72,19 +72,30 @@ ResultFile open_sweep_file(const SweepPlan& plan, const Scene& scene, const RunR
   return file;
 }
 
-/// One point; a point that cannot start (its initial state violates a stop) is recorded as a
-/// numerical failure with the reason, like any point that stops early.
+namespace {
+
+Recording unstarted_point(const Scene& sc, const StartState& start, std::string message) {
+  Recording rec = Recording::for_scene(sc, start.t);
+  rec.summary.status = RunStatus::numerical_failure;
+  rec.summary.message = std::move(message);
+  rec.summary.t = start.t;
+  rec.summary.x = start.x;
+  rec.summary.v = start.v;
+  return rec;
+}
+
+}  // namespace
+
+/// One point; a point that cannot start (its initial state violates a stop) or would run for
+/// days (resources.hpp, work_refusal: the scene's check covers only the unswept values) is
+/// recorded as a numerical failure with the reason, like any point that stops early.
 Recording run_point(const Scene& sc, const StartState& start) {
+  if (std::string why = work_refusal(sc); !why.empty())
+    return unstarted_point(sc, start, "not run: " + why);
   try {
     return simulate(sc, start);
   } catch (const InvalidInput& e) {
-    Recording rec = Recording::for_scene(sc, start.t);
-    rec.summary.status = RunStatus::numerical_failure;
-    rec.summary.message = std::string("cannot start this point: ") + e.what();
-    rec.summary.t = start.t;
-    rec.summary.x = start.x;
-    rec.summary.v = start.v;
-    return rec;
+    return unstarted_point(sc, start, std::string("cannot start this point: ") + e.what());
   }
 }
 

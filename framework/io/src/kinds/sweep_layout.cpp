@@ -26,6 +26,7 @@ void ResultFile::Impl::start_sweep(const std::vector<std::string>& names, std::s
                   {status_name(RunStatus::completed), status_name(RunStatus::event_cap),
                    status_name(RunStatus::numerical_failure), status_name(RunStatus::unsupported),
                    status_name(RunStatus::interrupted)});
+  store.create_extendible("/sweep/message", Type::str, {0}, {256});
   store.create_extendible("/sweep/counts", Type::i64, {0, c}, {256, c});
   store.set_texts("/sweep/counts", "columns", detail::count_names());
   store.create_extendible("/sweep/t_end", Type::f64, {0}, {256});
@@ -116,6 +117,8 @@ void ResultFile::Impl::write_point(hsize_t p, const PointRecord& point) const {
   const hsize_t n = static_cast<hsize_t>(dof);
   put_row("/sweep/values", Type::f64, {point.values.size()}, p, point.values.data());
   put_row("/sweep/status", Type::i32, {}, p, &point.status);
+  const char* message = point.message.c_str();
+  put_row("/sweep/message", Type::str, {}, p, &message);
   put_row("/sweep/counts", Type::i64, {point.counts.size()}, p, point.counts.data());
   put_row("/sweep/t_end", Type::f64, {}, p, &point.t_end);
   put_row("/sweep/x_end", Type::f64, {n}, p, point.x_end.data());
@@ -141,7 +144,7 @@ void ResultFile::Impl::sum_sweep() {
   status = early == 0 ? "completed" : "points_stopped_early";
   message = early == 0 ? std::string()
                          : std::to_string(early) + " of " + std::to_string(total) +
-                               " points stopped early (see /sweep/status)";
+                               " points stopped early (see /sweep/status and /sweep/message)";
 }
 
 void ResultFile::begin_sweep(const std::vector<std::string>& parameters, std::size_t points) {
@@ -178,6 +181,7 @@ void ResultFile::append_point(std::size_t index, const std::vector<double>& valu
   point.tables = f.checked_tables(recording, where);
   point.values = values;
   point.status = static_cast<std::int64_t>(s.status);
+  point.message = s.message;
   point.counts = detail::counts(s);
   point.t_end = s.t;
   point.x_end.assign(s.x.data(), s.x.data() + s.x.size());

@@ -81,6 +81,11 @@ inline constexpr double kWarnSearchSteps = 1e9;
 /// what sets it.
 void check_run_resources(const Scene& scene, int threads);
 
+/// Why `scene` would be refused for its search steps (check_run_resources's message), or "" when
+/// it is within kMaxSearchSteps. A sweep asks it of every point before running it: a point that
+/// would crawl for days is recorded as stopped early, with this message, and the others run.
+std::string work_refusal(const Scene& scene);
+
 /// The thread count to use for `requested` threads (0: all cores) over `units` independent units
 /// of work: at most `units` (more threads would only wait). Throws ResourceError above
 /// kMaxThreads (the OpenMP runtime aborts or crashes when thread creation fails).
