@@ -491,3 +491,61 @@ TEST_CASE("an orbit run that does not converge writes its last iterate and why, 
   CHECK(r.read("/orbit/multipliers_real").empty());
   CHECK(r.read("/orbit/residuals").size() == 3);
 }
+
+TEST_CASE("a diagram extends a value's transient until it settles, and says which values did not", "[runner][diagram]") {
+  // Above, 50 periods from rest at Ω = 1.66 are not enough for the period-1 orbit (residual 3e-4):
+  // the extension records blocks of 8 more periods until the period test holds.
+  const auto diagram = [](const std::string& values, int transient, const std::string& settle) {
+    return kChain + "run:\n  kind: diagram\n  transient_periods: " + std::to_string(transient) +
+           "\n  diagram:\n    path: forcing.frequency\n    values: " + values +
+           "\n    transient: 0\n    points: 8\n    max_period: 4\n    directions: up\n" + settle;
+  };
+  const ResultReader fixed = run_file(diagram("[1.66, 1.67]", 50, "    settle: 0\n"), "unsettled");
+  CHECK(fixed.read_integers("/diagram/k_up") == std::vector<std::int64_t>{0, 0});
+  CHECK(fixed.read_integers("/diagram/verdict_up") == std::vector<std::int64_t>{1, 1});  // not periodic
+  CHECK(fixed.read_integers("/diagram/extra_periods_up") == std::vector<std::int64_t>{0, 0});
+  CHECK(fixed.read("/diagram/residual_up").at(0) > 1e-6);
+
+  const std::string text = diagram("[1.66, 1.67]", 50, "");  // the default: settle up to 1000 periods
+  const ResultReader r = run_file(text, "settled");
+  CHECK(r.read_integers("/diagram/k_up") == std::vector<std::int64_t>{1, 1});
+  CHECK(r.read_integers("/diagram/verdict_up") == std::vector<std::int64_t>{0, 0});
+  const std::vector<std::int64_t> extra = r.read_integers("/diagram/extra_periods_up");
+  for (std::int64_t e : extra) CHECK((e > 0 && e % 8 == 0));
+  for (double residual : r.read("/diagram/residual_up")) CHECK(residual <= 1e-6);  // the tolerance
+  CHECK(r.attribute_number("/meta", "points_not_settled") == 0);
+  // The recorded points are those 50 + extra + 1 … 8 periods from rest: the engine directly.
+  SceneDocument at(SceneDocument::parse(text, "settled.yaml"));
+  at.set("forcing.frequency", 1.66);
+  const Scene scene = at.build_point();
+  const auto engine = make_engine(scene);
+  const double T = scene.period();
+  const long first = 50 + extra.at(0);
+  const auto period = [&](long block, long i) {  // the i-th period of a block, timed as the run times it
+    const double t1 = static_cast<double>(block) * T;
+    return std::pair<double, double>{t1 + static_cast<double>(i - 1) * T, t1 + static_cast<double>(i) * T};
+  };
+  RunSummary s = engine->run(0.0, scene.x0, scene.v0, 50 * T);
+  for (long block = 50; block < first; block += 8)
+    for (long i = 1; i <= 8; ++i) s = engine->run(period(block, i).first, s.x, s.v, period(block, i).second);
+  const std::vector<double> x = r.read("/diagram/x_up");
+  for (long i = 1; i <= 8; ++i) {
+    s = engine->run(period(first, i).first, s.x, s.v, period(first, i).second);
+    for (int j = 0; j < 2; ++j) CHECK(x.at(static_cast<std::size_t>((i - 1) * 2 + j)) == s.x(j));
+  }
+
+  // A cap too low for the approach: the residual still falls when it is reached.
+  const ResultReader capped = run_file(diagram("[1.66, 1.67]", 50, "    settle: 16\n"), "capped");
+  CHECK(capped.read_integers("/diagram/verdict_up") == std::vector<std::int64_t>{2, 2});  // not settled
+  CHECK(capped.read_integers("/diagram/extra_periods_up") == std::vector<std::int64_t>{16, 16});
+  CHECK(capped.attribute_number("/meta", "points_not_settled") == 2);
+  CHECK(capped.attribute_number("/meta", "points_not_periodic") == 0);
+
+  // Past the cascade (Ω∞ ≈ 1.75008) the attractor is chaotic: no approach, so the extension
+  // ends after `patience` periods (a quarter of settle) without a new least residual, well
+  // before the cap, and the values are reported not periodic.
+  const ResultReader chaos = run_file(diagram("[1.76, 1.77]", 300, ""), "chaotic");
+  CHECK(chaos.read_integers("/diagram/verdict_up") == std::vector<std::int64_t>{1, 1});
+  for (std::int64_t e : chaos.read_integers("/diagram/extra_periods_up")) CHECK((e >= 250 && e < 1000));
+  for (double residual : chaos.read("/diagram/residual_up")) CHECK(residual > 0.1);
+}

@@ -15,6 +15,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <limits>
+#include <tuple>
+#include <utility>
 #include <exception>
 #include <mutex>
 #include <numeric>
@@ -30,23 +33,42 @@ struct Branch {
   std::vector<double> x, v;            ///< m × P × n
   std::vector<std::int64_t> k, reached;
   std::vector<double> impacts;         ///< per period, mean over the P recorded periods
+  std::vector<double> residual;        ///< the period test's residual (of k, or the least over k ≤ max_period)
+  std::vector<std::int64_t> extra;     ///< periods run beyond the transient before the recorded ones
+  std::vector<std::int64_t> verdict;   ///< Verdict
   std::string message;                 ///< why a run stopped early (empty: none did)
 };
 
-/// The least k ≤ max_period for which every recorded z_i repeats z_{i−k}; 0 if none.
-std::int64_t least_period(const std::vector<Eigen::VectorXd>& z, int max_period, double tolerance, double L,
-                          double V) {
-  const std::size_t P = z.size();
+/// What the recorded points of a value are.
+enum Verdict : std::int64_t {
+  periodic = 0,       ///< k > 0: every recorded point repeats within the tolerance
+  not_periodic = 1,   ///< no k ≤ max_period, and the residual stopped decreasing (or no extension allowed)
+  not_settled = 2,    ///< no k ≤ max_period yet, but the residual was still decreasing at the cap
+};
+
+/// max_i max(|x_i − x_{i−k}| / L, |v_i − v_{i−k}| / V): how far the recorded points are from
+/// repeating with period k (over the 2k ≤ P points that test it).
+double period_residual(const std::vector<Eigen::VectorXd>& z, std::size_t k, double L, double V) {
   const Eigen::Index n = z.front().size() / 2;
-  for (std::size_t k = 1; k <= static_cast<std::size_t>(max_period) && 2 * k <= P; ++k) {
-    bool repeats = true;
-    for (std::size_t i = k; i < P && repeats; ++i) {
-      const Eigen::VectorXd d = (z[i] - z[i - k]).cwiseAbs();
-      repeats = d.head(n).maxCoeff() <= tolerance * L && d.tail(n).maxCoeff() <= tolerance * V;
-    }
-    if (repeats) return static_cast<std::int64_t>(k);
+  double r = 0.0;
+  for (std::size_t i = k; i < z.size(); ++i) {
+    const Eigen::VectorXd d = (z[i] - z[i - k]).cwiseAbs();
+    r = std::max({r, d.head(n).maxCoeff() / L, d.tail(n).maxCoeff() / V});
   }
-  return 0;
+  return r;
+}
+
+/// The least k ≤ max_period whose residual is within `tolerance` (0 if none), and the residual:
+/// of that k, or the least over every k tested when there is none.
+std::pair<std::int64_t, double> least_period(const std::vector<Eigen::VectorXd>& z, int max_period,
+                                             double tolerance, double L, double V) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 1; k <= static_cast<std::size_t>(max_period) && 2 * k <= z.size(); ++k) {
+    const double r = period_residual(z, k, L, V);
+    if (r <= tolerance) return {static_cast<std::int64_t>(k), r};
+    best = std::min(best, r);
+  }
+  return {0, best};
 }
 
 /// Follows the attractor through the grid values `order` (indices into the sorted grid).
@@ -61,6 +83,9 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
   out.k.assign(m, 0);
   out.reached.assign(m, 0);
   out.impacts.assign(m, 0.0);
+  out.residual.assign(m, std::numeric_limits<double>::quiet_NaN());
+  out.extra.assign(m, 0);
+  out.verdict.assign(m, Verdict::not_periodic);
   SceneDocument point(doc);
   Eigen::VectorXd x = scene.x0, v = scene.v0;
   long transient = static_cast<long>(std::ceil(scene.run.transient_periods));
@@ -79,19 +104,53 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
     }
     std::vector<Eigen::VectorXd> z;
     long impacts = 0;
-    const double t1 = t0 + static_cast<double>(transient) * T;
     double L = 1.0, V = 1.0;
-    for (std::size_t i = 1; i <= P && s.status == RunStatus::completed; ++i) {
-      s = engine->run(t1 + static_cast<double>(i - 1) * T, x, v, t1 + static_cast<double>(i) * T);
-      x = s.x;
-      v = s.v;
-      impacts += s.impacts;
-      L = s.length_scale;
-      V = s.velocity_scale;
-      Eigen::VectorXd zi(2 * n);
-      zi << x, v;
-      z.push_back(zi);
+    // P stroboscopic points from period `first` after t0 on (each block replaces the last).
+    const auto record = [&](long first) {
+      z.clear();
+      impacts = 0;
+      const double t1 = t0 + static_cast<double>(first) * T;
+      for (std::size_t i = 1; i <= P && s.status == RunStatus::completed; ++i) {
+        s = engine->run(t1 + static_cast<double>(i - 1) * T, x, v, t1 + static_cast<double>(i) * T);
+        x = s.x;
+        v = s.v;
+        impacts += s.impacts;
+        L = s.length_scale;
+        V = s.velocity_scale;
+        Eigen::VectorXd zi(2 * n);
+        zi << x, v;
+        z.push_back(zi);
+      }
+    };
+    record(transient);
+    // Not periodic yet: the recorded periods become transient and P more are recorded, up to
+    // `settle` periods, while the motion still approaches an orbit of period ≤ max_period. The
+    // residual of an approached orbit falls (geometrically, once near it); a transient (transient
+    // chaos above all) may keep it high for a while first, so only `patience` periods (a quarter
+    // of `settle`, at least 4 blocks) without a new least residual say it does not (chaos, a
+    // torus, a longer period, or a transient longer than that) and end the extension early.
+    const long patience = std::max<long>(4 * static_cast<long>(P), spec.settle / 4);
+    auto [k, residual] = s.status == RunStatus::completed
+                             ? least_period(z, spec.max_period, spec.tolerance, L, V)
+                             : std::pair<std::int64_t, double>{0, 0.0};
+    long extra = 0;
+    double least = residual;
+    long stalled = patience;  // (no extension run: nothing says it is still approaching)
+    if (k == 0 && static_cast<long>(P) <= spec.settle) stalled = 0;
+    while (s.status == RunStatus::completed && k == 0 && stalled < patience &&
+           extra + static_cast<long>(P) <= spec.settle) {
+      extra += static_cast<long>(P);
+      record(transient + extra);
+      if (s.status != RunStatus::completed) break;
+      std::tie(k, residual) = least_period(z, spec.max_period, spec.tolerance, L, V);
+      if (residual < least) {
+        least = residual;
+        stalled = 0;
+      } else {
+        stalled += static_cast<long>(P);
+      }
     }
+    const bool converging = stalled < patience;
     if (s.status != RunStatus::completed) {
       out.message = fmt::format("at {} = {:.12g}: {}", path, grid[g], s.message);
       return;
@@ -102,11 +161,21 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
         out.x[at] = z[i](j);
         out.v[at] = z[i](n + j);
       }
-    out.k[g] = least_period(z, spec.max_period, spec.tolerance, L, V);
+    out.k[g] = k;
+    out.residual[g] = residual;
+    out.extra[g] = extra;
+    out.verdict[g] = k > 0 ? Verdict::periodic : converging ? Verdict::not_settled : Verdict::not_periodic;
     out.impacts[g] = static_cast<double>(impacts) / static_cast<double>(P);
     out.reached[g] = 1;
     transient = spec.transient;
   }
+}
+
+/// The residuals with 0 where a value was not reached (nothing non-finite is written).
+std::vector<double> unreached_as_zero(std::vector<double> residual, const std::vector<std::int64_t>& reached) {
+  for (std::size_t g = 0; g < residual.size(); ++g)
+    if (!reached[g]) residual[g] = 0.0;
+  return residual;
 }
 
 }  // namespace
@@ -147,7 +216,7 @@ RunReport run_diagram(const SceneDocument& doc, const Scene& scene, const RunReq
 
   std::vector<Dataset> datasets{reals("parameter", grid, {m})};
   std::string message, names;
-  long not_periodic = 0, not_reached = 0;
+  long not_periodic = 0, not_settled = 0, not_reached = 0;
   for (std::size_t d = 0; d < directions.size(); ++d) {
     const std::string& dir = directions[d].first;
     const Branch& b = branches[d];
@@ -156,10 +225,16 @@ RunReport run_diagram(const SceneDocument& doc, const Scene& scene, const RunReq
     datasets.push_back(integers("k_" + dir, b.k));
     datasets.push_back(reals("impacts_" + dir, b.impacts, {m}));
     datasets.push_back(integers("reached_" + dir, b.reached));
+    datasets.push_back(reals("residual_" + dir, unreached_as_zero(b.residual, b.reached), {m}));
+    datasets.push_back(integers("extra_periods_" + dir, b.extra));
+    Dataset verdict = integers("verdict_" + dir, b.verdict);
+    verdict.labels.emplace_back("names", std::vector<std::string>{"periodic", "not_periodic", "not_settled"});
+    datasets.push_back(std::move(verdict));
     names += (names.empty() ? "" : " ") + dir;
     for (std::size_t g = 0; g < m; ++g) {
       if (!b.reached[g]) ++not_reached;
-      else if (b.k[g] == 0) ++not_periodic;
+      else if (b.verdict[g] == Verdict::not_periodic) ++not_periodic;
+      else if (b.verdict[g] == Verdict::not_settled) ++not_settled;
     }
     if (message.empty() && !b.message.empty()) message = dir + ": " + b.message;
   }
@@ -169,6 +244,7 @@ RunReport run_diagram(const SceneDocument& doc, const Scene& scene, const RunReq
                    interrupted ? "interrupted: the points after it were not reached" : message,
                    {{"points", static_cast<std::int64_t>(m * directions.size())},
                     {"points_not_periodic", not_periodic},
+                    {"points_not_settled", not_settled},
                     {"points_not_reached", not_reached}});
   const double wall = detail::finish_run(file, threads, wall_start);
 
@@ -176,6 +252,8 @@ RunReport run_diagram(const SceneDocument& doc, const Scene& scene, const RunReq
                                  "each) on {} threads in {:.2f} s: {} points not periodic (k ≤ {})",
                                  axis.path, grid.front(), grid.back(), m, directions.size(), names, P, threads, wall,
                                  not_periodic, spec.max_period);
+  if (not_settled > 0)
+    text += fmt::format(", {} not settled within {} extra periods (raise run.diagram.settle)", not_settled, spec.settle);
   if (not_reached > 0) text += fmt::format(", {} not reached ({})", not_reached, message);
   text += fmt::format(".\nResults in {}.", file.path());
   return {interrupted ? 130 : not_reached ? 1 : 0, text, request.in_memory ? file.image() : std::vector<char>{}};
@@ -193,9 +271,10 @@ void parse_diagram_section(RunSection& s) {
   const YAML::Node dg = s.node;
   if (dg && s.full) {
     DiagramSpec& d = run.diagram;
-    run.axes.push_back(s.axis(dg, "run.diagram", {}, {"transient", "points", "directions", "max_period", "tolerance"}));
+    run.axes.push_back(s.axis(dg, "run.diagram", {}, {"transient", "points", "directions", "max_period", "tolerance", "settle"}));
     s.monotonic(dg, "run.diagram");
     if (dg["transient"]) d.transient = r.integer(dg["transient"], "run.diagram.transient", 0, 100000000);
+    if (dg["settle"]) d.settle = r.integer(dg["settle"], "run.diagram.settle", 0, 100000000);
     if (dg["points"]) d.points = static_cast<int>(r.integer(dg["points"], "run.diagram.points", 1, 100000));
     if (dg["directions"]) {
       const std::string dir = r.choice(dg["directions"], "run.diagram.directions", {"both", "up", "down"});

@@ -120,6 +120,7 @@ struct DiagramSpec {
   bool up = true, down = true; ///< directions: increasing, decreasing parameter
   int max_period = 16;         ///< least period k looked for among the P points (2k ≤ P)
   double tolerance = 1e-6;     ///< |z_i − z_{i−k}| relative to L, V for every recorded i
+  long settle = 1000;          ///< extra periods at most, in blocks of P, while not periodic and converging
 };
 
 /// run.kind: lyapunov — the Lyapunov spectrum (vibro/lyapunov.hpp) at the scene's values or
