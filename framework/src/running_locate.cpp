@@ -253,6 +253,40 @@ std::vector<Transition> locate_between(const EngineFamily& family, const ScanPoi
   return found;
 }
 
+void merge_doublings(std::vector<Transition>& sorted) {
+  // A not-periodic orbit whose runs still came this close to closing was converging, slowly.
+  constexpr double kNearlyClosed = 1e-3;
+  const auto nearly = [](const RunningOrbit& o) {
+    return !o.periodic && o.status == RunStatus::completed && o.residual <= kNearlyClosed;
+  };
+  std::vector<Transition> out;
+  for (std::size_t i = 0; i < sorted.size(); ++i) {
+    if (i + 1 < sorted.size()) {
+      const Transition& a = sorted[i];
+      const Transition& b = sorted[i + 1];
+      const RunningOrbit& below = a.low.orbit;
+      const RunningOrbit& above = b.high.orbit;
+      if (a.kind == TransitionKind::periodicity && b.kind == TransitionKind::periodicity && below.periodic &&
+          above.periodic && nearly(a.high.orbit) && nearly(b.low.orbit) &&
+          (above.k == 2 * below.k || below.k == 2 * above.k)) {
+        Transition m;
+        m.kind = TransitionKind::period;
+        m.p_low = a.p_low;
+        m.p_high = b.p_high;
+        m.p = 0.5 * (m.p_low + m.p_high);
+        m.low = a.low;
+        m.high = b.high;
+        m.evaluations = std::max(a.evaluations, b.evaluations);
+        out.push_back(std::move(m));
+        ++i;
+        continue;
+      }
+    }
+    out.push_back(std::move(sorted[i]));
+  }
+  sorted = std::move(out);
+}
+
 ScanResult scan_and_locate(const EngineFamily& family, const std::vector<double>& grid, double t0,
                            const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                            const ScanOptions& options) {
@@ -266,6 +300,7 @@ ScanResult scan_and_locate(const EngineFamily& family, const std::vector<double>
   }
   std::sort(result.transitions.begin(), result.transitions.end(),
             [](const Transition& a, const Transition& b) { return a.p < b.p; });
+  merge_doublings(result.transitions);
   return result;
 }
 

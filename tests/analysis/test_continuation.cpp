@@ -393,3 +393,77 @@ TEST_CASE("continuation: past a grazing corner whose two parts lie on the same s
   CHECK(last.multipliers.stable);
   CHECK(last.tangent_p > 0.0);
 }
+
+namespace {
+
+/// The newcomer's three-mass chain (experiments/examples/three_mass_chain.yaml): unit masses and
+/// springs from a wall, dampers 0.05, 0.2 cos Ωt on mass 0, a clearance of 0.05 between masses 1
+/// and 2 (r = 0.6) and a wall at 0.4 above mass 2 (r = 0.8).
+vibro::FamilyPoint clearance_chain_at(double omega) {
+  vibro::models::Chain c;
+  c.masses = {1.0, 1.0, 1.0};
+  c.springs = {1.0, 1.0};
+  c.dampers = {0.05, 0.05};
+  c.left_spring = 1.0;
+  c.left_damper = 0.05;
+  c.force_cosine = {0.2, 0.0, 0.0};
+  c.frequency = omega;
+  vibro::ImpactSystem sys(vibro::models::build_chain(c),
+                          {vibro::Stop::between(1, 2, 0.05, 0.6), vibro::Stop::upper(2, 0.4, 0.8)});
+  return vibro::FamilyPoint{std::move(sys), vibro::SystemDerivative::frequency_only()};
+}
+
+}  // namespace
+
+TEST_CASE("continuation: through a grazing that adds an impact, onto the unstable orbits beyond it, "
+          "round their fold and on to chatter and sticking (the three-mass clearance chain down from "
+          "Ω = 0.7)",
+          "[continuation][three-mass][grazing]") {
+  // The orbit at Ω = 0.7 strikes the clearance twice per period, nothing held. Down in Ω it grazes
+  // the clearance at 0.6874399307 (a third impact is born); the orbits with three impacts leave the
+  // grazing upwards in Ω, unstable (a multiplier from −∞), to a fold at 0.6895773127 and come back
+  // down stable. Newton from the side without the impact cannot see it: the steps used to shrink
+  // against the grazing until "step below min_step". The fold's value is the one the same scene's
+  // branch reaches from below (from Ω = 0.5, up), where no grazing is crossed before it.
+  const double p0 = 0.7;
+  VectorXd x(3), v(3);
+  x << 0.01758951153595281, -0.1517587032492654, -0.1854217681805984;
+  v << -0.059502736248966244, 0.006082666124027866, 0.05106996248742386;
+  vibro::ContinuationOptions o;
+  o.p_min = 0.61;
+  o.p_max = 0.7;
+  o.direction = -1;
+  o.step = 0.01;
+  o.max_step = 0.02;
+  o.max_doublings = 0;
+  const auto start = std::chrono::steady_clock::now();
+  const vibro::ContinuationResult r = vibro::continue_orbits(clearance_chain_at, p0, 0.0, x, v, o);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  REQUIRE_FALSE(r.branches.empty());
+  const vibro::Branch& b = r.branches[0];
+  INFO("branch: " << b.end << " (" << seconds << " s)");
+  CHECK(b.end.find("step below min_step") == std::string::npos);
+  CHECK(b.end.find("reached p_min") != std::string::npos);
+  const vibro::Bifurcation* graze = find(r, vibro::BifurcationKind::grazing, 0.68744);
+  const vibro::Bifurcation* fold = find(r, vibro::BifurcationKind::fold, 0.68958);
+  REQUIRE(graze != nullptr);
+  REQUIRE(fold != nullptr);
+  CHECK(graze->stop == 0);
+  CHECK(graze->smooth);
+  CHECK(std::abs(graze->p - 0.6874399307) < 1e-9);
+  CHECK(std::abs(fold->p - 0.6895773127) < 1e-9);
+  // Between them the orbits with three impacts, unstable; after the fold the same, stable.
+  bool unstable_three = false, stable_three = false, held = false;
+  for (const vibro::BranchPoint& q : b.points) {
+    if (q.signature.impacts[0] == 3 && q.p > 0.68745 && q.p < 0.68957) {
+      unstable_three |= !q.multipliers.stable;
+      stable_three |= q.multipliers.stable && q.tangent_p < 0.0;
+    }
+    held |= q.signature.phases[0] > 0;
+  }
+  CHECK(unstable_three);
+  CHECK(stable_three);
+  // Further down, chatter of the clearance ends in sticking: the branch follows the sticking orbits.
+  CHECK(held);
+  CHECK(b.points.back().p == Approx(o.p_min).margin(1e-12));
+}

@@ -146,3 +146,63 @@ TEST_CASE("a locate grid value that makes the scene invalid is refused before an
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK_FALSE(std::filesystem::exists(ResultFile::partial_path(out)));
 }
+
+TEST_CASE("a locate run reports the period doublings of the three-mass clearance chain as changes of "
+          "period, with the doubling in the bracket", "[runner][locate]") {
+  // three_mass_chain.yaml's system from its period-1 orbit at Ω = 0.31 (on the running method's
+  // path down from Ω = 0.7, at forcing phase 0). Continuation (continue, from Ω = 0.7 down) finds
+  // the period-1 orbit doubling at 0.305288088182 and 0.301781374772. Near each a multiplier near
+  // −1 keeps the runs from closing within 2000 periods on both sides, and the bisection used to
+  // return two "not periodic" brackets around it instead.
+  const std::string text = R"(
+name: locate-doubling
+model:
+  chain:
+    masses: [1, 1, 1]
+    springs: [1, 1]
+    dampers: [0.05, 0.05]
+    left_wall: {spring: 1, damper: 0.05}
+forcing:
+  frequency: 0.31
+  cosine: [0.2, 0, 0]
+stops:
+  - {between: [1, 2], gap: 0.05, restitution: 0.6, name: m1-m2 clearance}
+  - {mass: 2, side: upper, position: 0.4, restitution: 0.8, name: right wall}
+initial:
+  x: [0.3128226553488964, 0.3864012467213644, 0.38474367192712233]
+  v: [0.011645924049693574, 0.003575868877863314, -0.03429715474678856]
+run:
+  kind: locate
+  transient_periods: 20
+  locate:
+    path: forcing.frequency
+    values: [0.31, 0.307, 0.304, 0.301]
+    tolerance: 1e-8
+)";
+  const SceneDocument doc = SceneDocument::parse(text, "doubling.yaml");
+  const Scene scene = doc.build();
+  const std::string out = temp_path("doubling.h5");
+  std::filesystem::remove(out);
+  const RunReport report = run_scene(doc, scene, {out, 2, false, false, 0});
+  CAPTURE(report.summary);
+  REQUIRE(report.exit_code == 0);
+  const ResultReader r(out);
+  const auto names = r.attribute_strings("/transitions/kind", "names");
+  const auto kinds = r.read_integers("/transitions/kind");
+  const auto low = r.read("/transitions/parameter_low"), high = r.read("/transitions/parameter_high");
+  const auto k_low = r.read_integers("/transitions/k_low"), k_high = r.read_integers("/transitions/k_high");
+  for (const double doubling : {0.305288088182, 0.301781374772}) {
+    CAPTURE(doubling);
+    int found = 0;
+    for (std::size_t i = 0; i < kinds.size(); ++i) {
+      if (!(low[i] <= doubling && doubling <= high[i])) continue;
+      ++found;
+      CHECK(names.at(static_cast<std::size_t>(kinds[i])) == "period");
+      CHECK(k_low[i] == 2);   // the doubled orbit below it in Ω
+      CHECK(k_high[i] == 1);
+      CHECK(high[i] - low[i] < 1e-4);
+    }
+    CHECK(found == 1);
+  }
+  std::filesystem::remove(out);
+}

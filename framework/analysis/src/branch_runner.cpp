@@ -67,6 +67,9 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
       if (h < 1e-3 * o_.max_step && !jump_tried && near_nonsmooth(cur)) {
         jump_tried = true;
         jumped = jump(cur, last_dp);
+        // Against a grazing with no orbit found at fixed p: along the branch of orbits with the
+        // new impact, from the corner (grazing_corner.cpp).
+        if (!jumped) jumped = corner(cur);
       }
       if (!jumped) {
         if (h < o_.min_step) {

@@ -5,6 +5,7 @@
 /// The work is split by concept over three files:
 ///  * branch_runner.cpp: the stepping (predictor y + h t, the corrector, the step control, the
 ///    guards against landing back on the branch, jumps over grazing corners, section moves);
+///  * grazing_corner.cpp: the step onto the orbits with the impact a grazing adds;
 ///  * bifurcation_detection.cpp: what changed between two neighbours (test functions changing
 ///    sign, the event signature) and how each change is to be located;
 ///  * bifurcation_location.cpp: the location itself (Illinois on the arclength, the one-sided
@@ -49,6 +50,7 @@ class BranchRunner {
   // Stepping (branch_runner.cpp).
   static bool near_nonsmooth(const Node& n);
   std::optional<Node> jump(const Node& cur, double last_dp);
+  std::optional<Node> corner(const Node& cur);  // grazing_corner.cpp
   std::optional<Node> shoot_at(const Node& from, double p, const VectorXd& along);
   void locate_at_end(const Node& cur, double last_dp, int branch_index);
   std::optional<Node> resection(const Node& cur, double margin);

@@ -86,11 +86,13 @@ Curve follow_curve(const PlaneContinuationFamily& family, const Bifurcation& sta
     // Continue along the line from the previous curve point's orbit until the kind is found.
     bool found = false;
     ContinuationResult r;
+    // The last curve point's orbit touches its stop: shooting from it at the predictor can fall
+    // on the side with the impact, where Newton cannot converge from it; a shorter step then.
+    std::string failed;
     try {
       r = continue_orbits(line, 0.0, last.point.t0, last.point.x, last.point.v, lo);
     } catch (const InvalidInput& e) {
-      curve.end = std::string("no orbit near the predictor: ") + e.what();
-      return curve;
+      failed = e.what();
     }
     // The located point of the kind nearest to the predictor.
     const Bifurcation* best = nullptr;
@@ -109,7 +111,8 @@ Curve follow_curve(const PlaneContinuationFamily& family, const Bifurcation& sta
     if (!found) {
       h *= 0.5;
       if (h < 1e-6) {
-        curve.end = "the curve was lost (no located point on the line across it)";
+        curve.end = failed.empty() ? "the curve was lost (no located point on the line across it)"
+                                   : "no orbit near the predictor: " + failed;
         return curve;
       }
     } else {

@@ -11,6 +11,13 @@ namespace {
 
 using Eigen::VectorXd;
 
+/// w_j and −(1 + r_j) M⁻¹w_j / (w_jᵀM⁻¹w_j) from the engine's own mechanics.
+std::pair<VectorXd, VectorXd> lone_impact(const detail::Mechanics<double>& mech, int j) {
+  const VectorXd w = mech.normals(ContactSet{j}).col(0);
+  const VectorXd q = mech.mass_inverse(w);
+  return {w, -(1.0 + mech.restitution(j)) / w.dot(q) * q};
+}
+
 class DenseFamilyEngine final : public FamilyEngine {
  public:
   DenseFamilyEngine(ImpactSystem system, SystemDerivative d, const SimulatorOptions& solver)
@@ -29,6 +36,9 @@ class DenseFamilyEngine final : public FamilyEngine {
   ShootingResult shoot(const ShootingOptions& options, double t_guess, const VectorXd& x, const VectorXd& v) override {
     return vibro::shoot(system_, options, t_guess, x, v);
   }
+  std::pair<VectorXd, VectorXd> impact_direction(int j) const override {
+    return lone_impact(detail::Mechanics<double>(system_), j);
+  }
 
  private:
   ImpactSystem system_;
@@ -38,7 +48,7 @@ class DenseFamilyEngine final : public FamilyEngine {
 class ModalFamilyEngine final : public FamilyEngine {
  public:
   ModalFamilyEngine(BandedChain chain, std::vector<Stop> stops, SystemDerivative d, const ModalSimulatorOptions& o)
-      : FamilyEngine(std::move(d)), dof_(chain.dof()), engine_(std::move(chain), std::move(stops), o) {
+      : FamilyEngine(std::move(d)), dof_(chain.dof()), mechanics_(chain, stops), engine_(std::move(chain), std::move(stops), o) {
     derivative.validate(dof(), stop_count());
     if (detail::Mechanics<double>::moves_matrices(derivative))
       throw InvalidInput("continuation on the modal engine: the parameter moves the mass, damping or stiffness "
@@ -58,9 +68,11 @@ class ModalFamilyEngine final : public FamilyEngine {
   ShootingResult shoot(const ShootingOptions& options, double t_guess, const VectorXd& x, const VectorXd& v) override {
     return shoot_full_jacobian(engine_, options, t_guess, x, v);
   }
+  std::pair<VectorXd, VectorXd> impact_direction(int j) const override { return lone_impact(mechanics_, j); }
 
  private:
   Eigen::Index dof_;
+  detail::Mechanics<double> mechanics_;
   ModalEngine engine_;
 };
 

@@ -33,7 +33,9 @@
 ///   vanishing: on the side with more phases, the shortest phase of j → 0 (in units of kT).
 /// Whichever of the two normalised limits is smaller names the transition; both are reported,
 /// so a reader can see how clear the call is. Other changes: period (k differs), periodicity
-/// (one side not periodic within RunningOrbitOptions::max_periods), several stops at once (other).
+/// (one side not periodic within RunningOrbitOptions::max_periods), several stops at once (other);
+/// a doubling of the period seen through orbits not periodic within the budget is one `period`
+/// transition (merge_doublings).
 ///
 /// A sticking phase can also be cut short at a tangency without splitting: the mass rises and
 /// does not come back to stick in that phase, so the phase counts stay equal and only the
@@ -127,6 +129,15 @@ std::vector<Transition> locate_between(const SystemFamily& family, const ScanPoi
 std::vector<Transition> locate_between(const EngineFamily& family, const ScanPoint& lo,
                                        const ScanPoint& hi, const ScanOptions& options,
                                        long* orbits_computed = nullptr);
+
+/// Period doublings seen through the running method's budget: near a doubling a multiplier
+/// near −1 makes the runs converge slowly (|μ|ⁿ), so the orbits on both sides of it are not
+/// periodic within max_periods and bisection returns two `periodicity` transitions, from a
+/// period-kT orbit to a slowly converging one and from it to a period-2kT orbit (either order in
+/// p). Each such pair, neighbours in `sorted` (in order of p) with no other change between them and
+/// both inner orbits nearly closing (least residual ≤ 1e-3), becomes one `period` transition whose
+/// bracket spans both: the doubling lies in it.
+void merge_doublings(std::vector<Transition>& sorted);
 
 /// Only the continuation (no location): the orbits at the grid points.
 std::vector<ScanPoint> scan(const SystemFamily& family, const std::vector<double>& grid, double t0,

@@ -16,6 +16,12 @@
 ///             Newton on [F(y); tᵀ(y − y_pred)] = 0 from y_pred (the exact Jacobian)
 ///             failure (no convergence in max_corrector_iterations, a run that fails, an orbit
 ///                 that leaves the scan limits by more than a step): h ← h/2, retry; h < min: stop
+///             steps shrinking against a grazing (the map's derivative blows up on the side with
+///                 the impact, and Newton from the other side cannot see it): the orbit beyond by
+///                 Newton at fixed p; failing that, a step along the tangent of the branch of
+///                 orbits with the new impact, from the null space of the map without it bordered
+///                 by the impact's first-order effect and the grazing condition (Nordmark 1991),
+///                 stable or not, whichever way in p it leaves the corner
 ///             success: h ← 1.5 h if ≤ 3 iterations, 0.6 h if ≥ 6; the point's multipliers,
 ///                 test functions and event signature; a change between neighbours is located
 ///     stop at the scan limits (the last point placed on the limit), after max_points, or when

@@ -36,6 +36,7 @@
 
 #include <functional>
 #include <memory>
+#include <utility>
 #include <vector>
 
 namespace vibro {
@@ -60,6 +61,10 @@ class FamilyEngine {
   virtual ShootingResult shoot(const ShootingOptions& options, double t_guess, const Eigen::VectorXd& x,
                                const Eigen::VectorXd& v) = 0;
 
+  /// Stop j's normal w (its gap is g = wᵀx − s_j(t)) and the velocity jump of a lone impact on it
+  /// per unit approach speed, −(1 + r_j) M⁻¹w / (wᵀM⁻¹w): what an impact born at a grazing adds
+  /// to the orbit, to first order in its speed (continuation's grazing corners).
+  virtual std::pair<Eigen::VectorXd, Eigen::VectorXd> impact_direction(int j) const = 0;
   /// dD/dp at this p (parameter.hpp). Continuation along a line in a plane of two parameters
   /// (follow_curve) replaces it by the line's combination.
   SystemDerivative derivative;

@@ -165,6 +165,7 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
   for (auto& f : found) transitions.insert(transitions.end(), f.begin(), f.end());
   std::sort(transitions.begin(), transitions.end(),
             [](const Transition& a, const Transition& b) { return a.p < b.p; });
+  merge_doublings(transitions);
 
   write_scan(file, points, n, m, axis.path);
   write_transitions(file, transitions, m);
