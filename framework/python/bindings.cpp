@@ -119,6 +119,7 @@ struct Work {
   bool done = false;
   vibro::io::MemoryRun run;
   std::exception_ptr failure;
+  std::atomic<double> progress_done{-1.0}, progress_total{0.0};  ///< RunRequest::on_progress
 };
 
 /// The runs in progress, so that the interpreter's exit can stop them (stop_all_runs).
@@ -188,10 +189,20 @@ class WorkerJoin {
   Work& work_;
 };
 
-/// Runs `task(work)` on a worker thread with the GIL released; see the file's comment.
+/// Calls `callback(done, total)` (GIL held) if the run's progress moved since `shown`.
+void report_progress(const py::object& callback, const Work& work, double& shown) {
+  const double done = work.progress_done.load();
+  if (callback.is_none() || done == shown) return;
+  shown = done;
+  callback(done, work.progress_total.load());
+}
+
+/// Runs `task(work)` on a worker thread with the GIL released; see the file's comment. Every
+/// 50 ms the waiting thread also hands the run's progress to `progress` (a Python callable, or
+/// None); an exception it raises stops the run and is re-raised, as a signal handler's is.
 /// Returns whether a signal handler's KeyboardInterrupt stopped it.
 template <class Task>
-bool run_watched(const std::shared_ptr<Work>& work, Task task) {
+bool run_watched(const std::shared_ptr<Work>& work, Task task, const py::object& progress = py::none()) {
   const RunListed listed(work);
   std::thread worker([work, task]() mutable {
     try {
@@ -207,6 +218,7 @@ bool run_watched(const std::shared_ptr<Work>& work, Task task) {
   });
   const WorkerJoin join(worker, *work);
   std::optional<py::error_already_set> raised;  // by a signal handler while the run went on
+  double shown = -1.0;                          // the progress last handed to `progress`
   {
     // The GIL is released and taken back by hand, not by pybind11's scoped guards: a finalizing
     // interpreter ends a daemon thread inside PyEval_RestoreThread, and a guard's destructor
@@ -220,6 +232,13 @@ bool run_watched(const std::shared_ptr<Work>& work, Task task) {
       if (PyErr_CheckSignals() != 0) {
         raised.emplace();
         work->stop.store(true);
+      } else {
+        try {
+          report_progress(progress, *work, shown);
+        } catch (py::error_already_set& e) {
+          raised.emplace(e);
+          work->stop.store(true);
+        }
       }
       state = PyEval_SaveThread();
       hold.lock();
@@ -228,19 +247,36 @@ bool run_watched(const std::shared_ptr<Work>& work, Task task) {
     worker.join();  // before the GIL is taken back (where a finalizing interpreter ends the thread)
     PyEval_RestoreThread(state);
   }
+  if (!raised && !work->failure) report_progress(progress, *work, shown);  // where it ended
   if (raised && !raised->matches(PyExc_KeyboardInterrupt)) throw *raised;
   if (work->failure && !raised) std::rethrow_exception(work->failure);
   return raised.has_value();
 }
 
-/// Builds and runs a copy of `doc` (its run.kind) into memory.
-py::tuple run(const SceneDocument& doc, int threads) {
+/// Builds and runs a copy of `doc` (its run.kind) into memory. `show`: progress on stderr, 0
+/// none, 1 a redrawn line (a terminal), 2 a line at each tenth; `progress`: a callable given
+/// (done, total) as the run goes on, or None.
+py::tuple run(const SceneDocument& doc, int threads, int show, const py::object& progress) {
   auto work = std::make_shared<Work>();
   const SceneDocument copy(doc);  // the caller may edit its document meanwhile (another thread)
-  const bool interrupted = run_watched(work, [copy, threads](Work& w) {
-    const vibro::io::Scene scene = copy.build();
-    w.run = vibro::io::run_in_memory(copy, scene, {threads, &w.stop});
-  });
+  const bool report = !progress.is_none();
+  const bool interrupted = run_watched(
+      work,
+      [copy, threads, show, report](Work& w) {
+        const vibro::io::Scene scene = copy.build();
+        vibro::io::MemoryRunOptions options;
+        options.threads = threads;
+        options.interrupt = &w.stop;
+        options.bar = show == 1;
+        options.lines = show == 2;
+        if (report)
+          options.on_progress = [&w](double done, double total) {
+            w.progress_total.store(total);
+            w.progress_done.store(done);
+          };
+        w.run = vibro::io::run_in_memory(copy, scene, options);
+      },
+      progress);
   if (work->failure) std::rethrow_exception(work->failure);  // interrupted before it ran
   py::bytes image(work->run.image.data(), work->run.image.size());
   return py::make_tuple(image, work->run.exit_code, work->run.summary, interrupted);
@@ -441,8 +477,10 @@ PYBIND11_MODULE(_vibro, m) {
       .def_property_readonly("text", &SceneDocument::text)
       .def_property_readonly("file", &SceneDocument::file)
       .def("check", &check, "Builds and validates the scene; returns what it resolved to.")
-      .def("run", &run, py::arg("threads") = 0,
-           "Runs the scene's run.kind into memory: (image bytes, exit code, summary, interrupted).")
+      .def("run", &run, py::arg("threads") = 0, py::arg("show") = 0, py::arg("progress") = py::none(),
+           "Runs the scene's run.kind into memory: (image bytes, exit code, summary, interrupted). show: "
+           "progress on stderr (0 none, 1 a redrawn line, 2 a line per tenth); progress: a callable given "
+           "(done, total) as the run goes on.")
       .def("tangent_map", &tangent_map, py::arg("t0"), py::arg("t1"), py::arg("x"), py::arg("v"), py::arg("period"),
            "The dense engine's tangent map over [t0, t1] (None: the scene's start) and, with period k > 0, "
            "the multipliers of it as a k-period map.")

@@ -15,8 +15,9 @@ numpy matrices and a list of stops) is run by the same engine and the same code 
 Functions: one per run kind of the table ``vibro run`` dispatches on (``run_kinds()``):
 simulate, sweep, locate, continuation (run.kind: continue), basin, diagram, lyapunov, orbit —
 each takes a scene (a Scene, a file path or YAML text) and keyword overrides of its run section,
-optionally writes the result file (``output=``) and returns a Result; run (whatever the scene's
-run.kind says) and read (a result file). One orbit at a time, on the dense engine: shoot
+optionally writes the result file (``output=``), shows its progress (``progress=True`` or a
+callable) and returns a Result; run (whatever the scene's run.kind says) and read (a result
+file). One orbit at a time, on the dense engine: shoot
 (Newton shooting), tangent_map (the exact linearisation over a span) and multipliers (of a
 state's k-period map). Classes: Scene, Result, Group. Errors: SceneError (a ValueError: the
 command's message, 'file:line:column: key.path: problem'), ResultError (an OSError), Interrupted
@@ -25,6 +26,7 @@ command's message, 'file:line:column: key.path: problem'), ResultError (an OSErr
 import json
 import math
 import os
+import sys
 import types
 import warnings
 
@@ -286,7 +288,11 @@ _COMMON = """
     changed: the keywords apply to this run only, and the run section of the scene's own kind is
     replaced, so a scene written for another run kind runs as this one. output: also write the
     result file there (as ``vibro run -o``; an existing file is replaced only with force=True).
-    threads: OpenMP threads (None: all cores), as ``vibro run --threads``.
+    threads: OpenMP threads (None: all cores), as ``vibro run --threads``. progress: True shows
+    the run's progress on stderr as ``vibro run`` does (a redrawn line on a terminal, else a line
+    at each tenth of the run); a callable is called as ``progress(done, total)`` from the calling
+    thread as the run goes on (grid points, or forcing periods of one long simulation), e.g. to
+    move a tqdm bar; an exception it raises stops the run and is raised.
 
     Returns a Result (the groups of docs/results.md as numpy arrays). Raises SceneError (a
     ValueError: 'file:line:column: key.path: problem', the command's message; for a value given
@@ -301,7 +307,8 @@ _FUNCTION_NAMES = {"continue": "continuation"}
 _GRID_KEYS = ("values", "linspace", "logspace")
 
 
-def simulate(scene, *, periods=None, transient_periods=None, output=None, force=False, threads=None, **record):
+def simulate(scene, *, periods=None, transient_periods=None, output=None, force=False, threads=None, progress=None,
+             **record):
     """Simulates the scene once (run.kind: simulate): transient periods, then recorded ones.
 
     periods, transient_periods: override run.periods and run.transient_periods for this run.
@@ -318,11 +325,11 @@ def simulate(scene, *, periods=None, transient_periods=None, output=None, force=
     scene = _scene_of(scene)
     doc = _prepared(scene, periods, transient_periods, record)
     _only_kind(doc, "simulate")
-    return _run(doc, threads, output, force)
+    return _run(doc, threads, output, force, progress)
 
 
 def sweep(scene, parameters=None, *, follow=None, reverse=None, periods=None, transient_periods=None,
-          output=None, force=False, threads=None, **record):
+          output=None, force=False, threads=None, progress=None, **record):
     """Runs the scene at every point of a grid of one or two scene paths, in parallel (run.kind: sweep).
 
     parameters: ``{path: values}`` with one or two paths (the second varies fastest), e.g.
@@ -351,11 +358,11 @@ def sweep(scene, parameters=None, *, follow=None, reverse=None, periods=None, tr
         if flag is not None:
             doc.replace("run.sweep." + key, json.dumps(bool(flag)))
     _only_kind(doc, "sweep")
-    return _run(doc, threads, output, force)
+    return _run(doc, threads, output, force, progress)
 
 
 def locate(scene, path=None, values=None, *, transient_periods=None, output=None, force=False, threads=None,
-           **options):
+           progress=None, **options):
     """Finds and locates the bifurcations of the scene's periodic orbits along one path (run.kind: locate).
 
     path, values: the scanned scene path and its grid (None: the scene's run.locate). options:
@@ -369,11 +376,11 @@ def locate(scene, path=None, values=None, *, transient_periods=None, output=None
         options.update(path=path, **({} if values is None else {"values": values}))
     elif not options and (scene := _scene_of(scene)).run_kind != "locate":
         raise ValueError("locate: give path and values; the scene has no run.locate")
-    return _run_kind("locate", scene, options, transient_periods, output, force, threads)
+    return _run_kind("locate", scene, options, transient_periods, output, force, threads, progress)
 
 
 def continuation(scene, path=None, range=None, *, transient_periods=None, output=None, force=False, threads=None,
-                 **options):
+                 progress=None, **options):
     """Follows the scene's branch of periodic orbits in one parameter (run.kind: continue):
     pseudo-arclength continuation with Newton shooting and exact Jacobians, with the Floquet
     multipliers of every orbit and its bifurcations located (folds, period doublings with branch
@@ -394,14 +401,14 @@ def continuation(scene, path=None, range=None, *, transient_periods=None, output
         options.update(path=path, range=[float(v) for v in range])
     elif not options and (scene := _scene_of(scene)).run_kind != "continue":
         raise ValueError("continuation: give path and range; the scene has no run.continue")
-    return _run_kind("continue", scene, options, transient_periods, output, force, threads)
+    return _run_kind("continue", scene, options, transient_periods, output, force, threads, progress)
 
 
 def _kind_function(name, summary, section):
     """The function of run kind `name` (one without a hand-written one above): its section's keys
     as keywords."""
-    def run_kind(scene, *, transient_periods=None, output=None, force=False, threads=None, **keys):
-        return _run_kind(name, scene, keys, transient_periods, output, force, threads)
+    def run_kind(scene, *, transient_periods=None, output=None, force=False, threads=None, progress=None, **keys):
+        return _run_kind(name, scene, keys, transient_periods, output, force, threads, progress)
     run_kind.__name__ = run_kind.__qualname__ = _FUNCTION_NAMES.get(name, name)
     keys = (f"the keys of run.{section} (docs/scenes.md) as keywords: a grid as ``path=``, "
             f"``values=`` (or ``linspace=``, ``logspace=``), ``parameters={{path: values, …}}`` for "
@@ -415,9 +422,10 @@ def _kind_function(name, summary, section):
     return run_kind
 
 
-def run(scene, *, output=None, force=False, threads=None):
-    """Runs the scene as ``vibro run`` does: its own run.kind, record and settings."""
-    return _run(_scene_of(scene)._doc.copy(), threads, output, force)
+def run(scene, *, output=None, force=False, threads=None, progress=None):
+    """Runs the scene as ``vibro run`` does: its own run.kind, record and settings (output, force,
+    threads, progress as for the run functions)."""
+    return _run(_scene_of(scene)._doc.copy(), threads, output, force, progress)
 
 
 def run_kinds():
@@ -433,7 +441,7 @@ def run_function(kind):
     return _KIND_FUNCTIONS[kind]
 
 
-def _run_kind(name, scene, keys, transient_periods, output, force, threads):
+def _run_kind(name, scene, keys, transient_periods, output, force, threads, progress=None):
     """Runs `scene` as run.kind `name` with `keys` replacing keys of its run section."""
     scene = _scene_of(scene)
     section, missing = _KIND_SECTIONS[name]
@@ -461,7 +469,7 @@ def _run_kind(name, scene, keys, transient_periods, output, force, threads):
         doc.replace(where, json.dumps(value))
     _only_kind(doc, name)
     try:
-        return _run(doc, threads, output, force)
+        return _run(doc, threads, output, force, progress)
     except SceneError as e:
         # A value given as a keyword has no place in the scene's text: name the keyword instead.
         path = getattr(e, "path", "")
@@ -559,13 +567,20 @@ def _record(current, given):
     return {k: v for k, v in out.items() if v is not False}
 
 
-def _run(doc, threads, output=None, force=False):
+def _run(doc, threads, output=None, force=False, progress=None):
     count = 0 if threads is None else int(threads)
     if count < 0:
         raise ValueError(f"threads: expected a number ≥ 0 (0: all cores), found {threads!r}")
     if output is not None and not force and os.path.exists(output):
         raise ResultError(f"{os.fspath(output)}: exists; give force=True to replace it")
-    image, exit_code, summary, interrupted = doc.run(count)
+    show, callback = 0, None
+    if progress is True:
+        show = 1 if sys.stderr.isatty() else 2
+    elif callable(progress):
+        callback = progress
+    elif progress not in (None, False):
+        raise TypeError(f"progress: expected True, False, None or a callable(done, total), found {progress!r}")
+    image, exit_code, summary, interrupted = doc.run(count, show, callback)
     result = Result(_Image.from_bytes(image), exit_code, summary)
     if interrupted:
         raise Interrupted("vibro: run interrupted; the partial result is in .result", result)
