@@ -1,6 +1,6 @@
 /// \file bindings.cpp
-/// The compiled part of the Python module `vibro` (pybind11): scene documents, runs into memory
-/// and result images. The public API, with its documentation, is vibro/__init__.py, which wraps
+/// The compiled part of the Python module `vibro` (pybind11): scene documents, runs into memory,
+/// result images, and one orbit at a time (tangent maps, multipliers, shooting). The public API, with its documentation, is vibro/__init__.py, which wraps
 /// these; docs/python.md is its guide.
 ///
 /// Runs release the GIL: the scene is built and run on a worker thread (sweeps then use their
@@ -14,7 +14,11 @@
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/run_kinds.hpp"
 #include "vibro/io/session.hpp"
+#include "vibro/linearisation.hpp"
+#include "vibro/shooting.hpp"
 
+#include <pybind11/complex.h>
+#include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -22,6 +26,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <complex>
 #include <condition_variable>
 #include <exception>
 #include <memory>
@@ -114,6 +119,7 @@ struct Work {
   bool done = false;
   vibro::io::MemoryRun run;
   std::exception_ptr failure;
+  std::atomic<double> progress_done{-1.0}, progress_total{0.0};  ///< RunRequest::on_progress
 };
 
 /// The runs in progress, so that the interpreter's exit can stop them (stop_all_runs).
@@ -183,10 +189,20 @@ class WorkerJoin {
   Work& work_;
 };
 
-/// Runs `task(work)` on a worker thread with the GIL released; see the file's comment.
+/// Calls `callback(done, total)` (GIL held) if the run's progress moved since `shown`.
+void report_progress(const py::object& callback, const Work& work, double& shown) {
+  const double done = work.progress_done.load();
+  if (callback.is_none() || done == shown) return;
+  shown = done;
+  callback(done, work.progress_total.load());
+}
+
+/// Runs `task(work)` on a worker thread with the GIL released; see the file's comment. Every
+/// 50 ms the waiting thread also hands the run's progress to `progress` (a Python callable, or
+/// None); an exception it raises stops the run and is re-raised, as a signal handler's is.
 /// Returns whether a signal handler's KeyboardInterrupt stopped it.
 template <class Task>
-bool run_watched(const std::shared_ptr<Work>& work, Task task) {
+bool run_watched(const std::shared_ptr<Work>& work, Task task, const py::object& progress = py::none()) {
   const RunListed listed(work);
   std::thread worker([work, task]() mutable {
     try {
@@ -202,6 +218,7 @@ bool run_watched(const std::shared_ptr<Work>& work, Task task) {
   });
   const WorkerJoin join(worker, *work);
   std::optional<py::error_already_set> raised;  // by a signal handler while the run went on
+  double shown = -1.0;                          // the progress last handed to `progress`
   {
     // The GIL is released and taken back by hand, not by pybind11's scoped guards: a finalizing
     // interpreter ends a daemon thread inside PyEval_RestoreThread, and a guard's destructor
@@ -215,6 +232,13 @@ bool run_watched(const std::shared_ptr<Work>& work, Task task) {
       if (PyErr_CheckSignals() != 0) {
         raised.emplace();
         work->stop.store(true);
+      } else {
+        try {
+          report_progress(progress, *work, shown);
+        } catch (py::error_already_set& e) {
+          raised.emplace(e);
+          work->stop.store(true);
+        }
       }
       state = PyEval_SaveThread();
       hold.lock();
@@ -223,19 +247,36 @@ bool run_watched(const std::shared_ptr<Work>& work, Task task) {
     worker.join();  // before the GIL is taken back (where a finalizing interpreter ends the thread)
     PyEval_RestoreThread(state);
   }
+  if (!raised && !work->failure) report_progress(progress, *work, shown);  // where it ended
   if (raised && !raised->matches(PyExc_KeyboardInterrupt)) throw *raised;
   if (work->failure && !raised) std::rethrow_exception(work->failure);
   return raised.has_value();
 }
 
-/// Builds and runs a copy of `doc` (its run.kind) into memory.
-py::tuple run(const SceneDocument& doc, int threads) {
+/// Builds and runs a copy of `doc` (its run.kind) into memory. `show`: progress on stderr, 0
+/// none, 1 a redrawn line (a terminal), 2 a line at each tenth; `progress`: a callable given
+/// (done, total) as the run goes on, or None.
+py::tuple run(const SceneDocument& doc, int threads, int show, const py::object& progress) {
   auto work = std::make_shared<Work>();
   const SceneDocument copy(doc);  // the caller may edit its document meanwhile (another thread)
-  const bool interrupted = run_watched(work, [copy, threads](Work& w) {
-    const vibro::io::Scene scene = copy.build();
-    w.run = vibro::io::run_in_memory(copy, scene, {threads, &w.stop});
-  });
+  const bool report = !progress.is_none();
+  const bool interrupted = run_watched(
+      work,
+      [copy, threads, show, report](Work& w) {
+        const vibro::io::Scene scene = copy.build();
+        vibro::io::MemoryRunOptions options;
+        options.threads = threads;
+        options.interrupt = &w.stop;
+        options.bar = show == 1;
+        options.lines = show == 2;
+        if (report)
+          options.on_progress = [&w](double done, double total) {
+            w.progress_total.store(total);
+            w.progress_done.store(done);
+          };
+        w.run = vibro::io::run_in_memory(copy, scene, options);
+      },
+      progress);
   if (work->failure) std::rethrow_exception(work->failure);  // interrupted before it ran
   py::bytes image(work->run.image.data(), work->run.image.size());
   return py::make_tuple(image, work->run.exit_code, work->run.summary, interrupted);
@@ -249,6 +290,90 @@ py::dict check(const SceneDocument& doc) {
     scene = doc.build();
   }
   return describe(*scene);
+}
+
+// --- One orbit at a time: tangent maps, multipliers, shooting (framework/analysis) -----------
+
+/// The scene's initial state, or the given one (sizes checked by the analysis layer).
+Eigen::VectorXd state_or(const std::optional<Eigen::VectorXd>& given, const Eigen::VectorXd& scene_value) {
+  return given ? *given : scene_value;
+}
+
+py::list complex_list(const Eigen::VectorXcd& values) {
+  py::list out;
+  for (Eigen::Index i = 0; i < values.size(); ++i) out.append(std::complex<double>(values(i)));
+  return out;
+}
+
+py::dict describe_multipliers(const vibro::FloquetMultipliers& f) {
+  py::dict d;
+  d["values"] = complex_list(f.values);
+  d["structural_zeros"] = f.structural_zeros;
+  d["spectral_radius"] = f.spectral_radius;
+  d["stable"] = f.stable;
+  d["rate"] = f.rate;
+  return d;
+}
+
+/// The tangent map of the dense engine over [t0, t1] from (x, v) (linearisation.hpp), and the
+/// multipliers of that map read as a period-k map when k > 0.
+py::dict tangent_map(const SceneDocument& doc, std::optional<double> t0, double t1, std::optional<Eigen::VectorXd> x,
+                     std::optional<Eigen::VectorXd> v, int k) {
+  std::optional<vibro::TangentMap> map;
+  std::optional<vibro::FloquetMultipliers> multipliers;
+  {
+    py::gil_scoped_release release;
+    const vibro::io::Scene scene = doc.build();
+    map = vibro::linearise(scene.impact_system(), scene.solver, t0.value_or(scene.t0), state_or(x, scene.x0),
+                           state_or(v, scene.v0), t1);
+    if (k > 0 && map->summary.status == vibro::RunStatus::completed) multipliers = vibro::floquet_multipliers(*map, k);
+  }
+  py::dict d;
+  d["status"] = vibro::to_string(map->summary.status);
+  d["message"] = map->summary.message;
+  d["t0"] = map->t0;
+  d["t1"] = map->t1;
+  d["x0"] = map->x0;
+  d["v0"] = map->v0;
+  d["x1"] = map->x1;
+  d["v1"] = map->v1;
+  d["jacobian"] = map->jacobian;
+  d["free_dimension"] = static_cast<long>(map->free_dimension);
+  d["events"] = map->events.size();
+  if (multipliers) d["multipliers"] = describe_multipliers(*multipliers);
+  return d;
+}
+
+/// Newton shooting on the dense engine from (t, x, v) (shooting.hpp).
+py::dict shoot(const SceneDocument& doc, int period, double phase, double tolerance, int max_iterations,
+               std::optional<double> t, std::optional<Eigen::VectorXd> x, std::optional<Eigen::VectorXd> v) {
+  std::optional<vibro::ShootingResult> r;
+  {
+    py::gil_scoped_release release;
+    const vibro::io::Scene scene = doc.build();
+    vibro::ShootingOptions o;
+    o.period = period;
+    o.phase = phase;
+    o.tolerance = tolerance;
+    o.max_iterations = max_iterations;
+    o.solver = scene.solver;
+    r = vibro::shoot(scene.impact_system(), o, t.value_or(scene.t0), state_or(x, scene.x0), state_or(v, scene.v0));
+  }
+  py::dict d;
+  d["status"] = vibro::to_string(r->status);
+  d["message"] = r->message;
+  d["iterations"] = r->iterations;
+  d["residuals"] = r->residuals;
+  d["residual"] = r->residual;
+  d["period"] = r->k;
+  d["minimal_period"] = r->minimal_k;
+  d["phase"] = r->phase;
+  d["t0"] = r->t0;
+  d["x"] = r->x;
+  d["v"] = r->v;
+  d["jacobian"] = r->map.jacobian;
+  if (r->converged()) d["multipliers"] = describe_multipliers(r->multipliers);
+  return d;
 }
 
 // --- Result images ----------------------------------------------------------------------------
@@ -317,11 +442,13 @@ PYBIND11_MODULE(_vibro, m) {
       [] {
         py::list kinds;
         for (const vibro::io::RunKindInfo& k : vibro::io::run_kinds())
-          kinds.append(py::make_tuple(k.name, k.summary, k.section ? py::object(py::str(k.section)) : py::object(py::none())));
+          kinds.append(py::make_tuple(k.name, k.summary, k.section ? py::object(py::str(k.section)) : py::object(py::none()),
+                                      k.missing ? py::object(py::str(k.missing)) : py::object(py::none())));
         return kinds;
       },
       "The run kinds (run.kind, docs/scenes.md), from the table `vibro run` dispatches on: a list of "
-      "(name, summary, section) with section the kind's own key under run (None: none).");
+      "(name, summary, section, missing) with section the kind's own key under run (None: none) and "
+      "missing the loader's message when that section is required and absent (None: optional).");
 
   scene_error_type = PyErr_NewExceptionWithDoc(
       "vibro.SceneError",
@@ -350,8 +477,15 @@ PYBIND11_MODULE(_vibro, m) {
       .def_property_readonly("text", &SceneDocument::text)
       .def_property_readonly("file", &SceneDocument::file)
       .def("check", &check, "Builds and validates the scene; returns what it resolved to.")
-      .def("run", &run, py::arg("threads") = 0,
-           "Runs the scene's run.kind into memory: (image bytes, exit code, summary, interrupted).");
+      .def("run", &run, py::arg("threads") = 0, py::arg("show") = 0, py::arg("progress") = py::none(),
+           "Runs the scene's run.kind into memory: (image bytes, exit code, summary, interrupted). show: "
+           "progress on stderr (0 none, 1 a redrawn line, 2 a line per tenth); progress: a callable given "
+           "(done, total) as the run goes on.")
+      .def("tangent_map", &tangent_map, py::arg("t0"), py::arg("t1"), py::arg("x"), py::arg("v"), py::arg("period"),
+           "The dense engine's tangent map over [t0, t1] (None: the scene's start) and, with period k > 0, "
+           "the multipliers of it as a k-period map.")
+      .def("shoot", &shoot, py::arg("period"), py::arg("phase"), py::arg("tolerance"), py::arg("max_iterations"),
+           py::arg("t"), py::arg("x"), py::arg("v"), "Newton shooting on the dense engine from a guess.");
 
   py::class_<Image>(m, "Image", "The bytes of a result file and a reader on them.")
       .def_static("from_bytes", &Image::from_bytes, py::arg("data"))

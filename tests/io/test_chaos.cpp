@@ -203,6 +203,51 @@ TEST_CASE("a basin labels starts that do not settle within the budget as not con
   CHECK(r.attribute_number("/meta", "points_not_converged") == static_cast<double>(chaotic));
 }
 
+TEST_CASE("a basin labels starts outside a stop -4 and runs the others as without them", "[runner][basin]") {
+  // Rows x0 = -0.5 and -0.4 lie below the lower stop of mass 0 (at -0.3): inadmissible starts.
+  auto basin = [](const std::string& rows) {
+    return kWagg + "run:\n  kind: basin\n  basin:\n    parameters:\n      - {path: \"initial.x[0]\", values: " + rows +
+           "}\n      - {path: \"initial.v[0]\", values: [-0.6, 0.0, 0.6]}\n    seed_stride: 1\n";
+  };
+  const std::string text = basin("[-0.5, -0.4, -0.2, 0.0, 0.3, 0.6]");
+  const SceneDocument doc = SceneDocument::parse(text, "basin_outside.yaml");
+  const Scene scene = doc.build();  // the grid's inadmissible starts do not refuse the scene
+  RunRequest request;
+  request.output = temp_path("basin_outside.h5");
+  request.threads = 2;
+  const RunReport report = run_scene(doc, scene, request);
+  CAPTURE(report.summary);
+  CHECK(report.exit_code == 0);
+  CHECK(report.summary.find("6 starts outside a stop, not run (label -4)") != std::string::npos);
+  const ResultReader r(request.output);
+  CHECK(r.attribute_string("/meta", "status") == "completed");
+  CHECK(r.attribute_number("/meta", "points_inadmissible") == 6.0);
+  const auto label = r.read_integers("/basin/label"), used = r.read_integers("/basin/periods_used");
+  REQUIRE(label.size() == 18);
+  for (std::size_t g = 0; g < 6; ++g) {
+    CHECK(label[g] == -4);
+    CHECK(used[g] == 0);
+  }
+  // The admissible starts: as a basin of those rows alone (seeds in the same order).
+  const ResultReader alone = run_file(basin("[-0.2, 0.0, 0.3, 0.6]"), "basin_inside", 2);
+  CHECK(std::vector<std::int64_t>(label.begin() + 6, label.end()) == alone.read_integers("/basin/label"));
+  CHECK(std::vector<std::int64_t>(used.begin() + 6, used.end()) == alone.read_integers("/basin/periods_used"));
+  CHECK(r.read("/attractors/x") == alone.read("/attractors/x"));
+  CHECK(alone.attribute_number("/meta", "points_inadmissible") == 0.0);
+
+  // Any other invalid grid value still refuses the scene, naming the value.
+  std::string bad = kWagg + R"(
+run:
+  kind: basin
+  basin:
+    parameters:
+      - {path: "stops[0].restitution", values: [0.5, 1.5]}
+      - {path: "initial.v[0]", values: [-0.6, 0.6]}
+)";
+  CHECK_THROWS_WITH(SceneDocument::parse(bad, "bad.yaml").build(),
+                    Catch::Matchers::Contains("stops[0].restitution = 1.5 makes the scene invalid"));
+}
+
 TEST_CASE("a diagram records the followed attractor, its period and its impacts", "[runner][diagram]") {
   const std::string text = kChain + R"(
 run:

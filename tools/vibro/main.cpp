@@ -183,13 +183,14 @@ int run_command(int argc, char** argv) {
       std::fprintf(stderr,
                    "warning: this run needs about %.3g steps of the certified event search (fastest rate up to %.3g per "
                    "time unit over %.3g time units): minutes to hours%s\n",
-                   work.steps, work.rate, work.span, run->parsed() ? "; a progress line follows on a terminal" : "");
+                   work.steps, work.rate, work.span, run->parsed() ? "; progress lines follow" : "");
     if (run->parsed()) {
       if (output.empty()) {
         std::string base = scene_path.substr(scene_path.find_last_of('/') + 1);
         output = base.substr(0, base.find_last_of('.')) + ".h5";
       }
       vibro::io::RunRequest request{output, threads, resume, isatty(STDERR_FILENO) == 1};
+      request.progress_lines = speaks && !request.progress;  // a log: a line at each tenth of the run
       request.force = force;
       const vibro::io::RunReport report = vibro::io::run_scene(doc, scene, request);
       if (speaks) std::fprintf(stderr, "%s\n", report.summary.c_str());

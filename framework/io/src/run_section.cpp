@@ -31,7 +31,10 @@ SweepAxis RunSection::axis(const YAML::Node& p, const std::string& path, const s
   return axis;
 }
 
-void RunSection::check_values(const SweepAxis& axis, const YAML::Node& p, const std::string& path) {
+bool inadmissible_start(const SceneError& e) { return e.problem().rfind("initial state violates ", 0) == 0; }
+
+void RunSection::check_values(const SweepAxis& axis, const YAML::Node& p, const std::string& path,
+                              bool starts_may_be_inadmissible) {
   SceneDocument point(doc);  // one copy, its value replaced per point: no re-parse per point
   for (std::size_t i = 0; i < axis.values.size(); ++i) {
     point.set(axis.path, axis.values[i]);
@@ -42,6 +45,7 @@ void RunSection::check_values(const SweepAxis& axis, const YAML::Node& p, const 
       const Scene built = point.build_point();
       point_engines.push_back({at, where, axis.path + " = " + number_text(axis.values[i]), built.engine});
     } catch (const SceneError& e) {
+      if (starts_may_be_inadmissible && inadmissible_start(e)) continue;
       r.fail(at, where,
              axis.path + " = " + number_text(axis.values[i]) + " makes the scene invalid: " + e.problem() +
                  " (" + e.path() + ")");

@@ -39,11 +39,18 @@ struct RunSection {
   /// values; `keys` are the other keys the mapping may hold; no path twice among `others`.
   SweepAxis axis(const YAML::Node& p, const std::string& path, const std::vector<SweepAxis>& others,
                  std::vector<std::string> keys);
-  /// Every value must make a valid scene: found out now, at the value, not mid-run.
-  void check_values(const SweepAxis& axis, const YAML::Node& p, const std::string& path);
+  /// Every value must make a valid scene: found out now, at the value, not mid-run. With
+  /// `starts_may_be_inadmissible` a value whose only fault is a start outside a stop passes (a
+  /// basin labels such a start; inadmissible_start below).
+  void check_values(const SweepAxis& axis, const YAML::Node& p, const std::string& path,
+                    bool starts_may_be_inadmissible = false);
   /// A grid along which a run follows its attractor (run.axes[0]): at least two values, strictly
   /// monotonic.
   void monotonic(const YAML::Node& node, const std::string& path);
 };
+
+/// Whether a scene was refused only because its initial state lies outside a stop (by more than
+/// the trigger tolerance: check_admissible, stops.hpp).
+bool inadmissible_start(const SceneError& e);
 
 }  // namespace vibro::io::detail

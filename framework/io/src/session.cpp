@@ -59,6 +59,9 @@ MemoryRun run_in_memory(const SceneDocument& doc, const Scene& scene, const Memo
   request.threads = options.threads;
   request.in_memory = true;
   request.interrupt = options.interrupt;
+  request.progress = options.bar;
+  request.progress_lines = options.lines;
+  request.on_progress = options.on_progress;
   RunReport report = run_scene(doc, scene, request);
   return {std::move(report.image), report.exit_code, std::move(report.summary)};
 }

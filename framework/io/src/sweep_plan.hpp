@@ -128,7 +128,7 @@ class SweepWriter {
  public:
   SweepWriter(ResultFile& file, const SweepPlan& plan, std::size_t first, const RunRequest& request)
       : file_(file), plan_(plan), request_(request), first_(first), next_to_write_(first),
-        progress_(request.progress, plan.total, first) {}
+        progress_(request, "sweep", "points", static_cast<double>(plan.total), static_cast<double>(first)) {}
 
   void operator()(std::size_t p, Recording&& rec) {
     std::lock_guard<std::mutex> hold(lock_);
@@ -154,7 +154,7 @@ class SweepWriter {
       totals_.releases += r.summary.releases;
       totals_.chatters += r.summary.chatters;
       ++next_to_write_;
-      progress_.update(next_to_write_);
+      progress_.update(static_cast<double>(next_to_write_));
       if (request_.interrupt_after > 0 && next_to_write_ >= request_.interrupt_after) {
         // Write nothing more: points other threads finished meanwhile would otherwise complete
         // the file before the interruption is seen (a race a faster engine loses more often).

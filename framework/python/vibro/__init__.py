@@ -12,17 +12,22 @@ numpy matrices and a list of stops) is run by the same engine and the same code 
     t, x = result.samples.t, result.samples.x            # (r,), (r, n) numpy arrays
     result.save("fig4c.h5")                               # the file `vibro run` writes
 
-Functions: simulate, sweep, locate, run (whatever the scene's run.kind says) and read (a result
-file). Classes: Scene, Result, Group. Errors: SceneError (a ValueError: the command's message,
-'file:line:column: key.path: problem'), ResultError (an OSError), Interrupted (a
-KeyboardInterrupt carrying the partial result). Guide and reference: docs/python.md.
-
-Bindings for periodic orbits by shooting and for continuation (run.kind: continue, results
-/branch, /bifurcations, /curve) will come with the analysis layer; their results already read
-as groups of a Result, like any group of a result file.
+Functions: one per run kind of the table ``vibro run`` dispatches on (``run_kinds()``):
+simulate, sweep, locate, continuation (run.kind: continue), basin, diagram, lyapunov, orbit —
+each takes a scene (a Scene, a file path or YAML text) and keyword overrides of its run section,
+optionally writes the result file (``output=``), shows its progress (``progress=True`` or a
+callable) and returns a Result; run (whatever the scene's run.kind says) and read (a result
+file). One orbit at a time, on the dense engine: shoot
+(Newton shooting), tangent_map (the exact linearisation over a span) and multipliers (of a
+state's k-period map). Classes: Scene, Result, Group. Errors: SceneError (a ValueError: the
+command's message, 'file:line:column: key.path: problem'), ResultError (an OSError), Interrupted
+(a KeyboardInterrupt carrying the partial result). Guide and reference: docs/python.md.
 """
 import json
 import math
+import os
+import sys
+import types
 import warnings
 
 import numpy as np
@@ -32,8 +37,9 @@ from ._vibro import Image as _Image
 from ._vibro import SceneDocument as _Document
 from ._vibro import run_kinds as _run_kinds
 
-__all__ = ["Scene", "Result", "Group", "simulate", "sweep", "locate", "run", "read", "run_kinds",
-           "SceneError", "ResultError", "Interrupted", "__version__"]
+# Completed below with the function of every run kind (one per entry of run_kinds()).
+__all__ = ["Scene", "Result", "Group", "run", "read", "run_kinds", "run_function", "shoot", "tangent_map",
+           "multipliers", "SceneError", "ResultError", "Interrupted", "__version__"]
 
 _OBSERVERS = ("events", "contacts", "statistics", "poincare")
 
@@ -276,8 +282,34 @@ def _plain(value, where):
 
 # --- Runs ----------------------------------------------------------------------------------------
 
-def simulate(scene, *, periods=None, transient_periods=None, threads=None, **record):
-    """Simulates the scene once (whatever its run.kind): transient periods, then recorded ones.
+# Keywords every run function takes (besides its run section's keys).
+_COMMON = """
+    The scene is a Scene, a scene file's path or YAML text (a str with a line break); it is not
+    changed: the keywords apply to this run only, and the run section of the scene's own kind is
+    replaced, so a scene written for another run kind runs as this one. output: also write the
+    result file there (as ``vibro run -o``; an existing file is replaced only with force=True).
+    threads: OpenMP threads (None: all cores), as ``vibro run --threads``. progress: True shows
+    the run's progress on stderr as ``vibro run`` does (a redrawn line on a terminal, else a line
+    at each tenth of the run); a callable is called as ``progress(done, total)`` from the calling
+    thread as the run goes on (grid points, or forcing periods of one long simulation), e.g. to
+    move a tqdm bar; an exception it raises stops the run and is raised.
+
+    Returns a Result (the groups of docs/results.md as numpy arrays). Raises SceneError (a
+    ValueError: 'file:line:column: key.path: problem', the command's message; for a value given
+    as a keyword, 'function(keyword=…): key.path: problem') for a bad scene or keyword. The GIL is
+    released while the run goes on; Ctrl-C raises Interrupted, a KeyboardInterrupt whose
+    ``result`` holds what was done.
+"""
+
+# The Python name of a run kind's function where the kind's own name is a Python keyword.
+_FUNCTION_NAMES = {"continue": "continuation"}
+# The grid keys of a run section: one of them is given; a keyword naming one replaces the others.
+_GRID_KEYS = ("values", "linspace", "logspace")
+
+
+def simulate(scene, *, periods=None, transient_periods=None, output=None, force=False, threads=None, progress=None,
+             **record):
+    """Simulates the scene once (run.kind: simulate): transient periods, then recorded ones.
 
     periods, transient_periods: override run.periods and run.transient_periods for this run.
     Record keywords choose the observers for this run, replacing the scene's choice for each one
@@ -286,38 +318,34 @@ def simulate(scene, *, periods=None, transient_periods=None, threads=None, **rec
       samples: samples per forcing period (an int ≥ 1, 0 for none), or sample_times: times from
       the start of the recording; record: a dict, a whole record: section to start from instead
       of the scene's (what it does not list is off), which the single keywords then change.
-    Returns a Result with the groups recorded (``result.events.t``, ``result.samples.x``, …) and
+    The Result holds the groups recorded (``result.events.t``, ``result.samples.x``, …) and
     /scene and /meta. ``result.status`` is 'completed', or why the run stopped early
-    ('event_cap', 'numerical_failure', 'unsupported').
-
-    The GIL is released while the engine runs. Ctrl-C raises Interrupted, a KeyboardInterrupt
-    whose ``result`` holds the run up to the event where it stopped. Raises SceneError (a
-    ValueError) for a bad scene or keyword, ValueError for a start the engine refuses.
+    ('event_cap', 'numerical_failure', 'unsupported'); ValueError for a start the engine refuses.
     """
+    scene = _scene_of(scene)
     doc = _prepared(scene, periods, transient_periods, record)
     _only_kind(doc, "simulate")
-    return _run(doc, threads)
+    return _run(doc, threads, output, force, progress)
 
 
 def sweep(scene, parameters=None, *, follow=None, reverse=None, periods=None, transient_periods=None,
-          threads=None, **record):
-    """Runs the scene at every point of a grid of one or two scene paths, in parallel.
+          output=None, force=False, threads=None, progress=None, **record):
+    """Runs the scene at every point of a grid of one or two scene paths, in parallel (run.kind: sweep).
 
     parameters: ``{path: values}`` with one or two paths (the second varies fastest), e.g.
     ``{"forcing.frequency": np.linspace(0.24, 0.28, 81)}``; None: the scene's run.sweep.
     follow: each point starts from the previous point's final state; reverse: walk the grid
     backwards (None: the scene's setting). periods, transient_periods and the record keywords
-    as for simulate(). threads: OpenMP threads (None: all cores), as ``vibro run --threads``.
+    as for simulate().
 
-    Returns a Result laid out as a sweep file (docs/results.md, "Sweeps"): ``result.sweep.values``
+    The Result is laid out as a sweep file (docs/results.md, "Sweeps"): ``result.sweep.values``
     (P × k), ``result.sweep.status``, fixed-size groups stacked on a leading point axis
     (``result.stats.sticking_fraction``: P × periods × stops), events and contacts concatenated
     with a ``point`` column; ``result.point_rows(group, p)`` gives point p's rows. The data are
-    those of ``vibro run`` on the same scene, whatever the number of threads.
-
-    Ctrl-C raises Interrupted carrying the finished points. Every point is validated before any
-    runs (SceneError names the point).
+    those of ``vibro run`` on the same scene, whatever the number of threads. Every point is
+    validated before any runs (SceneError names the point); Interrupted carries the finished ones.
     """
+    scene = _scene_of(scene)
     doc = _prepared(scene, periods, transient_periods, record)
     if parameters is None:
         if scene.run_kind != "sweep":
@@ -325,88 +353,153 @@ def sweep(scene, parameters=None, *, follow=None, reverse=None, periods=None, tr
     else:
         if not isinstance(parameters, dict) or not 1 <= len(parameters) <= 2:
             raise ValueError("sweep: parameters must be a dict {path: values} of one or two paths")
-        axes = [{"path": str(path), "values": _values(str(path), values)}
-                for path, values in parameters.items()]
-        doc.replace("run.sweep.parameters", json.dumps(axes))
+        doc.replace("run.sweep.parameters", json.dumps(_axes("parameters", parameters)))
     for key, flag in (("follow", follow), ("reverse", reverse)):
         if flag is not None:
             doc.replace("run.sweep." + key, json.dumps(bool(flag)))
     _only_kind(doc, "sweep")
-    return _run(doc, threads)
+    return _run(doc, threads, output, force, progress)
 
 
-def locate(scene, path=None, values=None, *, threads=None, **options):
-    """Finds and locates the bifurcations of the scene's periodic orbits along one path.
+def locate(scene, path=None, values=None, *, transient_periods=None, output=None, force=False, threads=None,
+           progress=None, **options):
+    """Finds and locates the bifurcations of the scene's periodic orbits along one path (run.kind: locate).
 
     path, values: the scanned scene path and its grid (None: the scene's run.locate). options:
-    the keys of run.locate (tolerance, periodicity, max_period, max_periods, jump) and
-    transient_periods. As ``vibro run`` with run.kind: locate (docs/scenes.md); the Result holds
-    /scan, /phases and /transitions (``result.transitions.parameter``, ``.kind`` whose names are
-    ``result.transitions.labels("kind")["names"]``). threads: for the bisections.
-    Ctrl-C raises Interrupted.
+    the other keys of run.locate (tolerance, periodicity, max_period, max_periods, jump). The
+    Result holds /scan, /phases and /transitions (``result.transitions.parameter``, ``.kind``
+    whose names are ``result.transitions.labels("kind")["names"]``). threads: for the bisections.
     """
-    transient = options.pop("transient_periods", None)
-    doc = _prepared(scene, None, transient, {})
     if path is not None:
-        if values is None:
+        if values is None and not any(key in options for key in _GRID_KEYS):
             raise ValueError("locate: give the grid values with the path")
-        doc.replace("run.locate", json.dumps({"path": str(path), "values": _values(str(path), values)}))
-    elif scene.run_kind != "locate":
+        options.update(path=path, **({} if values is None else {"values": values}))
+    elif not options and (scene := _scene_of(scene)).run_kind != "locate":
         raise ValueError("locate: give path and values; the scene has no run.locate")
-    for key, value in options.items():
-        doc.replace("run.locate." + key, json.dumps(_plain(value, "run.locate." + key)))
-    _only_kind(doc, "locate")
-    return _run(doc, threads)
+    return _run_kind("locate", scene, options, transient_periods, output, force, threads, progress)
 
 
-def continuation(scene, path=None, range=None, **options):
-    """Follows the scene's branch of periodic orbits in one parameter (pseudo-arclength
-    continuation with Newton shooting and exact Jacobians), with the Floquet multipliers of every
-    orbit and its bifurcations located (folds, period doublings with branch switching,
-    Neimark–Sacker points, grazings, risings; contact phases and chatter appearing or vanishing
-    bracketed).
+def continuation(scene, path=None, range=None, *, transient_periods=None, output=None, force=False, threads=None,
+                 progress=None, **options):
+    """Follows the scene's branch of periodic orbits in one parameter (run.kind: continue):
+    pseudo-arclength continuation with Newton shooting and exact Jacobians, with the Floquet
+    multipliers of every orbit and its bifurcations located (folds, period doublings with branch
+    switching, Neimark–Sacker points, grazings, risings; contact phases and chatter appearing or
+    vanishing bracketed).
 
     path, range: the parameter and its limits [min, max] (None: the scene's run.continue); the
-    branch starts at the scene's value of path. options: the keys of run.continue (direction
-    "up"/"down", period, phase, step, min_step, max_step, max_points, tolerance, locate,
-    locate_tolerance, max_doublings, curve: a dict with path and range) and transient_periods.
-    As ``vibro run`` with run.kind: continue (docs/scenes.md); the Result holds /branch
-    (``result.branch.p``, ``.stable``, ``.multipliers_real``, …), /branches, /bifurcations
-    (``result.bifurcations.p``, ``.kind`` whose names are
-    ``result.bifurcations.labels("kind")["names"]``) and, with a curve, /curve.
-    Ctrl-C raises Interrupted.
+    branch starts at the scene's value of path. options: the other keys of run.continue
+    (direction "up"/"down", period, phase, step, min_step, max_step, max_points, tolerance,
+    locate, locate_tolerance, max_doublings, curve: a dict with path and range). The Result holds
+    /branch (``result.branch.p``, ``.stable``, ``.multipliers_real``, …), /branches,
+    /bifurcations (``result.bifurcations.p``, ``.kind`` whose names are
+    ``result.bifurcations.labels("kind")["names"]``) and, with a curve, /curve. One thread.
     """
-    transient = options.pop("transient_periods", None)
-    doc = _prepared(scene, None, transient, {})
     if path is not None:
         if range is None:
             raise ValueError("continuation: give the range [min, max] with the path")
-        lo, hi = (float(v) for v in range)
-        doc.replace("run.continue", json.dumps({"path": str(path), "range": [lo, hi]}))
-    elif scene.run_kind != "continue":
+        options.update(path=path, range=[float(v) for v in range])
+    elif not options and (scene := _scene_of(scene)).run_kind != "continue":
         raise ValueError("continuation: give path and range; the scene has no run.continue")
-    for key, value in options.items():
-        doc.replace("run.continue." + key, json.dumps(_plain(value, "run.continue." + key)))
-    _only_kind(doc, "continue")
-    return _run(doc, None)
+    return _run_kind("continue", scene, options, transient_periods, output, force, threads, progress)
 
 
-def run(scene, *, threads=None):
-    """Runs the scene as ``vibro run`` does: its own run.kind, record and settings."""
-    return _run(scene._doc.copy(), threads)
+def _kind_function(name, summary, section):
+    """The function of run kind `name` (one without a hand-written one above): its section's keys
+    as keywords."""
+    def run_kind(scene, *, transient_periods=None, output=None, force=False, threads=None, progress=None, **keys):
+        return _run_kind(name, scene, keys, transient_periods, output, force, threads, progress)
+    run_kind.__name__ = run_kind.__qualname__ = _FUNCTION_NAMES.get(name, name)
+    keys = (f"the keys of run.{section} (docs/scenes.md) as keywords: a grid as ``path=``, "
+            f"``values=`` (or ``linspace=``, ``logspace=``), ``parameters={{path: values, …}}`` for "
+            f"two; the scene's own run.{section}, if any, keeps the keys not given."
+            if section else "no section of its own.")
+    run_kind.__doc__ = f"""{summary[0].upper()}{summary[1:]} (run.kind: {name}).
+
+    Keywords: transient_periods (run.transient_periods) and {keys} The Result holds its groups
+    (docs/results.md), e.g. ``result["{name}"]``.
+""" + _COMMON
+    return run_kind
+
+
+def run(scene, *, output=None, force=False, threads=None, progress=None):
+    """Runs the scene as ``vibro run`` does: its own run.kind, record and settings (output, force,
+    threads, progress as for the run functions)."""
+    return _run(_scene_of(scene)._doc.copy(), threads, output, force, progress)
 
 
 def run_kinds():
     """The run kinds ``vibro run`` knows (run.kind, docs/scenes.md): a dict name -> one-line summary,
     in the order of the table the command dispatches on."""
-    return {name: summary for name, summary, _ in _run_kinds()}
+    return {name: summary for name, summary, _, _ in _run_kinds()}
+
+
+def run_function(kind):
+    """The function that runs `kind` (a run.kind value), e.g. run_function("continue") is continuation."""
+    if kind not in _KIND_FUNCTIONS:
+        raise ValueError(f"{kind!r}: not a run kind (run kinds: {', '.join(_KIND_FUNCTIONS)})")
+    return _KIND_FUNCTIONS[kind]
+
+
+def _run_kind(name, scene, keys, transient_periods, output, force, threads, progress=None):
+    """Runs `scene` as run.kind `name` with `keys` replacing keys of its run section."""
+    scene = _scene_of(scene)
+    section, missing = _KIND_SECTIONS[name]
+    doc = _prepared(scene, None, transient_periods, {})
+    if keys and section is None:
+        raise TypeError(f"{_FUNCTION_NAMES.get(name, name)}: unknown keyword {sorted(keys)[0]!r} "
+                        f"(run.kind: {name} has no section of its own)")
+    if missing and scene.run_kind != name and not keys:
+        raise ValueError(f"{_FUNCTION_NAMES.get(name, name)}: the scene has no run.{section} (it is a "
+                         f"run.kind: {scene.run_kind} scene): give its keys as keywords "
+                         f"({missing.removeprefix('missing: ')})")
+    if any(key in keys for key in _GRID_KEYS):
+        for key in _GRID_KEYS:
+            doc.replace(f"run.{section}.{key}", "")
+    for key, value in keys.items():
+        where = f"run.{section}.{key}"
+        if key in _GRID_KEYS and key != "values" or key == "range":
+            value = _plain(value, where)
+        elif key == "values":
+            value = _values(where, value)
+        elif key == "parameters" and isinstance(value, dict):
+            value = _axes(where, value)
+        else:
+            value = _plain(value, where)
+        doc.replace(where, json.dumps(value))
+    _only_kind(doc, name)
+    try:
+        return _run(doc, threads, output, force, progress)
+    except SceneError as e:
+        # A value given as a keyword has no place in the scene's text: name the keyword instead.
+        path = getattr(e, "path", "")
+        for key in keys:
+            where = f"run.{section}.{key}"
+            if path == where or path.startswith((where + ".", where + "[")):
+                raise _keyword_error(e, f"{_FUNCTION_NAMES.get(name, name)}({key}=…)") from None
+        if section and scene.run_kind != name and path.startswith(f"run.{section}"):
+            raise _keyword_error(e, f"{_FUNCTION_NAMES.get(name, name)}(…)") from None  # a section of keywords only
+        raise
+
+
+def _keyword_error(e, keyword):
+    """SceneError `e` about a value given as `keyword`: 'keyword: key.path: problem'."""
+    error = SceneError(f"{keyword}: {e.path}: {e.problem}")
+    error.file, error.line, error.column, error.path, error.problem = keyword, 0, 0, e.path, e.problem
+    return error
+
+
+def _axes(where, parameters):
+    """{path: values} as a run section's list of axes [{path, values}]."""
+    return [{"path": str(path), "values": _values(str(path), values)}
+            for path, values in parameters.items()]
 
 
 def _only_kind(doc, kind):
     """Makes `doc` a run of `kind`: run.kind set and every other kind's own section of run removed
     (the scene may come from a file of another kind: a diagram's run.diagram would be refused)."""
     doc.replace("run.kind", kind)
-    for name, _, section in _run_kinds():
+    for name, _, section, _ in _run_kinds():
         if section is not None and name != kind:
             doc.replace("run." + section, "")
 
@@ -417,9 +510,18 @@ def read(path):
     return Result(_Image.load(str(path)))
 
 
+def _scene_of(scene):
+    """A Scene from a Scene, a path (str or os.PathLike) or YAML text (a str with a line break)."""
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, os.PathLike):
+        return Scene.load(os.fspath(scene))
+    if isinstance(scene, str):
+        return Scene.from_text(scene) if "\n" in scene else Scene.load(scene)
+    raise TypeError(f"expected a vibro.Scene, a scene file's path or YAML text, got {type(scene).__name__}")
+
+
 def _prepared(scene, periods, transient_periods, record):
-    if not isinstance(scene, Scene):
-        raise TypeError(f"expected a vibro.Scene, got {type(scene).__name__}")
     doc = scene._doc.copy()
     for key, value in (("periods", periods), ("transient_periods", transient_periods)):
         if value is not None:
@@ -465,15 +567,98 @@ def _record(current, given):
     return {k: v for k, v in out.items() if v is not False}
 
 
-def _run(doc, threads):
+def _run(doc, threads, output=None, force=False, progress=None):
     count = 0 if threads is None else int(threads)
     if count < 0:
         raise ValueError(f"threads: expected a number ≥ 0 (0: all cores), found {threads!r}")
-    image, exit_code, summary, interrupted = doc.run(count)
+    if output is not None and not force and os.path.exists(output):
+        raise ResultError(f"{os.fspath(output)}: exists; give force=True to replace it")
+    show, callback = 0, None
+    if progress is True:
+        show = 1 if sys.stderr.isatty() else 2
+    elif callable(progress):
+        callback = progress
+    elif progress not in (None, False):
+        raise TypeError(f"progress: expected True, False, None or a callable(done, total), found {progress!r}")
+    image, exit_code, summary, interrupted = doc.run(count, show, callback)
     result = Result(_Image.from_bytes(image), exit_code, summary)
     if interrupted:
         raise Interrupted("vibro: run interrupted; the partial result is in .result", result)
+    if output is not None:
+        result.save(os.fspath(output), overwrite=bool(force))
     return result
+
+
+# --- One orbit at a time ---------------------------------------------------------------------------
+
+def _state(name, value):
+    return None if value is None else _array(name, value).ravel()
+
+
+def _multipliers(d):
+    return types.SimpleNamespace(values=np.array(d["values"], dtype=complex), stable=d["stable"],
+                                 spectral_radius=d["spectral_radius"], rate=d["rate"],
+                                 structural_zeros=d["structural_zeros"])
+
+
+def tangent_map(scene, x=None, v=None, *, t0=None, periods=1.0):
+    """The exact linearisation of the flow over ``periods`` forcing periods from the state (t0, x, v)
+    (None: the scene's initial state), on the dense engine (framework/analysis, linearisation.hpp):
+    flows between events and the saltation matrices of the impacts, sticks and releases.
+
+    Returns a namespace with x1, v1 (the end state), jacobian (2n × 2n, ∂(x1, v1)/∂(x0, v0)),
+    free_dimension (least tangent dimension along the run: 2n when no stop is held), events,
+    status and message (of the run; the map is valid only when status is 'completed'), and, when
+    ``periods`` is a whole number k, multipliers (as multipliers() gives them for that map).
+    """
+    scene = _scene_of(scene)
+    span = _number("periods", periods)
+    t_start = scene.t0 if t0 is None else float(_number("t0", t0))
+    k = int(float(span)) if float(span) == int(float(span)) and float(span) >= 1 else 0
+    d = scene._doc.tangent_map(t_start, t_start + float(span) * scene.period, _state("x", x), _state("v", v), k)
+    out = types.SimpleNamespace(**{key: (np.array(value) if key in ("x0", "v0", "x1", "v1", "jacobian") else value)
+                                   for key, value in d.items() if key != "multipliers"})
+    if "multipliers" in d:
+        out.multipliers = _multipliers(d["multipliers"])
+    return out
+
+
+def multipliers(scene, x=None, v=None, *, t0=None, period=1):
+    """The Floquet multipliers of the k-period map (k = period) at the state (t0, x, v): the
+    eigenvalues of its exact Jacobian (the reduced map where stops are held; their structural
+    zeros are exact 0s). Meaningful at a point of a period-k orbit (see shoot()); elsewhere the
+    eigenvalues of that map. Returns a namespace: values (complex array, by decreasing modulus),
+    stable, spectral_radius, rate (per period), structural_zeros."""
+    if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 1:
+        raise ValueError(f"period: expected a whole number of forcing periods ≥ 1, found {period!r}")
+    m = tangent_map(scene, x, v, t0=t0, periods=int(period))
+    if m.status != "completed":
+        raise ValueError(f"multipliers: the run over {period} periods stopped early ({m.status}): {m.message}")
+    return m.multipliers
+
+
+def shoot(scene, x=None, v=None, *, t=None, period=1, phase=0.0, tolerance=1e-11, max_iterations=40):
+    """A periodic orbit by Newton shooting on the stroboscopic map with exact Jacobians, on the
+    dense engine (shooting.hpp; the run kind ``orbit`` does the same after a transient): from the
+    guess (t, x, v) (None: the scene's initial state), for an orbit of ``period`` forcing periods
+    with its section at forcing phase ``phase`` (radians).
+
+    Returns a namespace: status ('converged', 'not converged', 'map failed', 'singular Jacobian'),
+    message, x, v (the state on the orbit at t0, the section time used), t0, phase, residual,
+    residuals, iterations, period, minimal_period, jacobian (of the last map) and, when
+    converged, multipliers (as multipliers() gives them). Never a false orbit: check status.
+    """
+    scene = _scene_of(scene)
+    if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 1:
+        raise ValueError(f"period: expected a whole number of forcing periods ≥ 1, found {period!r}")
+    guess_t = None if t is None else float(_number("t", t))
+    d = scene._doc.shoot(int(period), float(_number("phase", phase)), float(_number("tolerance", tolerance)),
+                         int(max_iterations), guess_t, _state("x", x), _state("v", v))
+    out = types.SimpleNamespace(**{key: (np.array(value) if key in ("x", "v", "jacobian", "residuals") else value)
+                                   for key, value in d.items() if key != "multipliers"})
+    if "multipliers" in d:
+        out.multipliers = _multipliers(d["multipliers"])
+    return out
 
 
 # --- Results -------------------------------------------------------------------------------------
@@ -620,3 +805,18 @@ class Group:
     def __repr__(self):
         shapes = ", ".join(f"{k}{self[k].shape}" for k in self.keys())
         return f"<vibro.Group {self.path}: {shapes}>"
+
+
+# --- The function of every run kind ------------------------------------------------------------
+# From the table `vibro run` dispatches on: a kind without a hand-written function above gets one.
+_KIND_SECTIONS = {name: (section, missing) for name, _, section, missing in _run_kinds()}
+_KIND_FUNCTIONS = {}
+for _name, _summary, _section, _ in _run_kinds():
+    _function = _FUNCTION_NAMES.get(_name, _name)
+    if _function not in globals():
+        globals()[_function] = _kind_function(_name, _summary, _section)
+    else:
+        globals()[_function].__doc__ += _COMMON
+    _KIND_FUNCTIONS[_name] = globals()[_function]
+    __all__.append(_function)
+del _name, _summary, _section, _function

@@ -5,6 +5,7 @@
 
 #include "../datasets.hpp"
 #include "../mpi_world.hpp"
+#include "../progress.hpp"
 
 #include "vibro/io/result_file.hpp"
 
@@ -40,6 +41,7 @@ using detail::reals;
 constexpr std::int64_t kNotConverged = -1;
 constexpr std::int64_t kStoppedEarly = -2;
 constexpr std::int64_t kNotRun = -3;  ///< the run was interrupted before this point
+constexpr std::int64_t kInadmissible = -4;  ///< the start lies outside a stop: not run
 /// A period-k repeat counts only if no proper divisor q of k repeats to kDistinct × tolerance
 /// (as in running_orbit.cpp: a period-1 orbit approached with a multiplier near −1 passes k = 2 first).
 constexpr double kDistinct = 1e3;
@@ -52,7 +54,8 @@ struct Attractor {
 
 /// What one grid point's run ended on.
 struct PointResult {
-  enum class Outcome : std::int64_t { matched = 0, found = 1, not_converged = 2, stopped = 3, not_run = 4 };
+  enum class Outcome : std::int64_t { matched = 0, found = 1, not_converged = 2, stopped = 3, not_run = 4,
+                                      inadmissible = 5 };
   Outcome outcome = Outcome::not_run;
   long periods = 0;
   int attractor = -1;  ///< matched: the catalogue index
@@ -250,6 +253,14 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
       (i % static_cast<std::size_t>(stride) == 0 && j % static_cast<std::size_t>(stride) == 0 ? seeds : rest)
           .push_back(i * n2 + j);
 
+  // Progress: rank 0 shows its own share of the points.
+  std::size_t mine = 0;
+  for (const std::vector<std::size_t>* list : {&seeds, &rest})
+    for (std::size_t i = 0; i < list->size(); ++i)
+      if (static_cast<int>(i % static_cast<std::size_t>(ranks)) == rank) ++mine;
+  const RunRequest silent;
+  detail::Progress progress(rank == 0 ? request : silent, "basin", "points", static_cast<double>(mine));
+
   // One pass over `points` (this rank's share), against the frozen catalogue `known`.
   auto pass = [&](const std::vector<std::size_t>& points, const std::vector<Attractor>& known) {
     std::exception_ptr failure;
@@ -270,10 +281,20 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
           const std::size_t g = points[i];
           point.set(rows.path, rows.values[g / n2]);
           point.set(cols.path, cols.values[g % n2]);
-          Scene built = point.build_point();
+          std::optional<Scene> made;
+          try {
+            made.emplace(point.build_point());
+          } catch (const SceneError& e) {
+            if (!detail::inadmissible_start(e)) throw;
+            results[g].outcome = PointResult::Outcome::inadmissible;  // labelled, not run
+            progress.add();
+            continue;
+          }
+          Scene& built = *made;
           built.solver.interrupt = request.interrupt;
           if (!engine || !initial_only) engine = make_engine(built);
           results[g] = run_point(*engine, built.t0, built.x0, built.v0, T, min_periods, spec, known, scales);
+          progress.add();
         } catch (...) {
           const std::lock_guard<std::mutex> hold(lock);
           if (!failure) failure = std::current_exception();
@@ -298,7 +319,7 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
 
   // The image and the attractors.
   std::vector<std::int64_t> label(total), periods(total), cells(catalogue.size(), 0);
-  long not_converged = 0, stopped = 0;
+  long not_converged = 0, stopped = 0, inadmissible = 0;
   long long periods_total = 0;
   std::string message;
   for (std::size_t g = 0; g < total; ++g) {
@@ -313,6 +334,9 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
       ++not_converged;
     } else if (r.outcome == PointResult::Outcome::not_run) {
       label[g] = kNotRun;
+    } else if (r.outcome == PointResult::Outcome::inadmissible) {
+      label[g] = kInadmissible;
+      ++inadmissible;
     } else {
       label[g] = kStoppedEarly;
       ++stopped;
@@ -339,7 +363,8 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
   labels.labels.emplace_back("codes", std::vector<std::string>{
                                           "-1: not converged within run.basin.max_periods (chaotic, quasi-periodic or slow)",
                                           "-2: the run stopped early (/meta message)",
-                                          "-3: not run (the basin was interrupted)"});
+                                          "-3: not run (the basin was interrupted)",
+                                          "-4: not run: the start lies outside a stop"});
   Dataset used = integers("periods_used", periods);
   used.shape = {n1, n2};
   const double mean_periods = static_cast<double>(periods_total) / static_cast<double>(total);
@@ -359,6 +384,7 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
                      {"attractors", static_cast<std::int64_t>(catalogue.size())},
                      {"points_not_converged", not_converged},
                      {"points_stopped_early", stopped},
+                     {"points_inadmissible", inadmissible},
                      {"periods_total", static_cast<std::int64_t>(periods_total)}});
   const double wall = detail::finish_run((*file), threads * ranks, wall_start);
 
@@ -374,6 +400,8 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
   if (not_converged > 0)
     text += fmt::format("  {} points not converged within {} periods (label -1)\n", not_converged, spec.max_periods);
   if (stopped > 0) text += fmt::format("  {} points stopped early (label -2): {}\n", stopped, message);
+  if (inadmissible > 0)
+    text += fmt::format("  {} starts outside a stop, not run (label -4)\n", inadmissible);
   const auto not_run = std::count(label.begin(), label.end(), kNotRun);
   if (not_run > 0) text += fmt::format("  {} points not run: interrupted (label -3)\n", not_run);
   text += fmt::format("Results in {}.", file->path());
@@ -414,7 +442,7 @@ void parse_basin_section(RunSection& s) {
                  "): a run that repeats within the tolerance must also match its attractor");
     if (bs["seed_stride"]) b.seed_stride = static_cast<int>(r.integer(bs["seed_stride"], "run.basin.seed_stride", 1, 1000000));
     for (std::size_t a = 0; a < 2; ++a)
-      s.check_values(run.axes[a], ps[a], "run.basin.parameters[" + std::to_string(a) + "]");
+      s.check_values(run.axes[a], ps[a], "run.basin.parameters[" + std::to_string(a) + "]", true);
     if (!(s.frequency > 0.0))
       r.fail(s.run_node["kind"], "run.kind", "a basin compares stroboscopic points: it needs a forcing frequency > 0 (forcing.frequency)");
   }

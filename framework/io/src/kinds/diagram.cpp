@@ -4,6 +4,7 @@
 #include "../run_section.hpp"
 
 #include "../datasets.hpp"
+#include "../progress.hpp"
 
 #include "vibro/io/result_file.hpp"
 
@@ -73,7 +74,8 @@ std::pair<std::int64_t, double> least_period(const std::vector<Eigen::VectorXd>&
 
 /// Follows the attractor through the grid values `order` (indices into the sorted grid).
 void follow(const SceneDocument& doc, const Scene& scene, const std::vector<double>& grid,
-            const std::vector<std::size_t>& order, const RunRequest& request, Branch& out) {
+            const std::vector<std::size_t>& order, const RunRequest& request, detail::Progress& progress,
+            Branch& out) {
   const DiagramSpec& spec = scene.run.diagram;
   const std::string& path = scene.run.axes[0].path;
   const std::size_t m = grid.size(), P = static_cast<std::size_t>(spec.points);
@@ -168,6 +170,7 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
     out.impacts[g] = static_cast<double>(impacts) / static_cast<double>(P);
     out.reached[g] = 1;
     transient = spec.transient;
+    progress.add();
   }
 }
 
@@ -196,6 +199,7 @@ RunReport run_diagram(const SceneDocument& doc, const Scene& scene, const RunReq
 
   ResultFile file = open_result_file(request, scene, current_meta(request.threads));
   std::vector<Branch> branches(directions.size());
+  detail::Progress progress(request, "diagram", "points", static_cast<double>(m * directions.size()));
   std::exception_ptr failure;
   std::mutex lock;
   int threads = 1;
@@ -206,7 +210,7 @@ RunReport run_diagram(const SceneDocument& doc, const Scene& scene, const RunReq
 #endif
   for (std::size_t d = 0; d < directions.size(); ++d) {
     try {
-      follow(doc, scene, grid, *directions[d].second, request, branches[d]);
+      follow(doc, scene, grid, *directions[d].second, request, progress, branches[d]);
     } catch (...) {
       const std::lock_guard<std::mutex> hold(lock);
       if (!failure) failure = std::current_exception();

@@ -4,6 +4,7 @@
 #include "../run_section.hpp"
 
 #include "../datasets.hpp"
+#include "../progress.hpp"
 
 #include "vibro/io/result_file.hpp"
 #include "vibro/engine.hpp"
@@ -20,6 +21,7 @@
 #include <memory>
 #include <exception>
 #include <mutex>
+#include <optional>
 
 namespace vibro::io {
 
@@ -38,11 +40,20 @@ RunReport run_lyapunov(const SceneDocument& doc, const Scene& scene, const RunRe
   std::vector<std::int64_t> finite(m * p, 0), structural(m, 0), reached(m, 0), dimension(m, 0);
   std::vector<std::string> messages(m);
   const long first_transient = static_cast<long>(std::ceil(scene.run.transient_periods));
+  // Progress: the grid's points, or the forcing periods of the one point's run.
+  detail::Progress points(request, "lyapunov", "points", spec.along ? static_cast<double>(m) : 0.0);
+  std::optional<detail::SimulationProgress> periods;
+  if (!spec.along)
+    periods.emplace(request, "lyapunov", scene.t0,
+                    scene.t0 + static_cast<double>(first_transient + spec.transient + spec.align + spec.periods) *
+                                   scene.period(),
+                    scene.period());
   // One grid point from (x, v): its spectrum into row g; false if its run stopped early.
   auto compute = [&](SceneDocument& point, std::size_t g, bool first, Eigen::VectorXd& x, Eigen::VectorXd& v) {
     if (spec.along) point.set(path, grid[g]);
     Scene built = spec.along ? point.build_point() : scene;
     built.solver.interrupt = request.interrupt;
+    if (periods) built.solver.reached = periods->reached();
     LyapunovOptions options;
     options.count = spec.count;
     options.transient = spec.transient + (first ? first_transient : 0);
@@ -70,6 +81,7 @@ RunReport run_lyapunov(const SceneDocument& doc, const Scene& scene, const RunRe
     reached[g] = 1;
     x = r.x_end;
     v = r.v_end;
+    if (spec.along) points.add();
     return true;
   };
   int threads = 1;

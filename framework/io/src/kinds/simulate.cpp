@@ -27,8 +27,9 @@ RunReport run_simulation(const Scene& scene, const RunRequest& request) {
   interruptible.solver.interrupt = request.interrupt;  // null: the signal flag (simulate)
   Recording rec;
   {
-    SimulationProgress progress(request.progress, scene.t0,
-                                scene.t0 + (scene.run.transient_periods + scene.run.periods) * scene.period());
+    SimulationProgress progress(request, "simulate", scene.t0,
+                                scene.t0 + (scene.run.transient_periods + scene.run.periods) * scene.period(),
+                                scene.period());
     rec = simulate(interruptible, {scene.t0, scene.x0, scene.v0}, progress.reached());
   }
   if (rec.summary.status == RunStatus::interrupted && !request.in_memory)

@@ -8,6 +8,7 @@
 
 #include <atomic>
 #include <cstddef>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -17,7 +18,13 @@ struct RunRequest {
   std::string output;      ///< result file path
   int threads = 0;         ///< 0: OpenMP's default
   bool resume = false;     ///< continue OUT.partial of an interrupted sweep
-  bool progress = false;   ///< progress bar with ETA on stderr
+  bool progress = false;   ///< progress bar with ETA on stderr (a terminal: one line, redrawn)
+  /// Progress on stderr as a compact line at each tenth of the run (not a terminal: a log).
+  bool progress_lines = false;
+  /// Called with (done, total) as the run goes on — grid points, or forcing periods of one long
+  /// simulation — from the run's threads, one call at a time; it must be quick (the Python module
+  /// stores the numbers for its own thread).
+  std::function<void(double done, double total)> on_progress = nullptr;
   /// Behave as if interrupted once this many points are written (0: never). For tests of
   /// interruption and --resume, which must not depend on timing a real signal.
   std::size_t interrupt_after = 0;

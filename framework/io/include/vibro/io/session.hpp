@@ -22,6 +22,7 @@
 #include "vibro/io/runner.hpp"
 
 #include <atomic>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,10 @@ namespace vibro::io {
 struct MemoryRunOptions {
   int threads = 0;                         ///< sweeps and locate runs; 0: OpenMP's default
   std::atomic<bool>* interrupt = nullptr;  ///< raise to stop the run (see above)
+  /// Progress on stderr as `vibro run` shows it: a redrawn line (`bar`, a terminal) or a line at
+  /// each tenth of the run (`lines`); and `on_progress` (RunRequest::on_progress).
+  bool bar = false, lines = false;
+  std::function<void(double done, double total)> on_progress = nullptr;
 };
 
 /// A run held in memory.
