@@ -126,6 +126,11 @@ bool spd_solve(const Eigen::Ref<const Eigen::MatrixXd>& G, const Eigen::Ref<cons
 
 ContactMode::ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptions flow_options)
     : scene_(&scene), active_(std::move(active)), flow_options_(flow_options) {
+  if (has_compliant(scene.stops())) {  // split the key: held rigid stops, engaged compliant ones
+    ContactSet key = std::move(active_);
+    active_.clear();
+    for (int j : key) (scene.stops()[static_cast<std::size_t>(j)].is_compliant() ? engaged_ : active_).push_back(j);
+  }
   const Eigen::Index n = scene.dof();
   const Eigen::Index m = size();
   normals_.resize(n, m);
@@ -203,10 +208,28 @@ void ContactMode::build_reduced() const {
     sc(a) = st.s_cos();
     ss(a) = st.s_sin();
   }
+  // Engaged compliant stops: their springs and dashpots join K and C, their s(t), s'(t) and
+  // preload f (stops.hpp): force −w (k g + c g' + F_p) with g = wᵀx − s, g' = wᵀv − s'.
+  Eigen::MatrixXd engaged_damping, engaged_stiffness;
+  HarmonicForcing engaged_forcing;
+  if (!engaged_.empty()) {
+    engaged_damping = sys.damping();
+    engaged_stiffness = sys.stiffness();
+    engaged_forcing = sys.forcing();
+    for (int j : engaged_) {
+      const Stop& st = scene.stops()[static_cast<std::size_t>(j)];
+      const Eigen::VectorXd w = scene.normals().col(j);
+      engaged_stiffness += st.stiffness * w * w.transpose();
+      engaged_damping += st.damping * w * w.transpose();
+      engaged_forcing.constant += (st.stiffness * st.s0() - st.preload) * w;
+      engaged_forcing.cosine += (st.stiffness * st.s_cos() + st.damping * omega * st.s_sin()) * w;
+      engaged_forcing.sine += (st.stiffness * st.s_sin() - st.damping * omega * st.s_cos()) * w;
+    }
+  }
   const Eigen::MatrixXd& M = sys.mass();
-  const Eigen::MatrixXd& C = sys.damping();
-  const Eigen::MatrixXd& K = sys.stiffness();
-  const HarmonicForcing& f = sys.forcing();
+  const Eigen::MatrixXd& C = engaged_.empty() ? sys.damping() : engaged_damping;
+  const Eigen::MatrixXd& K = engaged_.empty() ? sys.stiffness() : engaged_stiffness;
+  const HarmonicForcing& f = engaged_.empty() ? sys.forcing() : engaged_forcing;
   red->mass = symmetric(N.transpose() * M * N);
   red->damping = symmetric(N.transpose() * C * N);
   red->stiffness = symmetric(N.transpose() * K * N);
@@ -255,6 +278,7 @@ void ContactMode::build_reduced() const {
   Eigen::Index r = 0;
   for (Eigen::Index j = 0; j < total; ++j) {
     if (std::binary_search(active_.begin(), active_.end(), static_cast<int>(j))) continue;
+    if (!engaged_.empty() && std::binary_search(engaged_.begin(), engaged_.end(), static_cast<int>(j))) continue;
     const Stop& st = scene.stops()[static_cast<std::size_t>(j)];
     Eigen::RowVectorXd g = Eigen::RowVectorXd::Zero(Nf);
     g.head(n) = scene.normals().col(j).transpose();
@@ -268,6 +292,17 @@ void ContactMode::build_reduced() const {
   for (Eigen::Index a = 0; a < m; ++a) {
     rows.row(r++) = -red->force_rows.row(a) * T;
     red->watched.push_back(active_[static_cast<std::size_t>(a)]);
+  }
+  red->engaged_rows_from = r;
+  for (int j : engaged_) {  // -g_j: it rises through 0 when the engaged stop's gap reopens
+    const Stop& st = scene.stops()[static_cast<std::size_t>(j)];
+    Eigen::RowVectorXd g = Eigen::RowVectorXd::Zero(Nf);
+    g.head(n) = -scene.normals().col(j).transpose();
+    g(2 * n) = st.s_cos();
+    g(2 * n + 1) = st.s_sin();
+    g(2 * n + 2) = st.s0();
+    rows.row(r++) = g * T;
+    red->watched.push_back(j);
   }
   red->watch = std::make_unique<Functionals>(*red->flow, rows.topRows(r));
   reduced_ = std::move(red);

@@ -145,6 +145,7 @@ void run_event_loop(Engine& engine, const SimulatorOptions& options, double t0, 
       Eigen::VectorXd g(m), gd(m);
       engine.initial_guards(st, g, gd);
       for (int j = 0; j < m; ++j) {
+        if (stops[static_cast<std::size_t>(j)].is_compliant()) continue;  // the engine's start() engaged it
         const InitialContact c = Law::initial_contact(g(j), gd(j), eps_gap, v_contact);
         if (c == InitialContact::impact) impacting.push_back(j);
         else if (c == InitialContact::resting) resting.push_back(j);
@@ -194,8 +195,12 @@ void run_event_loop(Engine& engine, const SimulatorOptions& options, double t0, 
         const bool fired = i == crossing.row || (hd > 0.0 && h >= -std::max(f.trigger(i), hd * dt_simultaneous));
         if (!fired) continue;
         const GuardKind kind = i < f.opening_rows ? GuardKind::opening : GuardKind::holding;
-        (Law::transition(kind) == Transition::impact ? impacting : releasing)
-            .push_back(f.stop[static_cast<std::size_t>(i)]);
+        const int j = f.stop[static_cast<std::size_t>(i)];
+        // A compliant stop's engage joins the impacts and its disengage the releases; the engine
+        // tells them apart by the stop's law (contact_law.hpp).
+        const Transition tr = stops[static_cast<std::size_t>(j)].is_compliant() ? CompliantStopLaw::transition(kind)
+                                                                                 : Law::transition(kind);
+        (tr == Transition::impact || tr == Transition::engage ? impacting : releasing).push_back(j);
       }
       std::sort(impacting.begin(), impacting.end());
       std::sort(releasing.begin(), releasing.end());

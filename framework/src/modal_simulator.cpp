@@ -232,6 +232,9 @@ ModalChainSimulator::ModalChainSimulator(const ChainModes& modes, std::vector<St
       throw InvalidInput(label + ": restitution = " + number_text(s.restitution) + ": must be in [0, 1]");
     if (s.amplitude > 0.0 && !(W > 0.0))
       throw InvalidInput(label + ": a moving stop needs forcing.frequency > 0");
+    if (s.is_compliant())
+      throw InvalidInput(label + ": a compliant stop (law: compliant) is handled by the dense engine only "
+                         "(solver.engine: dense or auto)");
     if (s.name.empty()) {
       s.name = s.kind == Stop::Kind::upper ? "upper" : (s.kind == Stop::Kind::lower ? "lower" : "between");
       s.name += " x" + std::to_string(s.mass);

@@ -15,6 +15,8 @@ const char* to_string(EventKind kind) {
     case EventKind::stick: return "stick";
     case EventKind::release: return "release";
     case EventKind::chatter_limit: return "chatter-limit";
+    case EventKind::engage: return "engage";
+    case EventKind::disengage: return "disengage";
   }
   return "?";
 }

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <memory>
 #include <numbers>
@@ -74,6 +75,7 @@ class DenseAlgebra final : public detail::ContactAlgebra {
     q_.resize(m);
     G_.resize(m, m);
     lcp_.reserve(m);
+    key_.reserve(static_cast<std::size_t>(m));
   }
 
   double gap(int j, double t, const Eigen::VectorXd& x) const override {
@@ -85,7 +87,11 @@ class DenseAlgebra final : public detail::ContactAlgebra {
     for (Eigen::Index j = 0; j < out.size(); ++j)
       out(j) = tab_.normals.col(j).dot(v) - omega_ * (-tab_.sc(j) * s + tab_.ss(j) * c);
   }
-  /// The acceleration LCP of contact.hpp: q = free gap acceleration Wᵀ M⁻¹ (f - C v - K x) - s''(t).
+  /// The engaged compliant stops whose forces act alongside (nullptr or empty: none); the
+  /// held rigid stops' algebra then runs on the mode with them (contact.hpp).
+  void set_engaged(const ContactSet* engaged) { engaged_ = engaged; }
+  /// The acceleration LCP of contact.hpp: q = free gap acceleration Wᵀ M⁻¹ (f - C v - K x
+  /// - Σ_engaged w N) - s''(t), N = k g + c g' + F_p of each engaged compliant stop.
   void settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, const ContactSet& candidates,
               ContactSet& held, Eigen::Ref<Eigen::VectorXd> forces) override {
     held.clear();
@@ -96,6 +102,8 @@ class DenseAlgebra final : public detail::ContactAlgebra {
     residual_.noalias() = -sys.damping() * v;
     residual_.noalias() -= sys.stiffness() * x;
     residual_ += f.constant + f.cosine * c + f.sine * s;
+    if (engaged_)
+      for (int j : *engaged_) residual_ -= tab_.normals.col(j) * compliant_force(j, t, x, v);
     const auto k = static_cast<Eigen::Index>(candidates.size());
     auto q = q_.head(k);
     auto G = G_.topLeftCorner(k, k);
@@ -127,7 +135,7 @@ class DenseAlgebra final : public detail::ContactAlgebra {
   double chatter_alpha(int j) const override { return tab_.chatter_alpha(j); }
   void force_rates(const ContactSet& held, int j, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
                    double* slope, double* curvature) override {
-    const ContactMode& mode = modes_.get(held);
+    const ContactMode& mode = modes_.get(mode_key(held));
     const ContactMode::Reduced& red = mode.reduced();
     auto z = reduced_state_.head(red.flow->size());
     mode.reduce(t, x, v, z);
@@ -141,6 +149,21 @@ class DenseAlgebra final : public detail::ContactAlgebra {
   void damped_response(int j, const Eigen::VectorXd& d, Eigen::VectorXd& e) override {
     e.noalias() = tab_.minv_damping * d;
     e -= tab_.stiff_normals.col(j);
+  }
+
+  /// N = k g + c g' + F_p of compliant stop j at (t, x, v) (stops.hpp).
+  double compliant_force(int j, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) const {
+    const Stop& st = scene_.stops()[static_cast<std::size_t>(j)];
+    const auto [c, s] = phase(t);
+    const double rate = tab_.normals.col(j).dot(v) - omega_ * (-tab_.sc(j) * s + tab_.ss(j) * c);
+    return st.stiffness * gap(j, t, x) + st.damping * rate + st.preload;
+  }
+  /// The mode of the held rigid stops `held` with the engaged compliant ones (sorted union).
+  const ContactSet& mode_key(const ContactSet& held) {
+    if (!engaged_ || engaged_->empty()) return held;
+    key_.clear();
+    std::set_union(held.begin(), held.end(), engaged_->begin(), engaged_->end(), std::back_inserter(key_));
+    return key_;
   }
 
  private:
@@ -162,6 +185,8 @@ class DenseAlgebra final : public detail::ContactAlgebra {
   Eigen::VectorXd residual_, reduced_state_, q_;
   Eigen::MatrixXd G_;
   LcpWorkspace lcp_;
+  const ContactSet* engaged_ = nullptr;
+  ContactSet key_;
 };
 
 /// What the event loop keeps per contact mode visited, so that returning to a mode allocates
@@ -280,7 +305,7 @@ class Simulator::Loop {
         warnings.push_back(why + ", above the trigger " + number_text(options.trigger) + hint);
     }
   }
-  void start(const detail::RunScales& sc, detail::RunState& /*st*/) {
+  void start(const detail::RunScales& sc, detail::RunState& st) {
     const Eigen::Index n = sys_.dof();
     sim_.guard_evaluations_ = 0;
     eps_gap_ = sc.eps_gap;
@@ -298,6 +323,19 @@ class Simulator::Loop {
     };
     // Impact sets are visited sets too (RunSummary::contact_sets_built): their restitution data.
     visit_ = [this](const ContactSet& set) { sim_.modes_.get(set); };
+    // Compliant stops (stops.hpp): those penetrated at t0 start engaged (CompliantStopLaw).
+    compliant_ = has_compliant(scene_.stops());
+    engaged_.clear();
+    if (compliant_) {
+      const auto m = static_cast<std::size_t>(scene_.stop_count());
+      for (ContactSet* set : {&engaged_, &key_, &rigid_impacts_, &rigid_releases_}) set->reserve(m);
+      rates_.resize(static_cast<Eigen::Index>(m));
+      const Eigen::VectorXd g = scene_.gaps(st.t, st.x);
+      for (std::size_t j = 0; j < m; ++j)
+        if (scene_.stops()[j].is_compliant() && CompliantStopLaw::engaged_at_start(g(static_cast<Eigen::Index>(j))))
+          engaged_.push_back(static_cast<int>(j));
+      algebra_->set_engaged(&engaged_);
+    }
   }
   void initial_guards(const detail::RunState& st, Eigen::VectorXd& g, Eigen::VectorXd& gd) const {
     g = scene_.gaps(st.t, st.x);
@@ -312,15 +350,50 @@ class Simulator::Loop {
                           emit_, summary_, &unused, work_, visit_);
     return true;
   }
+  /// Compliant stops' switches (engage, disengage: the state unchanged, the mode changes) come
+  /// first, then the rigid stops' impacts and releases, resolved with the new engaged set's
+  /// forces acting; held rigid stops are settled again after a switch (a preload or dashpot
+  /// that sets in may pull a held stop open).
   bool event(detail::RunState& st, const ContactSet& impacts, const ContactSet& releases, std::string* why) {
-    return resolve(st, impacts, releases, {}, why);
+    if (!compliant_) return resolve(st, impacts, releases, {}, why);
+    rigid_impacts_.clear();
+    rigid_releases_.clear();
+    bool switched = false;
+    for (const auto* list : {&impacts, &releases}) {
+      const bool engage = list == &impacts;
+      for (int j : *list) {
+        if (!scene_.stops()[static_cast<std::size_t>(j)].is_compliant()) {
+          (engage ? rigid_impacts_ : rigid_releases_).push_back(j);
+          continue;
+        }
+        const auto at = std::lower_bound(engaged_.begin(), engaged_.end(), j);
+        const bool is_engaged = at != engaged_.end() && *at == j;
+        if (engage == is_engaged) continue;  // already in that state
+        if (engage) engaged_.insert(at, j);
+        else engaged_.erase(at);
+        algebra_->gap_rates(st.t, st.v, rates_);
+        const double rate = rates_(j);
+        emit_({st.t, j, engage ? EventKind::engage : EventKind::disengage, rate, rate,
+               engage ? algebra_->compliant_force(j, st.t, st.x, st.v) : 0.0});
+        switched = true;
+      }
+    }
+    if (rigid_impacts_.empty() && rigid_releases_.empty() && !(switched && !st.stuck.empty())) return true;
+    return resolve(st, rigid_impacts_, rigid_releases_, {}, why);
+  }
+  /// The current mode's key: the held rigid stops and the engaged compliant ones (contact.hpp).
+  const ContactSet& mode_key(const detail::RunState& st) {
+    if (engaged_.empty()) return st.stuck;
+    key_.clear();
+    std::set_union(st.stuck.begin(), st.stuck.end(), engaged_.begin(), engaged_.end(), std::back_inserter(key_));
+    return key_;
   }
   double stiffness(const detail::RunState& st, double T) {
-    return T * sim_.modes_.get(st.stuck).reduced().flow->spectral_radius();
+    return T * sim_.modes_.get(mode_key(st)).reduced().flow->spectral_radius();
   }
 
   detail::SegmentPlan begin_segment(const detail::RunState& st, double t_end) {
-    mode_ = &sim_.modes_.get(st.stuck);
+    mode_ = &sim_.modes_.get(mode_key(st));
     const ContactMode::Reduced& red = mode_->reduced();
     // One segment and finder per contact mode, reused: re-targeting them allocates nothing.
     ModeSlot* slot = nullptr;
@@ -341,7 +414,8 @@ class Simulator::Loop {
     rows_ = red.watch->count();
     Eigen::VectorXd& base = slot->triggers;
     base.resize(rows_);
-    for (Eigen::Index i = 0; i < rows_; ++i) base(i) = i < red.gap_rows ? eps_gap_ : eps_force_;
+    for (Eigen::Index i = 0; i < rows_; ++i)  // gaps (and engaged compliant stops' -g) against ε·L
+      base(i) = i < red.gap_rows || i >= red.engaged_rows_from ? eps_gap_ : eps_force_;
     // A guard that starts inside its tolerance band while moving away (just after an impact or
     // a release) is only re-armed above where it starts, so rounding cannot re-fire it.
     slot->finder.retarget(*slot->segment, base, resolution_, true);
@@ -418,6 +492,9 @@ class Simulator::Loop {
   std::function<void(const ContactSet&)> visit_;
   const ContactMode* mode_ = nullptr;
   ModeSlot* slot_ = nullptr;
+  bool compliant_ = false;                            // the scene has compliant stops
+  ContactSet engaged_, key_, rigid_impacts_, rigid_releases_;  // engaged compliant stops; scratch
+  Eigen::VectorXd rates_;
   Eigen::Index rows_ = 0;
   long guards_before_ = 0, points_before_ = 0;
 };

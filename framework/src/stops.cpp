@@ -53,6 +53,19 @@ Stop Stop::moving(double a, double phi) const {
   return s;
 }
 
+Stop Stop::compliant(double k, double c, double preload_force) const {
+  Stop s = *this;
+  s.law = Law::compliant;
+  s.stiffness = k;
+  s.damping = c;
+  s.preload = preload_force;
+  return s;
+}
+
+bool has_compliant(const std::vector<Stop>& stops) {
+  return std::any_of(stops.begin(), stops.end(), [](const Stop& s) { return s.is_compliant(); });
+}
+
 Eigen::VectorXd Stop::normal(Eigen::Index n) const {
   Eigen::VectorXd w = Eigen::VectorXd::Zero(n);
   switch (kind) {
@@ -105,6 +118,15 @@ std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, doubl
       throw InvalidInput(who + ": amplitude is " + number_text(s.amplitude) + ": must be finite and ≥ 0");
     if (!std::isfinite(s.phase))
       throw InvalidInput(who + ": phase is " + number_text(s.phase) + ": must be finite");
+    if (s.is_compliant()) {
+      if (!std::isfinite(s.stiffness) || !(s.stiffness > 0.0))
+        throw InvalidInput(who + ": stiffness is " + number_text(s.stiffness) +
+                           ": a compliant stop needs a finite stiffness > 0");
+      if (!std::isfinite(s.damping) || s.damping < 0.0)
+        throw InvalidInput(who + ": damping is " + number_text(s.damping) + ": must be finite and ≥ 0");
+      if (!std::isfinite(s.preload) || s.preload < 0.0)
+        throw InvalidInput(who + ": preload is " + number_text(s.preload) + ": must be finite and ≥ 0");
+    }
     if (s.amplitude > 0.0 && frequency == 0.0)
       throw InvalidInput(who + ": a moving stop needs a forcing frequency > 0 (it moves at Ω)");
   }
@@ -139,6 +161,7 @@ std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, doubl
     for (std::size_t k : later) {
       const Stop& a = stops[j];
       const Stop& b = stops[k];
+      if (a.is_compliant() || b.is_compliant()) continue;  // may overlap (a two-stage stop)
       if (key_of(a, 1) == key_of(b, 1))
         throw InvalidInput(label(b, k) + ": duplicates " + label(a, j) +
                            " (same coordinate, same side); keep one stop per side");
@@ -173,6 +196,7 @@ double stops_length_scale(const std::vector<Stop>& stops, double extra) {
 void check_admissible(const std::vector<Stop>& stops, double frequency, double t,
                       const Eigen::Ref<const Eigen::VectorXd>& x, double tolerance) {
   for (std::size_t j = 0; j < stops.size(); ++j) {
+    if (stops[j].is_compliant()) continue;  // a compliant stop may start penetrated (engaged)
     const double g = stop_gap(stops[j], frequency, t, x);
     if (g > tolerance)
       throw InvalidInput("initial state violates " + label(stops[j], j) + " by " + number_text(g) +

@@ -829,6 +829,8 @@ ReferenceComparison compare_events(const std::vector<Event>& lib,
         c.release_time = std::max(c.release_time, dt);
         break;
       case EventKind::chatter_limit:
+      case EventKind::engage:  // compliant stops: none in these scenes
+      case EventKind::disengage:
         break;
     }
   }

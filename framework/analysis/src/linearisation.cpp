@@ -596,10 +596,22 @@ class TangentRecorder final : public Observer {
   detail::PhaseBook phases_;
 };
 
+/// The tangent map is derived for rigid stops only: a compliant stop's engaged flow and the
+/// saltation of its switches (I + (f⁺ − f⁻) ∂τ/∂z, non-trivial with a dashpot or a preload) are
+/// not in it, so a scene with one is refused rather than given wrong multipliers.
+void refuse_compliant(const ImpactSystem& system) {
+  for (std::size_t j = 0; j < system.stop_count(); ++j)
+    if (system.stops()[j].is_compliant())
+      throw InvalidInput("linearisation: stops[" + std::to_string(j) + "] (" + system.stops()[j].name +
+                         ") is compliant; the tangent map (shooting's Floquet multipliers, continuation, "
+                         "Lyapunov exponents) handles rigid stops only — simulate such scenes instead");
+}
+
 }  // namespace
 
 TangentMap linearise(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
                      const VectorXd& x0, const VectorXd& v0, double t1, const LinearisationOptions& options) {
+  refuse_compliant(system);
   if (options.parameter) options.parameter->validate(system.dof(), system.stop_count());
   if (options.directions.size() > 0 && options.directions.rows() != 2 * system.dof())
     throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +
@@ -620,6 +632,7 @@ namespace detail {
 CarriedFrame carry_orthonormal_frame(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
                                      const VectorXd& x0, const VectorXd& v0, double t1,
                                      const Eigen::MatrixXd& directions) {
+  refuse_compliant(system);
   if (directions.rows() != 2 * system.dof() || directions.cols() == 0)
     throw InvalidInput("linearisation: directions have " + std::to_string(directions.rows()) +
                        " rows, expected 2n = " + std::to_string(2 * system.dof()));

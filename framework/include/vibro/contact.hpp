@@ -30,6 +30,14 @@
 ///   Which stops stay active after an event is the solution of the acceleration LCP
 ///       0 ≤ λ ⊥ G λ - q ≥ 0,   q = Wᵀ M⁻¹ (f - C v - K x) - s''   (free gap acceleration).
 ///
+/// * Engaged compliant stops (stops.hpp, Stop::Law::compliant). A set may also name compliant
+///   stops; they are engaged (penetrated, g > 0) rather than held. Each engaged stop j adds
+///   k_j w_j w_jᵀ to K, c_j w_j w_jᵀ to C and w_j (k_j s_j(t) + c_j s_j'(t) − F_p,j) to f, i.e.
+///       constant += w (k s0 − F_p),  cosine += w (k sc + c Ω ss),  sine += w (k ss − c Ω sc),
+///   before the held rigid stops reduce the system as above (so a rigid stop can be held while
+///   a compliant one is engaged: a two-stage stop). The restitution data and the contact forces
+///   are those of the held rigid stops only (active()); engaged() lists the compliant ones.
+///
 /// Each ContactMode builds its restitution data on construction (cheap: m×m) and its reduced
 /// flow only when first asked for, so sets that are only impacted never pay for a sticking flow.
 #include "vibro/flow.hpp"
@@ -41,7 +49,8 @@
 
 namespace vibro {
 
-/// Sorted indices of the stops in a set.
+/// Sorted indices of the stops in a set. As a mode's key (ContactModes::get) it names the held
+/// rigid stops and the engaged compliant stops together.
 using ContactSet = std::vector<int>;
 
 /// Solves 0 ≤ λ ⊥ G λ - q ≥ 0 for symmetric positive definite G (Murty's least-index principal
@@ -65,9 +74,14 @@ void solve_lcp(const Eigen::Ref<const Eigen::MatrixXd>& G, const Eigen::Ref<cons
 
 class ContactMode {
  public:
+  /// `active`: the mode's key, held rigid stops and engaged compliant stops (sorted).
   ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptions flow_options);
 
+  /// The held rigid stops (the constraints; size(), the restitution data and the contact forces
+  /// refer to them).
   const ContactSet& active() const { return active_; }
+  /// The engaged compliant stops (their springs and dashpots are in the mode's K, C, f).
+  const ContactSet& engaged() const { return engaged_; }
   Eigen::Index size() const { return static_cast<Eigen::Index>(active_.size()); }
 
   // --- restitution ---
@@ -86,11 +100,13 @@ class ContactMode {
     HarmonicForcing forcing;                   ///< reduced right-hand side
     Eigen::MatrixXd to_full;   ///< T: full augmented state = T · reduced augmented state
     std::unique_ptr<LinearFlow> flow;
-    /// Rows (reduced augmented space): gap g_j of each stop not in S, then -λ_j of each stop of
-    /// S, in the order of `watched`. An event is a crossing of a row from ≤ 0 to > 0.
+    /// Rows (reduced augmented space): gap g_j of each stop neither held nor engaged, then -λ_j
+    /// of each held rigid stop of S, then -g_j of each engaged compliant stop, in the order of
+    /// `watched`. An event is a crossing of a row from ≤ 0 to > 0.
     std::unique_ptr<Functionals> watch;
     std::vector<int> watched;  ///< stop index of each watch row
-    Eigen::Index gap_rows = 0;  ///< the first gap_rows rows are gaps, the rest are -λ
+    Eigen::Index gap_rows = 0;  ///< the first gap_rows rows are gaps, the next size() are -λ
+    Eigen::Index engaged_rows_from = 0;  ///< rows from here on are -g of the engaged stops
     Eigen::MatrixXd force_rows;  ///< λ of the stops in S as rows in the full augmented space
   };
   const Reduced& reduced() const;
@@ -117,6 +133,7 @@ class ContactMode {
 
   const ImpactSystem* scene_;
   ContactSet active_;
+  ContactSet engaged_;
   FlowOptions flow_options_;
   Eigen::MatrixXd normals_;  // W (n × m)
   Eigen::MatrixXd delassus_, minv_w_, restitution_;

@@ -27,19 +27,25 @@
 ///     stop constrains n_jᵀx = p_j(t): the mode's flow is the reduced one on the constraint
 ///     manifold (ContactModes, flow.hpp; ModalContactMode, modal.hpp), and its force row −λ_j is a
 ///     functional of the reduced state. An engaged compliant stop adds k_s n nᵀ to K, c_s n nᵀ to
-///     C and k_s p(t) n (its preload) to f: a linear flow again, built like any other mode. A
+///     C and n (k_s p(t) + c_s p'(t) − F_p) to f (stops.hpp; contact.cpp): a linear flow again,
+///     built like any other mode (the dense engine's; the chain engine refuses them). A
 ///     stuck frictional contact is a held constraint on the tangential velocity; a slipping one
 ///     adds the constant force −μ_k N sign(v_t) along its tangent.
 ///  4. Saltation. The jump of the linearised flow across the event, S = ∂(x⁺, v⁺)/∂(x⁻, v⁻)
 ///     + (f⁺ − S f⁻) ∂τ/∂(x⁻, v⁻) (di Bernardo et al. 2008, ch. 7): for the rigid impact
 ///     S = I − (1 + r) M⁻¹n nᵀ/(nᵀM⁻¹n) on v plus the time-shift term (the analysis layer,
-///     linearisation.hpp); for a compliant stop without dashpot S = I (continuous vector field).
+///     linearisation.hpp); for a compliant stop without dashpot or preload S = I (continuous
+///     vector field), with either S = I + (f⁺ − f⁻) ∂τ/∂z (not derived yet: the analysis layer
+///     refuses compliant stops).
 ///
 /// The event loop does not know which law it handles: it asks the law of each fired guard what
 /// its crossing means (transition), which stops touching at the start are impacts and which are
 /// resting (initial_contact), and hands the sets to the engine, which resolves them (face 2) and
 /// enters the next mode (face 3). The mode is the set of constraints in their non-default state
-/// (held, engaged, stuck); today it is the set of held rigid stops (ContactSet).
+/// (held, engaged, stuck): the held rigid stops and the engaged compliant stops (ContactSet;
+/// ContactMode splits it by law). A fired guard of a compliant stop asks for engage or
+/// disengage; the frame hands those to the engine in its impact and release sets, and the
+/// engine tells them from impacts and releases by the stop's law (Stop::is_compliant).
 ///
 /// Where a new law plugs in: its guards and mode pieces where each engine builds a mode's flow
 /// (flow.cpp's ContactModes for the dense engine, modal_modes.cpp for the chain engine), its
@@ -57,8 +63,10 @@ enum class GuardKind {
 
 /// What a guard's crossing asks of the event resolution.
 enum class Transition {
-  impact,   ///< the constraint closes with a normal speed (Newton's law, then maybe held)
-  release,  ///< the held constraint lets go (its force would turn into a pull)
+  impact,     ///< the constraint closes with a normal speed (Newton's law, then maybe held)
+  release,    ///< the held constraint lets go (its force would turn into a pull)
+  engage,     ///< a compliant stop's gap turns positive: its spring and dashpot join the flow
+  disengage,  ///< an engaged compliant stop's gap returns to zero: they leave it
 };
 
 /// A stop touching (within the trigger) at the start of a run: not at all, approaching (an
@@ -79,6 +87,17 @@ struct RigidStopLaw {
     if (rate >= -v_contact) return InitialContact::resting;
     return InitialContact::none;
   }
+};
+
+/// The compliant (Kelvin–Voigt) stop of stops.hpp: engaged while its gap g > 0, no impulse.
+/// Its guards are g while open and −g while engaged, both located by the certified search; the
+/// switch leaves the state as it is. Which compliant stops start engaged is decided from the
+/// initial gap alone (engaged_at_start), never by the rigid stop's impact or resting test.
+struct CompliantStopLaw {
+  static constexpr Transition transition(GuardKind kind) {
+    return kind == GuardKind::opening ? Transition::engage : Transition::disengage;
+  }
+  static constexpr bool engaged_at_start(double gap) { return gap > 0.0; }
 };
 
 }  // namespace vibro

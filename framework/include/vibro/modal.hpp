@@ -411,7 +411,7 @@ class ModalSegmentView final : public SegmentView {
 
 /// Free flight, impacts, chatter and sticking of a proportionally damped chain with stops, in
 /// modal coordinates. Stops are validated here (mass indices, r ∈ [0, 1], finite values, moving
-/// stops need Ω > 0). Not thread-safe: one simulator per thread (they may share one const
+/// stops need Ω > 0); compliant stops (stops.hpp) are refused: the dense engine runs them. Not thread-safe: one simulator per thread (they may share one const
 /// ChainModes).
 class ModalChainSimulator {
  public:

@@ -22,7 +22,9 @@
 
 namespace vibro {
 
-enum class EventKind { impact, stick, release, chatter_limit };
+/// engage / disengage: a compliant stop's gap turning positive / returning to zero (stops.hpp);
+/// the state is continuous there, v_before = v_after = g'_j, force = its push N after the switch.
+enum class EventKind { impact, stick, release, chatter_limit, engage, disengage };
 const char* to_string(EventKind kind);
 
 struct Event {

@@ -17,6 +17,24 @@
 /// g'_j⁺ = -r_j g'_j⁻ with r_j ∈ [0, 1] (Wagg 2004, eq. 6, generalised to moving stops and to
 /// simultaneous impacts through the contact LCP, see contact.hpp).
 ///
+/// Compliant stops (law = compliant). Instead of Newton's law a stop may be a Kelvin–Voigt
+/// spring-dashpot of stiffness k_s > 0, damping c_s ≥ 0 and preload F_p ≥ 0. It is *engaged*
+/// while its gap is positive (g > 0: the stop is penetrated by g) and then pushes on the masses
+/// with the force −w N, where
+///
+///     N = k_s g + c_s g' + F_p,     g' = wᵀv − s'(t),
+///
+/// so F_p is the force at zero penetration (N > 0 pushes the masses back out along −w), and it
+/// acts only while the stop is engaged. Open (g ≤ 0) the stop exerts nothing. Engaged, the
+/// motion is again linear: M x'' + (C + c_s w wᵀ) x' + (K + k_s w wᵀ) x = f + w (k_s s + c_s s'
+/// − F_p). The model is the piecewise-linear one: it engages when g crosses 0 upwards and
+/// disengages when g crosses 0 downwards, whatever N is then. Near separation a dashpot may
+/// therefore pull (N < 0 while g > 0 when c_s g' < −k_s g − F_p): this is the plain
+/// Kelvin–Voigt contact, kept so that every mode is a linear flow and every switch a zero of a
+/// gap. Engaging and disengaging are not impacts: the state is continuous, only the mode (the
+/// set of engaged compliant stops and held rigid stops, contact.hpp) changes. Restitution has
+/// no meaning for a compliant stop (its energy loss is c_s's).
+///
 /// Usage:
 ///     std::vector<vibro::Stop> stops{vibro::Stop::lower(0, -0.3, 0.7), vibro::Stop::upper(1, 0.1, 0.7)};
 ///     vibro::ImpactSystem scene(std::move(system), std::move(stops));   // validated
@@ -29,6 +47,8 @@ namespace vibro {
 
 struct Stop {
   enum class Kind { upper, lower, between };
+  /// The contact law: rigid (Newton's impact law, restitution r) or compliant (k_s, c_s, F_p).
+  enum class Law { rigid, compliant };
   Kind kind = Kind::upper;
   Eigen::Index mass = 0;        ///< i
   Eigen::Index other = -1;      ///< k, for Kind::between
@@ -37,12 +57,20 @@ struct Stop {
   double amplitude = 0.0;       ///< a of a harmonically moving stop (0 = fixed)
   double phase = 0.0;           ///< φ, radians
   std::string name;             ///< for messages and output; defaulted by ImpactSystem
+  Law law = Law::rigid;         ///< rigid (default) or compliant
+  double stiffness = 0.0;       ///< k_s > 0 of a compliant stop
+  double damping = 0.0;         ///< c_s ≥ 0 of a compliant stop
+  double preload = 0.0;         ///< F_p ≥ 0 of a compliant stop: its push at zero penetration
 
   static Stop upper(Eigen::Index mass, double position, double restitution);
   static Stop lower(Eigen::Index mass, double position, double restitution);
   static Stop between(Eigen::Index mass, Eigen::Index other, double gap, double restitution);
   /// The same stop, moving as position + amplitude cos(Ω t + phase).
   Stop moving(double amplitude, double phase) const;
+  /// The same stop, compliant with stiffness k_s, damping c_s and preload F_p (its restitution
+  /// is unused).
+  Stop compliant(double stiffness, double damping, double preload = 0.0) const;
+  bool is_compliant() const { return law == Law::compliant; }
 
   /// Canonical form: w (dense, length n), and s(t) = s0 + sc cos Ωt + ss sin Ωt.
   Eigen::VectorXd normal(Eigen::Index n) const;
@@ -61,7 +89,11 @@ std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, doubl
 double stop_gap(const Stop& stop, double frequency, double t,
                 const Eigen::Ref<const Eigen::VectorXd>& x);
 
-/// ImpactSystem::length_scale and ImpactSystem::check_admissible for validated stops, O(m).
+/// Whether any stop is compliant.
+bool has_compliant(const std::vector<Stop>& stops);
+
+/// ImpactSystem::length_scale and ImpactSystem::check_admissible for validated stops, O(m);
+/// compliant stops may be penetrated, so check_admissible skips them.
 double stops_length_scale(const std::vector<Stop>& stops, double extra = 0.0);
 void check_admissible(const std::vector<Stop>& stops, double frequency, double t,
                       const Eigen::Ref<const Eigen::VectorXd>& x, double tolerance);
@@ -71,7 +103,9 @@ class ImpactSystem {
  public:
   /// Throws InvalidInput naming the stop (index and name) when a mass index is out of range,
   /// r ∉ [0, 1], a value is not finite, two stops are the same constraint, or an upper and a
-  /// lower stop on one mass leave no room (clearance ≤ 0, including the stops' motion).
+  /// lower stop on one mass leave no room (clearance ≤ 0, including the stops' motion). A
+  /// compliant stop needs k_s > 0, c_s ≥ 0 and F_p ≥ 0, finite; it may share its normal with
+  /// a rigid stop (a two-stage stop) and is exempt from the clearance check.
   ImpactSystem(LinearSystem system, std::vector<Stop> stops);
 
   const LinearSystem& system() const { return system_; }

@@ -20,6 +20,7 @@ void scan(const std::vector<Stop>& stops, double frequency, double tolerance, do
   constexpr double rounding = 16.0 * std::numeric_limits<double>::epsilon();
   for (std::size_t j = 0; j < stops.size(); ++j) {
     const Stop& s = stops[j];
+    if (s.is_compliant()) continue;  // a compliant stop is penetrated while engaged (stops.hpp)
     const double g = stop_gap(s, frequency, t, x);
     // The gap's rate w_jᵀ v − s_j'(t), and the sizes its evaluation rounds (|x_i|, |x_k|, |s_j|).
     const double sign = s.kind == Stop::Kind::lower ? -1.0 : 1.0;

@@ -80,6 +80,21 @@ std::vector<Dataset> scene_datasets(const Scene& scene) {
   c.push_back(reals("stop_amplitude", std::move(amplitude), {m}));
   c.push_back(reals("stop_phase", std::move(phase), {m}));
   c.push_back(texts("stop_name", std::move(name)));
+  if (has_compliant(stops)) {  // the contact laws (docs/results.md); absent when every stop is rigid
+    std::vector<std::int64_t> law;
+    std::vector<double> stiffness, damping, preload;
+    for (const Stop& stop : stops) {
+      law.push_back(static_cast<std::int64_t>(stop.law));
+      stiffness.push_back(stop.stiffness);
+      damping.push_back(stop.damping);
+      preload.push_back(stop.preload);
+    }
+    c.push_back(integers("stop_law", std::move(law), {m}, Type::i32));
+    c.back().labels.emplace_back("names", std::vector<std::string>{"rigid", "compliant"});
+    c.push_back(reals("stop_stiffness", std::move(stiffness), {m}));
+    c.push_back(reals("stop_damping", std::move(damping), {m}));
+    c.push_back(reals("stop_preload", std::move(preload), {m}));
+  }
   c.push_back(vector_dataset("x0", scene.x0));
   c.push_back(vector_dataset("v0", scene.v0));
   return c;
@@ -148,7 +163,8 @@ ResultFile::Impl::Impl(std::unique_ptr<detail::OutputLock> output_lock, std::str
       record(scene.record),
       sweep_run(scene.run.kind == RunSpec::Kind::sweep),
       dof(scene.dof()),
-      stops(detail::stop_names(scene)) {}
+      stops(detail::stop_names(scene)),
+      compliant(has_compliant(scene.stops)) {}
 
 void ResultFile::Impl::write_scene(const Scene& scene) const {
   store.create_group("/scene");

@@ -52,9 +52,10 @@ bool records_samples(const RecordSpec& spec);
 std::vector<std::string> recorded_groups(const RecordSpec& record);
 /// Events and contacts: a sweep concatenates them; the others it stacks.
 bool is_ragged(const std::string& group);
-/// The groups a recording writes (`dof` columns of states, the stops' names).
+/// The groups a recording writes (`dof` columns of states, the stops' names). `compliant`: the
+/// scene has compliant stops, so the event kinds' names include engage and disengage.
 std::vector<Table> recorded_tables(const Recording& rec, Eigen::Index dof,
-                                   const std::vector<std::string>& stop_names);
+                                   const std::vector<std::string>& stop_names, bool compliant = false);
 
 // /scene and /meta (result_file.cpp).
 
@@ -91,6 +92,7 @@ struct ResultFile::Impl {
   std::string status = "running", message;  ///< written to /meta by finish()
   Eigen::Index dof = 0;
   std::vector<std::string> stops;
+  bool compliant = false;  ///< the scene has compliant stops (events may be engage/disengage)
   bool simulation_written = false;
   bool sweep_begun = false;
   std::size_t completed = 0, total = 0, parameters = 0;

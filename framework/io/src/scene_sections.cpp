@@ -147,7 +147,8 @@ void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
     for (std::size_t j = 0; j < sn.size(); ++j) {
       const YAML::Node s = sn[j];
       const std::string path = "stops[" + std::to_string(j) + "]";
-      r.expect_map(s, path, {"mass", "side", "between", "position", "gap", "restitution", "amplitude", "phase", "name"});
+      r.expect_map(s, path, {"mass", "side", "between", "position", "gap", "restitution", "amplitude", "phase", "name",
+                                "law", "stiffness", "damping", "preload"});
       Stop stop;
       if (s["between"]) {
         if (s["mass"] || s["side"] || s["position"])
@@ -171,8 +172,25 @@ void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
         const double p = r.number(s["position"], path + ".position");
         stop = side == "upper" ? Stop::upper(i, p, 1.0) : Stop::lower(i, p, 1.0);
       }
-      if (!s["restitution"]) r.fail(s, path + ".restitution", "missing: the restitution coefficient r ∈ [0, 1]");
-      stop.restitution = r.number_in(s["restitution"], path + ".restitution", 0, 1, "a restitution coefficient in [0, 1]");
+      const bool compliant = s["law"] && r.choice(s["law"], path + ".law", {"rigid", "compliant"}) == "compliant";
+      if (compliant) {  // a Kelvin–Voigt stop (stops.hpp): k_s > 0, c_s ≥ 0, F_p ≥ 0
+        if (s["restitution"])
+          r.fail(s["restitution"], path + ".restitution",
+                 "a compliant stop has no restitution coefficient (its energy loss is its damping); remove it");
+        if (!s["stiffness"]) r.fail(s, path + ".stiffness", "missing: the compliant stop's stiffness k_s > 0");
+        const double k = r.number(s["stiffness"], path + ".stiffness");
+        if (!(k > 0.0)) r.fail(s["stiffness"], path + ".stiffness", "expected a stiffness > 0, found " + s["stiffness"].Scalar());
+        const double c = s["damping"] ? r.number_in(s["damping"], path + ".damping", 0, 1e300, "a damping ≥ 0") : 0.0;
+        const double fp = s["preload"] ? r.number_in(s["preload"], path + ".preload", 0, 1e300, "a preload ≥ 0") : 0.0;
+        stop = stop.compliant(k, c, fp);
+      } else {
+        for (const char* key : {"stiffness", "damping", "preload"})
+          if (s[key])
+            r.fail(s[key], path + "." + key,
+                   std::string("'") + key + "' belongs to a compliant stop: add law: compliant (the default law, rigid, takes restitution)");
+        if (!s["restitution"]) r.fail(s, path + ".restitution", "missing: the restitution coefficient r ∈ [0, 1]");
+        stop.restitution = r.number_in(s["restitution"], path + ".restitution", 0, 1, "a restitution coefficient in [0, 1]");
+      }
       if (s["amplitude"]) {
         stop.amplitude = r.number_in(s["amplitude"], path + ".amplitude", 0, 1e300, "an amplitude ≥ 0");
         if (stop.amplitude > 0.0 && !(f.frequency > 0.0))
@@ -393,6 +411,7 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     }
   }
   const YAML::Node engine_node = root["solver"] ? root["solver"]["engine"] : YAML::Node();
+  const bool compliant = has_compliant(p.stops);
   if (engine_choice == EngineChoice::modal) {
     auto refuse = [&](const std::string& why) {
       r.fail(engine_node, "solver.engine", "the modal engine cannot run this scene: " + why +
@@ -401,10 +420,13 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     if (!chain_links) refuse("it needs model.chain (M diagonal, K tridiagonal), this scene gives model.matrices");
     if (!banded) refuse(not_banded);
     if (!floating.empty()) refuse(floating + " tied to no wall by springs: a rigid-body mode (give the chain a wall spring)");
+    if (compliant) refuse("it has compliant stops (law: compliant), which the dense engine handles");
     engine = EngineKind::modal;
     reason = "solver.engine: modal";
   } else if (engine_choice == EngineChoice::dense) {
     reason = "solver.engine: dense";
+  } else if (compliant) {
+    reason = "auto: compliant stops (the dense engine handles them)";
   } else if (!chain_links) {
     reason = "auto: model.matrices (the modal engine needs model.chain)";
   } else if (!banded) {

@@ -156,7 +156,9 @@ struct TangentMap {
 
 /// Runs the dense engine (Simulator with `solver`) from (t0, x0, v0) to t1 and returns the
 /// tangent map. Throws InvalidInput as Simulator::run does (bad sizes, an inadmissible start)
-/// and for a parameter derivative of the wrong size.
+/// and for a parameter derivative of the wrong size. Compliant stops (stops.hpp) are refused
+/// with InvalidInput: their engaged flows and switch saltations are not derived here, so
+/// shooting, continuation and Lyapunov exponents (all built on this map) refuse them too.
 TangentMap linearise(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
                      const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
                      const LinearisationOptions& options = {});

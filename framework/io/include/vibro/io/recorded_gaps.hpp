@@ -9,8 +9,8 @@
 
 namespace vibro::io {
 
-/// Checks every state `rec` holds (samples, Poincaré points, the final state) against every stop
-/// of `scene`: a gap g_j(t, x) above trigger × L, plus what the event search's time resolution
+/// Checks every state `rec` holds (samples, Poincaré points, the final state) against every rigid
+/// stop of `scene` (a compliant stop is penetrated while engaged, stops.hpp): a gap g_j(t, x) above trigger × L, plus what the event search's time resolution
 /// lets it move (|g_j'| · 32 ε max(|t|, T): an event is placed to 8 ε max(|t|, T) in time) and
 /// the rounding of its own evaluation (16 ε (|wᵀx| + |s_j|)), marks the run numerical_failure
 /// with a message naming the stop, the time and the depth (the deepest such state). A run already

@@ -1,0 +1,66 @@
+/// Compliant stops in scene files and result files (docs/scenes.md, docs/results.md):
+///  1. experiments/examples/soft_impact.yaml loads as its comment says: one compliant stop with
+///     its stiffness, damping and preload, run on the dense engine (auto picks it, and says why);
+///  2. its simulation writes engage and disengage events, named in /events/kind, alternating,
+///     and the stops' laws in /scene.
+/// The refusals (bad k_s, c_s, F_p, unknown law, restitution on a compliant stop, stiffness on a
+/// rigid one, the modal engine) are files of tests/io/malformed/compliant_*.yaml.
+#include "vibro/io/result_file.hpp"
+#include "vibro/io/results.hpp"
+#include "vibro/io/scene.hpp"
+#include "vibro/simulator.hpp"
+
+#include "support/temp_dir.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <string>
+#include <vector>
+
+namespace {
+
+const std::string kSoftImpact = std::string(VIBRO_EXPERIMENTS) + "/examples/soft_impact.yaml";
+
+}  // namespace
+
+TEST_CASE("the soft-impact example loads with a compliant stop on the dense engine", "[compliant]") {
+  const vibro::io::Scene s = vibro::io::SceneDocument::load(kSoftImpact).build();
+  REQUIRE(s.stops.size() == 1);
+  const vibro::Stop& stop = s.stops[0];
+  CHECK(stop.law == vibro::Stop::Law::compliant);
+  CHECK(stop.stiffness == 25.0);
+  CHECK(stop.damping == 0.1);
+  CHECK(stop.preload == 0.0);
+  CHECK(stop.position == 1.0);
+  CHECK(s.engine == vibro::io::EngineKind::dense);
+  CHECK_THAT(s.engine_reason, Catch::Contains("compliant"));
+}
+
+TEST_CASE("a compliant stop's switches are recorded as engage and disengage events", "[compliant]") {
+  const vibro::test::TempDir dir;
+  const std::string path = dir / "soft.h5";
+  const vibro::io::Scene scene = vibro::io::SceneDocument::load(kSoftImpact).build();
+  const vibro::ImpactSystem system = scene.impact_system();
+  vibro::Simulator simulator(system, scene.solver);
+  const double t_start = scene.t0 + scene.run.transient_periods * scene.period();
+  const vibro::RunSummary transient = simulator.run(scene.t0, scene.x0, scene.v0, t_start);
+  vibro::io::Recording rec = vibro::io::Recording::for_scene(scene, t_start);
+  rec.summary = simulator.run(t_start, transient.x, transient.v, rec.t_end, rec.observers());
+  REQUIRE(rec.summary.status == vibro::RunStatus::completed);
+  const std::vector<vibro::Event>& ev = rec.events->events;
+  REQUIRE(ev.size() >= 10);  // the orbit engages the stop every period (10 recorded)
+  for (std::size_t i = 0; i < ev.size(); ++i) {
+    CHECK((ev[i].kind == vibro::EventKind::engage || ev[i].kind == vibro::EventKind::disengage));
+    if (i > 0) CHECK(ev[i].kind != ev[i - 1].kind);  // one stop: engage and disengage alternate
+    if (ev[i].kind == vibro::EventKind::engage) CHECK(ev[i].v_before > 0.0);  // the gap rises
+  }
+  vibro::io::ResultFile file = vibro::io::ResultFile::create(path, scene, vibro::io::current_meta(1));
+  file.write_simulation(rec);
+  file.finish(vibro::io::current_meta(1));
+  const vibro::io::ResultReader r(path);
+  CHECK(r.attribute_strings("/events/kind", "names") ==
+        std::vector<std::string>{"impact", "stick", "release", "chatter-limit", "engage", "disengage"});
+  CHECK(r.read_integers("/events/kind").front() == static_cast<std::int64_t>(ev.front().kind));
+  CHECK(r.read_integers("/scene/stop_law") == std::vector<std::int64_t>{1});
+  CHECK(r.read("/scene/stop_stiffness") == std::vector<double>{25.0});
+}
