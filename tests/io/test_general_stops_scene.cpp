@@ -96,14 +96,14 @@ TEST_CASE("bad normals in a scene name the file, the line, the column and the ke
     std::string path, fragment;
   };
   const Case cases[] = {
-      {"  - {normal: [1, 0.6, 2], position: 0.2, restitution: 0.5}", 10, 15, "stops[0].normal",
+      {"  - {normal: [1, 0.6, 2], position: 0.2, restitution: 0.5}", 10, 14, "stops[0].normal",
        "expected a list of 2 numbers (one coefficient per degree of freedom), found 3"},
-      {"  - {normal: [0, 0], position: 0.2, restitution: 0.5}", 10, 15, "stops[0].normal",
+      {"  - {normal: [0, 0], position: 0.2, restitution: 0.5}", 10, 14, "stops[0].normal",
        "expected a nonzero normal n of nᵀx ≤ position, found all zeros"},
-      {"  - {normal: [1, a], position: 0.2, restitution: 0.5}", 10, 19, "stops[0].normal[1]", "expected a number"},
-      {"  - {normal: [1, .nan], position: 0.2, restitution: 0.5}", 10, 19, "stops[0].normal[1]", "nan"},
-      {"  - {normal: [.inf, 1], position: 0.2, restitution: 0.5}", 10, 16, "stops[0].normal[0]", "inf"},
-      {"  - {normal: 1, position: 0.2, restitution: 0.5}", 10, 15, "stops[0].normal", "expected a list of numbers"},
+      {"  - {normal: [1, a], position: 0.2, restitution: 0.5}", 10, 18, "stops[0].normal[1]", "expected a number, found 'a'"},
+      {"  - {normal: [1, .nan], position: 0.2, restitution: 0.5}", 10, 18, "stops[0].normal[1]", "expected a number, found '.nan'"},
+      {"  - {normal: [.inf, 1], position: 0.2, restitution: 0.5}", 10, 15, "stops[0].normal[0]", "expected a number, found '.inf'"},
+      {"  - {normal: 1, position: 0.2, restitution: 0.5}", 10, 14, "stops[0].normal", "expected a list of numbers"},
       {"  - {normal: [1, 0.6], restitution: 0.5}", 10, 5, "stops[0].position", "missing: the stop's offset p"},
       {"  - {normal: [1, 0.6], mass: 0, position: 0.2, restitution: 0.5}", 10, 30, "stops[0].mass",
        "a stop along a normal takes 'normal' and 'position' (nᵀx ≤ position), not 'mass'"},
@@ -112,9 +112,9 @@ TEST_CASE("bad normals in a scene name the file, the line, the column and the ke
       {"  - {normal: [1, 0.6], position: 0.2, restitution: 0.5}\n  - {normal: [2, 1.2], position: 0.1, restitution: 0.5}",
        11, 5, "stops[1]", "duplicates stops[0]"},
       {"  - {normal: [1, 0.6], position: 0.2, restitution: 0.5}\n  - {normal: [-2, -1.2], position: -0.5, restitution: 0.5}",
-       10, 5, "stops", "leave no room between them"},
-      {"  - {normal: [1, 0.6], position: 0.2, restitution: 0.5, side: upper}", 10, 62, "stops[0].side", "not 'side'"},
-      {"  - {normals: [1, 0.6], position: 0.2, restitution: 0.5}", 10, 7, "stops[0]", "did you mean 'normal'?"},
+       10, 5, "stops[0]", "leave no room between them"},
+      {"  - {normal: [1, 0.6], position: 0.2, restitution: 0.5, side: upper}", 10, 63, "stops[0].side", "not 'side'"},
+      {"  - {normals: [1, 0.6], position: 0.2, restitution: 0.5}", 10, 6, "stops[0].normals", "did you mean 'normal'?"},
   };
   for (const Case& c : cases) {
     INFO(c.stop);
