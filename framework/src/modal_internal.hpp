@@ -30,6 +30,7 @@ inline Normal normal_of(const Stop& s) {
     case Stop::Kind::upper: return {s.mass, -1, 1.0, 0.0};
     case Stop::Kind::lower: return {s.mass, -1, -1.0, 0.0};
     case Stop::Kind::between: return {s.mass, s.other, 1.0, -1.0};
+    case Stop::Kind::normal: break;  // refused by ModalChainSimulator (kModalStopsOnly)
   }
   return {};
 }

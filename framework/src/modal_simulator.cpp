@@ -219,6 +219,8 @@ ModalChainSimulator::ModalChainSimulator(const ChainModes& modes, std::vector<St
   for (std::size_t j = 0; j < stops_.size(); ++j) {
     Stop& s = stops_[j];
     const std::string label = "stops[" + std::to_string(j) + "]";
+    if (s.kind == Stop::Kind::normal)
+      throw InvalidInput(label + ": a stop along a general normal: " + std::string(kModalStopsOnly));
     if (s.mass < 0 || s.mass >= n)
       throw InvalidInput(label + ": mass " + std::to_string(s.mass) + " is not in [0, " +
                          std::to_string(n - 1) + "]");

@@ -18,11 +18,86 @@ const char* kind_name(Stop::Kind k) {
     case Stop::Kind::upper: return "upper";
     case Stop::Kind::lower: return "lower";
     case Stop::Kind::between: return "between";
+    case Stop::Kind::normal: return "normal";
   }
   return "?";
 }
 
+/// "normal 1·x0 - 0.5·x1" (the first four nonzero terms, then "…").
+std::string general_name(const Eigen::VectorXd& n) {
+  std::string out = "normal";
+  int terms = 0;
+  for (Eigen::Index i = 0; i < n.size(); ++i) {
+    if (n(i) == 0.0) continue;
+    if (terms == 4) return out + " + …";
+    if (terms == 0) out += " " + number_text(n(i));
+    else out += (n(i) < 0.0 ? " - " : " + ") + number_text(std::abs(n(i)));
+    out += "·x" + std::to_string(i);
+    ++terms;
+  }
+  return out;
+}
+
+/// The checks of a general stop's normal: length n, finite entries, not zero.
+void check_general(const Stop& s, const std::string& who, Eigen::Index n) {
+  if (s.direction.size() != n)
+    throw InvalidInput(who + ": normal has " + std::to_string(s.direction.size()) +
+                       " entries: expected one per degree of freedom, " + std::to_string(n));
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (!std::isfinite(s.direction(i)))
+      throw InvalidInput(who + ": normal[" + std::to_string(i) + "] is " + number_text(s.direction(i)) +
+                         ": must be finite");
+  if (s.direction.lpNorm<Eigen::Infinity>() == 0.0)
+    throw InvalidInput(who + ": normal is zero: a stop needs a nonzero normal n (nᵀx ≤ position)");
+}
+
+/// Parallel and antiparallel pairs among stops of which at least one is general, compared on
+/// unit normals u = w/|w| with offsets s/|w|: |u_a·u_b| ≥ 1 − 1e-12 (angle below ~1.4e-6 rad)
+/// counts as parallel. The pairs are visited in the order (j, k), j < k.
+void check_general_pairs(const std::vector<Stop>& stops, Eigen::Index n) {
+  std::vector<std::size_t> general;
+  for (std::size_t j = 0; j < stops.size(); ++j)
+    if (stops[j].kind == Stop::Kind::normal) general.push_back(j);
+  if (general.empty()) return;
+  for (std::size_t j = 0; j < stops.size(); ++j) {
+    const Eigen::VectorXd wa = stops[j].normal(n);
+    const double na = wa.norm();
+    for (std::size_t k = j + 1; k < stops.size(); ++k) {
+      const Stop& a = stops[j];
+      const Stop& b = stops[k];
+      if (a.kind != Stop::Kind::normal && b.kind != Stop::Kind::normal) continue;
+      if (a.is_compliant() || b.is_compliant()) continue;  // may overlap (a two-stage stop)
+      const Eigen::VectorXd wb = b.normal(n);
+      const double nb = wb.norm();
+      const double cosine = wa.dot(wb) / (na * nb);
+      if (cosine >= 1.0 - 1e-12)
+        throw InvalidInput(label(b, k) + ": duplicates " + label(a, j) +
+                           " (parallel normals, same side: the nearer stop always binds first); keep one stop per side");
+      if (cosine <= -1.0 + 1e-12) {
+        // u x ≤ s_a/|w_a| and -u x ≤ s_b/|w_b| need room between them at all times.
+        const double clearance = a.s0() / na + b.s0() / nb;
+        const double room = clearance - a.amplitude / na - b.amplitude / nb;
+        if (!(room > 0.0))
+          throw InvalidInput(label(a, j) + " and " + label(b, k) +
+                             " leave no room between them (opposite normals; clearance along the unit normal " +
+                             number_text(clearance) + ", stop amplitudes " + number_text(a.amplitude / na) +
+                             " + " + number_text(b.amplitude / nb) + "): the clearance must stay positive");
+      }
+    }
+  }
+}
+
 }  // namespace
+
+Stop Stop::general(Eigen::VectorXd normal, double position, double restitution) {
+  Stop s;
+  s.kind = Kind::normal;
+  s.mass = -1;
+  s.direction = std::move(normal);
+  s.position = position;
+  s.restitution = restitution;
+  return s;
+}
 
 Stop Stop::upper(Eigen::Index mass, double position, double restitution) {
   Stop s;
@@ -67,6 +142,7 @@ bool has_compliant(const std::vector<Stop>& stops) {
 }
 
 Eigen::VectorXd Stop::normal(Eigen::Index n) const {
+  if (kind == Kind::normal) return direction;
   Eigen::VectorXd w = Eigen::VectorXd::Zero(n);
   switch (kind) {
     case Kind::upper: w(mass) = 1.0; break;
@@ -75,6 +151,7 @@ Eigen::VectorXd Stop::normal(Eigen::Index n) const {
       w(mass) = 1.0;
       w(other) = -1.0;
       break;
+    case Kind::normal: break;
   }
   return w;
 }
@@ -93,12 +170,15 @@ double Stop::s_sin() const {
 std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, double frequency) {
   for (std::size_t j = 0; j < stops.size(); ++j) {
     Stop& s = stops[j];
-    if (s.name.empty()) {
+    if (s.name.empty() && s.kind == Stop::Kind::normal) {
+      s.name = general_name(s.direction);
+    } else if (s.name.empty()) {
       s.name = std::string(kind_name(s.kind)) + " x" + std::to_string(s.mass);
       if (s.kind == Stop::Kind::between) s.name += "-x" + std::to_string(s.other);
     }
     const std::string who = label(s, j);
-    if (s.mass < 0 || s.mass >= n)
+    if (s.kind == Stop::Kind::normal) check_general(s, who, n);
+    if (s.kind != Stop::Kind::normal && (s.mass < 0 || s.mass >= n))
       throw InvalidInput(who + ": mass index " + std::to_string(s.mass) + " is out of range [0, " +
                          std::to_string(n - 1) + "]");
     if (s.kind == Stop::Kind::between) {
@@ -148,8 +228,10 @@ std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, doubl
     return key;
   };
   std::map<Key, std::vector<std::size_t>> by_key;
-  for (std::size_t j = 0; j < stops.size(); ++j) by_key[key_of(stops[j], 1)].push_back(j);
+  for (std::size_t j = 0; j < stops.size(); ++j)
+    if (stops[j].kind != Stop::Kind::normal) by_key[key_of(stops[j], 1)].push_back(j);
   for (std::size_t j = 0; j < stops.size(); ++j) {
+    if (stops[j].kind == Stop::Kind::normal) continue;
     std::vector<std::size_t> later;
     for (int flip : {1, -1}) {
       const auto it = by_key.find(key_of(stops[j], flip));
@@ -174,6 +256,7 @@ std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, doubl
                            "): the clearance must stay positive");
     }
   }
+  check_general_pairs(stops, n);
   return stops;
 }
 
@@ -183,6 +266,7 @@ double stop_gap(const Stop& s, double frequency, double t, const Eigen::Ref<cons
     case Stop::Kind::upper: wx = x(s.mass); break;
     case Stop::Kind::lower: wx = -x(s.mass); break;
     case Stop::Kind::between: wx = x(s.mass) - x(s.other); break;
+    case Stop::Kind::normal: wx = s.direction.dot(x); break;
   }
   return wx - (s.s0() + s.s_cos() * std::cos(frequency * t) + s.s_sin() * std::sin(frequency * t));
 }
@@ -198,6 +282,10 @@ void check_admissible(const std::vector<Stop>& stops, double frequency, double t
   for (std::size_t j = 0; j < stops.size(); ++j) {
     if (stops[j].is_compliant()) continue;  // a compliant stop may start penetrated (engaged)
     const double g = stop_gap(stops[j], frequency, t, x);
+    if (g > tolerance && stops[j].kind == Stop::Kind::normal)
+      throw InvalidInput("initial state violates " + label(stops[j], j) + " by " + number_text(g) +
+                         " at t = " + number_text(t) + " (nᵀx = " + number_text(stops[j].direction.dot(x)) +
+                         ", stop position " + number_text(stops[j].position) + ")");
     if (g > tolerance)
       throw InvalidInput("initial state violates " + label(stops[j], j) + " by " + number_text(g) +
                          " at t = " + number_text(t) + " (x" + std::to_string(stops[j].mass) + " = " +

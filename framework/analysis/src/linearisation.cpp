@@ -414,9 +414,7 @@ class TangentRecorder final : public Observer {
     VectorXd hz = VectorXd::Zero(N2);
     double hdot = 0.0, hp = 0.0;
     if (guard >= 0 && impact) {
-      const detail::SparseNormal& w = mech_.normal(guard);
-      hz(w.i) = w.a;
-      if (w.k >= 0) hz(w.k) = w.b;
+      mech_.normal(guard).scatter(hz.head(n));
       hdot = mech_.gap_rate(guard, vm, t);
       if (mechp_) hp = mechp_->gap(guard, seeded(x, VectorXd()), Dual(t)).d;
     } else if (guard >= 0) {

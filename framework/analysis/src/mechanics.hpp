@@ -71,10 +71,22 @@ struct ResetRule {
   ChatterRule rule = ChatterRule::third_order;
 };
 
-/// A stop's normal: w = e_i (upper), −e_i (lower), e_i − e_k (between).
+/// A stop's normal: w = e_i (upper), −e_i (lower), e_i − e_k (between), or any dense n
+/// (Stop::Kind::normal, then `dense` holds it and i, k, a, b are unused).
 struct SparseNormal {
   Eigen::Index i = 0, k = -1;
   double a = 1.0, b = 0.0;  ///< w = a e_i + b e_k
+  Eigen::VectorXd dense;    ///< w itself for a general stop; empty otherwise
+  /// Writes w into `out` (length n, zero on entry): the sparse entries or the dense ones.
+  template <class Out>
+  void scatter(Out&& out) const {
+    if (dense.size() > 0) {
+      for (Eigen::Index l = 0; l < dense.size(); ++l) out(l) = dense(l);
+      return;
+    }
+    out(i) = a;
+    if (k >= 0) out(k) = b;
+  }
 };
 
 template <class T>
@@ -164,6 +176,11 @@ class Mechanics {
   /// w_jᵀ y.
   T normal_dot(int j, const VecT<T>& y) const {
     const SparseNormal& w = normal(j);
+    if (w.dense.size() > 0) {
+      T out = w.dense(0) * y(0);
+      for (Eigen::Index l = 1; l < n_; ++l) out += w.dense(l) * y(l);
+      return out;
+    }
     T out = w.a * y(w.i);
     if (w.k >= 0) out += w.b * y(w.k);
     return out;
@@ -175,11 +192,7 @@ class Mechanics {
   /// W_set (n × |set|) and Q = M⁻¹ W_set.
   MatT<T> normals(const ContactSet& set) const {
     MatT<T> W = MatT<T>::Zero(n_, static_cast<Eigen::Index>(set.size()));
-    for (std::size_t a = 0; a < set.size(); ++a) {
-      const SparseNormal& w = normal(set[a]);
-      W(w.i, static_cast<Eigen::Index>(a)) = w.a;
-      if (w.k >= 0) W(w.k, static_cast<Eigen::Index>(a)) = w.b;
-    }
+    for (std::size_t a = 0; a < set.size(); ++a) normal(set[a]).scatter(W.col(static_cast<Eigen::Index>(a)));
     return W;
   }
   MatT<T> mass_inverse(const MatT<T>& y) const {
@@ -257,9 +270,7 @@ class Mechanics {
     const Eigen::Index n = n_;
     const auto J = static_cast<std::size_t>(j);
     VecT<T> row = VecT<T>::Zero(2 * n + 3);
-    const SparseNormal& w = normal(j);
-    row(w.i) = w.a;
-    if (w.k >= 0) row(w.k) = w.b;
+    normal(j).scatter(row.head(n));
     row(2 * n) = -sc_[J];
     row(2 * n + 1) = -ss_[J];
     row(2 * n + 2) = -s0_[J];
@@ -386,7 +397,11 @@ class Mechanics {
       const StopDerivative ds = d.stops.empty() ? StopDerivative{} : d.stops[j];
       SparseNormal w;
       w.i = s.mass;
-      if (s.kind == Stop::Kind::between) {
+      if (s.kind == Stop::Kind::normal) {
+        if (banded_) throw std::logic_error("Mechanics: the banded form takes stops on one mass or two");
+        w.dense = s.direction;
+        w.i = 0;
+      } else if (s.kind == Stop::Kind::between) {
         w.k = s.other;
         w.b = -1.0;
       } else if (s.kind == Stop::Kind::lower) {

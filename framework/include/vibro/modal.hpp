@@ -409,9 +409,15 @@ class ModalSegmentView final : public SegmentView {
   const ModalContactMode* mode_;
 };
 
+/// What the modal engine says of a stop along a general normal (Stop::Kind::normal), which it
+/// refuses: its reductions fix masses or join neighbours.
+inline constexpr const char* kModalStopsOnly =
+    "the modal engine takes stops on one mass (upper, lower) or between two masses; the dense "
+    "engine takes any normal (solver.engine: dense)";
+
 /// Free flight, impacts, chatter and sticking of a proportionally damped chain with stops, in
 /// modal coordinates. Stops are validated here (mass indices, r ∈ [0, 1], finite values, moving
-/// stops need Ω > 0); compliant stops (stops.hpp) are refused: the dense engine runs them. Not thread-safe: one simulator per thread (they may share one const
+/// stops need Ω > 0; a general normal is refused with kModalStopsOnly); compliant stops (stops.hpp) are refused: the dense engine runs them. Not thread-safe: one simulator per thread (they may share one const
 /// ChainModes).
 class ModalChainSimulator {
  public:

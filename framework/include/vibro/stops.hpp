@@ -12,10 +12,16 @@
 ///   * upper stop on mass i at p (x_i ≤ p):        w = e_i,        s = p
 ///   * lower stop on mass i at p (x_i ≥ p):        w = -e_i,       s = -p
 ///   * stop between masses i, k (x_i - x_k ≤ gap): w = e_i - e_k,  s = gap
+///   * general stop along n at p (nᵀx ≤ p):         w = n,          s = p
+/// The general stop holds any linear combination of the coordinates (a tip h + l·α of a
+/// pitch–plunge section, a relative rotation, a rotated frame); the other three are its
+/// shorthands. n is used as given, not normalised: g is in the units of nᵀx, and the offsets,
+/// amplitudes and tolerances are in the same units.
 /// A stop in contact pushes with a force λ_j ≥ 0 along -w_j: M x'' + C x' + K x = f - W λ.
 /// At an impact the relative normal velocity g'_j = w_jᵀ v - s_j'(t) obeys Newton's law
 /// g'_j⁺ = -r_j g'_j⁻ with r_j ∈ [0, 1] (Wagg 2004, eq. 6, generalised to moving stops and to
-/// simultaneous impacts through the contact LCP, see contact.hpp).
+/// simultaneous impacts through the contact LCP, see contact.hpp). For a general normal the
+/// impulse acts along M⁻¹ n: the law holds in the metric of M, whatever the angle between normals.
 ///
 /// Compliant stops (law = compliant). Instead of Newton's law a stop may be a Kelvin–Voigt
 /// spring-dashpot of stiffness k_s > 0, damping c_s ≥ 0 and preload F_p ≥ 0. It is *engaged*
@@ -37,6 +43,7 @@
 ///
 /// Usage:
 ///     std::vector<vibro::Stop> stops{vibro::Stop::lower(0, -0.3, 0.7), vibro::Stop::upper(1, 0.1, 0.7)};
+///     stops.push_back(vibro::Stop::general(Eigen::Vector2d(1.0, 0.5), 0.2, 0.8));  // x0 + 0.5 x1 ≤ 0.2
 ///     vibro::ImpactSystem scene(std::move(system), std::move(stops));   // validated
 #include "vibro/system.hpp"
 
@@ -46,13 +53,14 @@
 namespace vibro {
 
 struct Stop {
-  enum class Kind { upper, lower, between };
+  enum class Kind { upper, lower, between, normal };
   /// The contact law: rigid (Newton's impact law, restitution r) or compliant (k_s, c_s, F_p).
   enum class Law { rigid, compliant };
   Kind kind = Kind::upper;
   Eigen::Index mass = 0;        ///< i
   Eigen::Index other = -1;      ///< k, for Kind::between
-  double position = 0.0;        ///< p (upper/lower) or gap (between), at rest
+  Eigen::VectorXd direction;    ///< n (length n, nonzero), for Kind::normal; empty otherwise
+  double position = 0.0;        ///< p (upper/lower/normal) or gap (between), at rest
   double restitution = 1.0;     ///< r ∈ [0, 1]
   double amplitude = 0.0;       ///< a of a harmonically moving stop (0 = fixed)
   double phase = 0.0;           ///< φ, radians
@@ -65,6 +73,8 @@ struct Stop {
   static Stop upper(Eigen::Index mass, double position, double restitution);
   static Stop lower(Eigen::Index mass, double position, double restitution);
   static Stop between(Eigen::Index mass, Eigen::Index other, double gap, double restitution);
+  /// nᵀx ≤ position for any nonzero n of length dof (Kind::normal; mass and other unused).
+  static Stop general(Eigen::VectorXd normal, double position, double restitution);
   /// The same stop, moving as position + amplitude cos(Ω t + phase).
   Stop moving(double amplitude, double phase) const;
   /// The same stop, compliant with stiffness k_s, damping c_s and preload F_p (its restitution
@@ -81,8 +91,10 @@ struct Stop {
 
 /// The checks of ImpactSystem's constructor, without a LinearSystem and without the n × m matrix
 /// of normals: O(m log m) for m stops on n degrees of freedom, forcing frequency Ω. Gives unnamed
-/// stops their default names ("upper x3", "between x3-x4") and returns them; throws InvalidInput
-/// with the same messages as ImpactSystem (for long chains, whose dense system is never built).
+/// stops their default names ("upper x3", "between x3-x4", "normal 1·x0 + 0.5·x1") and returns
+/// them; throws InvalidInput with the same messages as ImpactSystem (for long chains, whose dense
+/// system is never built). General stops add O(g m n) for g of them: each is compared with every
+/// other stop (parallel normals on the same side, antiparallel ones without room).
 std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, double frequency);
 
 /// g_j(x, t) = w_jᵀ x - s_j(t) of one stop, O(1).
@@ -102,10 +114,12 @@ void check_admissible(const std::vector<Stop>& stops, double frequency, double t
 class ImpactSystem {
  public:
   /// Throws InvalidInput naming the stop (index and name) when a mass index is out of range,
-  /// r ∉ [0, 1], a value is not finite, two stops are the same constraint, or an upper and a
-  /// lower stop on one mass leave no room (clearance ≤ 0, including the stops' motion). A
-  /// compliant stop needs k_s > 0, c_s ≥ 0 and F_p ≥ 0, finite; it may share its normal with
-  /// a rigid stop (a two-stage stop) and is exempt from the clearance check.
+  /// r ∉ [0, 1], a value is not finite, a general normal has the wrong length or is zero, two
+  /// stops are the same constraint (parallel normals on the same side), or two opposing stops
+  /// (an upper and a lower stop on one mass, antiparallel normals) leave no room (clearance ≤ 0,
+  /// including the stops' motion). A compliant stop needs k_s > 0, c_s ≥ 0 and F_p ≥ 0, finite;
+  /// it may share its normal with a rigid stop (a two-stage stop) and is exempt from the
+  /// clearance check.
   ImpactSystem(LinearSystem system, std::vector<Stop> stops);
 
   const LinearSystem& system() const { return system_; }

@@ -23,10 +23,13 @@ void scan(const std::vector<Stop>& stops, double frequency, double tolerance, do
     if (s.is_compliant()) continue;  // a compliant stop is penetrated while engaged (stops.hpp)
     const double g = stop_gap(s, frequency, t, x);
     // The gap's rate w_jᵀ v − s_j'(t), and the sizes its evaluation rounds (|x_i|, |x_k|, |s_j|).
+    const bool general = s.kind == Stop::Kind::normal;
     const double sign = s.kind == Stop::Kind::lower ? -1.0 : 1.0;
-    const double wv = sign * v(s.mass) - (s.other >= 0 ? v(s.other) : 0.0);
+    const double wv = general ? s.direction.dot(v) : sign * v(s.mass) - (s.other >= 0 ? v(s.other) : 0.0);
     const double rate = wv - frequency * (-s.s_cos() * std::sin(frequency * t) + s.s_sin() * std::cos(frequency * t));
-    const double size = std::abs(x(s.mass)) + (s.other >= 0 ? std::abs(x(s.other)) : 0.0) +
+    // For a general normal, the sizes rounded in nᵀx: Σ|n_l x_l|.
+    const double size = (general ? s.direction.cwiseProduct(x).cwiseAbs().sum()
+                                 : std::abs(x(s.mass)) + (s.other >= 0 ? std::abs(x(s.other)) : 0.0)) +
                         std::abs(s.position) + s.amplitude;
     const double bound = tolerance + std::abs(rate) * t_resolution + rounding * size;
     const double excess = g - bound;

@@ -71,8 +71,14 @@ std::vector<Dataset> scene_datasets(const Scene& scene) {
     phase.push_back(stop.phase);
     name.push_back(stop.name);
   }
+  // Stops along general normals add the kind "normal" and the m × n matrix of every stop's
+  // normal w_j (a scene without them keeps the three kinds and no matrix).
+  bool general = false;
+  for (const Stop& stop : stops) general = general || stop.kind == Stop::Kind::normal;
+  std::vector<std::string> kind_names{"upper", "lower", "between"};
+  if (general) kind_names.emplace_back("normal");
   c.push_back(integers("stop_kind", std::move(kind), {m}, Type::i32));
-  c.back().labels.emplace_back("names", std::vector<std::string>{"upper", "lower", "between"});
+  c.back().labels.emplace_back("names", std::move(kind_names));
   c.push_back(integers("stop_mass", std::move(mass), {m}));
   c.push_back(integers("stop_other", std::move(other), {m}));
   c.push_back(reals("stop_position", std::move(position), {m}));
@@ -94,6 +100,11 @@ std::vector<Dataset> scene_datasets(const Scene& scene) {
     c.push_back(reals("stop_stiffness", std::move(stiffness), {m}));
     c.push_back(reals("stop_damping", std::move(damping), {m}));
     c.push_back(reals("stop_preload", std::move(preload), {m}));
+  }
+  if (general) {
+    Eigen::MatrixXd normals(static_cast<Eigen::Index>(m), scene.dof());
+    for (std::size_t j = 0; j < m; ++j) normals.row(static_cast<Eigen::Index>(j)) = stops[j].normal(scene.dof()).transpose();
+    c.push_back(matrix_dataset("stop_normal", normals));
   }
   c.push_back(vector_dataset("x0", scene.x0));
   c.push_back(vector_dataset("v0", scene.v0));

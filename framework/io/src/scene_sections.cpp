@@ -2,6 +2,8 @@
 // section copies one of them and adds one call to SceneDocument::build_checked (scene.cpp).
 #include "scene_sections.hpp"
 
+#include "vibro/modal.hpp"
+
 #include <algorithm>
 #include <numbers>
 #include <cmath>
@@ -136,6 +138,23 @@ void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p) {
   }
 }
 
+/// A stop along a general normal, `{normal: [n_0, …, n_{n−1}], position: p}` (nᵀx ≤ p); the
+/// restitution, motion and name are read by the caller.
+Stop read_general_stop(Reader& r, const YAML::Node& s, const std::string& path, long n) {
+  for (const char* key : {"mass", "side", "between", "gap"})
+    if (s[key])
+      r.fail(s[key], path + "." + key,
+             "a stop along a normal takes 'normal' and 'position' (nᵀx ≤ position), not '" + std::string(key) + "'");
+  const std::vector<double> normal = r.numbers(s["normal"], path + ".normal", n, "one coefficient per degree of freedom");
+  bool zero = true;
+  for (double c : normal) zero = zero && c == 0.0;
+  if (zero)
+    r.fail(s["normal"], path + ".normal", "expected a nonzero normal n of nᵀx ≤ position, found all zeros");
+  if (!s["position"]) r.fail(s, path + ".position", "missing: the stop's offset p of nᵀx ≤ p");
+  const double p = r.number(s["position"], path + ".position");
+  return Stop::general(to_vector(normal), p, 1.0);
+}
+
 /// `stops`, validated together (stops[j] errors point at that stop).
 void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
   auto& n = p.n;
@@ -147,10 +166,12 @@ void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
     for (std::size_t j = 0; j < sn.size(); ++j) {
       const YAML::Node s = sn[j];
       const std::string path = "stops[" + std::to_string(j) + "]";
-      r.expect_map(s, path, {"mass", "side", "between", "position", "gap", "restitution", "amplitude", "phase", "name",
+      r.expect_map(s, path, {"mass", "side", "between", "normal", "position", "gap", "restitution", "amplitude", "phase", "name",
                                 "law", "stiffness", "damping", "preload"});
       Stop stop;
-      if (s["between"]) {
+      if (s["normal"]) {
+        stop = read_general_stop(r, s, path, n);
+      } else if (s["between"]) {
         if (s["mass"] || s["side"] || s["position"])
           r.fail(s, path, "a stop between masses takes 'between' and 'gap', not 'mass', 'side' or 'position'");
         const auto pair = r.numbers(s["between"], path + ".between", 2, "the two masses i, k of x_i - x_k ≤ gap");
@@ -412,6 +433,9 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
   }
   const YAML::Node engine_node = root["solver"] ? root["solver"]["engine"] : YAML::Node();
   const bool compliant = has_compliant(p.stops);
+  int general_stop = -1;  // the first stop along a general normal, which the modal engine refuses
+  for (std::size_t j = 0; j < p.stops.size() && general_stop < 0; ++j)
+    if (p.stops[j].kind == Stop::Kind::normal) general_stop = static_cast<int>(j);
   if (engine_choice == EngineChoice::modal) {
     auto refuse = [&](const std::string& why) {
       r.fail(engine_node, "solver.engine", "the modal engine cannot run this scene: " + why +
@@ -421,12 +445,15 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     if (!banded) refuse(not_banded);
     if (!floating.empty()) refuse(floating + " tied to no wall by springs: a rigid-body mode (give the chain a wall spring)");
     if (compliant) refuse("it has compliant stops (law: compliant), which the dense engine handles");
+    if (general_stop >= 0) refuse("stops[" + std::to_string(general_stop) + "] has a general normal: " + kModalStopsOnly);
     engine = EngineKind::modal;
     reason = "solver.engine: modal";
   } else if (engine_choice == EngineChoice::dense) {
     reason = "solver.engine: dense";
   } else if (compliant) {
     reason = "auto: compliant stops (the dense engine handles them)";
+  } else if (general_stop >= 0) {
+    reason = "auto: stops[" + std::to_string(general_stop) + "] has a general normal (" + kModalStopsOnly + ")";
   } else if (!chain_links) {
     reason = "auto: model.matrices (the modal engine needs model.chain)";
   } else if (!banded) {

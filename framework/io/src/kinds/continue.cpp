@@ -97,6 +97,11 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
     e.stop = std::stoi(m[1].str());
     return e;
   }
+  static const std::regex normal(R"(stops\[(\d+)\]\.normal\[(\d+)\])");
+  if (std::regex_match(path, m, normal))
+    refuse(doc, path,
+           "a stop's normal is not a continuation parameter (the derivatives follow a stop's position, "
+           "amplitude, phase and restitution); continue in one of those, or sweep the normal (run.kind: sweep)");
   const double p = doc.get(path);
   const Data d0 = data_of(doc.build_point());
   // The largest step that keeps the scene valid on both sides: affine data make the central
