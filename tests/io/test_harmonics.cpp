@@ -53,7 +53,8 @@ Trace trace_of(const Scene& s, double periods) {
   for (int i = 0; i <= 400; ++i) times.push_back(periods * T * i / 400.0);
   EventLog log;
   Samples samples(times);
-  Simulator sim(s.impact_system(), s.solver);
+  const ImpactSystem system = s.impact_system();  // the simulator keeps a reference
+  Simulator sim(system, s.solver);
   const RunSummary summary = sim.run(0.0, s.x0, s.v0, periods * T, {&log, &samples});
   REQUIRE(summary.status == RunStatus::completed);
   return {log.events, samples.x};
@@ -95,7 +96,7 @@ TEST_CASE("forcing.harmonics: order 1 given there is the scene with forcing.cosi
 
   // The result files too: the same datasets (tools/dev/same_results.py compares whole files).
   const vibro::test::TempDir dir;
-  const std::string run = "run: {kind: simulate, periods: 10}\n";
+  const std::string run = "record: {events: true}\nrun: {kind: simulate, periods: 10}\n";
   const SceneDocument da = SceneDocument::parse(with_forcing(plain, run), "a.yaml");
   const SceneDocument db = SceneDocument::parse(with_forcing(listed, run), "b.yaml");
   REQUIRE(run_scene(da, da.build(), {dir / "a.h5", 1, false, false, 0}).exit_code == 0);
@@ -119,7 +120,8 @@ TEST_CASE("forcing.harmonics: higher orders reach the system, /scene, and choose
     - {order: 2, cosine: [0.1, 0], sine: [0.05, 0]}
 solver: {engine: auto}
 )";
-  const SceneDocument doc = SceneDocument::parse(with_forcing(forcing, "run: {kind: simulate, periods: 5}\n"), "h.yaml");
+  const std::string run = "record: {events: true, poincare: true, samples: {per_period: 50}}\nrun: {kind: simulate, periods: 5}\n";
+  const SceneDocument doc = SceneDocument::parse(with_forcing(forcing, run), "h.yaml");
   const Scene s = doc.build();
   REQUIRE(s.forcing().harmonics.size() == 2);
   CHECK(s.forcing().harmonics[0].order == 3);
@@ -139,6 +141,10 @@ solver: {engine: auto}
   CHECK(r.shape("/scene/harmonic_cosine") == std::vector<std::size_t>{2, 2});
   CHECK(r.read("/scene/harmonic_cosine") == std::vector<double>{0.0, 0.0, 0.1, 0.0});
   CHECK(r.read("/scene/harmonic_sine") == std::vector<double>{0.0, 0.02, 0.05, 0.0});
+  const std::vector<std::size_t> section = r.shape("/poincare/x");  // one state per period
+  REQUIRE(section.size() == 2);
+  CHECK(section[0] >= 5);
+  CHECK(section[1] == 2);
 }
 
 TEST_CASE("forcing.harmonics: the parameter derivative of a harmonic's amplitude", "[scene][harmonics][continue]") {
@@ -201,7 +207,8 @@ TEST_CASE("forcing.harmonics: continuation in a second harmonic's amplitude matc
     const Scene s = at.build_point();
     const double T = s.period();
     const double t_end = t0[i] + 400.0 * T;
-    Simulator sim(s.impact_system(), s.solver);
+    const ImpactSystem system = s.impact_system();  // the simulator keeps a reference
+    Simulator sim(system, s.solver);
     Samples end(std::vector<double>{t_end});
     const RunSummary summary = sim.run(0.0, Eigen::VectorXd::Zero(2), Eigen::VectorXd::Zero(2), t_end, {&end});
     REQUIRE(summary.status == RunStatus::completed);
