@@ -238,9 +238,13 @@ void ContactMode::build_reduced() const {
   red->forcing.constant = N.transpose() * (f.constant - K * P * s0);
   red->forcing.cosine = N.transpose() * (f.cosine - K * P * sc - omega * C * P * ss + w2 * M * P * sc);
   red->forcing.sine = N.transpose() * (f.sine - K * P * ss + omega * C * P * sc + w2 * M * P * ss);
+  // Extra harmonics (system.hpp): the stops move at Ω only, so they enter as Nᵀ f_h.
+  for (const ForcingHarmonic& h : f.harmonics)
+    red->forcing.harmonics.push_back({h.order, N.transpose() * h.cosine, N.transpose() * h.sine});
+  const Eigen::Index extra = 2 * static_cast<Eigen::Index>(f.harmonics.size());
 
-  // T maps [y; y'; c; s; 1] to [x; v; c; s; 1].
-  const Eigen::Index Nf = 2 * n + 3, Nr = 2 * nf + 3;
+  // T maps [y; y'; c; s; 1; c_h; s_h…] to [x; v; c; s; 1; c_h; s_h…].
+  const Eigen::Index Nf = augmented_size(n, f), Nr = augmented_size(nf, f);
   Eigen::MatrixXd T = Eigen::MatrixXd::Zero(Nf, Nr);
   T.block(0, 0, n, nf) = N;
   T.block(n, nf, n, nf) = N;
@@ -249,7 +253,7 @@ void ContactMode::build_reduced() const {
   T.block(0, 2 * nf + 2, n, 1) = P * s0;
   T.block(n, 2 * nf, n, 1) = omega * P * ss;
   T.block(n, 2 * nf + 1, n, 1) = -omega * P * sc;
-  T.block(2 * n, 2 * nf, 3, 3).setIdentity();
+  T.block(2 * n, 2 * nf, 3 + extra, 3 + extra).setIdentity();
   red->to_full = T;
 
   red->flow = std::make_unique<LinearFlow>(
@@ -265,6 +269,10 @@ void ContactMode::build_reduced() const {
     rhs.col(2 * n) = f.cosine;
     rhs.col(2 * n + 1) = f.sine;
     rhs.col(2 * n + 2) = f.constant;
+    for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+      rhs.col(augmented_size(n, h)) = f.harmonics[h].cosine;
+      rhs.col(augmented_size(n, h) + 1) = f.harmonics[h].sine;
+    }
     Eigen::MatrixXd q = minv_w_.transpose() * rhs;  // Wᵀ M⁻¹ (…)
     q.col(2 * n) += w2 * sc;                         // - s'' = Ω² (sc cos + ss sin)
     q.col(2 * n + 1) += w2 * ss;
@@ -327,6 +335,11 @@ void ContactMode::reduce(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
   z(2 * nf) = std::cos(omega * t);
   z(2 * nf + 1) = std::sin(omega * t);
   z(2 * nf + 2) = 1.0;
+  const std::vector<double>& rates = red.flow->harmonic_rates();
+  for (std::size_t h = 0; h < rates.size(); ++h) {
+    z(augmented_size(nf, h)) = std::cos(rates[h] * t);
+    z(augmented_size(nf, h) + 1) = std::sin(rates[h] * t);
+  }
 }
 
 void ContactMode::expand(const Eigen::Ref<const Eigen::VectorXd>& reduced_state, Eigen::Ref<Eigen::VectorXd> full) const {

@@ -26,7 +26,7 @@ Eigen::MatrixXd build_generator(const LinearSystem& sys) {
 Eigen::MatrixXd augmented_generator(const Eigen::MatrixXd& M, const Eigen::MatrixXd& C,
                                     const Eigen::MatrixXd& K, const HarmonicForcing& f) {
   const Eigen::Index n = M.rows();
-  const Eigen::Index N = 2 * n + 3;
+  const Eigen::Index N = augmented_size(n, f);
   Eigen::MatrixXd g = Eigen::MatrixXd::Zero(N, N);
   if (n > 0) {
     const Eigen::LLT<Eigen::MatrixXd> llt(M);
@@ -36,9 +36,20 @@ Eigen::MatrixXd augmented_generator(const Eigen::MatrixXd& M, const Eigen::Matri
     g.block(n, 2 * n, n, 1) = llt.solve(f.cosine);
     g.block(n, 2 * n + 1, n, 1) = llt.solve(f.sine);
     g.block(n, 2 * n + 2, n, 1) = llt.solve(f.constant);
+    for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+      const Eigen::Index c = augmented_size(n, h);  // cos k_h Ωt, then sin k_h Ωt
+      g.block(n, c, n, 1) = llt.solve(f.harmonics[h].cosine);
+      g.block(n, c + 1, n, 1) = llt.solve(f.harmonics[h].sine);
+    }
   }
   g(2 * n, 2 * n + 1) = -f.frequency;
   g(2 * n + 1, 2 * n) = f.frequency;
+  for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+    const Eigen::Index c = augmented_size(n, h);
+    const double w = f.harmonics[h].rate(f.frequency);
+    g(c, c + 1) = -w;
+    g(c + 1, c) = w;
+  }
   return g;
 }
 
@@ -52,6 +63,11 @@ LinearFlow::LinearFlow(Eigen::MatrixXd generator, Eigen::Index dof, double frequ
       method_(Method::exponential),
       condition_(std::numeric_limits<double>::infinity()),
       generator_(std::move(generator)) {
+  // Extra harmonics (flow.hpp): the generator's size gives their number, its rotation blocks
+  // their rates k_h Ω.
+  if (generator_.rows() > augmented_size(dof) && (generator_.rows() - augmented_size(dof)) % 2 == 0)
+    for (Eigen::Index c = augmented_size(dof); c + 1 < generator_.rows(); c += 2)
+      rates_.push_back(generator_(c + 1, c));
   const Eigen::Index N = size();
   if (generator_.rows() != N || generator_.cols() != N)
     throw InvalidInput("flow: generator is " + std::to_string(generator_.rows()) + "x" +
@@ -92,6 +108,7 @@ LinearFlow::LinearFlow(Eigen::MatrixXd generator, Eigen::Index dof, double frequ
         rows = std::max(rows, generator_.row(i).head(n_).cwiseAbs().sum() / position_scale_ +
                                   generator_.row(i).segment(n_, n_).cwiseAbs().sum());
       spectral_radius_ = std::max(rows, std::abs(omega_));
+      for (const double w : rates_) spectral_radius_ = std::max(spectral_radius_, std::abs(w));
     }
     if (options.closed_form && N <= kClosedFormMaxSize) build_schur_clusters(options.max_condition);
     return;
@@ -363,6 +380,11 @@ Eigen::VectorXd LinearFlow::augment(double t, const Eigen::Ref<const Eigen::Vect
   z(2 * n_) = std::cos(omega_ * t);
   z(2 * n_ + 1) = std::sin(omega_ * t);
   z(2 * n_ + 2) = 1.0;
+  for (std::size_t h = 0; h < rates_.size(); ++h) {
+    const Eigen::Index c = augmented_size(n_, h);
+    z(c) = std::cos(rates_[h] * t);
+    z(c + 1) = std::sin(rates_[h] * t);
+  }
   return z;
 }
 

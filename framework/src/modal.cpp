@@ -107,6 +107,9 @@ void BandedChain::validate() const {
   require_finite_vector(forcing.constant, "forcing.constant");
   require_finite_vector(forcing.cosine, "forcing.cosine");
   require_finite_vector(forcing.sine, "forcing.sine");
+  if (!forcing.harmonics.empty())
+    throw InvalidInput("forcing.harmonics: the modal engine takes the first harmonic only (forcing.cosine, "
+                       "forcing.sine); a drive with extra harmonics runs on the dense engine");
   if (!std::isfinite(forcing.frequency) || forcing.frequency < 0.0)
     throw InvalidInput("forcing.frequency: is " + number_text(forcing.frequency) +
                        ": must be a finite number ≥ 0");

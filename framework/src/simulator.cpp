@@ -71,7 +71,7 @@ class DenseAlgebra final : public detail::ContactAlgebra {
       : scene_(scene), modes_(modes), tab_(tables), omega_(scene.system().forcing().frequency) {
     const Eigen::Index n = scene.dof(), m = static_cast<Eigen::Index>(scene.stop_count());
     residual_.resize(n);
-    reduced_state_.resize(2 * n + 3);
+    reduced_state_.resize(augmented_size(n, scene.system().forcing()));
     q_.resize(m);
     G_.resize(m, m);
     lcp_.reserve(m);
@@ -102,6 +102,10 @@ class DenseAlgebra final : public detail::ContactAlgebra {
     residual_.noalias() = -sys.damping() * v;
     residual_.noalias() -= sys.stiffness() * x;
     residual_ += f.constant + f.cosine * c + f.sine * s;
+    for (const ForcingHarmonic& h : f.harmonics) {
+      const double w = h.rate(f.frequency);
+      residual_ += h.cosine * std::cos(w * t) + h.sine * std::sin(w * t);
+    }
     if (engaged_)
       for (int j : *engaged_) residual_ -= tab_.normals.col(j) * compliant_force(j, t, x, v);
     const auto k = static_cast<Eigen::Index>(candidates.size());
@@ -284,6 +288,7 @@ class Simulator::Loop {
     const HarmonicForcing& f = sys_.forcing();
     in_ = {sim_.scale_frequency(), sys_.stiffness().cwiseAbs().maxCoeff(), sys_.mass().cwiseAbs().maxCoeff(),
            f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff()};
+    for (const ForcingHarmonic& h : f.harmonics) in_.fmax += h.cosine.cwiseAbs().maxCoeff() + h.sine.cwiseAbs().maxCoeff();
     return in_;
   }
   void check_scene(const detail::RunScales& /*sc*/, std::vector<std::string>& warnings) const {
@@ -312,9 +317,10 @@ class Simulator::Loop {
     eps_force_ = sc.eps_force;
     rules_ = sc.rules;
     resolution_ = 8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end_), sc.T);
-    // Scratch sized once: the largest reduced state is the full one (2n + 3).
-    for (Eigen::VectorXd* z : {&reduced_state_, &zr_, &z_full_}) z->resize(2 * n + 3);
-    view_scratch_.resize(4 * n + 6);
+    // Scratch sized once: the largest reduced state is the full one (augmented_size).
+    const Eigen::Index N = augmented_size(n, sys_.forcing());
+    for (Eigen::VectorXd* z : {&reduced_state_, &zr_, &z_full_}) z->resize(N);
+    view_scratch_.resize(2 * N);
     tables_ = std::make_unique<StopTables>(scene_);
     algebra_ = std::make_unique<DenseAlgebra>(scene_, sim_.modes_, *tables_);
     work_.reserve(static_cast<Eigen::Index>(scene_.stop_count()), n);

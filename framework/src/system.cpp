@@ -46,7 +46,7 @@ void require_semidefinite(const Eigen::MatrixXd& a, const char* name) {
                        ": the matrix must be positive semi-definite");
 }
 
-void require_vector(const Eigen::VectorXd& v, Eigen::Index n, const char* name) {
+void require_vector(const Eigen::VectorXd& v, Eigen::Index n, const std::string& name) {
   if (v.size() != n)
     throw InvalidInput(std::string("forcing.") + name + ": length is " + std::to_string(v.size()) +
                        ", expected " + std::to_string(n) + " (one entry per degree of freedom)");
@@ -70,7 +70,12 @@ HarmonicForcing HarmonicForcing::zero(Eigen::Index n, double frequency) {
 }
 
 Eigen::VectorXd HarmonicForcing::at(double t) const {
-  return constant + cosine * std::cos(frequency * t) + sine * std::sin(frequency * t);
+  Eigen::VectorXd f = constant + cosine * std::cos(frequency * t) + sine * std::sin(frequency * t);
+  for (const ForcingHarmonic& h : harmonics) {
+    const double w = h.rate(frequency);
+    f += h.cosine * std::cos(w * t) + h.sine * std::sin(w * t);
+  }
+  return f;
 }
 
 LinearSystem::LinearSystem(Eigen::MatrixXd mass, Eigen::MatrixXd damping, Eigen::MatrixXd stiffness,
@@ -103,6 +108,19 @@ LinearSystem::LinearSystem(Eigen::MatrixXd mass, Eigen::MatrixXd damping, Eigen:
   require_vector(forcing_.constant, n, "constant");
   require_vector(forcing_.cosine, n, "cosine");
   require_vector(forcing_.sine, n, "sine");
+  for (std::size_t h = 0; h < forcing_.harmonics.size(); ++h) {
+    const ForcingHarmonic& fh = forcing_.harmonics[h];
+    const std::string who = "harmonics[" + std::to_string(h) + "]";
+    if (fh.order < 2)
+      throw InvalidInput("forcing." + who + ".order: is " + std::to_string(fh.order) +
+                         ": an extra harmonic has order ≥ 2 (order 1 is forcing.cosine and forcing.sine)");
+    for (std::size_t g = 0; g < h; ++g)
+      if (forcing_.harmonics[g].order == fh.order)
+        throw InvalidInput("forcing." + who + ".order: order " + std::to_string(fh.order) +
+                           " is given twice (also harmonics[" + std::to_string(g) + "])");
+    require_vector(fh.cosine, n, (who + ".cosine").c_str());
+    require_vector(fh.sine, n, (who + ".sine").c_str());
+  }
   if (!std::isfinite(forcing_.frequency) || forcing_.frequency < 0.0)
     throw InvalidInput("forcing.frequency: is " + number_text(forcing_.frequency) +
                        ": must be a finite number ≥ 0");

@@ -12,9 +12,11 @@
 /// the setting of Wagg (2004). Stop j acts on mass i = i(j) with side σ = +1 (upper,
 /// x_i ≤ P_j(t)) or σ = -1 (lower, x_i ≥ P_j(t)), where P_j(t) = p + a cos(Ωt + φ).
 ///
-///  * Free flight: x' = v, v' = M⁻¹ (F0 + Fc cos Ωt + Fs sin Ωt - C v - K x), integrated by the
+///  * Free flight: x' = v, v' = M⁻¹ (f(t) - C v - K x), f(t) = F0 + Fc cos Ωt + Fs sin Ωt plus any
+///    extra harmonics Fc_h cos kΩt + Fs_h sin kΩt (their cos kΩt + i sin kΩt taken as the k-th
+///    power of the clock's cos Ωt + i sin Ωt, de Moivre, not from the framework), integrated by the
 ///    11-stage, order-8 Cooper–Verner method (tableau in reference_integrator.hpp) in long double
-///    with a fixed step h, h·ρ = step_rate (ρ = max(|λ(A)|, Ω), A = [0 I; -M⁻¹K -M⁻¹C]). The
+///    with a fixed step h, h·ρ = step_rate (ρ = max(|λ(A)|, k_max Ω), A = [0 I; -M⁻¹K -M⁻¹C]). The
 ///    local error per step is ≈ (hρ)⁹/9! ≈ 5e-18 of the state at step_rate 0.05 (measured in
 ///    test_flow.cpp), so ~4e4 steps accumulate ≲ 2e-13. Measured on the paper's system over
 ///    50 periods (test_simulator.cpp): halving the step from 0.05 moves impact times by ≲ 7e-13
@@ -110,6 +112,13 @@ class ReferenceHybrid {
     fc_ = sys.forcing().cosine.cast<long double>();
     fs_ = sys.forcing().sine.cast<long double>();
     omega_ = sys.forcing().frequency;
+    int top_order = 1;
+    for (const ForcingHarmonic& h : sys.forcing().harmonics) {
+      orders_.push_back(h.order);
+      hc_.push_back(h.cosine.cast<long double>());
+      hs_.push_back(h.sine.cast<long double>());
+      top_order = std::max(top_order, h.order);
+    }
     for (const Stop& s : scene.stops()) {
       if (s.kind == Stop::Kind::between)
         throw std::invalid_argument("reference: only stops on single masses");
@@ -125,7 +134,7 @@ class ReferenceHybrid {
       A.row(n_ + i).tail(n_) = -sys.damping().row(i) / M(i, i);
     }
     const Eigen::EigenSolver<Eigen::MatrixXd> eig(A, false);
-    rate_ = std::max(static_cast<long double>(eig.eigenvalues().cwiseAbs().maxCoeff()), omega_);
+    rate_ = std::max(static_cast<long double>(eig.eigenvalues().cwiseAbs().maxCoeff()), omega_ * top_order);
     if (!(rate_ > 0.0L)) rate_ = 1.0L;
     held_by_.assign(static_cast<std::size_t>(n_), -1);
   }
@@ -243,11 +252,34 @@ class ReferenceHybrid {
     }
   }
 
+  /// (cos kΩt, sin kΩt) = (c + i s)^k for the clock's (c, s) = (cos Ωt, sin Ωt).
+  static std::pair<long double, long double> power(const Clock& k, int order) {
+    long double c = 1.0L, s = 0.0L;
+    for (int q = 0; q < order; ++q) {
+      const long double c1 = c * k.c - s * k.s;
+      s = s * k.c + c * k.s;
+      c = c1;
+    }
+    return {c, s};
+  }
+
+  /// The extra harmonics' force on mass i (derivative 0) or its time derivative (1).
+  long double harmonics_force(const Clock& k, Eigen::Index i, int derivative) const {
+    long double sum = 0.0L;
+    for (std::size_t h = 0; h < orders_.size(); ++h) {
+      const auto [c, s] = power(k, orders_[h]);
+      if (derivative == 0) sum += hc_[h](i) * c + hs_[h](i) * s;
+      else sum += orders_[h] * omega_ * (hs_[h](i) * c - hc_[h](i) * s);
+    }
+    return sum;
+  }
+
   /// F = f(t) - C v - K x, the force on each mass without the stops.
   Vec free_force(const Clock& k, const Vec& xs, const Vec& vs) const {
     Vec F(n_);
     for (Eigen::Index i = 0; i < n_; ++i) {  // plain loops: Eigen's GEMV is slow at n = 2
       long double sum = f0_(i) + fc_(i) * k.c + fs_(i) * k.s;
+      if (!orders_.empty()) sum += harmonics_force(k, i, 0);
       for (Eigen::Index m = 0; m < n_; ++m)
         sum -= damping_(i, m) * vs(m) + stiffness_(i, m) * xs(m);
       F(i) = sum;
@@ -285,7 +317,7 @@ class ReferenceHybrid {
     if (held(j)) {
       // -λ' = -σ (F_i' - m_i P'''),  F' = f' - C a - K v.
       const Vec a = acceleration(k, xs, vs);
-      const long double df = omega_ * (fs_(s.mass) * k.c - fc_(s.mass) * k.s);
+      const long double df = omega_ * (fs_(s.mass) * k.c - fc_(s.mass) * k.s) + harmonics_force(k, s.mass, 1);
       const long double dF = df - damping_.row(s.mass).dot(a) - stiffness_.row(s.mass).dot(vs);
       return -s.side * (dF - mass_(s.mass) * position(j, k, 3));
     }
@@ -448,6 +480,8 @@ class ReferenceHybrid {
   Vec mass_;
   Mat damping_, stiffness_;
   Vec f0_, fc_, fs_;
+  std::vector<int> orders_;   // extra harmonics: k, Fc_h, Fs_h
+  std::vector<Vec> hc_, hs_;
   long double omega_ = 0.0L;
   long double rate_ = 1.0L;
   std::vector<StopData> stops_;

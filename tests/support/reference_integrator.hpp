@@ -6,7 +6,8 @@
 ///    Cooper & Verner (1972, "Some explicit Runge–Kutta methods of high order", SIAM J. Numer.
 ///    Anal. 9(3), 389–405), used with a fixed step, in long double, on
 ///
-///        x' = v,   v' = M⁻¹ (f(t) - C v - K x),   f(t) = F0 + Fc cos Ωt + Fs sin Ωt.
+///        x' = v,   v' = M⁻¹ (f(t) - C v - K x),   f(t) = F0 + Fc cos Ωt + Fs sin Ωt
+///                                                       + Σ_h (Fc_h cos k_hΩt + Fs_h sin k_hΩt).
 ///
 ///    It never forms a matrix exponential nor an eigen-decomposition of the generator, so it
 ///    shares nothing with vibro::LinearFlow but the input matrices.
@@ -108,6 +109,13 @@ class ReferenceIntegrator {
     constant_ = llt.solve(VectorL(system.forcing().constant.cast<long double>()));
     cosine_ = llt.solve(VectorL(system.forcing().cosine.cast<long double>()));
     sine_ = llt.solve(VectorL(system.forcing().sine.cast<long double>()));
+    long double top_rate = omega_;
+    for (const ForcingHarmonic& h : system.forcing().harmonics) {
+      rates_.push_back(static_cast<long double>(h.order) * omega_);
+      harmonic_cosine_.push_back(llt.solve(VectorL(h.cosine.cast<long double>())));
+      harmonic_sine_.push_back(llt.solve(VectorL(h.sine.cast<long double>())));
+      top_rate = std::max(top_rate, rates_.back());
+    }
 
     // ρ = spectral radius of the first-order matrix [0 I; -M⁻¹K -M⁻¹C], and Ω: only used to
     // choose the step, so double precision is plenty.
@@ -116,8 +124,7 @@ class ReferenceIntegrator {
     first_order.bottomLeftCorner(n_, n_) = -stiffness_.cast<double>();
     first_order.bottomRightCorner(n_, n_) = -damping_.cast<double>();
     const Eigen::EigenSolver<Eigen::MatrixXd> eig(first_order, false);
-    rate_ = std::max(static_cast<long double>(eig.eigenvalues().cwiseAbs().maxCoeff()),
-                     static_cast<long double>(omega_));
+    rate_ = std::max(static_cast<long double>(eig.eigenvalues().cwiseAbs().maxCoeff()), top_rate);
 
     for (auto& k : kx_) k.resize(n_);
     for (auto& k : kv_) k.resize(n_);
@@ -144,8 +151,11 @@ class ReferenceIntegrator {
 
   /// M⁻¹ f(t) - M⁻¹C v - M⁻¹K x in long double.
   VectorL acceleration(long double t, const VectorL& x, const VectorL& v) const {
-    return constant_ + cosine_ * std::cos(omega_ * t) + sine_ * std::sin(omega_ * t) -
-           damping_ * v - stiffness_ * x;
+    VectorL a = constant_ + cosine_ * std::cos(omega_ * t) + sine_ * std::sin(omega_ * t) -
+                damping_ * v - stiffness_ * x;
+    for (std::size_t h = 0; h < rates_.size(); ++h)
+      a += harmonic_cosine_[h] * std::cos(rates_[h] * t) + harmonic_sine_[h] * std::sin(rates_[h] * t);
+    return a;
   }
 
  private:
@@ -175,6 +185,8 @@ class ReferenceIntegrator {
   long double rate_ = 0.0L;
   MatrixL stiffness_, damping_;  // M⁻¹K, M⁻¹C
   VectorL constant_, cosine_, sine_;  // M⁻¹F0, M⁻¹Fc, M⁻¹Fs
+  std::vector<long double> rates_;    // extra harmonics: k_h Ω, M⁻¹Fc_h, M⁻¹Fs_h
+  std::vector<VectorL> harmonic_cosine_, harmonic_sine_;
   CooperVerner8 tableau_;
   std::array<VectorL, CooperVerner8::stages> kx_, kv_;
   VectorL xs_, vs_;

@@ -127,6 +127,9 @@ std::string describe_scene(const io::Scene& scene) {
   out += fmt::format("Forcing: Ω = {:.12g}, constant {}, cosine {}, sine {}\n", sys.forcing().frequency,
                      vector_text(sys.forcing().constant), vector_text(sys.forcing().cosine),
                      vector_text(sys.forcing().sine));
+  for (const ForcingHarmonic& h : sys.forcing().harmonics)
+    out += fmt::format("  harmonic {} (at {:.12g}): cosine {}, sine {}\n", h.order, h.rate(sys.forcing().frequency),
+                       vector_text(h.cosine), vector_text(h.sine));
 
   out += stops_text(scene);
 

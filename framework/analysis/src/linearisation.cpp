@@ -248,15 +248,15 @@ class TangentRecorder final : public Observer {
     auto m = std::make_unique<Mode>();
     m->set = S;
     m->generator = mech_.generator(S);
-    m->force_rows = S.empty() ? MatrixXd(0, 2 * n_ + 3) : mech_.force_rows(S);
+    m->force_rows = S.empty() ? MatrixXd(0, mech_.augmented()) : mech_.force_rows(S);
     if (mechp_) {
       m->dgenerator = derivative(mechp_->generator(S));
-      m->dforce_rows = S.empty() ? MatrixXd(0, 2 * n_ + 3) : derivative(mechp_->force_rows(S));
+      m->dforce_rows = S.empty() ? MatrixXd(0, mech_.augmented()) : derivative(mechp_->force_rows(S));
     }
     m->basis = tangent_basis(mech_.normals(S), n_);
     m->flow = std::make_unique<LinearFlow>(m->generator, n_, value_of_omega(), solver_.flow);
     if (options_.features) {
-      const Index N = 2 * n_ + 3, ms = static_cast<Index>(system_.stop_count());
+      const Index N = mech_.augmented(), ms = static_cast<Index>(system_.stop_count());
       const Index h = static_cast<Index>(S.size());
       MatrixXd rows(2 * ms + 2 * h, N);
       for (Index j = 0; j < ms; ++j) {
@@ -300,6 +300,17 @@ class TangentRecorder final : public Observer {
     return mode.flow->size() > 64 && mode.flow->method() == LinearFlow::Method::spectral;
   }
 
+  /// The extra harmonics' part of ∂z(tb)/∂p: d/dp (cos k_hΩt, sin k_hΩt) = k_h t dΩ/dp
+  /// (−sin k_hΩt, cos k_hΩt) (the first harmonic's is written where this is called).
+  void forcing_sensitivity(double tb, double dw, VectorXd& zeta_aug) const {
+    for (std::size_t h = 0; h < mech_.harmonics(); ++h) {
+      const Index c = augmented_size(n_, h);
+      const double wh = mech_.harmonic_rate(h), k = mech_.harmonic_order(h);
+      zeta_aug(c) = -k * tb * std::sin(wh * tb) * dw;
+      zeta_aug(c + 1) = k * tb * std::cos(wh * tb) * dw;
+    }
+  }
+
   /// ζ ← Φ ζ + Ψ z over a segment from the eigen-decomposition Â = V Λ V⁻¹: with B = V⁻¹ dÂ V,
   ///     Ψ = V (B ∘ Δ) V⁻¹,   Δ_ij = ∫₀^τ e^{λ_i (τ − s)} e^{λ_j s} ds = e^{λ_j τ} τ φ₁((λ_i − λ_j) τ),
   /// φ₁(x) = (eˣ − 1)/x (a series near 0): O(N²) per segment instead of a 2N × 2N exponential.
@@ -317,6 +328,7 @@ class TangentRecorder final : public Observer {
     const double w = mech_.frequency(), dw = options_.parameter->frequency;
     zeta_aug(N2) = -tb * std::sin(w * tb) * dw;
     zeta_aug(N2 + 1) = tb * std::cos(w * tb) * dw;
+    forcing_sensitivity(tb, dw, zeta_aug);
     const Eigen::VectorXcd e = (L * tau).array().exp();
     const Eigen::VectorXcd a = W * zeta_aug.cast<std::complex<double>>();
     const Eigen::VectorXcd b = W * zb.cast<std::complex<double>>();
@@ -353,6 +365,7 @@ class TangentRecorder final : public Observer {
         const double w = mech_.frequency(), dw = options_.parameter->frequency;
         zeta_aug(N2) = -tb * std::sin(w * tb) * dw;
         zeta_aug(N2 + 1) = tb * std::cos(w * tb) * dw;
+        forcing_sensitivity(tb, dw, zeta_aug);
         zeta_ = (E.topLeftCorner(N, N) * zeta_aug + E.topRightCorner(N, N) * zb).head(N2);
         if (carries()) K_ = E.topLeftCorner(N2, N2) * K_;
       } else if (carries()) {

@@ -4,15 +4,15 @@
 //
 // With n degrees of freedom and the stops in canonical form (stops.hpp) g_j = w_jᵀx − s_j(t):
 //
-//   forcing      f(t) = F0 + Fc cos Ωt + Fs sin Ωt
+//   forcing      f(t) = F0 + Fc cos Ωt + Fs sin Ωt + Σ_h (Fc_h cos k_hΩt + Fs_h sin k_hΩt)
 //   stop motion  s_j(t) = s0_j + sc_j cos Ωt + ss_j sin Ωt, and its time derivatives
 //   free         a_free = M⁻¹ (f − C v − K x)
 //   held set S   W = [w_j]_{j∈S}, Q = M⁻¹ W, G = Wᵀ Q (Delassus), and from Wᵀ x'' = s''_S:
 //                  λ_S = G⁻¹ (Wᵀ a_free − s''_S)                 (contact forces, contact.hpp)
 //                  a_S = a_free − Q λ_S = Π a_free + Q G⁻¹ s''_S,   Π = I − Q G⁻¹ Wᵀ
 //
-// The constrained generator. With z = [x; v; cos Ωt; sin Ωt; 1] the motion with S held is the
-// linear system z' = Â_S z of size 2n + 3 in the FULL coordinates, whose velocity rows are a_S
+// The constrained generator. With z = [x; v; cos Ωt; sin Ωt; 1; cos k_hΩt; sin k_hΩt …] the motion
+// with S held is the linear system z' = Â_S z of size augmented_size(n, H) in the FULL coordinates, whose velocity rows are a_S
 // written as a linear function of z (flow.hpp has Â_∅). It keeps the constraint manifold
 // {Wᵀx = s(t), Wᵀv = s'(t)} invariant (Wᵀa_S = s''), so on the manifold it is the engine's
 // reduced sticking flow (contact.hpp) in other coordinates, and its tangent map is the one of
@@ -106,6 +106,12 @@ class Mechanics {
     Fc_ = seed(f.cosine, d.cosine);
     Fs_ = seed(f.sine, d.sine);
     omega_ = make(f.frequency, d.frequency);
+    for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+      const ForcingHarmonic& fh = f.harmonics[h];
+      orders_.push_back(fh.order);
+      Hc_.push_back(seed(fh.cosine, h < d.harmonic_cosine.size() ? d.harmonic_cosine[h] : Eigen::VectorXd()));
+      Hs_.push_back(seed(fh.sine, h < d.harmonic_sine.size() ? d.harmonic_sine[h] : Eigen::VectorXd()));
+    }
     llt_.compute(M_);
     add_stops(system.stops(), d);
   }
@@ -169,9 +175,23 @@ class Mechanics {
     using std::cos;
     using std::sin;
     const T c = cos(omega_ * t), s = sin(omega_ * t);
-    if (k == 0) return F0_ + Fc_ * c + Fs_ * s;
-    return omega_ * (Fs_ * c - Fc_ * s);
+    if (orders_.empty()) {
+      if (k == 0) return F0_ + Fc_ * c + Fs_ * s;
+      return omega_ * (Fs_ * c - Fc_ * s);
+    }
+    VecT<T> f = k == 0 ? VecT<T>(F0_ + Fc_ * c + Fs_ * s) : VecT<T>(omega_ * (Fs_ * c - Fc_ * s));
+    for (std::size_t h = 0; h < orders_.size(); ++h) {
+      const T w = harmonic_rate(h), ch = cos(w * t), sh = sin(w * t);
+      f += k == 0 ? VecT<T>(Hc_[h] * ch + Hs_[h] * sh) : VecT<T>(w * (Hs_[h] * ch - Hc_[h] * sh));
+    }
+    return f;
   }
+  /// Extra harmonics (system.hpp): their number and rates k_h Ω.
+  std::size_t harmonics() const { return orders_.size(); }
+  T harmonic_rate(std::size_t h) const { return static_cast<double>(orders_[h]) * omega_; }
+  int harmonic_order(std::size_t h) const { return orders_[h]; }
+  /// The augmented size 2n + 3 + 2H.
+  Eigen::Index augmented() const { return augmented_size(n_, orders_.size()); }
 
   /// w_jᵀ y.
   T normal_dot(int j, const VecT<T>& y) const {
@@ -245,16 +265,21 @@ class Mechanics {
     return a - Q * held_forces(S, a, t);
   }
 
-  /// a_free = B z with B = M⁻¹ [−K, −C, Fc, Fs, F0] (n × (2n + 3); columns x, v, cos, sin, 1).
+  /// a_free = B z with B = M⁻¹ [−K, −C, Fc, Fs, F0, Fc_h, Fs_h …] (n × augmented(); columns x,
+  /// v, cos, sin, 1, then cos, sin of each extra harmonic).
   MatT<T> free_rows() const {
     require_dense("free_rows");
-    MatT<T> X(n_, 2 * n_ + 3);
-    X << -K_, -C_, Fc_, Fs_, F0_;
+    MatT<T> X(n_, augmented());
+    X.leftCols(2 * n_ + 3) << -K_, -C_, Fc_, Fs_, F0_;
+    for (std::size_t h = 0; h < orders_.size(); ++h) {
+      X.col(augmented_size(n_, h)) = Hc_[h];
+      X.col(augmented_size(n_, h) + 1) = Hs_[h];
+    }
     return mass_inverse(X);
   }
-  /// λ_S = L z with L = G⁻¹ (Wᵀ B − Z), Z z = s''_S(t) (|S| × (2n + 3)).
+  /// λ_S = L z with L = G⁻¹ (Wᵀ B − Z), Z z = s''_S(t) (|S| × augmented()).
   MatT<T> force_rows(const ContactSet& S) const {
-    const Eigen::Index n = n_, N = 2 * n + 3;
+    const Eigen::Index n = n_, N = augmented();
     const MatT<T> W = normals(S);
     const MatT<T> G = W.transpose() * mass_inverse(W);
     MatT<T> Z = MatT<T>::Zero(static_cast<Eigen::Index>(S.size()), N);
@@ -269,7 +294,7 @@ class Mechanics {
   VecT<T> gap_row(int j) const {
     const Eigen::Index n = n_;
     const auto J = static_cast<std::size_t>(j);
-    VecT<T> row = VecT<T>::Zero(2 * n + 3);
+    VecT<T> row = VecT<T>::Zero(augmented());
     normal(j).scatter(row.head(n));
     row(2 * n) = -sc_[J];
     row(2 * n + 1) = -ss_[J];
@@ -277,9 +302,9 @@ class Mechanics {
     return row;
   }
 
-  /// Â_S (2n + 3): the motion with S held, in full coordinates (see the file comment).
+  /// Â_S (augmented()): the motion with S held, in full coordinates (see the file comment).
   MatT<T> generator(const ContactSet& S) const {
-    const Eigen::Index n = n_, N = 2 * n + 3;
+    const Eigen::Index n = n_, N = augmented();
     MatT<T> g = MatT<T>::Zero(N, N);
     MatT<T> B = free_rows();
     if (!S.empty()) B -= mass_inverse(normals(S)) * force_rows(S);
@@ -287,6 +312,11 @@ class Mechanics {
     g.middleRows(n, n) = B;
     g(2 * n, 2 * n + 1) = -omega_;
     g(2 * n + 1, 2 * n) = omega_;
+    for (std::size_t h = 0; h < orders_.size(); ++h) {
+      const Eigen::Index c = augmented_size(n, h);
+      g(c, c + 1) = -harmonic_rate(h);
+      g(c + 1, c) = harmonic_rate(h);
+    }
     return g;
   }
 
@@ -423,6 +453,8 @@ class Mechanics {
   T alpha_ = T(0.0), beta_ = T(0.0);
   VecT<T> F0_, Fc_, Fs_;
   T omega_;
+  std::vector<int> orders_;           // extra harmonics (dense form only)
+  std::vector<VecT<T>> Hc_, Hs_;
   Eigen::LLT<MatT<T>> llt_;
   std::vector<SparseNormal> normals_;
   std::vector<T> s0_, sc_, ss_, r_;

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <string>
+#include <tuple>
 
 namespace vibro {
 namespace {
@@ -33,6 +34,9 @@ bool SystemDerivative::is_zero() const {
   if (!zero(mass) || !zero(damping) || !zero(stiffness) || !zero(constant) || !zero(cosine) || !zero(sine))
     return false;
   if (frequency != 0.0) return false;
+  for (const auto* list : {&harmonic_cosine, &harmonic_sine})
+    for (const Eigen::VectorXd& v : *list)
+      if (!zero(v)) return false;
   for (const StopDerivative& s : stops)
     if (s.offset != 0.0 || s.cosine != 0.0 || s.sine != 0.0 || s.restitution != 0.0) return false;
   return true;
@@ -51,6 +55,11 @@ void SystemDerivative::validate(Eigen::Index n, std::size_t m) const {
   check_finite("dF0/dp", constant);
   check_finite("dFc/dp", cosine);
   check_finite("dFs/dp", sine);
+  for (const auto* list : {&harmonic_cosine, &harmonic_sine})
+    for (const Eigen::VectorXd& v : *list) {
+      check_size("dFc_h/dp or dFs_h/dp", v.rows(), v.size() ? 1 : 0, n, 1);
+      check_finite("dFc_h/dp or dFs_h/dp", v);
+    }
   for (const auto* mat : {&mass, &damping, &stiffness}) {
     if (mat->size() == 0) continue;
     const double scale = std::max(mat->cwiseAbs().maxCoeff(), 1e-300);
@@ -80,6 +89,12 @@ SystemDerivative SystemDerivative::combined(double a, const SystemDerivative& o,
   out.constant = mix(constant, o.constant);
   out.cosine = mix(cosine, o.cosine);
   out.sine = mix(sine, o.sine);
+  for (auto [mine, theirs, into] : {std::tuple{&harmonic_cosine, &o.harmonic_cosine, &out.harmonic_cosine},
+                                    std::tuple{&harmonic_sine, &o.harmonic_sine, &out.harmonic_sine}}) {
+    into->resize(std::max(mine->size(), theirs->size()));
+    for (std::size_t h = 0; h < into->size(); ++h)
+      (*into)[h] = mix(h < mine->size() ? (*mine)[h] : Eigen::VectorXd(), h < theirs->size() ? (*theirs)[h] : Eigen::VectorXd());
+  }
   out.frequency = a * frequency + b * o.frequency;
   const std::size_t m = std::max(stops.size(), o.stops.size());
   out.stops.resize(m);

@@ -15,6 +15,12 @@
 ///         ⎢  0       0       Ω        0       0    ⎥
 ///         ⎣  0       0       0        0       0    ⎦
 ///
+/// A drive with extra harmonics of orders k_h ≥ 2 (system.hpp) appends two components per
+/// harmonic, z = [x; v; cos Ωt; sin Ωt; 1; cos k₁Ωt; sin k₁Ωt; …] (N = augmented_size(n, H)
+/// = 2n + 3 + 2H): columns M⁻¹Fc_h, M⁻¹Fs_h in the v rows and a rotation block at rate k_h Ω, the
+/// layout of H = 0 unchanged. The exponential then holds one particular solution per
+/// harmonic (the eigenvalues ±i k_h Ω), exact as above, including resonance with any harmonic.
+///
 /// so that z(t0 + τ) = exp(Â τ) z(t0) exactly, for every damping regime (under-, critically,
 /// over-damped, C = 0, non-proportional C), for singular K (rigid-body modes: a constant force
 /// grows the displacement quadratically, the τ²-term comes out of the Jordan block) and at exact
@@ -94,12 +100,15 @@ class LinearFlow {
 
   explicit LinearFlow(const LinearSystem& system, FlowOptions options = {});
   /// From a generator Â already in the layout above (n may be 0: a fully constrained subsystem
-  /// whose augmented state holds only the forcing oscillator).
+  /// whose augmented state holds only the forcing oscillator); its size tells the number of
+  /// extra harmonics.
   LinearFlow(Eigen::MatrixXd generator, Eigen::Index dof, double frequency, FlowOptions options = {});
 
   Eigen::Index dof() const { return n_; }
-  /// N = 2n + 3, the size of the augmented state.
-  Eigen::Index size() const { return 2 * n_ + 3; }
+  /// N = augmented_size(n, H) = 2n + 3 + 2H, the size of the augmented state.
+  Eigen::Index size() const { return augmented_size(n_, rates_.size()); }
+  /// The extra harmonics' rates k_h Ω (read from the generator's rotation blocks).
+  const std::vector<double>& harmonic_rates() const { return rates_; }
   /// The method in use (never automatic).
   Method method() const { return method_; }
   /// cond₂(V) of Â's eigenvectors; +inf when Â is (numerically) not diagonalisable.
@@ -111,7 +120,7 @@ class LinearFlow {
   /// Index of the first forcing component (cos Ωt) in the augmented state.
   Eigen::Index forcing_offset() const { return 2 * n_; }
 
-  /// z = [x; v; cos Ωt; sin Ωt; 1].
+  /// z = [x; v; cos Ωt; sin Ωt; 1; cos k₁Ωt; sin k₁Ωt; …].
   Eigen::VectorXd augment(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
                           const Eigen::Ref<const Eigen::VectorXd>& v) const;
 
@@ -180,6 +189,7 @@ class LinearFlow {
 
   Eigen::Index n_;
   double omega_;
+  std::vector<double> rates_;  // extra harmonics: k_h Ω
   Method method_;
   double condition_;
   double spectral_radius_ = 0.0;

@@ -54,6 +54,19 @@ std::vector<Dataset> scene_datasets(const Scene& scene) {
   c.push_back(vector_dataset("forcing_constant", f.constant));
   c.push_back(vector_dataset("forcing_cosine", f.cosine));
   c.push_back(vector_dataset("forcing_sine", f.sine));
+  if (!f.harmonics.empty()) {  // extra harmonics (orders ≥ 2): one row each
+    std::vector<std::int64_t> order;
+    std::vector<Eigen::VectorXd> cosine, sine;
+    for (const ForcingHarmonic& h : f.harmonics) {
+      order.push_back(h.order);
+      cosine.push_back(h.cosine);
+      sine.push_back(h.sine);
+    }
+    const auto n = static_cast<std::size_t>(f.constant.size());
+    c.push_back(integers("harmonic_order", std::move(order)));
+    c.push_back(table("harmonic_cosine", cosine, n));
+    c.push_back(table("harmonic_sine", sine, n));
+  }
 
   // Stop names defaulted as in messages (a Scene made in code may leave them empty).
   const std::vector<Stop> stops = validated_stops(scene.stops, scene.dof(), f.frequency);

@@ -82,6 +82,42 @@ void read_model(Reader& r, const YAML::Node& root, SceneParts& p) {
   }
 }
 
+/// `forcing.harmonics` (docs/scenes.md): a list of {order: k, cosine: [...], sine: [...]}, k a
+/// whole number ≥ 1, each order once. Order 1 is the drive's cosine and sine (given here or as
+/// forcing.cosine/sine, not both: the same scene either way, bit for bit); orders ≥ 2 become
+/// HarmonicForcing::harmonics in the order written.
+void read_harmonics(Reader& r, const YAML::Node& fn, long n, HarmonicForcing& f) {
+  const YAML::Node list = fn["harmonics"];
+  r.note(list);
+  if (!list.IsSequence())
+    r.fail(list, "forcing.harmonics", "expected a list of {order, cosine, sine}, found " + describe(list));
+  std::vector<std::pair<long, std::string>> seen;  // order, where
+  for (std::size_t h = 0; h < list.size(); ++h) {
+    const std::string path = "forcing.harmonics[" + std::to_string(h) + "]";
+    const YAML::Node e = list[h];
+    r.expect_map(e, path, {"order", "cosine", "sine"});
+    if (!e["order"]) r.fail(e, path + ".order", "missing: each harmonic needs its order k (a whole number ≥ 1; frequency k × forcing.frequency)");
+    const long order = r.integer(e["order"], path + ".order", 1, 1000000);
+    for (const auto& [k, where] : seen)
+      if (k == order) r.fail(e["order"], path + ".order", "order " + std::to_string(order) + " is given twice (also " + where + ")");
+    Eigen::VectorXd c = Eigen::VectorXd::Zero(n), s = Eigen::VectorXd::Zero(n);
+    if (e["cosine"]) c = to_vector(r.numbers(e["cosine"], path + ".cosine", n, "one amplitude per mass"));
+    if (e["sine"]) s = to_vector(r.numbers(e["sine"], path + ".sine", n, "one amplitude per mass"));
+    if (order == 1) {
+      for (const char* key : {"cosine", "sine"})
+        if (fn[key])
+          r.fail(e["order"], path + ".order", std::string("order 1 is also given by forcing.") + key +
+                                                  ": give the first harmonic in one place");
+      f.cosine = c;
+      f.sine = s;
+      seen.emplace_back(order, path);
+      continue;
+    }
+    seen.emplace_back(order, path);
+    f.harmonics.push_back({static_cast<int>(order), std::move(c), std::move(s)});
+  }
+}
+
 /// `forcing`, and the system it completes: the chain in banded form where its damping allows, the dense system built on demand (model.matrices: now, its errors pointed at the entry they name).
 void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p) {
   auto& n = p.n;
@@ -97,11 +133,12 @@ void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p) {
   // --- forcing ---
   f = HarmonicForcing::zero(n);
   if (const YAML::Node fn = root["forcing"]) {
-    r.expect_map(fn, "forcing", {"frequency", "constant", "cosine", "sine"});
+    r.expect_map(fn, "forcing", {"frequency", "constant", "cosine", "sine", "harmonics"});
     if (fn["frequency"]) f.frequency = r.number_in(fn["frequency"], "forcing.frequency", 0, 1e300, "a frequency ≥ 0 (rad per unit time)");
     if (fn["constant"]) f.constant = to_vector(r.numbers(fn["constant"], "forcing.constant", n, "one force per mass"));
     if (fn["cosine"]) f.cosine = to_vector(r.numbers(fn["cosine"], "forcing.cosine", n, "one amplitude per mass"));
     if (fn["sine"]) f.sine = to_vector(r.numbers(fn["sine"], "forcing.sine", n, "one amplitude per mass"));
+    if (fn["harmonics"]) read_harmonics(r, fn, n, f);
   }
   if (chain_links) {
     models::Chain& c = *chain_links;
@@ -118,6 +155,18 @@ void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p) {
       banded.reset();
       not_banded = e.what();
     }
+    if (!f.harmonics.empty()) {
+      // The modal engine takes the first harmonic only (BandedChain::validate); the dense
+      // system carries the extra ones.
+      banded.reset();
+      not_banded = "forcing.harmonics: a drive with extra harmonics (order ≥ 2) runs on the dense engine";
+      dense = LazySystem(n, f, [c, extra = f.harmonics] {
+        const LinearSystem s = models::build_chain(c);
+        HarmonicForcing g = s.forcing();
+        g.harmonics = extra;
+        return LinearSystem(s.mass(), s.damping(), s.stiffness(), std::move(g));
+      });
+    } else
     dense = LazySystem(n, f, [c] { return models::build_chain(c); });
   } else try {
     dense = LazySystem(LinearSystem(M, C, K, f));
@@ -134,6 +183,8 @@ void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p) {
     for (const char* key : {"constant", "cosine", "sine", "frequency"})
       if (msg.rfind(std::string("forcing.") + key, 0) == 0 && fn && fn[key])
         r.fail(fn[key], std::string("forcing.") + key, msg.substr(msg.find(':') + 2));
+    if (msg.rfind("forcing.harmonics", 0) == 0 && fn && fn["harmonics"])
+      r.fail(fn["harmonics"], "forcing.harmonics", msg.substr(msg.find(':') + 2));
     r.fail(model, "model", msg);
   }
 }
@@ -330,7 +381,9 @@ void check_initial_state(Reader& r, const YAML::Node& root, SceneParts& p) {
       mmax = M.cwiseAbs().maxCoeff();
     }
     const bool forced = f.frequency > 0.0;
-    const double fmax = forced ? f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff() : 0.0;
+    double fmax = forced ? f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff() : 0.0;
+    for (const ForcingHarmonic& h : f.harmonics)
+      if (forced) fmax += h.cosine.cwiseAbs().maxCoeff() + h.sine.cwiseAbs().maxCoeff();
     const double L = run_length_scale(opt, forced ? f.frequency : 1.0, kmax, mmax, fmax, stops, x0,
                                       forced ? v0 : Eigen::VectorXd::Zero(n).eval());
     check_admissible(stops, f.frequency, t0, x0, opt.trigger * L);
@@ -456,6 +509,8 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     reason = "auto: stops[" + std::to_string(general_stop) + "] has a general normal (" + kModalStopsOnly + ")";
   } else if (!chain_links) {
     reason = "auto: model.matrices (the modal engine needs model.chain)";
+  } else if (!p.f.harmonics.empty()) {
+    reason = "auto: forcing.harmonics (extra harmonics run on the dense engine)";
   } else if (!banded) {
     reason = "auto: the chain's damping is not proportional (" + not_banded + ")";
   } else if (!floating.empty()) {

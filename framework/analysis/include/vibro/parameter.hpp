@@ -6,7 +6,7 @@
 /// forcing amplitude, a stop position, a restitution coefficient, a damper, a mass …) enters
 /// through the data of an ImpactSystem:
 ///
-///     D = (M, C, K, F0, Fc, Fs, Ω, and per stop j: s0_j, sc_j, ss_j, r_j),
+///     D = (M, C, K, F0, Fc, Fs, Fc_h, Fs_h of each extra harmonic, Ω, and per stop j: s0_j, sc_j, ss_j, r_j),
 ///
 /// with the stop in canonical form g_j = w_jᵀx − s_j(t), s_j(t) = s0_j + sc_j cos Ωt + ss_j sin Ωt
 /// (stops.hpp; the normals w_j are topology and never move). A SystemDerivative is dD/dp at one
@@ -41,6 +41,9 @@ struct SystemDerivative {
   /// dM/dp, dC/dp, dK/dp (n × n, symmetric), dF0/dp, dFc/dp, dFs/dp (n); empty means zero.
   Eigen::MatrixXd mass, damping, stiffness;
   Eigen::VectorXd constant, cosine, sine;
+  /// dFc_h/dp, dFs_h/dp of the extra harmonics (system.hpp), one per harmonic in the forcing's
+  /// order (n each); a short list or an empty entry means zero.
+  std::vector<Eigen::VectorXd> harmonic_cosine, harmonic_sine;
   double frequency = 0.0;  ///< dΩ/dp
   /// One per stop, in the system's order; empty means zero for every stop.
   std::vector<StopDerivative> stops;

@@ -29,6 +29,7 @@ struct Data {
   Eigen::VectorXd F0, Fc, Fs;
   double omega = 0.0;
   std::vector<std::array<double, 4>> stops;  // s0, sc, ss, r
+  std::vector<Eigen::VectorXd> Hc, Hs;       // extra harmonics (system.hpp)
 };
 
 Data data_of(const Scene& s) {
@@ -36,6 +37,10 @@ Data data_of(const Scene& s) {
   Data d{sys.mass(), sys.damping(), sys.stiffness(), sys.forcing().constant, sys.forcing().cosine, sys.forcing().sine,
          sys.forcing().frequency, {}};
   for (const Stop& st : s.stops) d.stops.push_back({st.s0(), st.s_cos(), st.s_sin(), st.restitution});
+  for (const ForcingHarmonic& h : sys.forcing().harmonics) {
+    d.Hc.push_back(h.cosine);
+    d.Hs.push_back(h.sine);
+  }
   return d;
 }
 
@@ -51,6 +56,10 @@ double largest(const Data& a, const Data& b, double scale) {
   over(a.Fc, b.Fc);
   over(a.Fs, b.Fs);
   m = std::max(m, std::abs(a.omega + scale * b.omega));
+  for (std::size_t h = 0; h < a.Hc.size(); ++h) {
+    over(a.Hc[h], b.Hc[h]);
+    over(a.Hs[h], b.Hs[h]);
+  }
   for (std::size_t j = 0; j < a.stops.size(); ++j)
     for (int i = 0; i < 4; ++i) m = std::max(m, std::abs(a.stops[j][static_cast<std::size_t>(i)] + scale * b.stops[j][static_cast<std::size_t>(i)]));
   return m;
@@ -66,6 +75,10 @@ SystemDerivative difference(const Data& plus, const Data& minus, double h) {
   d.cosine = (plus.Fc - minus.Fc) * k;
   d.sine = (plus.Fs - minus.Fs) * k;
   d.frequency = (plus.omega - minus.omega) * k;
+  for (std::size_t h = 0; h < plus.Hc.size(); ++h) {
+    d.harmonic_cosine.push_back((plus.Hc[h] - minus.Hc[h]) * k);
+    d.harmonic_sine.push_back((plus.Hs[h] - minus.Hs[h]) * k);
+  }
   for (std::size_t j = 0; j < plus.stops.size(); ++j)
     d.stops.push_back({(plus.stops[j][0] - minus.stops[j][0]) * k, (plus.stops[j][1] - minus.stops[j][1]) * k,
                        (plus.stops[j][2] - minus.stops[j][2]) * k, (plus.stops[j][3] - minus.stops[j][3]) * k});
@@ -132,6 +145,10 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
     sum.Fc += minus.Fc;
     sum.Fs += minus.Fs;
     sum.omega += minus.omega;
+    for (std::size_t q = 0; q < sum.Hc.size(); ++q) {
+      sum.Hc[q] += minus.Hc[q];
+      sum.Hs[q] += minus.Hs[q];
+    }
     for (std::size_t j = 0; j < sum.stops.size(); ++j)
       for (std::size_t i = 0; i < 4; ++i) sum.stops[j][i] += minus.stops[j][i];
     if (largest(sum, d0, -2.0) > 64.0 * std::numeric_limits<double>::epsilon() * size)
