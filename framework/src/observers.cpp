@@ -207,12 +207,7 @@ namespace {
 void record_state(const SegmentView& view, double ts, std::vector<double>& t,
                   std::vector<Eigen::VectorXd>& x, std::vector<Eigen::VectorXd>& v) {
   if (ts < view.t_begin()) return;
-  // A dense view's dof() is to_full.rows() / 2 − 1, the DOF only without extra harmonics
-  // (augmented_size): there the mode's coordinates, free plus dependent, count them.
-  Eigen::Index n = view.dof();
-  if (const auto* dense = dynamic_cast<const DenseSegmentView*>(&view))
-    n = static_cast<Eigen::Index>(dense->mode().reduced().free.size() + dense->mode().reduced().dependent.size());
-  Eigen::VectorXd xs(n), vs(n);
+  Eigen::VectorXd xs(view.dof()), vs(view.dof());
   view.state(ts, xs, vs);
   t.push_back(ts);
   x.push_back(std::move(xs));

@@ -96,7 +96,11 @@ class DenseSegmentView final : public SegmentView {
         force_tolerance_(force_tolerance), scratch_(scratch) {}
 
   const ContactMode& mode() const { return *mode_; }
-  Eigen::Index dof() const override { return mode_->reduced().to_full.rows() / 2 - 1; }
+  /// n: the mode's coordinates, free and dependent (to_full's rows also count the forcing's
+  /// harmonics, augmented_size).
+  Eigen::Index dof() const override {
+    return static_cast<Eigen::Index>(mode_->reduced().free.size() + mode_->reduced().dependent.size());
+  }
   const ContactSet& active() const override { return mode_->active(); }
   void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const override;
   /// Times inside (t_begin, t_end) in runs, each by one batched Segment::evaluate; the ends as
