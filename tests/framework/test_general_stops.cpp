@@ -185,6 +185,85 @@ TEST_CASE("a chain in rotated coordinates moves as the chain itself (metamorphic
   CHECK(dt <= 1e-12 * T);
 }
 
+// The three features together, in both frames: a compliant stop with a dashpot (its engage and
+// disengage switches), a rigid stop, and a drive with a 2nd and a 3rd harmonic; rotated, the
+// stops are general normals (the compliant one too) and the harmonics' amplitudes turn with f.
+// The tolerance is the one above, for the same reason; velocities are measured against the
+// fastest motion of the scene, L·ω_s with ω_s = √(k_s / m_min) ≈ 7.1 the engaged spring's
+// frequency (8.8 Ω): while it is engaged the motion oscillates at ω_s, so a rounding-level
+// difference δx of the state comes with δv ≈ ω_s·δx, not Ω·δx.
+TEST_CASE("a compliant stop, a rigid stop and a three-harmonic drive in rotated coordinates (metamorphic)",
+          "[general-stops][compliant][harmonics]") {
+  LinearSystem base = chain_system();
+  vibro::HarmonicForcing f = base.forcing();
+  f.harmonics.push_back({2, (VectorXd(3) << 0.0, 0.4, 0.0).finished(), (VectorXd(3) << 0.1, 0.0, 0.0).finished()});
+  f.harmonics.push_back({3, (VectorXd(3) << 0.0, 0.0, 0.25).finished(), VectorXd::Zero(3)});
+  const LinearSystem sys(base.mass(), base.damping(), base.stiffness(), f);
+  const std::vector<Stop> stops{Stop::lower(0, -0.3, 0.6), Stop::upper(2, 0.25, 1.0).compliant(40.0, 0.3, 0.05)};
+  const ImpactSystem plain(sys, stops);
+  const MatrixXd Q = rotation();
+  vibro::HarmonicForcing g = f;
+  g.constant = Q * f.constant;
+  g.cosine = Q * f.cosine;
+  g.sine = Q * f.sine;
+  for (vibro::ForcingHarmonic& h : g.harmonics) {
+    h.cosine = Q * h.cosine;
+    h.sine = Q * h.sine;
+  }
+  const LinearSystem turned(symmetric(Q * sys.mass() * Q.transpose()), symmetric(Q * sys.damping() * Q.transpose()),
+                            symmetric(Q * sys.stiffness() * Q.transpose()), g);
+  std::vector<Stop> general;
+  for (const Stop& s : stops) {
+    Stop t = Stop::general(Q * s.normal(3), s.s0(), s.restitution);
+    if (s.is_compliant()) t = t.compliant(s.stiffness, s.damping, s.preload);
+    general.push_back(t);
+  }
+  const ImpactSystem rotated(turned, general);
+
+  const double T = 2.0 * std::numbers::pi / 0.8;
+  const double periods = 60.0;
+  std::vector<double> times;
+  for (int i = 1; i <= 60 * 40; ++i) times.push_back(T * i / 40.0);
+  const VectorXd x0 = (VectorXd(3) << 0.1, -0.05, 0.0).finished();
+  const VectorXd v0 = (VectorXd(3) << 0.0, 0.2, -0.1).finished();
+  const double L = 0.3;
+  TimeSamples sa(times, 3), sb(times, 3);
+  const Run a = run(plain, x0, v0, periods * T, &sa, L);
+  const Run b = run(rotated, Q * x0, Q * v0, periods * T, &sb, L);
+  REQUIRE(a.summary.status == RunStatus::completed);
+  REQUIRE(b.summary.status == RunStatus::completed);
+  int impacts = 0, engages = 0;
+  for (const Event& e : a.log.events) {
+    impacts += e.kind == EventKind::impact;
+    engages += e.kind == EventKind::engage;
+  }
+  CHECK(impacts > 10);  // the orbit covers both laws
+  CHECK(engages > 10);
+
+  REQUIRE(a.log.events.size() == b.log.events.size());
+  double dt = 0.0;
+  for (std::size_t e = 0; e < a.log.events.size(); ++e) {
+    CHECK(a.log.events[e].kind == b.log.events[e].kind);
+    CHECK(a.log.events[e].stop == b.log.events[e].stop);
+    dt = std::max(dt, std::abs(a.log.events[e].t - b.log.events[e].t));
+  }
+  double dx = 0.0, dv = 0.0;
+  for (std::size_t i = 0; i < times.size(); ++i) {
+    const auto c = static_cast<Eigen::Index>(i);
+    dx = std::max(dx, (Q.transpose() * sb.x.col(c) - sa.x.col(c)).cwiseAbs().maxCoeff());
+    dv = std::max(dv, (Q.transpose() * sb.v.col(c) - sa.v.col(c)).cwiseAbs().maxCoeff());
+  }
+  WARN("metamorphic, compliant + rigid + 3 harmonics: " << a.log.events.size() << " events (" << impacts
+                                                         << " impacts, " << engages << " engagements), max |Δt| = " << dt
+                                                         << ", max |Δx|/L = " << dx / L << ", max |Δv|/(LΩ) = "
+                                                         << dv / (L * 0.8) << ", max |Δv|/(Lω_s) = "
+                                                         << dv / (L * std::sqrt(40.0 / 0.8)));
+  const double omega_s = std::sqrt(40.0 / 0.8);
+  CHECK(dx <= 1e-12 * L);
+  CHECK(dv <= 1e-12 * L * omega_s);
+  CHECK(dt <= 1e-12 * T);
+}
+
 // A pitch–plunge aerofoil section (plunge h, pitch α about the elastic axis): mass m, static
 // moment S = m x_α b, inertia I_α, springs k_h, k_α, small viscous damping, a harmonic lift and
 // moment, and a freeplay stop at a point a distance l aft: h + l α ≤ p (a general normal
