@@ -90,6 +90,49 @@ Run run(const ImpactSystem& scene, const VectorXd& x0, const VectorXd& v0, doubl
   return r;
 }
 
+/// The system in the coordinates y = Qx: M' = QMQᵀ, C' = QCQᵀ, K' = QKQᵀ, every force term Q f
+/// (the harmonics' too), and each stop wᵀx ≤ s as the general stop (Qw)ᵀy ≤ s, with its law.
+ImpactSystem rotated(const LinearSystem& sys, const std::vector<Stop>& stops, const MatrixXd& Q) {
+  vibro::HarmonicForcing f = sys.forcing();
+  f.constant = Q * f.constant;
+  f.cosine = Q * f.cosine;
+  f.sine = Q * f.sine;
+  for (vibro::ForcingHarmonic& h : f.harmonics) {
+    h.cosine = Q * h.cosine;
+    h.sine = Q * h.sine;
+  }
+  const LinearSystem turned(symmetric(Q * sys.mass() * Q.transpose()), symmetric(Q * sys.damping() * Q.transpose()),
+                            symmetric(Q * sys.stiffness() * Q.transpose()), f);
+  std::vector<Stop> general;
+  for (const Stop& s : stops) {
+    Stop g = Stop::general(Q * s.normal(sys.dof()), s.s0(), s.restitution);
+    if (s.is_compliant()) g = g.compliant(s.stiffness, s.damping, s.preload);
+    general.push_back(g);
+  }
+  return ImpactSystem(turned, general);
+}
+
+/// The largest differences between a run and its rotated twin mapped back (x = Qᵀy): event
+/// times (the event sequences must agree), and the states at the sampled times and the end.
+struct Differences {
+  double t = 0.0, x = 0.0, v = 0.0;
+};
+Differences differences(const Run& a, const Run& b, const TimeSamples& sa, const TimeSamples& sb, const MatrixXd& Q) {
+  Differences d;
+  REQUIRE(a.log.events.size() == b.log.events.size());
+  for (std::size_t e = 0; e < a.log.events.size(); ++e) {
+    CHECK(a.log.events[e].kind == b.log.events[e].kind);
+    CHECK(a.log.events[e].stop == b.log.events[e].stop);
+    d.t = std::max(d.t, std::abs(a.log.events[e].t - b.log.events[e].t));
+  }
+  for (Eigen::Index c = 0; c < sa.x.cols(); ++c) {
+    d.x = std::max(d.x, (Q.transpose() * sb.x.col(c) - sa.x.col(c)).cwiseAbs().maxCoeff());
+    d.v = std::max(d.v, (Q.transpose() * sb.v.col(c) - sa.v.col(c)).cwiseAbs().maxCoeff());
+  }
+  d.x = std::max(d.x, (Q.transpose() * b.summary.x - a.summary.x).cwiseAbs().maxCoeff());
+  return d;
+}
+
 }  // namespace
 
 TEST_CASE("a general stop along ±e_i or e_i − e_k runs bit for bit as its shorthand", "[general-stops]") {
@@ -129,15 +172,7 @@ TEST_CASE("a chain in rotated coordinates moves as the chain itself (metamorphic
   const ImpactSystem plain(sys, stops);
   const MatrixXd Q = rotation();
   REQUIRE((Q * Q.transpose() - MatrixXd::Identity(3, 3)).norm() < 1e-15);
-  vibro::HarmonicForcing f = sys.forcing();
-  f.constant = Q * f.constant;
-  f.cosine = Q * f.cosine;
-  f.sine = Q * f.sine;
-  const LinearSystem turned(symmetric(Q * sys.mass() * Q.transpose()), symmetric(Q * sys.damping() * Q.transpose()),
-                            symmetric(Q * sys.stiffness() * Q.transpose()), f);
-  std::vector<Stop> general;
-  for (const Stop& s : stops) general.push_back(Stop::general(Q * s.normal(3), s.s0(), s.restitution));
-  const ImpactSystem rotated(turned, general);
+  const ImpactSystem turned = rotated(sys, stops, Q);
 
   const double T = 2.0 * std::numbers::pi / 0.8;
   const double periods = 100.0;
@@ -148,7 +183,7 @@ TEST_CASE("a chain in rotated coordinates moves as the chain itself (metamorphic
   const double L = 0.3;
   TimeSamples sa(times, 3), sb(times, 3);
   const Run a = run(plain, x0, v0, periods * T, &sa, L);
-  const Run b = run(rotated, Q * x0, Q * v0, periods * T, &sb, L);
+  const Run b = run(turned, Q * x0, Q * v0, periods * T, &sb, L);
   REQUIRE(a.summary.status == RunStatus::completed);
   REQUIRE(b.summary.status == RunStatus::completed);
   // The orbit the test claims to cover: impacts on both stops, and sticking.
@@ -161,21 +196,7 @@ TEST_CASE("a chain in rotated coordinates moves as the chain itself (metamorphic
   CHECK(hit[0]);
   CHECK(hit[1]);
 
-  REQUIRE(a.log.events.size() == b.log.events.size());
-  double dt = 0.0;
-  for (std::size_t e = 0; e < a.log.events.size(); ++e) {
-    CHECK(a.log.events[e].kind == b.log.events[e].kind);
-    CHECK(a.log.events[e].stop == b.log.events[e].stop);
-    dt = std::max(dt, std::abs(a.log.events[e].t - b.log.events[e].t));
-  }
-  double dx = 0.0, dv = 0.0;
-  for (std::size_t i = 0; i < times.size(); ++i) {
-    dx = std::max(dx, (Q.transpose() * sb.x.col(static_cast<Eigen::Index>(i)) - sa.x.col(static_cast<Eigen::Index>(i)))
-                          .cwiseAbs().maxCoeff());
-    dv = std::max(dv, (Q.transpose() * sb.v.col(static_cast<Eigen::Index>(i)) - sa.v.col(static_cast<Eigen::Index>(i)))
-                          .cwiseAbs().maxCoeff());
-  }
-  dx = std::max(dx, (Q.transpose() * b.summary.x - a.summary.x).cwiseAbs().maxCoeff());
+  const auto [dt, dx, dv] = differences(a, b, sa, sb, Q);
   WARN("metamorphic: " << a.log.events.size() << " events (" << a.summary.impacts << " impacts, " << a.summary.sticks
                        << " sticks, " << a.summary.chatters << " chatter limits, " << a.summary.releases
                        << " releases), max |Δt| = " << dt << " (T = " << T
@@ -202,23 +223,7 @@ TEST_CASE("a compliant stop, a rigid stop and a three-harmonic drive in rotated 
   const std::vector<Stop> stops{Stop::lower(0, -0.3, 0.6), Stop::upper(2, 0.25, 1.0).compliant(40.0, 0.3, 0.05)};
   const ImpactSystem plain(sys, stops);
   const MatrixXd Q = rotation();
-  vibro::HarmonicForcing g = f;
-  g.constant = Q * f.constant;
-  g.cosine = Q * f.cosine;
-  g.sine = Q * f.sine;
-  for (vibro::ForcingHarmonic& h : g.harmonics) {
-    h.cosine = Q * h.cosine;
-    h.sine = Q * h.sine;
-  }
-  const LinearSystem turned(symmetric(Q * sys.mass() * Q.transpose()), symmetric(Q * sys.damping() * Q.transpose()),
-                            symmetric(Q * sys.stiffness() * Q.transpose()), g);
-  std::vector<Stop> general;
-  for (const Stop& s : stops) {
-    Stop t = Stop::general(Q * s.normal(3), s.s0(), s.restitution);
-    if (s.is_compliant()) t = t.compliant(s.stiffness, s.damping, s.preload);
-    general.push_back(t);
-  }
-  const ImpactSystem rotated(turned, general);
+  const ImpactSystem turned = rotated(sys, stops, Q);
 
   const double T = 2.0 * std::numbers::pi / 0.8;
   const double periods = 60.0;
@@ -229,7 +234,7 @@ TEST_CASE("a compliant stop, a rigid stop and a three-harmonic drive in rotated 
   const double L = 0.3;
   TimeSamples sa(times, 3), sb(times, 3);
   const Run a = run(plain, x0, v0, periods * T, &sa, L);
-  const Run b = run(rotated, Q * x0, Q * v0, periods * T, &sb, L);
+  const Run b = run(turned, Q * x0, Q * v0, periods * T, &sb, L);
   REQUIRE(a.summary.status == RunStatus::completed);
   REQUIRE(b.summary.status == RunStatus::completed);
   int impacts = 0, engages = 0;
@@ -240,19 +245,7 @@ TEST_CASE("a compliant stop, a rigid stop and a three-harmonic drive in rotated 
   CHECK(impacts > 10);  // the orbit covers both laws
   CHECK(engages > 10);
 
-  REQUIRE(a.log.events.size() == b.log.events.size());
-  double dt = 0.0;
-  for (std::size_t e = 0; e < a.log.events.size(); ++e) {
-    CHECK(a.log.events[e].kind == b.log.events[e].kind);
-    CHECK(a.log.events[e].stop == b.log.events[e].stop);
-    dt = std::max(dt, std::abs(a.log.events[e].t - b.log.events[e].t));
-  }
-  double dx = 0.0, dv = 0.0;
-  for (std::size_t i = 0; i < times.size(); ++i) {
-    const auto c = static_cast<Eigen::Index>(i);
-    dx = std::max(dx, (Q.transpose() * sb.x.col(c) - sa.x.col(c)).cwiseAbs().maxCoeff());
-    dv = std::max(dv, (Q.transpose() * sb.v.col(c) - sa.v.col(c)).cwiseAbs().maxCoeff());
-  }
+  const auto [dt, dx, dv] = differences(a, b, sa, sb, Q);
   WARN("metamorphic, compliant + rigid + 3 harmonics: " << a.log.events.size() << " events (" << impacts
                                                          << " impacts, " << engages << " engagements), max |Δt| = " << dt
                                                          << ", max |Δx|/L = " << dx / L << ", max |Δv|/(LΩ) = "
