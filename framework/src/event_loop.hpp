@@ -137,7 +137,13 @@ void run_event_loop(Engine& engine, const SimulatorOptions& options, double t0, 
   auto report = [&](double reached) {
     if (options.reached) options.reached->store(reached, std::memory_order_relaxed);
   };
-  const auto interruption = [&] { return "interrupted at t = " + number_text(st.t); };
+  // The search may have reached well past the state kept (a long segment: the start of the
+  // segment, or the last event): say both, so a run that seems to sit at t0 is seen to move.
+  const auto interruption = [&](double reached) {
+    std::string text = "interrupted at t = " + number_text(reached);
+    if (reached > st.t) text += " (the state kept is the one at t = " + number_text(st.t) + ", where the segment began)";
+    return text;
+  };
 
   std::string why_not;
   try {
@@ -158,13 +164,13 @@ void run_event_loop(Engine& engine, const SimulatorOptions& options, double t0, 
       summary.warnings.push_back(stiff_warning(steps, (t_end - t0) / sc.T));
     while (true) {
       report(st.t);
-      if (interrupted()) return finish(RunStatus::interrupted, interruption());
+      if (interrupted()) return finish(RunStatus::interrupted, interruption(st.t));
       const SegmentPlan plan = engine.begin_segment(st, t_end);
       const double span = t_end - st.t;
       Crossing crossing{};
       bool hit = false;
       for (double a = 0.0; a < plan.reach && !hit;) {
-        if (interrupted()) return finish(RunStatus::interrupted, interruption());
+        if (interrupted()) return finish(RunStatus::interrupted, interruption(st.t + a));
         report(st.t + a);
         const double b = std::min(a + plan.step, plan.reach);
         hit = engine.search(a, b, &crossing);

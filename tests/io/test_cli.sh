@@ -185,6 +185,24 @@ EOF
     rm run.txt
     files_are l.h5.partial long.yaml
     ;;
+  signal_in_segment)  # was: "Interrupted at t = 0" after seconds of search in one long segment
+    # Unforced, at rest between two stops: one segment over the whole run, searched step by step.
+    cat > rest.yaml <<EOF
+model: {chain: {masses: [3], left_wall: {spring: 1.4, damper: 0.14}}}
+forcing: {frequency: 1e-9, cosine: [0]}
+stops: [{mass: 0, side: lower, position: -0.2, restitution: 0.9}, {mass: 0, side: upper, position: 0.1, restitution: 0}]
+run: {periods: 2}
+EOF
+    "$vibro" run rest.yaml -o r.h5 2> run.txt &
+    pid=$!
+    sleep 2
+    stop $pid TERM
+    [ $code -eq 130 ] || fail "exit code $code after SIGTERM: $(cat run.txt)"
+    grep -qE "Interrupted at t = [1-9][0-9.e+]* \(the state kept is the one at t = 0, where the segment began\): r.h5 was not written" run.txt ||
+      fail "$(cat run.txt)"
+    rm run.txt
+    files_are rest.yaml
+    ;;
   signal_in_continue)  # was: locate and continue ignored SIGTERM's flag, leaving a .partial behind
     # Steps of 1e-7 over the whole range: hours of continuation, ended only by the signal.
     sed -e 's/^    max_step: .*/    max_step: 1e-7\n    max_points: 1000000/' -e 's/^    step: .*/    step: 1e-7/' \

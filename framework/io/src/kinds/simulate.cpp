@@ -32,11 +32,16 @@ RunReport run_simulation(const Scene& scene, const RunRequest& request) {
                                 scene.period());
     rec = simulate(interruptible, {scene.t0, scene.x0, scene.v0}, progress.reached());
   }
-  if (rec.summary.status == RunStatus::interrupted && !request.in_memory)
-    return {130, fmt::format("Interrupted at t = {:g}: {} was not written (a simulation keeps nothing; only sweeps "
-                             "can be resumed).",
-                             rec.summary.t, request.output),
+  if (rec.summary.status == RunStatus::interrupted && !request.in_memory) {
+    // The frame's message names the time the search reached, which a long segment puts far past
+    // the state kept.
+    std::string what = rec.summary.message.empty() ? fmt::format("interrupted at t = {:g}", rec.summary.t)
+                                                   : rec.summary.message;
+    what[0] = 'I';
+    return {130, fmt::format("{}: {} was not written (a simulation keeps nothing; only sweeps can be resumed).", what,
+                             request.output),
             {}};  // the ResultFile removes its .partial
+  }
   file.write_simulation(rec);
   RunMeta meta = current_meta(1);
   meta.wall_seconds = rec.wall_seconds;
