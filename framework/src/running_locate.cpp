@@ -238,7 +238,11 @@ std::vector<ScanPoint> scan(const EngineFamily& family, const std::vector<double
   Continuation c(family, options);
   std::vector<ScanPoint> points;
   points.push_back(c.at(grid[0], t0, x0, v0, options.first_transient));
-  for (std::size_t i = 1; i < grid.size(); ++i) points.push_back(c.from(points.back(), grid[i]));
+  if (options.on_point) options.on_point(1);
+  for (std::size_t i = 1; i < grid.size(); ++i) {
+    points.push_back(c.from(points.back(), grid[i]));
+    if (options.on_point) options.on_point(i + 1);
+  }
   return points;
 }
 

@@ -11,11 +11,15 @@ DIAGRAM = PAPER + ("run: {kind: diagram, transient_periods: 2, diagram: {path: f
 BASIN = PAPER + ("run: {kind: basin, transient_periods: 1, basin: {parameters: [{path: 'initial.x[0]', "
                  "linspace: [0.0, 0.003, 4]}, {path: 'initial.v[0]', linspace: [0.0, 0.003, 4]}], "
                  "max_period: 2, max_periods: 20}}\n")
+LOCATE = PAPER + ("run: {kind: locate, transient_periods: 20, locate: {path: forcing.frequency, "
+                  "linspace: [0.25, 0.26, 5], max_period: 2, max_periods: 50}}\n")
+ORBIT = PAPER + "run: {kind: orbit, transient_periods: 4000, orbit: {period: 1}}\n"
 SWEEP = PAPER + ("run: {kind: sweep, transient_periods: 0, periods: 1, sweep: {parameters: "
                  "[{path: forcing.frequency, linspace: [0.25, 0.26, 20]}]}}\n")
 LYAPUNOV = PAPER + ("run: {kind: lyapunov, lyapunov: {transient: 1, align: 1, periods: 2, path: forcing.frequency, "
                     "values: [0.25, 0.255, 0.26]}}\n")
-LINE = re.compile(r"^vibro: (\w+) (\d+)/(\d+) points \((\d+) %\), [0-9.e+-]+ points/s, (about \d+ s left|done|time left unknown yet)$")
+LINE = re.compile(r"^vibro: (\w+) (\d+)/(\d+) (?:points|steps) \((\d+) %\), [0-9.e+-]+ (?:points|steps)/s, "
+                  r"(about \d+ s left|done|time left unknown yet)$")
 
 
 def progress_lines(stderr):
@@ -69,3 +73,27 @@ def test_progress_true_shows_the_lines_and_a_failing_callable_stops_the_run(capf
         vibro.sweep(SWEEP, progress=fail, threads=1)
     with pytest.raises(TypeError, match="progress: expected True, False, None or a callable"):
         vibro.diagram(DIAGRAM, progress="yes")
+
+
+def test_locate_counts_grid_points_then_brackets(tmp_path, cli):
+    code, err = cli("run", write(tmp_path, "l.yaml", LOCATE), "-o", "l.h5", "--threads", "1")
+    assert code == 0, err
+    lines = progress_lines(err)
+    # Five grid points, then the four brackets between neighbours: nine steps, one line each
+    # (every step passes a new tenth of nine).
+    assert [(kind, int(done), int(total)) for kind, done, total, _, _ in lines] == [
+        ("locate", d, 9) for d in range(1, 10)]
+    calls = []  # the module samples the progress while it waits: the last call is the end
+    vibro.locate(LOCATE, progress=lambda done, total: calls.append((done, total)))
+    assert calls and calls[-1] == (9, 9) and all(total == 9 for _, total in calls)
+    assert [d for d, _ in calls] == sorted(d for d, _ in calls)
+
+
+def test_orbit_reports_its_transient_in_periods():
+    # The transient is reported by a watcher every 0.25 s: how many calls come depends on the
+    # machine's speed, never what they say (periods done of the transient's 4000, increasing).
+    calls = []
+    r = vibro.orbit(ORBIT, progress=lambda done, total: calls.append((done, total)))
+    assert r.status == "completed"
+    assert all(total == 4000 and 0 <= done <= total for done, total in calls)
+    assert [d for d, _ in calls] == sorted(d for d, _ in calls)

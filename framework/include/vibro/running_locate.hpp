@@ -57,6 +57,7 @@
 ///     for (const vibro::Transition& t : r.transitions) ... t.kind, t.p, t.stop, t.limit
 #include "vibro/running_orbit.hpp"
 
+#include <cstddef>
 #include <functional>
 #include <memory>
 #include <string>
@@ -79,6 +80,8 @@ struct ScanOptions {
   /// A stop's sticking fraction changing by more than this between neighbouring points with the
   /// same signature is searched for a jump (0: never).
   double jump = 0.02;
+  /// Called after each grid point of scan() with the number of points done (may be empty).
+  std::function<void(std::size_t)> on_point;
 
   void validate() const;
 };

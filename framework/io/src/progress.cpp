@@ -96,7 +96,9 @@ SimulationProgress::SimulationProgress(const RunRequest& request, const std::str
   if (on_) watcher_ = std::thread([this] { watch(); });
 }
 
-SimulationProgress::~SimulationProgress() {
+SimulationProgress::~SimulationProgress() { stop(); }
+
+void SimulationProgress::stop() {
   {
     std::lock_guard<std::mutex> hold(lock_);
     done_ = true;

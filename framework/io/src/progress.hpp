@@ -71,6 +71,9 @@ class SimulationProgress {
   SimulationProgress& operator=(const SimulationProgress&) = delete;
   /// Where the engine stores the time it reached (null when nothing is shown).
   std::atomic<double>* reached() { return on_ ? &reached_ : nullptr; }
+  /// Stops reporting (the destructor does it too): an engine may go on storing to reached()
+  /// while the object lives, e.g. shooting after the run this progress was about.
+  void stop();
 
  private:
   void watch();

@@ -4,6 +4,7 @@
 #include "../run_section.hpp"
 
 #include "../datasets.hpp"
+#include "../progress.hpp"
 
 #include "vibro/running_locate.hpp"
 #include "vibro/io/result_file.hpp"
@@ -138,10 +139,14 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
   const std::size_t m = scene.stops.size();
 
   ResultFile file = open_result_file(request, scene, current_meta(request.threads));
+  // Progress in steps: the grid's points one after the other, then the brackets between
+  // neighbours (each a bisection, however many transitions it holds).
+  const std::size_t steps = axis.values.size() - 1;
+  detail::Progress progress(request, "locate", "steps", static_cast<double>(axis.values.size() + steps));
+  options.on_point = [&progress](std::size_t) { progress.add(); };
   const std::vector<ScanPoint> points = scan(family, axis.values, scene.t0, scene.x0, scene.v0, options);
 
   // Bisections between neighbouring grid points are independent: in parallel, gathered in order.
-  const std::size_t steps = points.size() - 1;
   std::vector<std::vector<Transition>> found(steps);
   long orbits = static_cast<long>(points.size());
   std::exception_ptr failure;
@@ -155,6 +160,7 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
   for (std::size_t i = 0; i < steps; ++i) {
     try {
       found[i] = locate_between(family, points[i], points[i + 1], options, &orbits);
+      progress.add();
     } catch (...) {
       const std::lock_guard<std::mutex> hold(lock);
       if (!failure) failure = std::current_exception();

@@ -4,6 +4,7 @@
 #include "../run_section.hpp"
 
 #include "../datasets.hpp"
+#include "../progress.hpp"
 
 #include "vibro/engine.hpp"
 #include "vibro/io/result_file.hpp"
@@ -25,20 +26,25 @@ RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunR
   using detail::reals;
   const auto wall_start = std::chrono::steady_clock::now();
   const OrbitSpec& spec = scene.run.orbit;
+  // The guess: where run.transient_periods from `initial` lead, the long part of the run, shown
+  // in periods (the engine lives on for the shooting, so the progress outlives it).
+  const double T = 2.0 * std::numbers::pi / scene.forcing().frequency;
+  const double t_guess = scene.t0 + scene.run.transient_periods * T;
+  detail::SimulationProgress progress(request, "orbit", scene.t0, t_guess, T);
   Scene built = scene;
   built.solver.interrupt = request.interrupt;
+  built.solver.reached = progress.reached();
   const std::unique_ptr<Engine> engine = make_engine(built);
   ResultFile file = open_result_file(request, scene, current_meta(1));
-
-  // The guess: where run.transient_periods from `initial` lead.
-  const double T = 2.0 * std::numbers::pi / scene.forcing().frequency;
-  const RunSummary guess = engine->run(scene.t0, scene.x0, scene.v0, scene.t0 + scene.run.transient_periods * T);
+  const RunSummary guess = engine->run(scene.t0, scene.x0, scene.v0, t_guess);
+  progress.stop();
   ShootingOptions o;
   o.period = spec.period;
   o.phase = spec.phase;
   o.tolerance = spec.tolerance;
   o.max_iterations = spec.max_iterations;
   o.solver = built.solver;
+  o.solver.reached = nullptr;
   ShootingResult r;
   const bool interrupted_guess = guess.status == RunStatus::interrupted;
   if (guess.status != RunStatus::completed) {
