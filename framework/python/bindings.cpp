@@ -103,6 +103,7 @@ py::dict describe(const vibro::io::Scene& s) {
   record["contacts"] = s.record.contacts;
   record["statistics"] = s.record.statistics;
   record["poincare"] = s.record.poincare;
+  record["impact_map"] = s.record.impact_map;
   record["samples_per_period"] = s.record.samples_per_period;
   record["sample_times"] = s.record.sample_times;
   d["record"] = record;

@@ -269,6 +269,35 @@ void Poincare::segment(const SegmentView& view) {
   }
 }
 
+// --- ImpactMap ---------------------------------------------------------------------------------
+
+void ImpactMap::begin(const RunContext& run, double /*t0*/) {
+  omega_ = run.frequency;
+  last_x_.resize(run.dof);
+  last_v_.resize(run.dof);
+  has_last_ = false;
+}
+
+// The segment's end is where its event happens (the frame reports a segment, then its event):
+// one state per segment, the only work this observer adds.
+void ImpactMap::segment(const SegmentView& view) {
+  last_t_ = view.t_end();
+  view.state(last_t_, last_x_, last_v_);
+  has_last_ = true;
+}
+
+void ImpactMap::event(const Event& e) {
+  if (e.kind != EventKind::impact || !has_last_ || e.t != last_t_) return;
+  t.push_back(e.t);
+  double theta = omega_ > 0.0 ? std::fmod(omega_ * e.t, 2.0 * std::numbers::pi) : 0.0;
+  if (theta < 0.0) theta += 2.0 * std::numbers::pi;
+  phase.push_back(theta);
+  velocity.push_back(e.v_before);
+  stop.push_back(e.stop);
+  x.push_back(last_x_);
+  v.push_back(last_v_);
+}
+
 // --- PeriodStatistics ----------------------------------------------------------------------------
 
 void PeriodStatistics::begin(const RunContext& run, double t0) {

@@ -39,6 +39,7 @@ record:
   contacts: true
   statistics: true
   poincare: true
+  impact_map: true
   samples: {per_period: 50}
 run:
   kind: simulate

@@ -12,7 +12,7 @@
 ///
 /// Provided here: EventLog, ContactLog (contact intervals with the minimum contact force and its
 /// time, the quantity that detects rising), Samples (exact states at requested times), Poincare
-/// (stroboscopic points at the forcing period), PeriodStatistics (sticking proportion of each
+/// (stroboscopic points at the forcing period), ImpactMap (the state before each impact), PeriodStatistics (sticking proportion of each
 /// stop and impacts per forcing period).
 #include "vibro/contact.hpp"
 #include "vibro/events.hpp"
@@ -198,6 +198,29 @@ class Poincare : public Observer {
  private:
   double phase_time_, period_ = 0.0;
   long next_k_ = 0;
+};
+
+/// The impact map: the state just before every impact (of any stop; `stop` says which), the
+/// section that papers in the field plot as forcing phase against impact velocity. The state is
+/// the end of the segment that reaches the impact, from the exact flow; simultaneous impacts
+/// give one row each with the same state. An impact at the run's very start (the initial state
+/// on a stop, approaching it) has no segment before it and no row. Bounces of a chatter are
+/// impacts and have rows; its accumulation point (a chatter limit) is not an impact.
+class ImpactMap : public Observer {
+ public:
+  void begin(const RunContext& run, double t0) override;
+  void segment(const SegmentView& view) override;
+  void event(const Event& e) override;
+  std::vector<double> t;
+  std::vector<double> phase;     ///< Ωt mod 2π in [0, 2π) (0 when unforced)
+  std::vector<double> velocity;  ///< the approach speed g'_j before the impact (Event::v_before)
+  std::vector<int> stop;
+  std::vector<Eigen::VectorXd> x, v;  ///< the state just before
+
+ private:
+  double omega_ = 0.0, last_t_ = 0.0;
+  bool has_last_ = false;
+  Eigen::VectorXd last_x_, last_v_;
 };
 
 /// Per forcing period [t0 + kT, t0 + (k+1)T): time each stop sticks (as a fraction of T) and

@@ -179,7 +179,7 @@ std::vector<char> encode(const Recording& rec) {
   Writing w;
   Encoder& e = w.e;
   e.put(static_cast<std::uint8_t>((rec.events ? 1 : 0) | (rec.contacts ? 2 : 0) | (rec.samples ? 4 : 0) |
-                                  (rec.poincare ? 8 : 0) | (rec.statistics ? 16 : 0)));
+                                  (rec.poincare ? 8 : 0) | (rec.statistics ? 16 : 0) | (rec.impact_map ? 32 : 0)));
   if (rec.events) e.put(rec.events->events);
   if (rec.contacts) e.put(rec.contacts->intervals);
   if (rec.samples) {
@@ -195,6 +195,14 @@ std::vector<char> encode(const Recording& rec) {
   if (rec.statistics) {
     e.put(rec.statistics->sticking_fraction);
     e.put(rec.statistics->impacts);
+  }
+  if (rec.impact_map) {
+    e.put(rec.impact_map->t);
+    e.put(rec.impact_map->phase);
+    e.put(rec.impact_map->velocity);
+    e.put(rec.impact_map->stop);
+    e.put(rec.impact_map->x);
+    e.put(rec.impact_map->v);
   }
   code_summary(w, rec.summary);
   e.put(rec.wall_seconds);
@@ -228,6 +236,15 @@ Recording decode(const std::vector<char>& bytes) {
     PeriodStatistics& statistics = rec.statistics.emplace();
     d.get(statistics.sticking_fraction);
     d.get(statistics.impacts);
+  }
+  if (present & 32) {
+    ImpactMap& map = rec.impact_map.emplace();
+    d.get(map.t);
+    d.get(map.phase);
+    d.get(map.velocity);
+    d.get(map.stop);
+    d.get(map.x);
+    d.get(map.v);
   }
   code_summary(r, rec.summary);
   d.get(rec.wall_seconds);

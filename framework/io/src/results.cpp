@@ -66,6 +66,7 @@ Recording Recording::for_scene(const Scene& scene, double t_start) {
   if (spec.contacts) rec.contacts.emplace();
   if (detail::records_samples(spec)) rec.samples.emplace(sample_times(scene, t_start));
   if (spec.poincare) rec.poincare.emplace(t_start);
+  if (spec.impact_map) rec.impact_map.emplace();
   if (spec.statistics) rec.statistics.emplace();
   return rec;
 }
@@ -76,6 +77,7 @@ std::vector<Observer*> Recording::observers() {
   if (contacts) out.push_back(&*contacts);
   if (samples) out.push_back(&*samples);
   if (poincare) out.push_back(&*poincare);
+  if (impact_map) out.push_back(&*impact_map);
   if (statistics) out.push_back(&*statistics);
   return out;
 }

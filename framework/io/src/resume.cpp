@@ -149,10 +149,13 @@ class CompletedPoints {
         c.name = name;
         c.type = old_.stored_type(path);
         Dims shape, start, count;
-        if (table.ragged) {
-          start = {offset_[group]};
-          shape = count = {table.rows};
-          if (dims.size() != 1 || start[0] + table.rows > dims[0]) return std::nullopt;
+        if (table.ragged) {  // rows along the first axis, each of the trailing shape
+          if (dims.empty() || offset_[group] + table.rows > dims[0]) return std::nullopt;
+          shape = {table.rows};
+          shape.insert(shape.end(), dims.begin() + 1, dims.end());
+          start.assign(dims.size(), 0);
+          start[0] = offset_[group];
+          count = shape;
         } else {
           if (dims.size() < 2 || p >= dims[0] || table.rows > dims[1]) return std::nullopt;
           shape = {table.rows};

@@ -429,11 +429,12 @@ void read_record(Reader& r, const YAML::Node& root, SceneParts& p) {
   auto& rec = p.rec;
   // --- record ---
   if (const YAML::Node rn = root["record"]) {
-    r.expect_map(rn, "record", {"events", "contacts", "statistics", "poincare", "samples"});
+    r.expect_map(rn, "record", {"events", "contacts", "statistics", "poincare", "impact_map", "samples"});
     if (rn["events"]) rec.events = r.boolean(rn["events"], "record.events");
     if (rn["contacts"]) rec.contacts = r.boolean(rn["contacts"], "record.contacts");
     if (rn["statistics"]) rec.statistics = r.boolean(rn["statistics"], "record.statistics");
     if (rn["poincare"]) rec.poincare = r.boolean(rn["poincare"], "record.poincare");
+    if (rn["impact_map"]) rec.impact_map = r.boolean(rn["impact_map"], "record.impact_map");
     if (const YAML::Node sm = rn["samples"]) {
       r.expect_map(sm, "record.samples", {"per_period", "times"});
       if (sm["per_period"] && sm["times"]) r.fail(sm, "record.samples", "give either per_period or times, not both");

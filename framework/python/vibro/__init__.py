@@ -41,7 +41,7 @@ from ._vibro import run_kinds as _run_kinds
 __all__ = ["Scene", "Result", "Group", "run", "read", "run_kinds", "run_function", "shoot", "tangent_map",
            "multipliers", "SceneError", "ResultError", "Interrupted", "__version__"]
 
-_OBSERVERS = ("events", "contacts", "statistics", "poincare")
+_OBSERVERS = ("events", "contacts", "statistics", "poincare", "impact_map")
 
 
 class Interrupted(KeyboardInterrupt):
@@ -543,7 +543,8 @@ def _record(current, given):
         if not isinstance(out, dict):
             raise TypeError(f"record: expected a dict (a record: section), found {given['record']!r}")
     else:
-        out = {k: bool(current[k]) for k in _OBSERVERS}
+        # impact_map only when on: a scene without it keeps the record section it always had.
+        out = {k: bool(current[k]) for k in _OBSERVERS if k != "impact_map" or current[k]}
         if current["samples_per_period"]:
             out["samples"] = {"per_period": current["samples_per_period"]}
         elif current["sample_times"]:

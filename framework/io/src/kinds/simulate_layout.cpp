@@ -15,7 +15,7 @@ namespace detail {
 
 namespace {
 
-constexpr const char* kGroups[] = {"events", "contacts", "samples", "poincare", "stats"};
+constexpr const char* kGroups[] = {"events", "contacts", "samples", "poincare", "impact_map", "stats"};
 
 /// The kinds' names in code order; engage and disengage only for scenes with compliant stops
 /// (a scene without them writes the four rigid kinds, as it always has).
@@ -42,7 +42,9 @@ Table states_table(std::string group, const std::vector<double>& t, const States
 
 }  // namespace
 
-bool is_ragged(const std::string& group) { return group == "events" || group == "contacts"; }
+bool is_ragged(const std::string& group) {
+  return group == "events" || group == "contacts" || group == "impact_map";
+}
 
 /// The groups a recording writes. /stats gets one row per period begun in the recorded span
 /// when the run completed: periods without contact or impact leave no row in the observer and
@@ -99,6 +101,19 @@ std::vector<Table> recorded_tables(const Recording& rec, Eigen::Index dof,
                                                  rec.samples->v, dof));
   if (rec.poincare) tables.push_back(states_table("poincare", rec.poincare->t, rec.poincare->x,
                                                   rec.poincare->v, dof));
+  if (rec.impact_map) {
+    const ImpactMap& map = *rec.impact_map;
+    const std::size_t r = map.t.size();
+    Table table{"impact_map", true, r, {}};
+    table.datasets.push_back(reals("t", map.t, {r}));
+    table.datasets.push_back(integers("stop", std::vector<std::int64_t>(map.stop.begin(), map.stop.end()), {r}, Type::i32));
+    table.datasets.back().labels.emplace_back("stops", stop_names);
+    table.datasets.push_back(reals("phase", map.phase, {r}));
+    table.datasets.push_back(reals("velocity", map.velocity, {r}));
+    table.datasets.push_back(rows_dataset("x", map.x, dof));
+    table.datasets.push_back(rows_dataset("v", map.v, dof));
+    tables.push_back(std::move(table));
+  }
   if (rec.statistics) {
     const PeriodStatistics& s = *rec.statistics;
     const std::size_t m = stop_names.size();
@@ -127,6 +142,7 @@ std::vector<std::string> recorded_groups(const RecordSpec& record) {
   if (record.contacts) groups.push_back("contacts");
   if (records_samples(record)) groups.push_back("samples");
   if (record.poincare) groups.push_back("poincare");
+  if (record.impact_map) groups.push_back("impact_map");
   if (record.statistics) groups.push_back("stats");
   return groups;
 }
@@ -135,10 +151,10 @@ std::vector<std::string> recorded_groups(const RecordSpec& record) {
 
 void ResultFile::Impl::require_groups(const Recording& rec) const {
   const bool expected[] = {record.events, record.contacts, detail::records_samples(record),
-                           record.poincare, record.statistics};
+                           record.poincare, record.impact_map, record.statistics};
   const bool present[] = {rec.events.has_value(), rec.contacts.has_value(),
                           rec.samples.has_value(), rec.poincare.has_value(),
-                          rec.statistics.has_value()};
+                          rec.impact_map.has_value(), rec.statistics.has_value()};
   for (std::size_t g = 0; g < std::size(detail::kGroups); ++g)
     if (expected[g] != present[g])
       throw std::logic_error(std::string("results: the recording ") +

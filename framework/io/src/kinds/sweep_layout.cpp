@@ -99,13 +99,27 @@ void ResultFile::Impl::append_ragged(const Table& table, hsize_t p) const {
       "point", std::vector<std::int64_t>(table.rows, static_cast<std::int64_t>(p)), {table.rows}));
   const hsize_t before = store.exists(group + "/point") ? store.extent(group + "/point")[0] : 0;
   for (const Dataset& c : datasets) {
+    // Rows of one value (t, stop) or of a state (x, v: r × n): concatenated along the first axis.
     const std::string path = group + "/" + c.name;
+    const Dims trailing(c.shape.begin() + 1, c.shape.end());
     if (!store.exists(path)) {
-      store.create_extendible(path, c.type, {before}, {4096});
+      const hsize_t row_size = std::max<hsize_t>(detail::element_count(trailing), 1);
+      Dims dims{before}, chunk{std::max<hsize_t>(4096 / row_size, 1)};
+      for (hsize_t d : trailing) {
+        dims.push_back(d);
+        chunk.push_back(std::max<hsize_t>(d, 1));
+      }
+      store.create_extendible(path, c.type, dims, chunk);
       for (const auto& [attribute, values] : c.labels) store.set_texts(path, attribute, values);
     }
-    store.set_extent(path, {before + table.rows});
-    store.write_block(path, c.type, {before}, {table.rows}, detail::held_values(c));
+    Dims dims{before + table.rows}, start{before}, count{table.rows};
+    for (hsize_t d : trailing) {
+      dims.push_back(d);
+      start.push_back(0);
+      count.push_back(d);
+    }
+    store.set_extent(path, dims);
+    store.write_block(path, c.type, start, count, detail::held_values(c));
   }
   const std::int64_t rows = static_cast<std::int64_t>(table.rows);
   put_row(group + "/rows", Type::i64, {}, p, &rows);

@@ -34,6 +34,7 @@ struct Recording {
   std::optional<ContactLog> contacts;
   std::optional<Samples> samples;
   std::optional<Poincare> poincare;
+  std::optional<ImpactMap> impact_map;
   std::optional<PeriodStatistics> statistics;
   RunSummary summary;
   double wall_seconds = 0.0;

@@ -60,6 +60,7 @@ struct RecordSpec {
   bool contacts = false;
   bool statistics = false;
   bool poincare = false;
+  bool impact_map = false;             ///< the state before every impact (ImpactMap)
   int samples_per_period = 0;          ///< exact samples, evenly spaced in each recorded period
   std::vector<double> sample_times;    ///< or explicit times (relative to the recording start)
 };
