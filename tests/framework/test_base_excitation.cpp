@@ -175,7 +175,7 @@ TEST_CASE("base excitation in relative coordinates, mapped back, is the absolute
   CHECK(dt <= 1e-12 * T);
 }
 
-TEST_CASE("a stop on the base follows the base's one harmonic; more are refused", "[base]") {
+TEST_CASE("a stop on the base follows the base's one harmonic, and more are refused", "[base]") {
   const MatrixXd M = MatrixXd::Identity(2, 2), C = 0.1 * MatrixXd::Identity(2, 2);
   MatrixXd K(2, 2);
   K << 2.0, -1.0, -1.0, 1.0;
