@@ -277,3 +277,45 @@ TEST_CASE("base: continuation in the base amplitude matches brute-force simulati
   }
   CHECK(compared >= 2);
 }
+
+// The shaken impact oscillator of experiments/shaken continued in Ω: the base's drive m Ω² x_b
+// depends on Ω, and the fold continuation locates (where the impacting orbit ends) must be where
+// brute force sees it end. From the fold's orbit, a run at Ω_fold − δ stays on an impacting orbit
+// and one at Ω_fold + δ leaves it for the free one (no impacts in the last 20 periods of 1500).
+// δ = 1e-3 of Ω: near a fold the orbit's distance grows as √δ and the escape takes ∝ 1/√δ
+// periods (a few hundred here), both within reach of the run.
+TEST_CASE("base: the fold of a continuation in Ω is where brute force loses the impacting orbit",
+          "[scene][base][continue]") {
+  const vibro::test::TempDir dir;
+  const SceneDocument doc = SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/shaken/continuation.yaml");
+  const Scene scene = doc.build();
+  const RunReport report = run_scene(doc, scene, {dir / "w.h5", 1, false, false, 0});
+  REQUIRE(report.exit_code == 0);
+  const ResultReader r(dir / "w.h5");
+  const std::vector<std::int64_t> kind = r.read_integers("/bifurcations/kind");
+  const std::vector<double> p = r.read("/bifurcations/p"), t0 = r.read("/bifurcations/t0"),
+                            x = r.read("/bifurcations/x"), v = r.read("/bifurcations/v");
+  int folds = 0;
+  for (std::size_t i = 0; i < kind.size(); ++i) {
+    if (kind[i] != 0) continue;  // 0: fold
+    ++folds;
+    INFO("fold at Ω = " << p[i]);
+    for (double side : {-1.0, 1.0}) {
+      SceneDocument at(doc);
+      at.set("forcing.frequency", p[i] + side * 1e-3);
+      const Scene s = at.build_point();
+      const double T = s.period();
+      const std::unique_ptr<Engine> engine = make_engine(s);
+      EventLog log;
+      const double t_end = t0[i] + 1500.0 * T;
+      const RunSummary summary = engine->run(t0[i], Eigen::VectorXd::Constant(1, x[i]), Eigen::VectorXd::Constant(1, v[i]),
+                                             t_end, {&log});
+      REQUIRE(summary.status == RunStatus::completed);
+      int late = 0;
+      for (const Event& e : log.events) late += e.kind == EventKind::impact && e.t > t_end - 20.0 * T;
+      INFO("side " << side << ": impacts in the last 20 periods " << late);
+      CHECK((side < 0 ? late >= 20 : late == 0));
+    }
+  }
+  CHECK(folds == 1);
+}

@@ -1,6 +1,6 @@
 #pragma once
 // Private to vibro_io: the sections of a scene file (docs/scenes.md), one function each, in the
-// order SceneDocument::build_checked calls them: model, forcing, stops, initial, solver, the
+// order SceneDocument::build_checked calls them: model, forcing (with base), stops, initial, solver, the
 // initial state's check, record, run (scene.cpp: it consults the table of run kinds, whose
 // sections kinds/<name>.cpp read), the engine. Each reads its section of the tree into
 // SceneParts, given what the sections before it resolved, and reports bad input as SceneError
