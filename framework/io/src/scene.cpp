@@ -358,7 +358,7 @@ void detail::read_run(Reader& r, const YAML::Node& root, SceneParts& p) {
 Scene SceneDocument::build_checked(bool check_sweep) const {
   Reader r(impl_->file, impl_->overrides);
   const YAML::Node& root = impl_->root;
-  r.expect_map(root, "", {"name", "model", "forcing", "stops", "initial", "solver", "record", "run"});
+  r.expect_map(root, "", {"name", "model", "forcing", "base", "stops", "initial", "solver", "record", "run"});
   SceneParts p;
   p.doc = this;
   p.full = check_sweep;
@@ -374,7 +374,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   resolve_engine(r, root, p);
   return Scene{impl_->file, impl_->text, root["name"] ? r.text(root["name"], "name") : std::string(),
                std::move(p.dense), std::move(p.banded), std::move(p.stops), p.t0, p.x0, p.v0, p.opt, p.rec, p.run,
-               p.engine_choice, p.engine, p.reason};
+               p.engine_choice, p.engine, p.reason, std::move(p.base)};
 }
 
 }  // namespace vibro::io

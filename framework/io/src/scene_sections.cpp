@@ -140,6 +140,7 @@ void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p) {
     if (fn["sine"]) f.sine = to_vector(r.numbers(fn["sine"], "forcing.sine", n, "one amplitude per mass"));
     if (fn["harmonics"]) read_harmonics(r, fn, n, f);
   }
+  read_base(r, root, p);
   if (chain_links) {
     models::Chain& c = *chain_links;
     auto list = [](const Eigen::VectorXd& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
@@ -159,7 +160,11 @@ void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p) {
       // The modal engine takes the first harmonic only (BandedChain::validate); the dense
       // system carries the extra ones.
       banded.reset();
-      not_banded = "forcing.harmonics: a drive with extra harmonics (order ≥ 2) runs on the dense engine";
+      const YAML::Node fn = root["forcing"];
+      not_banded = fn && fn["harmonics"]
+                       ? "forcing.harmonics: a drive with extra harmonics (order ≥ 2) runs on the dense engine"
+                       : "base.displacement.harmonics: a base motion with harmonics of order ≥ 2 drives the masses with "
+                         "them, and such a drive runs on the dense engine";
       dense = LazySystem(n, f, [c, extra = f.harmonics] {
         const LinearSystem s = models::build_chain(c);
         HarmonicForcing g = s.forcing();
@@ -211,6 +216,7 @@ void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
   auto& n = p.n;
   auto& f = p.f;
   auto& stops = p.stops;
+  std::vector<bool> attached;  // `attached: base` (scene_base.cpp)
   // --- stops ---
   if (const YAML::Node sn = root["stops"]) {
     if (!sn.IsSequence()) r.fail(sn, "stops", "expected a list of stops, found " + describe(sn));
@@ -218,7 +224,7 @@ void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
       const YAML::Node s = sn[j];
       const std::string path = "stops[" + std::to_string(j) + "]";
       r.expect_map(s, path, {"mass", "side", "between", "normal", "position", "gap", "restitution", "amplitude", "phase", "name",
-                                "law", "stiffness", "damping", "preload"});
+                                "law", "stiffness", "damping", "preload", "attached"});
       Stop stop;
       if (s["normal"]) {
         stop = read_general_stop(r, s, path, n);
@@ -271,9 +277,11 @@ void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
       }
       if (s["phase"]) stop.phase = r.number(s["phase"], path + ".phase");
       if (s["name"]) stop.name = r.text(s["name"], path + ".name");
+      attached.push_back(s["attached"] && r.choice(s["attached"], path + ".attached", {"base", "laboratory"}) == "base");
       stops.push_back(stop);
     }
   }
+  move_attached_stops(r, root, p, attached);
   try {
     stops = validated_stops(std::move(stops), n, f.frequency);  // O(m log m), no n × m normals
   } catch (const InvalidInput& e) {
@@ -511,7 +519,9 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
   } else if (!chain_links) {
     reason = "auto: model.matrices (the modal engine needs model.chain)";
   } else if (!p.f.harmonics.empty()) {
-    reason = "auto: forcing.harmonics (extra harmonics run on the dense engine)";
+    reason = root["forcing"] && root["forcing"]["harmonics"]
+                 ? "auto: forcing.harmonics (extra harmonics run on the dense engine)"
+                 : "auto: base.displacement.harmonics (extra harmonics run on the dense engine)";
   } else if (!banded) {
     reason = "auto: the chain's damping is not proportional (" + not_banded + ")";
   } else if (!floating.empty()) {

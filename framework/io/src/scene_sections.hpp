@@ -1,6 +1,6 @@
 #pragma once
 // Private to vibro_io: the sections of a scene file (docs/scenes.md), one function each, in the
-// order SceneDocument::build_checked calls them: model, forcing, stops, initial, solver, the
+// order SceneDocument::build_checked calls them: model, forcing (with base), stops, initial, solver, the
 // initial state's check, record, run (scene.cpp: it consults the table of run kinds, whose
 // sections kinds/<name>.cpp read), the engine. Each reads its section of the tree into
 // SceneParts, given what the sections before it resolved, and reports bad input as SceneError
@@ -8,6 +8,7 @@
 #include "run_section.hpp"
 #include "scene_reader.hpp"
 
+#include "vibro/base_motion.hpp"
 #include "vibro/models/chain.hpp"
 
 #include <functional>
@@ -25,6 +26,7 @@ struct SceneParts {
   Eigen::MatrixXd M, C, K;             ///< model.matrices
   std::optional<models::Chain> chain_links;  ///< model.chain, assembled only on demand
   HarmonicForcing f;
+  std::optional<BaseExcitation> base;  ///< `base`, already added to f (scene_base.cpp)
   LazySystem dense;
   std::optional<BandedChain> banded;
   std::string not_banded;  ///< why a chain is not in banded form (its damping is not proportional)
@@ -44,6 +46,12 @@ struct SceneParts {
 void read_model(Reader& r, const YAML::Node& root, SceneParts& p);
 void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p);
 void read_stops(Reader& r, const YAML::Node& root, SceneParts& p);
+/// `base` (scene_base.cpp): reads the base motion and adds its drive to p.f (called by
+/// read_forcing before the system is built).
+void read_base(Reader& r, const YAML::Node& root, SceneParts& p);
+/// Moves the stops as p.base's frame requires (`stops[j].attached: base`); refuses an attached
+/// stop without a base section.
+void move_attached_stops(Reader& r, const YAML::Node& root, SceneParts& p, const std::vector<bool>& attached);
 void read_initial(Reader& r, const YAML::Node& root, SceneParts& p);
 void read_solver(Reader& r, const YAML::Node& root, SceneParts& p);
 void check_initial_state(Reader& r, const YAML::Node& root, SceneParts& p);

@@ -169,7 +169,19 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
 
 SystemDerivative derivative_at(const Entry& e, const Scene& s) {
   switch (e.kind) {
-    case Entry::Kind::frequency: return SystemDerivative::frequency_only();
+    case Entry::Kind::frequency: {
+      SystemDerivative d = SystemDerivative::frequency_only();
+      if (s.base) {  // the base's drive depends on Ω (ω C ι, ω² M ι): its d/dΩ (base_motion.hpp)
+        const HarmonicForcing rate = base_forcing_rate(s.forcing(), *s.base);
+        d.cosine = rate.cosine;
+        d.sine = rate.sine;
+        for (const ForcingHarmonic& h : rate.harmonics) {
+          d.harmonic_cosine.push_back(h.cosine);
+          d.harmonic_sine.push_back(h.sine);
+        }
+      }
+      return d;
+    }
     case Entry::Kind::phase: {
       // s(t) = s0 + σ a cos(Ωt + φ): d/dφ of (sc, ss) = (σ a cos φ, −σ a sin φ) is (ss, −sc).
       SystemDerivative d;

@@ -24,6 +24,7 @@
 /// builds the dense n × n system only when something asks for it (Scene::system(), cached):
 /// a scene that resolves to the modal engine (solver.engine, docs/scenes.md) is loaded, checked
 /// and run without any n × n matrix. Its stops and initial state are checked in O(n + m log m).
+#include "vibro/base_motion.hpp"
 #include "vibro/engine.hpp"
 #include "vibro/modal.hpp"
 #include "vibro/simulator.hpp"
@@ -220,6 +221,9 @@ struct Scene {
   EngineChoice engine_choice = EngineChoice::automatic;  ///< solver.engine as given
   EngineKind engine = EngineKind::dense;                         ///< as resolved
   std::string engine_reason;  ///< why it resolved so (for `vibro check` and `vibro info`)
+  /// `base`: the support motion, already in the forcing and the stops (base_motion.hpp); the
+  /// state x0, v0 and every result are in its frame.
+  std::optional<BaseExcitation> base;
 
   /// The dense system: built (O(n²) memory, O(n³) checks) and cached on the first call.
   const LinearSystem& system() const { return dense.get(); }
