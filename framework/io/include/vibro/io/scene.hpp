@@ -25,6 +25,7 @@
 /// a scene that resolves to the modal engine (solver.engine, docs/scenes.md) is loaded, checked
 /// and run without any n × n matrix. Its stops and initial state are checked in O(n + m log m).
 #include "vibro/engine.hpp"
+#include "vibro/taylor_simulator.hpp"
 #include "vibro/modal.hpp"
 #include "vibro/simulator.hpp"
 
@@ -167,10 +168,11 @@ struct RunSpec {
 const char* to_string(RunSpec::Kind kind);
 
 /// The engine that runs a scene: the dense Simulator (any M, C, K) or the modal chain engine
-/// (vibro/modal.hpp: M diagonal, K tridiagonal, C = αM + βK; O(n) per event).
-enum class EngineKind { dense, modal };
+/// (vibro/modal.hpp: M diagonal, K tridiagonal, C = αM + βK; O(n) per event), or the Taylor
+/// engine (vibro/taylor_simulator.hpp) for a scene with nonlinear forces.
+enum class EngineKind { dense, modal, taylor };
 /// What `solver.engine` asks for; `automatic` resolves as docs/scenes.md says (Scene::engine).
-enum class EngineChoice { automatic, dense, modal };
+enum class EngineChoice { automatic, dense, modal, taylor };
 const char* to_string(EngineKind engine);
 const char* to_string(EngineChoice choice);
 
@@ -219,6 +221,9 @@ struct Scene {
   EngineChoice engine_choice = EngineChoice::automatic;  ///< solver.engine as given
   EngineKind engine = EngineKind::dense;                         ///< as resolved
   std::string engine_reason;  ///< why it resolved so (for `vibro check` and `vibro info`)
+  /// `parameters` and `forces` (docs/scenes.md): nonlinear forces, run by the Taylor engine
+  /// (taylor_simulator.hpp); empty forces for a linear scene.
+  NonlinearForces forces;
 
   /// The dense system: built (O(n²) memory, O(n³) checks) and cached on the first call.
   const LinearSystem& system() const { return dense.get(); }
