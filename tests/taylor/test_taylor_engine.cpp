@@ -223,3 +223,72 @@ initial: {x: [0.1, 0]}
   CHECK(s.forces.forces[1] == "((c3)*(x0 - x1)^3) + (-0.1*sin(x1))");
   CHECK(s.engine == vibro::io::EngineKind::taylor);
 }
+
+// Cost per forcing period (a quick timing, not a benchmark): ./vibro_tests_taylor_engine "[.report]".
+TEST_CASE("cost per period of the Taylor engine against the dense engine", "[.report]") {
+  auto per_period = [](vibro::Engine& e, const vibro::io::Scene& s, double periods) {
+    const auto start = std::chrono::steady_clock::now();
+    const vibro::RunSummary run = e.run(s.t0, s.x0, s.v0, s.t0 + periods * s.period());
+    const std::chrono::duration<double> took = std::chrono::steady_clock::now() - start;
+    REQUIRE(run.status == vibro::RunStatus::completed);
+    return took.count() / periods * 1e6;
+  };
+  const std::string fig2 = std::string(VIBRO_EXPERIMENTS) + "/wagg2004/fig2_sticking_orbit.yaml";
+  const vibro::io::Scene linear = vibro::io::SceneDocument::load(fig2).build();
+  const vibro::io::Scene linear_taylor =
+      vibro::io::SceneDocument::parse(vibro::io::SceneDocument::load(fig2).text() + "solver: {engine: taylor}\n").build();
+  const vibro::io::Scene duffing =
+      vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/examples/duffing_impact.yaml").build();
+  auto dense = vibro::io::make_engine(linear);
+  auto taylor = vibro::io::make_engine(linear_taylor);
+  auto nonlinear = vibro::io::make_engine(duffing);
+  const double a = per_period(*dense, linear, 400), b = per_period(*taylor, linear_taylor, 400),
+               c = per_period(*nonlinear, duffing, 400);
+  WARN("µs per forcing period: Wagg fig. 2 dense " << a << ", the same on the Taylor engine " << b
+                                                    << "; duffing_impact.yaml (Taylor) " << c);
+}
+
+// Moving stops, a stop along a general normal and a drive with harmonics (what the dense engine
+// takes besides fixed stops): the two-tone example with its stops replaced, forced through the
+// Taylor engine, against the dense engine over 30 periods. Same tolerances and reasons as the
+// seed paper's scene above (the stops' motion and the harmonics enter both as closed forms).
+TEST_CASE("moving stops, a general normal and harmonics agree with the dense engine", "[taylor][engine]") {
+  vibro::io::SceneDocument doc =
+      vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/examples/two_tone_impact.yaml");
+  doc.replace("stops", "[{mass: 0, side: lower, position: -0.3, amplitude: 0.05, phase: 0.4, restitution: 0.7},"
+                       " {normal: [0.6, 0.8], position: 0.15, amplitude: 0.02, restitution: 0.75}]");
+  doc.replace("run", "{kind: simulate}");
+  const vibro::io::Scene scene = doc.build();
+  const vibro::ImpactSystem system = scene.impact_system();
+  REQUIRE(!scene.forcing().harmonics.empty());
+  const double T = scene.period(), t_end = 30.0 * T;
+  vibro::Simulator dense(system, scene.solver);
+  vibro::TaylorSimulator taylor(system, {}, scene.solver);
+  vibro::EventLog de, te;
+  const vibro::RunSummary a = dense.run(0.0, scene.x0, scene.v0, t_end, {&de});
+  const vibro::RunSummary b = taylor.run(0.0, scene.x0, scene.v0, t_end, {&te});
+  REQUIRE(a.status == vibro::RunStatus::completed);
+  INFO(b.message);
+  REQUIRE(b.status == vibro::RunStatus::completed);
+  REQUIRE(a.impacts > 10);
+  REQUIRE(de.events.size() == te.events.size());
+  const double L = a.length_scale, V = a.velocity_scale;
+  double dt_gap = 0.0, dt_rest = 0.0;
+  for (std::size_t i = 0; i < de.events.size(); ++i) {
+    REQUIRE(de.events[i].stop == te.events[i].stop);
+    REQUIRE(de.events[i].kind == te.events[i].kind);
+    const double dt = std::abs(de.events[i].t - te.events[i].t);
+    const double speed = std::max(std::abs(de.events[i].v_before), std::abs(de.events[i].v_after));
+    if (speed > 0.0) dt_gap = std::max(dt_gap, dt * speed / L);
+    else dt_rest = std::max(dt_rest, dt / T);
+  }
+  const double dx = (a.x - b.x).cwiseAbs().maxCoeff() / L, dv = (a.v - b.v).cwiseAbs().maxCoeff() / V;
+  INFO(de.events.size() << " events (" << a.impacts << " impacts, " << a.sticks << " sticks): |dt||g'|/L = " << dt_gap
+                        << ", at rest |dt|/T = " << dt_rest << ", end |dx|/L = " << dx << ", |dv|/V = " << dv);
+  CHECK(dt_gap < 1e-12);
+  CHECK(dt_rest < 1e-13);
+  CHECK(dx < 1e-12);
+  CHECK(dv < 1e-12);
+  WARN("moving and general stops, harmonics: " << de.events.size() << " events, |dt||g'|/L = " << dt_gap
+                                               << ", end |dx|/L = " << dx << ", |dv|/V = " << dv);
+}
