@@ -268,7 +268,8 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
         hit->row = first_row;
         return true;
       }
-      length = cut;
+      // A cut that would not move the time (below its spacing) is no cut: the step goes on.
+      if (cursor_ + cut > cursor_) length = cut;
       const double next = cursor_ + length;
       r.length = next - cursor_;
       for (Eigen::Index i = 0; i < 2 * n_; ++i) z_(i) = horner_compensated(coefficients(r, i), p_, r.length);
