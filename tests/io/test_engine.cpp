@@ -125,7 +125,7 @@ TEST_CASE("a bad solver.engine names the key, the place and why", "[engine]") {
     CHECK(e.path() == "solver.engine");
     CHECK(e.line() == 16);
     CHECK(e.column() == 18);
-    CHECK_THAT(e.problem(), Catch::Contains("expected one of auto, dense, modal, found 'banded'"));
+    CHECK_THAT(e.problem(), Catch::Contains("expected one of auto, dense, modal, taylor, found 'banded'"));
   }
   c.engine = "modal";
   c.damper = "0.03";

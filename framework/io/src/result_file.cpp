@@ -198,6 +198,11 @@ void ResultFile::Impl::write_scene(const Scene& scene) const {
   store.set_text("/scene", "run_kind",
                  to_string(scene.run.kind));
   store.set_real("/scene", "period", scene.period());
+  if (!scene.forces.forces.empty()) {  // only where present: linear scenes' files stay as they were
+    for (std::size_t i = 0; i < scene.forces.forces.size(); ++i)
+      if (!scene.forces.forces[i].empty()) store.set_text("/scene", "force_" + std::to_string(i), scene.forces.forces[i]);
+    for (const auto& [name, value] : scene.forces.parameters) store.set_real("/scene", "parameter_" + name, value);
+  }
   for (const auto& [name, value] : detail::scene_numbers(scene)) store.set_real("/scene", name, value);
   for (const Dataset& c : detail::scene_datasets(scene)) {
     detail::require_finite(store.name(), "/scene/" + c.name, c);

@@ -88,16 +88,25 @@ std::unique_ptr<vibro::Engine> make_engine(const Scene& scene) {
     if (!scene.chain) throw std::logic_error("make_engine: a modal scene without its banded chain");
     return std::make_unique<ModalEngine>(*scene.chain, scene.stops, modal_options(scene.solver));
   }
+  if (scene.engine == EngineKind::taylor) return std::make_unique<TaylorEngine>(scene.impact_system(), scene.forces, scene.solver);
   return std::make_unique<DenseEngine>(scene.impact_system(), scene.solver);
 }
 
-const char* to_string(EngineKind engine) { return engine == EngineKind::modal ? "modal" : "dense"; }
+const char* to_string(EngineKind engine) {
+  switch (engine) {
+    case EngineKind::dense: return "dense";
+    case EngineKind::modal: return "modal";
+    case EngineKind::taylor: return "taylor";
+  }
+  return "?";
+}
 
 const char* to_string(EngineChoice choice) {
   switch (choice) {
     case EngineChoice::automatic: return "auto";
     case EngineChoice::dense: return "dense";
     case EngineChoice::modal: return "modal";
+    case EngineChoice::taylor: return "taylor";
   }
   return "?";
 }
@@ -358,7 +367,8 @@ void detail::read_run(Reader& r, const YAML::Node& root, SceneParts& p) {
 Scene SceneDocument::build_checked(bool check_sweep) const {
   Reader r(impl_->file, impl_->overrides);
   const YAML::Node& root = impl_->root;
-  r.expect_map(root, "", {"name", "model", "forcing", "base", "stops", "initial", "solver", "record", "run"});
+  r.expect_map(root, "", {"name", "model", "forcing", "base", "stops", "initial", "solver", "record", "run", "parameters",
+                          "forces"});
   SceneParts p;
   p.doc = this;
   p.full = check_sweep;
@@ -368,13 +378,15 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   read_initial(r, root, p);
   read_solver(r, root, p);
   check_initial_state(r, root, p);
+  read_forces(r, root, p);
   read_record(r, root, p);
   read_run(r, root, p);
   check_sample_times(r, root, p);  // (with the default run.periods when there is no run section)
   resolve_engine(r, root, p);
-  return Scene{impl_->file, impl_->text, root["name"] ? r.text(root["name"], "name") : std::string(),
-               std::move(p.dense), std::move(p.banded), std::move(p.stops), p.t0, p.x0, p.v0, p.opt, p.rec, p.run,
-               p.engine_choice, p.engine, p.reason, std::move(p.base)};
+  Scene scene{impl_->file, impl_->text, root["name"] ? r.text(root["name"], "name") : std::string(),
+              std::move(p.dense), std::move(p.banded), std::move(p.stops), p.t0, p.x0, p.v0, p.opt, p.rec, p.run,
+              p.engine_choice, p.engine, p.reason, std::move(p.base), std::move(p.forces)};
+  return scene;
 }
 
 }  // namespace vibro::io

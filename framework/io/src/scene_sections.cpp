@@ -350,8 +350,11 @@ void read_solver(Reader& r, const YAML::Node& root, SceneParts& p) {
                                                : ChatterRule::third_order;
     }
     if (sv["engine"]) {
-      const std::string e = r.choice(sv["engine"], "solver.engine", {"auto", "dense", "modal"});
-      engine_choice = e == "dense" ? EngineChoice::dense : e == "modal" ? EngineChoice::modal : EngineChoice::automatic;
+      const std::string e = r.choice(sv["engine"], "solver.engine", {"auto", "dense", "modal", "taylor"});
+      engine_choice = e == "dense"    ? EngineChoice::dense
+                      : e == "modal"  ? EngineChoice::modal
+                      : e == "taylor" ? EngineChoice::taylor
+                                      : EngineChoice::automatic;
     }
   }
 }
@@ -498,7 +501,9 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
   int general_stop = -1;  // the first stop along a general normal, which the modal engine refuses
   for (std::size_t j = 0; j < p.stops.size() && general_stop < 0; ++j)
     if (p.stops[j].kind == Stop::Kind::normal) general_stop = static_cast<int>(j);
-  if (engine_choice == EngineChoice::modal) {
+  if (resolve_taylor_engine(r, root, p)) {
+    // nonlinear forces (or solver.engine: taylor): the Taylor engine, scene_forces.cpp
+  } else if (engine_choice == EngineChoice::modal) {
     auto refuse = [&](const std::string& why) {
       r.fail(engine_node, "solver.engine", "the modal engine cannot run this scene: " + why +
                                                " (use solver.engine: dense or auto)");

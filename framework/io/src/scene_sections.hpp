@@ -10,6 +10,7 @@
 
 #include "vibro/base_motion.hpp"
 #include "vibro/models/chain.hpp"
+#include "vibro/taylor_simulator.hpp"
 
 #include <functional>
 #include <optional>
@@ -31,6 +32,7 @@ struct SceneParts {
   std::optional<BandedChain> banded;
   std::string not_banded;  ///< why a chain is not in banded form (its damping is not proportional)
   std::vector<Stop> stops;
+  NonlinearForces forces;  ///< `parameters` and `forces` (scene_forces.cpp); none: a linear scene
   double t0 = 0.0;
   Eigen::VectorXd x0, v0;
   SimulatorOptions opt;
@@ -59,5 +61,9 @@ void read_record(Reader& r, const YAML::Node& root, SceneParts& p);
 void check_sample_times(Reader& r, const YAML::Node& root, const SceneParts& p);
 void read_run(Reader& r, const YAML::Node& root, SceneParts& p);  // scene.cpp: the run kinds' table
 void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p);
+// scene_forces.cpp: `parameters` and `forces`; the Taylor engine's share of resolve_engine (true:
+// the scene runs on it).
+void read_forces(Reader& r, const YAML::Node& root, SceneParts& p);
+bool resolve_taylor_engine(Reader& r, const YAML::Node& root, SceneParts& p);
 
 }  // namespace vibro::io::detail

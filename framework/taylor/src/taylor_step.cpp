@@ -48,11 +48,47 @@ TaylorStep::TaylorStep(const TaylorSystem& system, TaylorSettings settings)
   aux_.assign(nodes * width, 0.0);
   z_.assign(static_cast<std::size_t>(dim_) * width, 0.0);
   force_k_.resize(system.coordinates());
+  acc_k_.resize(system.coordinates());
   if (settings_.variational) {
     dc_.assign(nodes * dim_ * width, 0.0);  // time-constant nodes' tangents stay 0
     y_.assign(static_cast<std::size_t>(dim_) * dim_ * width, 0.0);
     dforce_k_.resize(system.coordinates(), dim_);
+    dacc_k_.resize(system.coordinates(), dim_);
   }
+}
+
+void TaylorStep::set_terms(const StepTerms& terms) {
+  const int n = system_->coordinates();
+  if (terms.acceleration && (terms.acceleration->rows() != n || terms.acceleration->cols() != p_ + 1))
+    throw std::invalid_argument("StepTerms.acceleration must be n x (p + 1)");
+  if (terms.normals) {
+    const Eigen::Index m = terms.normals->cols();
+    if (!terms.minv_normals || !terms.delassus_inverse || !terms.stop_acceleration || terms.normals->rows() != n ||
+        terms.minv_normals->rows() != n || terms.minv_normals->cols() != m || terms.delassus_inverse->rows() != m ||
+        terms.delassus_inverse->cols() != m || terms.stop_acceleration->rows() != m ||
+        terms.stop_acceleration->cols() != p_ + 1)
+      throw std::invalid_argument("StepTerms: a held set needs W, M^-1 W (n x k), G^-1 (k x k) and p'' (k x (p + 1))");
+    if (lambda_.size() < static_cast<std::size_t>(m) * (p_ + 1)) lambda_.assign(static_cast<std::size_t>(m) * (p_ + 1), 0.0);
+    if (residual_k_.size() < m) {
+      residual_k_.resize(m);
+      lambda_k_.resize(m);
+    }
+    if (settings_.variational && dresidual_k_.rows() < m) dresidual_k_.resize(m, dim_);
+  }
+  terms_ = terms;
+}
+
+StepStatus TaylorStep::rate(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0, Eigen::Ref<Eigen::VectorXd> out) {
+  trouble_.clear();
+  t0_ = t0;
+  for (int i = 0; i < dim_; ++i) zc(i)[0] = z0[i];
+  if (!z0.allFinite()) {
+    trouble_ = "the state is not finite at t = " + number(t0);
+    return StepStatus::not_finite;
+  }
+  if (!compute_order(0)) return StepStatus::domain_error;
+  for (int i = 0; i < dim_; ++i) out[i] = zc(i)[1];
+  return out.allFinite() ? StepStatus::ok : StepStatus::not_finite;
 }
 
 const double* TaylorStep::guard_coefficients(int g) const {
@@ -211,9 +247,8 @@ bool TaylorStep::compute_order(int k) {
       }
     }
   }
-  if (k == p_) return true;
-
-  // z_[k+1] = f_[k] / (k + 1), the linear part applied to the k-th coefficients.
+  // z_[k+1] = f_[k] / (k + 1), the linear part applied to the k-th coefficients, then the
+  // supplied terms (StepTerms): the time series and the held stops' constraint.
   const int n = system_->coordinates();
   const Eigen::MatrixXd& ax = system_->position_matrix();
   const Eigen::MatrixXd& av = system_->velocity_matrix();
@@ -224,21 +259,46 @@ bool TaylorStep::compute_order(int k) {
   for (int i = 0; i < n; ++i) {
     double a = 0.0;
     for (int j = 0; j < n; ++j) a += ax(i, j) * zc(j)[k] + av(i, j) * zc(n + j)[k] + minv(i, j) * force_k_[j];
+    acc_k_[i] = terms_.acceleration ? a + (*terms_.acceleration)(i, k) : a;
+  }
+  const bool held = terms_.normals != nullptr;
+  if (held) {  // λ_[k] = G⁻¹ (Wᵀ a_[k] − p̈_[k]);  a_[k] −= M⁻¹W λ_[k]
+    const Eigen::Index m = terms_.normals->cols();
+    auto r = residual_k_.head(m);
+    auto l = lambda_k_.head(m);
+    r.noalias() = terms_.normals->transpose() * acc_k_;
+    r -= terms_.stop_acceleration->col(k);
+    l.noalias() = *terms_.delassus_inverse * r;
+    acc_k_.noalias() -= *terms_.minv_normals * l;
+    for (Eigen::Index a = 0; a < m; ++a) lambda_[static_cast<std::size_t>(a) * (p_ + 1) + k] = l(a);
+  }
+  if (k == p_) return true;
+  for (int i = 0; i < n; ++i) {
     zc(i)[k + 1] = zc(n + i)[k] * scale;
-    zc(n + i)[k + 1] = a * scale;
+    zc(n + i)[k + 1] = acc_k_[i] * scale;
   }
   if (tangents) {
     for (int i = 0; i < n; ++i)
       for (int d = 0; d < dim_; ++d) dforce_k_(i, d) = forces[i] >= 0 ? dc(forces[i], d)[k] : 0.0;
-    for (int i = 0; i < n; ++i) {
+    for (int i = 0; i < n; ++i)
       for (int d = 0; d < dim_; ++d) {
         double a = 0.0;
         for (int j = 0; j < n; ++j)
           a += ax(i, j) * yc(j, d)[k] + av(i, j) * yc(n + j, d)[k] + minv(i, j) * dforce_k_(j, d);
-        yc(i, d)[k + 1] = yc(n + i, d)[k] * scale;
-        yc(n + i, d)[k + 1] = a * scale;
+        dacc_k_(i, d) = a;
       }
+    if (held) {  // the same projection on the tangents (p̈ does not depend on the state)
+      const Eigen::Index m = terms_.normals->cols();
+      auto r = dresidual_k_.topRows(m);
+      r.noalias() = terms_.normals->transpose() * dacc_k_;
+      const Eigen::MatrixXd l = *terms_.delassus_inverse * r;
+      dacc_k_.noalias() -= *terms_.minv_normals * l;
     }
+    for (int i = 0; i < n; ++i)
+      for (int d = 0; d < dim_; ++d) {
+        yc(i, d)[k + 1] = yc(n + i, d)[k] * scale;
+        yc(n + i, d)[k + 1] = dacc_k_(i, d) * scale;
+      }
   }
   return true;
 }
@@ -333,8 +393,9 @@ void TaylorStep::transition(double tau, Eigen::Ref<Eigen::MatrixXd> out) const {
     }
 }
 
-double TaylorStep::guard_remainder(int g, double tau_max) const {
-  const double* a = guard_coefficients(g);
+double TaylorStep::guard_remainder(int g, double tau_max) const { return remainder(guard_coefficients(g), tau_max); }
+
+double TaylorStep::remainder(const double* a, double tau_max) const {
   const double h = std::min(h_, tau_max);
   // Rounding of the polynomial's evaluation: 4(p + 1) u Σ |g_k| h^k.
   double absolute_sum = 0.0, power = 1.0;

@@ -26,6 +26,7 @@
 /// and run without any n × n matrix. Its stops and initial state are checked in O(n + m log m).
 #include "vibro/base_motion.hpp"
 #include "vibro/engine.hpp"
+#include "vibro/taylor_simulator.hpp"
 #include "vibro/modal.hpp"
 #include "vibro/simulator.hpp"
 
@@ -169,10 +170,11 @@ struct RunSpec {
 const char* to_string(RunSpec::Kind kind);
 
 /// The engine that runs a scene: the dense Simulator (any M, C, K) or the modal chain engine
-/// (vibro/modal.hpp: M diagonal, K tridiagonal, C = αM + βK; O(n) per event).
-enum class EngineKind { dense, modal };
+/// (vibro/modal.hpp: M diagonal, K tridiagonal, C = αM + βK; O(n) per event), or the Taylor
+/// engine (vibro/taylor_simulator.hpp) for a scene with nonlinear forces.
+enum class EngineKind { dense, modal, taylor };
 /// What `solver.engine` asks for; `automatic` resolves as docs/scenes.md says (Scene::engine).
-enum class EngineChoice { automatic, dense, modal };
+enum class EngineChoice { automatic, dense, modal, taylor };
 const char* to_string(EngineKind engine);
 const char* to_string(EngineChoice choice);
 
@@ -224,6 +226,9 @@ struct Scene {
   /// `base`: the support motion, already in the forcing and the stops (base_motion.hpp); the
   /// state x0, v0 and every result are in its frame.
   std::optional<BaseExcitation> base;
+  /// `parameters` and `forces` (docs/scenes.md): nonlinear forces, run by the Taylor engine
+  /// (taylor_simulator.hpp); empty forces for a linear scene.
+  NonlinearForces forces;
 
   /// The dense system: built (O(n²) memory, O(n³) checks) and cached on the first call.
   const LinearSystem& system() const { return dense.get(); }

@@ -99,6 +99,26 @@ struct TaylorSettings {
   void validate() const;
 };
 
+/// Terms of z' that an event loop supplies per step besides the system's (taylor_simulator.hpp):
+///
+///   - `acceleration` (n × (p + 1), optional): a series a_t(τ) that depends on time only, added
+///     to v' (a harmonic drive M⁻¹ f(t), whose coefficients are known in closed form);
+///   - a held set of k stops (all four optional together): v' is the constrained acceleration
+///
+///         a = a_free − M⁻¹W λ,   λ = G⁻¹ (Wᵀ a_free − p̈(t)),   G = Wᵀ M⁻¹ W,
+///
+///     the Gauss principle of a bilateral constraint Wᵀx = p(t) (Wᵀa = p̈ exactly), applied
+///     order by order: a_free's k-th coefficient is linear in the k-th coefficients of z and of
+///     the forces, so λ's k-th coefficient follows from it with the same constant matrices. λ
+///     (the contact forces, whose sign change is a release) is kept as a series too.
+struct StepTerms {
+  const Eigen::MatrixXd* acceleration = nullptr;       ///< n × (p + 1)
+  const Eigen::MatrixXd* normals = nullptr;            ///< W, n × k
+  const Eigen::MatrixXd* minv_normals = nullptr;       ///< M⁻¹W, n × k
+  const Eigen::MatrixXd* delassus_inverse = nullptr;   ///< G⁻¹, k × k
+  const Eigen::MatrixXd* stop_acceleration = nullptr;  ///< p̈'s series, k × (p + 1)
+};
+
 enum class StepStatus {
   ok,
   domain_error,  ///< an operation left its domain at the step's start (log of ≤ 0, division by 0, …)
@@ -112,6 +132,17 @@ class TaylorStep {
 
   /// Computes the series at (t0, z0) and chooses the step size.
   StepStatus expand(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0);
+  /// The terms of StepTerms (pointers kept: the matrices must outlive the expand() calls that
+  /// use them). Default: none.
+  void set_terms(const StepTerms& terms);
+  /// z'(t₀) only (the series' order 0): cheaper than expand() where a rate is all that is needed
+  /// (the accelerations at an event). `out` has size 2n.
+  StepStatus rate(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0, Eigen::Ref<Eigen::VectorXd> out);
+  /// The a-th held stop's contact force λ_a's coefficients λ_[0…p] (StepTerms).
+  const double* force_coefficients(int a) const { return &lambda_[static_cast<std::size_t>(a) * (p_ + 1)]; }
+  /// Bound on the remainder of any series of the step (its coefficients, p + 1 of them) over
+  /// [0, min(h, tau_max)], as guard_remainder.
+  double remainder(const double* coefficients, double tau_max = std::numeric_limits<double>::infinity()) const;
   /// Why the last expand() failed ("log(x0): argument 0 at t = 1.5").
   const std::string& trouble() const { return trouble_; }
 
@@ -157,6 +188,10 @@ class TaylorStep {
   Eigen::VectorXd force_k_;   // M⁻¹ F_[k] scratch
   Eigen::MatrixXd dforce_k_;  // n × 2n scratch
   std::string trouble_;
+  StepTerms terms_;
+  std::vector<double> lambda_;                  // k × (p + 1), the held stops' forces
+  Eigen::VectorXd acc_k_, residual_k_, lambda_k_;  // scratch
+  Eigen::MatrixXd dacc_k_, dresidual_k_;
 };
 
 /// Integrates from (t0, z0) to t1 ≥ t0 by successive steps (the last one shortened to end at t1;

@@ -1,0 +1,636 @@
+#include "vibro/taylor_simulator.hpp"
+
+#include "event_loop.hpp"
+
+#include "vibro/taylor/guard_roots.hpp"
+#include "vibro/taylor/taylor_step.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <stdexcept>
+
+namespace vibro {
+namespace {
+
+/// Coefficients of cos(w (t0 + τ)) and sin(w (t0 + τ)) in τ up to order `order`: the k-th
+/// derivatives cycle through (cos, −sin, −cos, sin) and (sin, cos, −sin, −cos), times w^k/k!.
+void harmonic_series(double w, double t0, int order, double* c, double* s) {
+  const double C = std::cos(w * t0), S = std::sin(w * t0);
+  double f = 1.0;
+  for (int k = 0; k <= order; ++k) {
+    switch (k % 4) {
+      case 0: c[k] = f * C; s[k] = f * S; break;
+      case 1: c[k] = -f * S; s[k] = f * C; break;
+      case 2: c[k] = -f * C; s[k] = -f * S; break;
+      default: c[k] = f * S; s[k] = -f * C; break;
+    }
+    f *= w / (k + 1);
+  }
+}
+
+/// Σ a_k τ^k by compensated Horner (as TaylorStep::state): the state to the coefficients' own
+/// rounding.
+double horner_compensated(const double* a, int p, double tau) {
+  double s = a[p], c = 0.0;
+  for (int k = p - 1; k >= 0; --k) {
+    const double product = s * tau;
+    const double product_error = std::fma(s, tau, -product);
+    const double sum = product + a[k];
+    const double virtual_a = sum - product;
+    const double sum_error = (product - (sum - virtual_a)) + (a[k] - virtual_a);
+    c = c * tau + (product_error + sum_error);
+    s = sum;
+  }
+  return s + c;
+}
+double horner(const double* a, int p, double tau) {
+  double s = a[p];
+  for (int k = p - 1; k >= 0; --k) s = s * tau + a[k];
+  return s;
+}
+double horner_slope(const double* a, int p, double tau) {
+  double s = p * a[p];
+  for (int k = p - 1; k >= 1; --k) s = s * tau + k * a[k];
+  return s;
+}
+
+/// The stops' tables (per run): normals W, M⁻¹W, G = WᵀM⁻¹W, the stops' motion, and the
+/// chatter rule's coefficients of the linear part (as the dense engine's, simulator.cpp).
+struct TaylorTables {
+  Eigen::MatrixXd normals, minv_normals, delassus, damped_normals, stiff_normals, minv_damping;
+  Eigen::VectorXd s0, sc, ss, alpha, beta;
+
+  explicit TaylorTables(const ImpactSystem& scene) {
+    const LinearSystem& sys = scene.system();
+    const auto m = static_cast<Eigen::Index>(scene.stop_count());
+    const Eigen::Index n = sys.dof();
+    const Eigen::LLT<Eigen::MatrixXd> llt(sys.mass());
+    normals = scene.normals();
+    minv_normals = m > 0 ? Eigen::MatrixXd(llt.solve(normals)) : Eigen::MatrixXd(n, 0);
+    const Eigen::MatrixXd g = m > 0 ? Eigen::MatrixXd(normals.transpose() * minv_normals) : Eigen::MatrixXd(0, 0);
+    delassus = 0.5 * (g + g.transpose());
+    minv_damping = llt.solve(sys.damping());
+    damped_normals = m > 0 ? Eigen::MatrixXd(minv_damping * minv_normals) : Eigen::MatrixXd(n, 0);
+    stiff_normals = m > 0 ? Eigen::MatrixXd(llt.solve(sys.stiffness() * minv_normals)) : Eigen::MatrixXd(n, 0);
+    s0.resize(m);
+    sc.resize(m);
+    ss.resize(m);
+    alpha.resize(m);
+    beta.resize(m);
+    for (Eigen::Index j = 0; j < m; ++j) {
+      const Stop& st = scene.stops()[static_cast<std::size_t>(j)];
+      s0(j) = st.s0();
+      sc(j) = st.s_cos();
+      ss(j) = st.s_sin();
+      const auto q = minv_normals.col(j);
+      const double G = delassus(j, j), qcq = q.dot(sys.damping() * q);
+      alpha(j) = -qcq / G;
+      beta(j) = (q.dot(sys.damping() * damped_normals.col(j)) - q.dot(sys.stiffness() * q)) / G - (qcq / G) * (qcq / G);
+    }
+  }
+};
+
+/// A held set's constant matrices (StepTerms): W, M⁻¹W and G⁻¹ of its stops.
+struct HeldSet {
+  ContactSet key;
+  Eigen::MatrixXd normals, minv_normals, delassus_inverse;
+  Eigen::MatrixXd stop_acceleration, probe_stop_acceleration;  // p̈'s series (k × (p + 1)): the run's, an event's
+};
+
+/// One Taylor step of a segment, kept for the observers, the event's root and the state.
+struct StepRecord {
+  double offset = 0.0, length = 0.0, t = 0.0;  // from the segment's start; its length; t0 + offset
+  std::vector<double> z, lambda;               // 2n × (p + 1), k × (p + 1)
+};
+
+}  // namespace
+
+TaylorSimulator::TaylorSimulator(const ImpactSystem& scene, const NonlinearForces& forces, SimulatorOptions options)
+    : scene_(&scene), options_(options), tolerance_(forces.tolerance) {
+  options_.validate();
+  taylor::TaylorSettings{.tolerance = tolerance_}.validate();
+  const LinearSystem& sys = scene.system();
+  taylor::TaylorSystemSpec spec;
+  spec.mass = sys.mass();
+  spec.damping = sys.damping();
+  spec.stiffness = sys.stiffness();
+  spec.frequency = sys.forcing().frequency;
+  spec.parameters = forces.parameters;
+  spec.forces = forces.forces;
+  system_ = std::make_unique<taylor::TaylorSystem>(spec);
+}
+
+TaylorSimulator::~TaylorSimulator() = default;
+
+/// The Taylor engine's side of the event loop (event_loop.hpp) and of event resolution
+/// (ContactAlgebra).
+class TaylorSimulator::Loop final : public detail::ContactAlgebra, public TaylorSimulator::LoopAccess {
+ public:
+  Loop(TaylorSimulator& sim, const std::vector<Observer*>& observers, RunSummary& summary)
+      : sim_(sim), scene_(*sim.scene_), sys_(scene_.system()), observers_(observers), summary_(summary),
+        step_(*sim.system_, {.tolerance = sim.tolerance_}), probe_(*sim.system_, {.tolerance = sim.tolerance_}),
+        roots_(step_.order()), p_(step_.order()), n_(sys_.dof()), tab_(scene_) {
+    const auto m = static_cast<Eigen::Index>(scene_.stop_count());
+    forcing_.setZero(n_, p_ + 1);
+    force_series_.setZero(n_, p_ + 1);
+    probe_forcing_.setZero(n_, p_ + 1);
+    cos_.resize(static_cast<std::size_t>(p_) + 3);
+    sin_.resize(static_cast<std::size_t>(p_) + 3);
+    stop_pos_.resize(static_cast<std::size_t>(p_) + 3);
+    guard_.resize(static_cast<std::size_t>(p_) + 1);
+    z_.resize(2 * n_);
+    rate_.resize(2 * n_);
+    residual_.resize(n_);
+    q_.resize(m);
+    G_.resize(m, m);
+    lcp_.reserve(m);
+  }
+
+  // ---- the frame's engine interface (event_loop.hpp) ----
+  Eigen::Index dof() const override { return n_; }
+  const std::vector<Stop>& stops() const { return scene_.stops(); }
+  double frequency() const { return sys_.forcing().frequency; }
+  detail::ScaleInputs scale_inputs() const {
+    const HarmonicForcing& f = sys_.forcing();
+    double omega = f.frequency;
+    if (omega == 0.0) {
+      Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(sys_.stiffness(), sys_.mass(), Eigen::EigenvaluesOnly);
+      omega = std::sqrt(std::max(0.0, eig.eigenvalues().maxCoeff()));
+    }
+    detail::ScaleInputs in{omega, sys_.stiffness().cwiseAbs().maxCoeff(), sys_.mass().cwiseAbs().maxCoeff(),
+                           f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff()};
+    for (const ForcingHarmonic& h : f.harmonics) in.fmax += h.cosine.cwiseAbs().maxCoeff() + h.sine.cwiseAbs().maxCoeff();
+    return in;
+  }
+  void check_scene(const detail::RunScales& /*sc*/, std::vector<std::string>& /*warnings*/) const {
+    for (std::size_t j = 0; j < scene_.stop_count(); ++j)
+      if (scene_.stops()[j].is_compliant())
+        throw InvalidInput("stop " + std::to_string(j) +
+                           " is compliant: the Taylor engine (nonlinear forces) runs rigid stops only");
+  }
+  void start(const detail::RunScales& sc, detail::RunState& st) {
+    eps_gap_ = sc.eps_gap;
+    eps_force_ = sc.eps_force;
+    rules_ = sc.rules;
+    scale_T_ = sc.T;
+    sim_.steps_ = 0;
+    work_.reserve(static_cast<Eigen::Index>(scene_.stop_count()), n_);
+    emit_ = [this](const Event& e) {
+      for (Observer* o : observers_) o->event(e);
+    };
+    // The initial state's forces must be finite (an expression may be singular there).
+    z_ << st.x, st.v;
+    rate_at(st.t, z_, rate_);
+  }
+  void initial_guards(const detail::RunState& st, Eigen::VectorXd& g, Eigen::VectorXd& gd) const {
+    g = scene_.gaps(st.t, st.x);
+    gd = scene_.gap_rates(st.t, st.v);
+  }
+  bool resolve(detail::RunState& st, const ContactSet& impacts, const ContactSet& releases, const ContactSet& resting,
+               std::string* /*why*/) {
+    std::string unused;
+    detail::resolve_event(*this, scene_.stops(), rules_, st.t, st.x, st.v, st.stuck, impacts, releases, resting, emit_,
+                          summary_, &unused, work_);
+    return true;
+  }
+  bool event(detail::RunState& st, const ContactSet& impacts, const ContactSet& releases, std::string* why) {
+    return resolve(st, impacts, releases, {}, why);
+  }
+  double stiffness(const detail::RunState& /*st*/, double /*T*/) const { return 0.0; }
+
+  detail::SegmentPlan begin_segment(const detail::RunState& st, double t_end) {
+    held_ = st.stuck.empty() ? nullptr : &held_set(st.stuck);
+    seg_t_ = st.t;
+    cursor_ = 0.0;
+    used_ = 0;
+    z_ << st.x, st.v;
+    // Rows: the gap of every stop not held, then −λ of every held one (the dense engine's order).
+    row_stop_.clear();
+    for (int j = 0; j < static_cast<int>(scene_.stop_count()); ++j)
+      if (!std::binary_search(st.stuck.begin(), st.stuck.end(), j)) row_stop_.push_back(j);
+    opening_rows_ = static_cast<Eigen::Index>(row_stop_.size());
+    for (int j : st.stuck) row_stop_.push_back(j);
+    const auto rows = static_cast<Eigen::Index>(row_stop_.size());
+    triggers_.resize(rows);
+    for (Eigen::Index i = 0; i < rows; ++i) triggers_(i) = i < opening_rows_ ? eps_gap_ : eps_force_;
+    armed_ = false;
+    h_.resize(rows);
+    d_.resize(rows);
+    step_.set_terms(held_ ? taylor::StepTerms{&forcing_, &held_->normals, &held_->minv_normals,
+                                              &held_->delassus_inverse, &held_->stop_acceleration}
+                          : taylor::StepTerms{&forcing_});
+    const double reach = t_end - st.t;
+    return {std::max(scale_T_, 1e-300), reach};
+  }
+
+  bool search(double /*a*/, double b, Crossing* hit) {
+    while (cursor_ < b) {
+      StepRecord& r = next_record();
+      r.offset = cursor_;
+      r.t = seg_t_ + cursor_;
+      time_series(r.t, forcing_, held_ ? &held_->stop_acceleration : nullptr, held_);
+      const taylor::StepStatus status = step_.expand(r.t, z_);
+      if (status != taylor::StepStatus::ok) throw std::runtime_error("Taylor step: " + step_.trouble());
+      ++sim_.steps_;
+      double length = std::min(step_.step_size(), b - cursor_);
+      const std::size_t width = static_cast<std::size_t>(p_) + 1;
+      r.z.resize(static_cast<std::size_t>(2 * n_) * width);
+      for (Eigen::Index i = 0; i < 2 * n_; ++i)
+        std::copy_n(step_.state_coefficients(static_cast<int>(i)), width, r.z.begin() + static_cast<std::ptrdiff_t>(i) * static_cast<std::ptrdiff_t>(width));
+      const std::size_t k = held_ ? held_->key.size() : 0;
+      r.lambda.resize(k * width);
+      for (std::size_t a = 0; a < k; ++a)
+        std::copy_n(step_.force_coefficients(static_cast<int>(a)), width, r.lambda.begin() + static_cast<std::ptrdiff_t>(a * width));
+      if (!armed_) arm(r);
+      // Every row's first certified rise above its trigger in [0, length].
+      double first = std::numeric_limits<double>::infinity(), cut = length;
+      Eigen::Index first_row = -1;
+      for (Eigen::Index i = 0; i < triggers_.size(); ++i) {
+        guard_coefficients(r, i, guard_.data());
+        const double delta = step_.remainder(guard_.data(), length);
+        const taylor::GuardCrossing c = roots_.first_crossing(guard_.data(), p_, length, triggers_(i), delta);
+        if (c.kind == taylor::CrossingKind::crossing || c.kind == taylor::CrossingKind::at_start) {
+          if (c.tau < first) {
+            first = c.tau;
+            first_row = i;
+          }
+        } else if (c.kind == taylor::CrossingKind::grazing && c.lower > 0.0) {
+          // A touch of the trigger level within the remainder: the step ends before it, and the
+          // next one (expanded there) decides it with its own bound.
+          cut = std::min(cut, c.lower);
+        }
+      }
+      if (first_row >= 0 && first <= cut) {
+        locate(first_row, first);
+        hit->tau = records_[hit_record_].offset + hit_tau_;
+        hit->row = first_row;
+        return true;
+      }
+      // A cut that would not move the time (below its spacing) is no cut: the step goes on.
+      if (cursor_ + cut > cursor_) length = cut;
+      const double next = cursor_ + length;
+      r.length = next - cursor_;
+      for (Eigen::Index i = 0; i < 2 * n_; ++i) z_(i) = horner_compensated(coefficients(r, i), p_, r.length);
+      cursor_ = next;
+    }
+    return false;
+  }
+  void end_search() {}
+  void report(double t, double t_next, const std::vector<Observer*>& observers);
+  bool advance(detail::RunState& st, const Crossing* hit, double /*tau*/, double t_next) {
+    const double elapsed = t_next - st.t;
+    std::size_t r = hit_record_;
+    double tau = hit_tau_;
+    if (!(hit && elapsed == hit->tau)) locate_time(elapsed, &r, &tau);
+    if (hit) {
+      at_record_ = r;
+      at_tau_ = tau;
+    }
+    for (Eigen::Index i = 0; i < n_; ++i) {
+      st.x(i) = horner_compensated(coefficients(records_[r], i), p_, tau);
+      st.v(i) = horner_compensated(coefficients(records_[r], n_ + i), p_, tau);
+    }
+    return st.x.allFinite() && st.v.allFinite();
+  }
+  detail::FiredGuards fired() {
+    const StepRecord& r = records_[at_record_];
+    for (Eigen::Index i = 0; i < triggers_.size(); ++i) {
+      guard_coefficients(r, i, guard_.data());
+      h_(i) = horner(guard_.data(), p_, at_tau_);
+      d_(i) = horner_slope(guard_.data(), p_, at_tau_);
+    }
+    return {h_, d_, triggers_, opening_rows_, row_stop_};
+  }
+  bool stop_requested(std::string* /*why*/) const { return false; }
+  void state(const detail::RunState& st, bool /*physical*/, Eigen::VectorXd& x, Eigen::VectorXd& v) const {
+    x = st.x;
+    v = st.v;
+  }
+  void finish(RunSummary& summary) const { summary.sticking_flows_built = sets_.size(); }
+
+  // ---- ContactAlgebra (event_resolution.hpp) ----
+  double gap(int j, double t, const Eigen::VectorXd& x) const override {
+    return tab_.normals.col(j).dot(x) - (tab_.s0(j) + tab_.sc(j) * std::cos(frequency() * t) +
+                                         tab_.ss(j) * std::sin(frequency() * t));
+  }
+  void gap_rates(double t, const Eigen::VectorXd& v, Eigen::Ref<Eigen::VectorXd> out) const override {
+    const double w = frequency(), c = std::cos(w * t), s = std::sin(w * t);
+    for (Eigen::Index j = 0; j < out.size(); ++j) out(j) = tab_.normals.col(j).dot(v) - w * (-tab_.sc(j) * s + tab_.ss(j) * c);
+  }
+  /// The acceleration LCP (contact.hpp) with the free acceleration of the nonlinear system.
+  void settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, const ContactSet& candidates,
+              ContactSet& held, Eigen::Ref<Eigen::VectorXd> forces) override {
+    held.clear();
+    if (candidates.empty()) return;
+    z_probe_.resize(2 * n_);
+    z_probe_ << x, v;
+    rate_at(t, z_probe_, rate_);
+    const auto k = static_cast<Eigen::Index>(candidates.size());
+    auto q = q_.head(k);
+    auto G = G_.topLeftCorner(k, k);
+    delassus(candidates, G);
+    const double w = frequency(), c = std::cos(w * t), s = std::sin(w * t);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      const int j = candidates[static_cast<std::size_t>(a)];
+      q(a) = tab_.normals.col(j).dot(rate_.tail(n_)) + w * w * (tab_.sc(j) * c + tab_.ss(j) * s);
+    }
+    // q = Wᵀ a_free − p̈ is the free gap acceleration; the LCP wants it as the dense engine's
+    // Wᵀ M⁻¹ (f − C v − K x) − s'' (the same quantity).
+    solve_lcp(G, q, forces, lcp_);
+    for (Eigen::Index a = 0; a < k; ++a)
+      if (forces(a) > 0.0) held.push_back(candidates[static_cast<std::size_t>(a)]);
+  }
+  void delassus(const ContactSet& set, Eigen::Ref<Eigen::MatrixXd> G) const override {
+    for (std::size_t a = 0; a < set.size(); ++a)
+      for (std::size_t b = 0; b < set.size(); ++b)
+        G(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = tab_.delassus(set[a], set[b]);
+  }
+  double delassus_diagonal(int j) const override { return tab_.delassus(j, j); }
+  void apply_impulse(const ContactSet& set, const Eigen::Ref<const Eigen::VectorXd>& impulse,
+                     Eigen::VectorXd& v) const override {
+    for (std::size_t a = 0; a < set.size(); ++a) v -= tab_.minv_normals.col(set[a]) * impulse(static_cast<Eigen::Index>(a));
+  }
+  void shift(const ContactSet& set, Eigen::Index a, double s, Eigen::VectorXd& z) const override {
+    z -= tab_.minv_normals.col(set[static_cast<std::size_t>(a)]) * s;
+  }
+  bool accept(const ContactSet& /*held*/, std::string* /*why*/) override { return true; }
+  double chatter_alpha(int j) const override { return tab_.alpha(j); }
+  double chatter_beta(int j) const override { return tab_.beta(j); }
+  /// λ_j' and λ_j'' along the held flow from (t, x, v): the first coefficients of a step's λ.
+  void force_rates(const ContactSet& held, int j, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                   double* slope, double* curvature) override {
+    HeldSet& set = held_set(held);
+    time_series(t, probe_forcing_, &set.probe_stop_acceleration, &set);
+    probe_.set_terms({&probe_forcing_, &set.normals, &set.minv_normals, &set.delassus_inverse, &set.probe_stop_acceleration});
+    z_probe_.resize(2 * n_);
+    z_probe_ << x, v;
+    if (probe_.expand(t, z_probe_) != taylor::StepStatus::ok) throw std::runtime_error("Taylor step: " + probe_.trouble());
+    const auto a = static_cast<int>(std::lower_bound(held.begin(), held.end(), j) - held.begin());
+    *slope = probe_.force_coefficients(a)[1];
+    *curvature = 2.0 * probe_.force_coefficients(a)[2];
+  }
+  double normal_dot(int j, const Eigen::VectorXd& y) const override { return tab_.normals.col(j).dot(y); }
+  void damped_normal(int j, Eigen::VectorXd& d) override { d = tab_.damped_normals.col(j); }
+  void damped_response(int j, const Eigen::VectorXd& d, Eigen::VectorXd& e) override {
+    e.noalias() = tab_.minv_damping * d;
+    e -= tab_.stiff_normals.col(j);
+  }
+
+  // ---- for the segment view (LoopAccess) ----
+  void state_at(double elapsed, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const override {
+    std::size_t r = 0;
+    double tau = 0.0;
+    locate_time(elapsed, &r, &tau);
+    for (Eigen::Index i = 0; i < n_; ++i) {
+      x(i) = horner_compensated(coefficients(records_[r], i), p_, tau);
+      v(i) = horner_compensated(coefficients(records_[r], n_ + i), p_, tau);
+    }
+  }
+  double force_at(Eigen::Index a, double elapsed) const override {
+    std::size_t r = 0;
+    double tau = 0.0;
+    locate_time(elapsed, &r, &tau);
+    return horner_compensated(records_[r].lambda.data() + static_cast<std::size_t>(a) * (static_cast<std::size_t>(p_) + 1), p_, tau);
+  }
+  /// Interior minima of λ_a over [0, span] of the segment: the roots of λ_a' rising through zero,
+  /// step by step, by the certified root search (guard_roots.hpp) with the polynomial's rounding
+  /// as its bound, alternating with the maxima (−λ_a' rising) so that it moves from extremum to
+  /// extremum.
+  void force_minima(Eigen::Index a, double span, double t_begin, std::vector<Minimum>& out) const override {
+    const std::size_t width = static_cast<std::size_t>(p_) + 1;
+    std::vector<double> d(width), shifted(width);
+    taylor::GuardRootFinder finder(p_);
+    for (std::size_t r = 0; r < used_; ++r) {
+      const StepRecord& rec = records_[r];
+      const double end = std::min(r + 1 < used_ ? records_[r + 1].offset : span, span) - rec.offset;
+      if (!(end > 0.0)) break;
+      const double* lam = rec.lambda.data() + static_cast<std::size_t>(a) * width;
+      for (int k = 0; k + 1 <= p_; ++k) d[static_cast<std::size_t>(k)] = (k + 1) * lam[k + 1];
+      d[static_cast<std::size_t>(p_)] = 0.0;
+      double lo = 0.0;
+      double sign = horner(d.data(), p_, 0.0) > 0.0 ? -1.0 : 1.0;  // a maximum first where λ' > 0
+      for (int guard = 0; guard < 4 * p_ && lo < end; ++guard) {
+        // shifted(s) = sign · λ'(lo + s), by repeated synthetic division (Taylor shift)
+        for (std::size_t k = 0; k < width; ++k) shifted[k] = sign * d[k];
+        for (int i = 0; i < p_; ++i)
+          for (int k = p_ - 1; k >= i; --k) shifted[static_cast<std::size_t>(k)] += lo * shifted[static_cast<std::size_t>(k) + 1];
+        double abs_sum = 0.0, power = 1.0;
+        for (std::size_t k = 0; k < width; ++k, power *= end - lo) abs_sum += std::abs(shifted[k]) * power;
+        const double delta = 8.0 * (p_ + 1) * std::numeric_limits<double>::epsilon() * abs_sum;
+        const taylor::GuardCrossing c = finder.first_crossing(shifted.data(), p_, end - lo, 0.0, delta);
+        if (c.kind == taylor::CrossingKind::none) break;
+        const double at = lo + (c.kind == taylor::CrossingKind::crossing ? c.tau : c.upper);
+        if (c.kind == taylor::CrossingKind::crossing && sign > 0.0)
+          out.push_back({horner_compensated(lam, p_, at), t_begin + rec.offset + at});
+        if (c.kind == taylor::CrossingKind::crossing) sign = -sign;
+        lo = std::max(at, lo) + 4.0 * std::numeric_limits<double>::epsilon() * std::max(end, 1.0);
+      }
+    }
+  }
+  const double* coefficients(const StepRecord& r, Eigen::Index i) const {
+    return r.z.data() + static_cast<std::size_t>(i) * (static_cast<std::size_t>(p_) + 1);
+  }
+  int order() const { return p_; }
+  Eigen::Index dof_count() const { return n_; }
+  /// The record holding segment time `elapsed` (the last one whose offset is ≤ it) and τ in it.
+  void locate_time(double elapsed, std::size_t* r, double* tau) const {
+    std::size_t i = 0;
+    while (i + 1 < used_ && records_[i + 1].offset <= elapsed) ++i;
+    *r = i;
+    *tau = elapsed - records_[i].offset;
+  }
+  const StepRecord& record(std::size_t i) const { return records_[i]; }
+  std::size_t records() const { return used_; }
+  const ContactSet& active() const override { return held_ ? held_->key : empty_; }
+
+ private:
+  StepRecord& next_record() {
+    if (used_ == records_.size()) records_.emplace_back();
+    return records_[used_++];
+  }
+  /// The drive's acceleration series M⁻¹ f(t0 + τ) and, for a held set, its stops' p̈ series.
+  void time_series(double t0, Eigen::MatrixXd& acceleration, Eigen::MatrixXd* stop_acc, const HeldSet* held) {
+    const HarmonicForcing& f = sys_.forcing();
+    force_series_.setZero();
+    force_series_.col(0) = f.constant;
+    harmonic_series(f.frequency, t0, p_, cos_.data(), sin_.data());
+    for (int k = 0; k <= p_; ++k) force_series_.col(k) += f.cosine * cos_[static_cast<std::size_t>(k)] + f.sine * sin_[static_cast<std::size_t>(k)];
+    for (const ForcingHarmonic& h : f.harmonics) {
+      harmonic_series(h.rate(f.frequency), t0, p_, cos_.data(), sin_.data());
+      for (int k = 0; k <= p_; ++k) force_series_.col(k) += h.cosine * cos_[static_cast<std::size_t>(k)] + h.sine * sin_[static_cast<std::size_t>(k)];
+    }
+    acceleration.noalias() = sim_.system_->inverse_mass() * force_series_;
+    if (!held || !stop_acc) return;
+    harmonic_series(f.frequency, t0, p_ + 2, cos_.data(), sin_.data());
+    for (std::size_t a = 0; a < held->key.size(); ++a) {
+      const int j = held->key[a];
+      for (int k = 0; k <= p_; ++k) {
+        const auto kk = static_cast<std::size_t>(k) + 2;
+        (*stop_acc)(static_cast<Eigen::Index>(a), k) =
+            static_cast<double>((k + 1) * (k + 2)) * (tab_.sc(j) * cos_[kk] + tab_.ss(j) * sin_[kk]);
+      }
+    }
+  }
+  /// z'(t) of the free system (the drive and the nonlinear forces at (t, z)).
+  void rate_at(double t, const Eigen::VectorXd& z, Eigen::VectorXd& out) {
+    time_series(t, probe_forcing_, nullptr, nullptr);
+    probe_.set_terms({&probe_forcing_});
+    const taylor::StepStatus s = probe_.rate(t, z, out);
+    if (s == taylor::StepStatus::domain_error) throw InvalidInput("the forces at t = " + number_text(t) + ": " + probe_.trouble());
+    if (s != taylor::StepStatus::ok)
+      throw InvalidInput("the forces are not finite at t = " + number_text(t) + " (state " + detail::vector_text(z) + ")");
+  }
+  HeldSet& held_set(const ContactSet& key) {
+    for (const auto& h : sets_)
+      if (h->key == key) return *h;
+    auto h = std::make_unique<HeldSet>();
+    h->key = key;
+    const auto k = static_cast<Eigen::Index>(key.size());
+    h->normals.resize(n_, k);
+    h->minv_normals.resize(n_, k);
+    Eigen::MatrixXd G(k, k);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      h->normals.col(a) = tab_.normals.col(key[static_cast<std::size_t>(a)]);
+      h->minv_normals.col(a) = tab_.minv_normals.col(key[static_cast<std::size_t>(a)]);
+      for (Eigen::Index b = 0; b < k; ++b) G(a, b) = tab_.delassus(key[static_cast<std::size_t>(a)], key[static_cast<std::size_t>(b)]);
+    }
+    h->delassus_inverse = G.llt().solve(Eigen::MatrixXd::Identity(k, k));
+    h->stop_acceleration.setZero(k, p_ + 1);
+    h->probe_stop_acceleration.setZero(k, p_ + 1);
+    sets_.push_back(std::move(h));
+    return *sets_.back();
+  }
+  /// Row i's guard series over record r: a gap wᵀx − p(t), or −λ of a held stop.
+  void guard_coefficients(const StepRecord& r, Eigen::Index i, double* g) {
+    const int j = row_stop_[static_cast<std::size_t>(i)];
+    if (i >= opening_rows_) {
+      const auto a = static_cast<std::size_t>(i - opening_rows_);
+      for (int k = 0; k <= p_; ++k) g[k] = -r.lambda[a * (static_cast<std::size_t>(p_) + 1) + static_cast<std::size_t>(k)];
+      return;
+    }
+    harmonic_series(frequency(), r.t, p_, stop_pos_.data(), sin_.data());
+    for (int k = 0; k <= p_; ++k) {
+      double s = 0.0;
+      for (Eigen::Index l = 0; l < n_; ++l) {
+        const double w = tab_.normals(l, j);
+        if (w != 0.0) s += w * coefficients(r, l)[k];
+      }
+      const auto kk = static_cast<std::size_t>(k);
+      g[k] = s - ((k == 0 ? tab_.s0(j) : 0.0) + tab_.sc(j) * stop_pos_[kk] + tab_.ss(j) * sin_[kk]);
+    }
+  }
+  /// At the segment's first step: a row starting inside its band (0 < h ≤ ε) and moving away is
+  /// re-armed at ε + h(0), as the dense engine's finder does (events.hpp), so that rounding
+  /// cannot re-fire a guard just left.
+  void arm(const StepRecord& r) {
+    armed_ = true;
+    for (Eigen::Index i = 0; i < triggers_.size(); ++i) {
+      guard_coefficients(r, i, guard_.data());
+      if (guard_[0] > 0.0 && guard_[1] <= 0.0) triggers_(i) += guard_[0];
+    }
+  }
+  /// The event of row i found at τ* in the last record (its certified rise above the trigger):
+  /// its time is the guard's root at zero just before τ*, as the dense engine places it. The
+  /// last point before τ* where the guard is below zero is looked for back from τ* (64 points a
+  /// step, through the segment's earlier steps if need be), and the root between it and the next
+  /// point refined to rounding (guard_roots.hpp, safeguarded Newton).
+  void locate(Eigen::Index i, double tau_star) {
+    constexpr int kPoints = 64;
+    for (std::size_t r = used_; r-- > 0;) {
+      guard_coefficients(records_[r], i, guard_.data());
+      const double end = r == used_ - 1 ? tau_star : records_[r].length;
+      double above = end;
+      for (int k = 1; k <= kPoints; ++k) {
+        const double a = end * (1.0 - static_cast<double>(k) / kPoints);
+        const double g = horner(guard_.data(), p_, a);
+        if (g < 0.0) {
+          const double gb = horner(guard_.data(), p_, above);
+          hit_record_ = r;
+          hit_tau_ = gb == 0.0 ? above : (gb > 0.0 ? taylor::GuardRootFinder::refine(guard_.data(), p_, 0.0, a, above) : above);
+          return;
+        }
+        above = a;
+      }
+    }
+    hit_record_ = used_ - 1;  // above zero since the segment's start: the trigger's crossing
+    hit_tau_ = tau_star;
+  }
+
+  TaylorSimulator& sim_;
+  const ImpactSystem& scene_;
+  const LinearSystem& sys_;
+  const std::vector<Observer*>& observers_;
+  RunSummary& summary_;
+  taylor::TaylorStep step_, probe_;
+  taylor::GuardRootFinder roots_;
+  int p_;
+  Eigen::Index n_;
+  TaylorTables tab_;
+  double eps_gap_ = 0.0, eps_force_ = 0.0, scale_T_ = 1.0;
+  detail::EventRules rules_;
+  detail::EventWorkspace work_;
+  std::function<void(const Event&)> emit_;
+  std::vector<std::unique_ptr<HeldSet>> sets_;
+  HeldSet* held_ = nullptr;
+  ContactSet empty_;
+  Eigen::MatrixXd forcing_, force_series_, probe_forcing_;
+  std::vector<double> cos_, sin_, stop_pos_, guard_;
+  Eigen::VectorXd z_, z_probe_, rate_, residual_, q_, h_, d_, triggers_;
+  Eigen::MatrixXd G_;
+  LcpWorkspace lcp_;
+  std::vector<int> row_stop_;
+  Eigen::Index opening_rows_ = 0;
+  bool armed_ = false;
+  double seg_t_ = 0.0, cursor_ = 0.0, hit_tau_ = 0.0, at_tau_ = 0.0;
+  std::vector<StepRecord> records_;
+  std::size_t used_ = 0, hit_record_ = 0, at_record_ = 0;
+};
+
+namespace {
+
+/// A segment of the Taylor engine as observers see it: the steps' polynomials (dense output).
+class TaylorSegmentView final : public SegmentView {
+ public:
+  TaylorSegmentView(const TaylorSimulator::LoopAccess& loop, double t_begin, double t_end)
+      : SegmentView(t_begin, t_end), loop_(loop) {}
+  Eigen::Index dof() const override { return loop_.dof(); }
+  const ContactSet& active() const override { return loop_.active(); }
+  void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const override {
+    loop_.state_at(t - t_begin(), x, v);
+  }
+  double force(Eigen::Index a, double t) const override { return loop_.force_at(a, t - t_begin()); }
+  Minimum force_minimum(Eigen::Index a) const override {
+    Minimum best{force(a, t_begin()), t_begin()};
+    if (const double e = force(a, t_end()); e < best.value) best = {e, t_end()};
+    for (const Minimum& m : force_local_minima(a))
+      if (m.value < best.value) best = m;
+    return best;
+  }
+  std::vector<Minimum> force_local_minima(Eigen::Index a) const override {
+    std::vector<Minimum> out;
+    loop_.force_minima(a, t_end() - t_begin(), t_begin(), out);
+    return out;
+  }
+
+ private:
+  const TaylorSimulator::LoopAccess& loop_;
+};
+
+}  // namespace
+
+void TaylorSimulator::Loop::report(double t, double t_next, const std::vector<Observer*>& observers) {
+  const TaylorSegmentView view(*this, t, t_next);
+  for (Observer* o : observers) o->segment(view);
+}
+
+RunSummary TaylorSimulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t_end,
+                                const std::vector<Observer*>& observers) {
+  RunSummary summary;
+  Loop loop(*this, observers, summary);
+  detail::run_event_loop(loop, options_, t0, x0, v0, t_end, observers, summary);
+  return summary;
+}
+
+}  // namespace vibro

@@ -1,0 +1,294 @@
+// The Taylor engine (vibro/taylor_simulator.hpp) inside the shared event loop, against the exact
+// dense engine on a linear scene with impacts, chatter and sticking.
+#include "vibro/io/scene.hpp"
+#include "vibro/observers.hpp"
+#include "vibro/simulator.hpp"
+#include "vibro/taylor_simulator.hpp"
+#include "support/reference_duffing_impact.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <memory>
+#include <cmath>
+#include <string>
+
+namespace {
+
+vibro::io::Scene wagg_scene() {
+  return vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/wagg2004/fig2_sticking_orbit.yaml").build();
+}
+
+}  // namespace
+
+// The seed paper's sticking orbit (Wagg 2004, fig. 2): two masses, two stops, impacts that chatter
+// to sticking and release, 20 forcing periods (~1200 events). The dense engine's flow is exact to
+// ~1e-15 of the scales; the Taylor engine's series is truncated at the unit roundoff of the state's
+// scale per step and evaluated by compensated Horner, so both carry only rounding, and they must
+// resolve every event alike (same stops, kinds and order). How far their event times may differ is
+// set by conditioning: an event time is a root of a guard, and a state difference δ moves it by
+// δ/|g'|. The two roundings random-walk apart over the ~1500 steps and ~1200 events (each impact
+// passes a velocity error on through the restitution law): measured 6e-14 L in x and 5e-13 V in v
+// at the end. In a chatter sequence the approach speeds fall to ~1e-5 V, so the times themselves
+// differ by up to ~1e-11 T, while the time error measured on the gap, |Δt|·|g'|/L, is of the
+// states' size (measured 1.7e-13). Both that and the states are held to 1e-12 (a few times the
+// rounding measured), events at rest (stick, release: both speeds 0; measured 5e-15 T) to 1e-13 T;
+// a missed or differently resolved event differs by O(1).
+TEST_CASE("a linear scene through the Taylor engine agrees with the exact dense engine", "[taylor][engine]") {
+  const vibro::io::Scene scene = wagg_scene();
+  const vibro::ImpactSystem system = scene.impact_system();
+  const double T = scene.period(), t_end = 20.0 * T;
+  vibro::Simulator dense(system, scene.solver);
+  vibro::TaylorSimulator taylor(system, {}, scene.solver);
+  vibro::EventLog dense_events, taylor_events;
+  const vibro::RunSummary a = dense.run(0.0, scene.x0, scene.v0, t_end, {&dense_events});
+  const vibro::RunSummary b = taylor.run(0.0, scene.x0, scene.v0, t_end, {&taylor_events});
+  REQUIRE(a.status == vibro::RunStatus::completed);
+  INFO(b.message);
+  REQUIRE(b.status == vibro::RunStatus::completed);
+  REQUIRE(a.sticks > 0);
+  REQUIRE(a.chatters > 0);
+  CHECK(b.impacts == a.impacts);
+  CHECK(b.sticks == a.sticks);
+  CHECK(b.releases == a.releases);
+  CHECK(b.chatters == a.chatters);
+  REQUIRE(dense_events.events.size() == taylor_events.events.size());
+  const double L = a.length_scale, V = a.velocity_scale;
+  double dt_raw = 0.0, dt_gap = 0.0, dt_rest = 0.0;
+  for (std::size_t i = 0; i < dense_events.events.size(); ++i) {
+    const vibro::Event& e = dense_events.events[i];
+    const vibro::Event& f = taylor_events.events[i];
+    REQUIRE(e.stop == f.stop);
+    REQUIRE(e.kind == f.kind);
+    const double dt = std::abs(e.t - f.t), speed = std::max(std::abs(e.v_before), std::abs(e.v_after));
+    dt_raw = std::max(dt_raw, dt / T);
+    if (speed > 0.0) dt_gap = std::max(dt_gap, dt * speed / L);
+    else dt_rest = std::max(dt_rest, dt / T);
+  }
+  const double dx = (a.x - b.x).cwiseAbs().maxCoeff() / L;
+  const double dv = (a.v - b.v).cwiseAbs().maxCoeff() / V;
+  INFO(dense_events.events.size() << " events (" << a.impacts << " impacts, " << a.chatters << " chatters, " << a.sticks
+                                  << " sticks): max |dt|/T = " << dt_raw << ", |dt||g'|/L = " << dt_gap
+                                  << ", at rest |dt|/T = " << dt_rest << "; end |dx|/L = " << dx << ", |dv|/V = " << dv
+                                  << "; " << taylor.steps() << " Taylor steps");
+  CHECK(dt_gap < 1e-12);
+  CHECK(dt_rest < 1e-13);
+  CHECK(dt_raw < 1e-10);
+  CHECK(dx < 1e-12);
+  CHECK(dv < 1e-12);
+  WARN("Taylor vs dense: " << dense_events.events.size() << " events, max |dt|/T = " << dt_raw << ", |dt||g'|/L = "
+                           << dt_gap << ", at rest |dt|/T = " << dt_rest << "; end |dx|/L = " << dx << ", |dv|/V = " << dv);
+}
+
+namespace {
+
+/// x'' + c x' + k x + β x³ = A cos Ωt with one stop x ≤ s on the mass (m = 1).
+vibro::ImpactSystem duffing_system(double c, double k, double amplitude, double omega, double stop, double r) {
+  vibro::HarmonicForcing f{.constant = Eigen::VectorXd::Zero(1), .cosine = Eigen::VectorXd::Constant(1, amplitude),
+                           .sine = Eigen::VectorXd::Zero(1), .frequency = omega};
+  vibro::LinearSystem sys(Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Constant(1, 1, c),
+                          Eigen::MatrixXd::Constant(1, 1, k), f);
+  return vibro::ImpactSystem(sys, {vibro::Stop::upper(0, stop, r)});
+}
+
+}  // namespace
+
+// A forced, damped Duffing impact oscillator (hardening β = 0.5, stop at 0.6, r = 0.8) over 10
+// forcing periods, against the independent long-double RK8 reference with its own bisection on the
+// gap (tests/support/reference_duffing_impact.hpp, accurate to ~1e-16 of the state). Both start at
+// rest; the orbit impacts about once a period at speeds of order 0.5 (no chatter). The Taylor
+// engine carries rounding only (~1e-16 per step, a few hundred steps), and an impact passes the
+// state's error on (times r), so the impact times and the end state are held to 1e-12 of the
+// scales (T, and the stop's position and the speed scale 1): a wrong root, a missed impact or a
+// truncated series would differ by far more (a step at tolerance 1e-10 gives ~1e-9).
+TEST_CASE("a Duffing impact oscillator agrees with an independent long-double reference", "[taylor][engine]") {
+  const double c = 0.05, k = 1.0, beta = 0.5, A = 0.8, omega = 1.3, s = 0.6, r = 0.8;
+  const double T = 2.0 * std::acos(-1.0) / omega, t_end = 10.0 * T;
+  const vibro::ImpactSystem system = duffing_system(c, k, A, omega, s, r);
+  vibro::NonlinearForces forces;
+  forces.parameters = {{"beta", beta}};
+  forces.forces = {"-beta*x0^3"};
+  vibro::TaylorSimulator taylor(system, forces);
+  vibro::EventLog log;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(1);
+  const vibro::RunSummary run = taylor.run(0.0, zero, zero, t_end, {&log});
+  INFO(run.message);
+  REQUIRE(run.status == vibro::RunStatus::completed);
+
+  vibro::test::ReferenceDuffingImpact ref;
+  ref.c = c;
+  ref.k = k;
+  ref.beta = beta;
+  ref.amplitude = A;
+  ref.omega = omega;
+  ref.stop = s;
+  ref.restitution = r;
+  ref.run(0.0L, 0.0L, 0.0L, t_end);
+  REQUIRE(ref.impacts.size() >= 5);
+  REQUIRE(log.events.size() == ref.impacts.size());
+  double dt = 0.0, du = 0.0;
+  for (std::size_t i = 0; i < log.events.size(); ++i) {
+    REQUIRE(log.events[i].kind == vibro::EventKind::impact);
+    dt = std::max(dt, std::abs(log.events[i].t - static_cast<double>(ref.impacts[i].t)) / T);
+    du = std::max(du, std::abs(log.events[i].v_before - static_cast<double>(ref.impacts[i].v_before)));
+  }
+  const double dx = std::abs(run.x(0) - static_cast<double>(ref.x)) / s;
+  const double dv = std::abs(run.v(0) - static_cast<double>(ref.v));
+  INFO(log.events.size() << " impacts: max |dt|/T = " << dt << ", |du| = " << du << "; end |dx|/s = " << dx
+                         << ", |dv| = " << dv << "; " << taylor.steps() << " Taylor steps");
+  CHECK(dt < 1e-12);
+  CHECK(du < 1e-12);
+  CHECK(dx < 1e-12);
+  CHECK(dv < 1e-12);
+  WARN("Duffing vs reference: " << log.events.size() << " impacts, max |dt|/T = " << dt << ", |du| = " << du
+                                << ", end |dx|/s = " << dx << ", |dv| = " << dv << ", " << taylor.steps() << " steps");
+}
+
+// A conservative Duffing oscillator (no damping, no drive, β = 1) bouncing elastically (r = 1) on a
+// stop at 0.5 from x0 = 0, v0 = 1.2: the energy E = v²/2 + x²/2 + x⁴/4 is a constant of the motion,
+// and at each impact x = 0.5 exactly, so E there is read from the impact speed alone. Over t = 1500
+// (460 impacts, ~6900 steps) rounding moves E by at most ~ε per step and per impact: ≤ 7400 ε ≈
+// 1.6e-12 if every rounding had one sign, ~√7400 ε ≈ 2e-14 as a random walk (measured 9.4e-14).
+// 1e-12 is the first bound; an error of the method shows far above it (a series truncated at
+// tolerance 1e-10 instead of ε, or a root misplaced by 1e-10 in time, changes E by ~1e-10).
+TEST_CASE("a conservative Duffing oscillator with elastic impacts keeps its energy to rounding", "[taylor][engine]") {
+  const double s = 0.5;
+  const vibro::ImpactSystem system = duffing_system(0.0, 1.0, 0.0, 0.0, s, 1.0);
+  vibro::NonlinearForces forces;
+  forces.forces = {"-x0^3"};
+  vibro::SimulatorOptions options;
+  options.max_events = 1000000;
+  vibro::TaylorSimulator taylor(system, forces, options);
+  vibro::EventLog log;
+  const Eigen::VectorXd x0 = Eigen::VectorXd::Zero(1), v0 = Eigen::VectorXd::Constant(1, 1.2);
+  auto energy = [](double x, double v) { return 0.5 * v * v + 0.5 * x * x + 0.25 * x * x * x * x; };
+  const double e0 = energy(0.0, 1.2);
+  const vibro::RunSummary run = taylor.run(0.0, x0, v0, 1500.0, {&log});
+  INFO(run.message);
+  REQUIRE(run.status == vibro::RunStatus::completed);
+  REQUIRE(log.events.size() >= 300);
+  double drift = 0.0;
+  for (const vibro::Event& e : log.events) {
+    REQUIRE(e.kind == vibro::EventKind::impact);
+    drift = std::max({drift, std::abs(energy(s, e.v_before) - e0) / e0, std::abs(energy(s, e.v_after) - e0) / e0});
+  }
+  drift = std::max(drift, std::abs(energy(run.x(0), run.v(0)) - e0) / e0);
+  INFO(log.events.size() << " impacts, max |E - E0|/E0 = " << drift << ", " << taylor.steps() << " steps");
+  CHECK(drift < 1e-12);
+  WARN("energy: " << log.events.size() << " elastic impacts over t = 1500, max |E - E0|/E0 = " << drift << ", "
+                  << taylor.steps() << " steps");
+}
+
+TEST_CASE("a scene with forces runs on the Taylor engine, a linear one stays where it was", "[taylor][scene]") {
+  const vibro::io::Scene duffing =
+      vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/examples/duffing_impact.yaml").build();
+  CHECK(duffing.engine == vibro::io::EngineKind::taylor);
+  CHECK_THAT(duffing.engine_reason, Catch::Contains("forces"));
+  REQUIRE(duffing.forces.forces.size() == 1);
+  CHECK(duffing.forces.forces[0] == "(-(beta)*x0^3)");
+  REQUIRE(duffing.forces.parameters.size() == 1);
+  CHECK(duffing.forces.parameters[0].second == 0.5);
+  const std::unique_ptr<vibro::Engine> engine = vibro::io::make_engine(duffing);
+  CHECK(dynamic_cast<vibro::TaylorEngine*>(engine.get()) != nullptr);
+
+  const std::string fig2 = std::string(VIBRO_EXPERIMENTS) + "/wagg2004/fig2_sticking_orbit.yaml";
+  const vibro::io::Scene linear = vibro::io::SceneDocument::load(fig2).build();
+  CHECK(linear.engine == vibro::io::EngineKind::dense);
+  CHECK(linear.forces.forces.empty());
+  const vibro::io::Scene forced =
+      vibro::io::SceneDocument::parse(vibro::io::SceneDocument::load(fig2).text() + "solver: {engine: taylor}\n").build();
+  CHECK(forced.engine == vibro::io::EngineKind::taylor);
+  CHECK(forced.engine_reason == "solver.engine: taylor");
+}
+
+// The between shorthand: −c (x_i − x_k)³ on i and its reaction on k.
+TEST_CASE("the cubic spring between two masses expands to a force and its reaction", "[taylor][scene]") {
+  const std::string text = R"yaml(model:
+  chain:
+    masses: [1, 1]
+    springs: [1]
+    left_wall: {spring: 1}
+stops:
+  - {mass: 1, side: upper, position: 0.5, restitution: 0.7}
+parameters: {c3: 0.25}
+forces:
+  - {cubic_spring: {between: [0, 1], coefficient: c3}}
+  - {coordinate: 1, expression: "-0.1*sin(x1)"}
+initial: {x: [0.1, 0]}
+)yaml";
+  const vibro::io::Scene s = vibro::io::SceneDocument::parse(text).build();
+  REQUIRE(s.forces.forces.size() == 2);
+  CHECK(s.forces.forces[0] == "(-(c3)*(x0 - x1)^3)");
+  CHECK(s.forces.forces[1] == "((c3)*(x0 - x1)^3) + (-0.1*sin(x1))");
+  CHECK(s.engine == vibro::io::EngineKind::taylor);
+}
+
+// Cost per forcing period (a quick timing, not a benchmark): ./vibro_tests_taylor_engine "[.report]".
+TEST_CASE("cost per period of the Taylor engine against the dense engine", "[.report]") {
+  auto per_period = [](vibro::Engine& e, const vibro::io::Scene& s, double periods) {
+    const auto start = std::chrono::steady_clock::now();
+    const vibro::RunSummary run = e.run(s.t0, s.x0, s.v0, s.t0 + periods * s.period());
+    const std::chrono::duration<double> took = std::chrono::steady_clock::now() - start;
+    REQUIRE(run.status == vibro::RunStatus::completed);
+    return took.count() / periods * 1e6;
+  };
+  const std::string fig2 = std::string(VIBRO_EXPERIMENTS) + "/wagg2004/fig2_sticking_orbit.yaml";
+  const vibro::io::Scene linear = vibro::io::SceneDocument::load(fig2).build();
+  const vibro::io::Scene linear_taylor =
+      vibro::io::SceneDocument::parse(vibro::io::SceneDocument::load(fig2).text() + "solver: {engine: taylor}\n").build();
+  const vibro::io::Scene duffing =
+      vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/examples/duffing_impact.yaml").build();
+  auto dense = vibro::io::make_engine(linear);
+  auto taylor = vibro::io::make_engine(linear_taylor);
+  auto nonlinear = vibro::io::make_engine(duffing);
+  const double a = per_period(*dense, linear, 400), b = per_period(*taylor, linear_taylor, 400),
+               c = per_period(*nonlinear, duffing, 400);
+  WARN("µs per forcing period: Wagg fig. 2 dense " << a << ", the same on the Taylor engine " << b
+                                                    << "; duffing_impact.yaml (Taylor) " << c);
+}
+
+// Moving stops, a stop along a general normal and a drive with harmonics (what the dense engine
+// takes besides fixed stops): the two-tone example with its stops replaced, forced through the
+// Taylor engine, against the dense engine over 30 periods. Same tolerances and reasons as the
+// seed paper's scene above (the stops' motion and the harmonics enter both as closed forms).
+TEST_CASE("moving stops, a general normal and harmonics agree with the dense engine", "[taylor][engine]") {
+  vibro::io::SceneDocument doc =
+      vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/examples/two_tone_impact.yaml");
+  doc.replace("stops", "[{mass: 0, side: lower, position: -0.3, amplitude: 0.05, phase: 0.4, restitution: 0.7},"
+                       " {normal: [0.6, 0.8], position: 0.15, amplitude: 0.02, restitution: 0.75}]");
+  doc.replace("run", "{kind: simulate}");
+  const vibro::io::Scene scene = doc.build();
+  const vibro::ImpactSystem system = scene.impact_system();
+  REQUIRE(!scene.forcing().harmonics.empty());
+  const double T = scene.period(), t_end = 30.0 * T;
+  vibro::Simulator dense(system, scene.solver);
+  vibro::TaylorSimulator taylor(system, {}, scene.solver);
+  vibro::EventLog de, te;
+  const vibro::RunSummary a = dense.run(0.0, scene.x0, scene.v0, t_end, {&de});
+  const vibro::RunSummary b = taylor.run(0.0, scene.x0, scene.v0, t_end, {&te});
+  REQUIRE(a.status == vibro::RunStatus::completed);
+  INFO(b.message);
+  REQUIRE(b.status == vibro::RunStatus::completed);
+  REQUIRE(a.impacts > 10);
+  REQUIRE(de.events.size() == te.events.size());
+  const double L = a.length_scale, V = a.velocity_scale;
+  double dt_gap = 0.0, dt_rest = 0.0;
+  for (std::size_t i = 0; i < de.events.size(); ++i) {
+    REQUIRE(de.events[i].stop == te.events[i].stop);
+    REQUIRE(de.events[i].kind == te.events[i].kind);
+    const double dt = std::abs(de.events[i].t - te.events[i].t);
+    const double speed = std::max(std::abs(de.events[i].v_before), std::abs(de.events[i].v_after));
+    if (speed > 0.0) dt_gap = std::max(dt_gap, dt * speed / L);
+    else dt_rest = std::max(dt_rest, dt / T);
+  }
+  const double dx = (a.x - b.x).cwiseAbs().maxCoeff() / L, dv = (a.v - b.v).cwiseAbs().maxCoeff() / V;
+  INFO(de.events.size() << " events (" << a.impacts << " impacts, " << a.sticks << " sticks): |dt||g'|/L = " << dt_gap
+                        << ", at rest |dt|/T = " << dt_rest << ", end |dx|/L = " << dx << ", |dv|/V = " << dv);
+  CHECK(dt_gap < 1e-12);
+  CHECK(dt_rest < 1e-13);
+  CHECK(dx < 1e-12);
+  CHECK(dv < 1e-12);
+  WARN("moving and general stops, harmonics: " << de.events.size() << " events, |dt||g'|/L = " << dt_gap
+                                               << ", end |dx|/L = " << dx << ", |dv|/V = " << dv);
+}
