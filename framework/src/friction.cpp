@@ -267,10 +267,28 @@ const FrictionSimulator::Mode& FrictionSimulator::mode(const std::vector<Frictio
   return *it->second;
 }
 
+namespace {
+
+/// z = [x; v; cos Ωt; sin Ωt; 1; cos k₁Ωt; sin k₁Ωt; …] (flow.hpp's layout).
+Eigen::VectorXd augmented(const LinearSystem& sys, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
+  const Eigen::Index n = sys.dof();
+  const HarmonicForcing& f = sys.forcing();
+  Eigen::VectorXd z(augmented_size(n, f));
+  z << x, v, std::cos(f.frequency * t), std::sin(f.frequency * t), 1.0,
+      Eigen::VectorXd::Zero(2 * static_cast<Eigen::Index>(f.harmonics.size()));
+  for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+    const double rate = f.harmonics[h].rate(f.frequency);
+    z(2 * n + 3 + 2 * static_cast<Eigen::Index>(h)) = std::cos(rate * t);
+    z(2 * n + 4 + 2 * static_cast<Eigen::Index>(h)) = std::sin(rate * t);
+  }
+  return z;
+}
+
+}  // namespace
+
 Eigen::VectorXd FrictionSimulator::relative_velocities(double t, const Eigen::VectorXd& v) const {
   const Tables tab(*system_, contacts_);
-  const LinearFlow free_flow(*system_, options_.flow);
-  return tab.u_rows * free_flow.augment(t, Eigen::VectorXd::Zero(tab.n), v);
+  return tab.u_rows * augmented(*system_, t, Eigen::VectorXd::Zero(tab.n), v);
 }
 
 Eigen::VectorXd FrictionSimulator::forces(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
@@ -278,8 +296,7 @@ Eigen::VectorXd FrictionSimulator::forces(double t, const Eigen::VectorXd& x, co
   const Tables tab(*system_, contacts_);
   Eigen::MatrixXd F, A;
   tab.mode_rows(states, F, A);
-  const LinearFlow free_flow(*system_, options_.flow);
-  return F * free_flow.augment(t, x, v);
+  return F * augmented(*system_, t, x, v);
 }
 
 namespace {
@@ -502,6 +519,52 @@ FrictionSummary FrictionSimulator::run(double t0, const Eigen::VectorXd& x0, con
                                               std::to_string(fired) + "]");
     if (t >= t_end) return finish(RunStatus::completed, "");
   }
+}
+
+FrictionEngine::FrictionEngine(LinearSystem system, std::vector<FrictionContact> contacts,
+                               const SimulatorOptions& options)
+    : system_(std::make_unique<LinearSystem>(std::move(system))),
+      sim_(std::make_unique<FrictionSimulator>(*system_, std::move(contacts), options)) {}
+
+namespace {
+
+/// Friction events as the observers' Events.
+struct ForwardEvents final : FrictionObserver {
+  const std::vector<Observer*>* observers = nullptr;
+  const FrictionSimulator* sim = nullptr;
+  void friction_event(const FrictionEvent& e, const Eigen::VectorXd& /*x*/, const Eigen::VectorXd& v) override {
+    const EventKind kind = e.kind == FrictionEventKind::stick  ? EventKind::friction_stick
+                           : e.kind == FrictionEventKind::slip ? EventKind::friction_slip
+                                                               : EventKind::friction_reversal;
+    const double u = sim->relative_velocities(e.t, v)(e.contact);
+    const Event out{e.t, e.contact, kind, u, u, e.force};
+    for (Observer* o : *observers) o->event(out);
+  }
+};
+
+}  // namespace
+
+RunSummary FrictionEngine::run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t_end,
+                               const std::vector<Observer*>& observers) {
+  ForwardEvents forward;
+  forward.observers = &observers;
+  forward.sim = sim_.get();
+  const FrictionSummary f = sim_->run(t0, x0, v0, t_end, observers, {&forward});
+  RunSummary s;
+  s.status = f.status;
+  s.message = f.message;
+  s.t = f.t;
+  s.x = f.x;
+  s.v = f.v;
+  s.sticks = f.sticks;
+  s.releases = f.slips + f.reversals;
+  s.segments = f.segments;
+  s.contact_sets_built = f.modes_built;
+  s.sticking_flows_built = f.modes_built;
+  s.length_scale = f.length_scale;
+  s.velocity_scale = f.velocity_scale;
+  s.force_scale = f.force_scale;
+  return s;
 }
 
 }  // namespace vibro

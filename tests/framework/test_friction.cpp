@@ -135,7 +135,7 @@ TEST_CASE("Den Hartog's steady state with Coulomb and viscous damping, to 1e-10"
     worst = std::max({worst, std::abs(probe.x[i](0) - static_cast<double>(x)) / amplitude,
                       std::abs(probe.v[i](0) - static_cast<double>(v)) / (amplitude * W)});
   }
-  INFO("largest state error over a period, relative to the amplitude: " << worst);
+  WARN("Den Hartog: largest state error over a period, relative to the amplitude: " << worst);
   CHECK(worst < 1e-10);
   // The motion never sticks: each reversal sits at Den Hartog's turning points t1 + jT/2.
   CHECK(s.sticks == 0);
@@ -146,7 +146,7 @@ TEST_CASE("Den Hartog's steady state with Coulomb and viscous damping, to 1e-10"
       const long double phase = std::fmod(static_cast<long double>(e.t) - dh.t1, dh.T / 2);
       turn = std::max(turn, static_cast<double>(std::min(phase, dh.T / 2 - phase)));
     }
-  INFO("largest distance of a reversal from the turning points: " << turn);
+  WARN("Den Hartog: largest distance of a reversal from the turning points: " << turn);
   CHECK(turn < 1e-10 * T);
 }
 
@@ -178,7 +178,7 @@ TEST_CASE("a stick-slip orbit on a moving surface against the long-double refere
     dt = std::max(dt, std::abs(e.t - static_cast<double>(ref.events[i].t)));
     dx = std::max(dx, std::abs(log.x[i](0) - static_cast<double>(ref.events[i].x)));
   }
-  INFO("events " << log.events.size() << " (sticks " << s.sticks << ", slips " << s.slips << ", reversals "
+  WARN("stick-slip against the reference: events " << log.events.size() << " (sticks " << s.sticks << ", slips " << s.slips << ", reversals "
                  << s.reversals << "); largest |Δt| " << dt << ", |Δx| " << dx);
   // The reference's RK8 steps err by ~1e-18 each and its roots are bisected to long-double
   // rounding; the engine's events are roots located to a few ulps of t (events.hpp). Measured
@@ -213,7 +213,7 @@ TEST_CASE("friction never gains energy: two masses, a fixed surface and a rubbin
   }
   for (std::size_t i = 0; i < log.events.size(); ++i)
     CHECK(sys.energy(log.x[i], log.v[i]) <= sys.energy(x0, v0) * (1 + 1e-14));
-  INFO("events " << log.events.size() << ", largest energy gain between samples " << worst_gain / e0 << " of E0");
+  WARN("energy: events " << log.events.size() << ", largest energy gain between samples " << worst_gain / e0 << " of E0");
   REQUIRE(log.events.size() >= 4);
   CHECK(worst_gain <= 1e-13 * e0);
   CHECK(sys.energy(s.x, s.v) < 0.9 * e0);

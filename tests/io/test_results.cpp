@@ -53,7 +53,8 @@ Scene make_scene(double frequency, RecordSpec record, RunSpec run) {
                .solver = {},
                .record = std::move(record),
                .run = std::move(run),
-               .engine_reason = "a test scene made in code"};
+               .engine_reason = "a test scene made in code",
+               .friction = {}};
 }
 
 RecordSpec record_everything() {

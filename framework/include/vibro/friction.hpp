@@ -38,8 +38,11 @@
 /// carries it that way). The contact whose guard fired is not kept in its old state (a
 /// slip that reached u = 0 sticks or reverses; a stick whose force reached μ_s N slips, in the
 /// direction opposite to F: the way the other forces push it). Among consistent assignments the
-/// one with the most stuck contacts is taken, ties broken by the contacts' order (candidates
-/// before stuck ones are tried slipping first... see resolve in friction.cpp). For one contact
+/// one with the most stuck contacts is taken (ties: the first in the enumeration, which counts
+/// the candidates' options stuck, +, − like the digits of a base-3 number, the first candidate
+/// the lowest digit); if none is consistent with the fired contact changing state, it may keep
+/// its state. Tolerances: forces within ε·F, relative accelerations within ε·V·ω (ε the solver's
+/// trigger; F, V, ω the run's scales). For one contact
 /// this is exactly Coulomb's law: stick iff |F| ≤ μ_s N, else slip against F (and with
 /// μ_s ≥ μ_k the slip is consistent, since σ u' = G(|F| − μ_k N) > 0). For several coupled
 /// contacts the consistent set need not be unique (as with the contact LCP of stops); the rule
@@ -53,6 +56,7 @@
 /// References: J. P. Den Hartog, "Forced vibrations with combined Coulomb and viscous friction",
 /// Trans. ASME 53 (1931) APM-53-9, 107–115 (the steady state without stops, tests); S. W. Shaw,
 /// "On the dynamic response of a system with dry friction", J. Sound Vib. 108 (1986) 305–325.
+#include "vibro/engine.hpp"
 #include "vibro/observers.hpp"
 #include "vibro/simulator.hpp"
 
@@ -162,6 +166,25 @@ class FrictionSimulator {
   std::vector<FrictionContact> contacts_;
   SimulatorOptions options_;
   std::map<std::vector<FrictionState>, std::unique_ptr<Mode>> modes_;
+};
+
+/// The FrictionSimulator behind the Engine interface (engine.hpp), for the runner: friction events
+/// reach the observers as Events of kinds friction_stick, friction_slip and friction_reversal
+/// (`stop` = the contact's index, v_before = v_after = its relative velocity, force = F_j);
+/// RunSummary counts them as sticks (friction_stick) and releases (friction_slip and
+/// friction_reversal).
+class FrictionEngine final : public Engine {
+ public:
+  FrictionEngine(LinearSystem system, std::vector<FrictionContact> contacts, const SimulatorOptions& options);
+  RunSummary run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t_end,
+                 const std::vector<Observer*>& observers = {}) override;
+  double frequency() const override { return system_->forcing().frequency; }
+  std::size_t stop_count() const override { return 0; }
+  FrictionSimulator& simulator() { return *sim_; }
+
+ private:
+  std::unique_ptr<LinearSystem> system_;  // stable address for sim_
+  std::unique_ptr<FrictionSimulator> sim_;
 };
 
 }  // namespace vibro

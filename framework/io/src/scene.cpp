@@ -88,6 +88,7 @@ std::unique_ptr<vibro::Engine> make_engine(const Scene& scene) {
     if (!scene.chain) throw std::logic_error("make_engine: a modal scene without its banded chain");
     return std::make_unique<ModalEngine>(*scene.chain, scene.stops, modal_options(scene.solver));
   }
+  if (!scene.friction.empty()) return std::make_unique<FrictionEngine>(scene.system(), scene.friction, scene.solver);
   return std::make_unique<DenseEngine>(scene.impact_system(), scene.solver);
 }
 
@@ -358,13 +359,14 @@ void detail::read_run(Reader& r, const YAML::Node& root, SceneParts& p) {
 Scene SceneDocument::build_checked(bool check_sweep) const {
   Reader r(impl_->file, impl_->overrides);
   const YAML::Node& root = impl_->root;
-  r.expect_map(root, "", {"name", "model", "forcing", "stops", "initial", "solver", "record", "run"});
+  r.expect_map(root, "", {"name", "model", "forcing", "stops", "friction", "initial", "solver", "record", "run"});
   SceneParts p;
   p.doc = this;
   p.full = check_sweep;
   read_model(r, root, p);
   read_forcing(r, root, p);
   read_stops(r, root, p);
+  read_friction(r, root, p);
   read_initial(r, root, p);
   read_solver(r, root, p);
   check_initial_state(r, root, p);
@@ -372,9 +374,10 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   read_run(r, root, p);
   check_sample_times(r, root, p);  // (with the default run.periods when there is no run section)
   resolve_engine(r, root, p);
+  check_friction(r, root, p);
   return Scene{impl_->file, impl_->text, root["name"] ? r.text(root["name"], "name") : std::string(),
                std::move(p.dense), std::move(p.banded), std::move(p.stops), p.t0, p.x0, p.v0, p.opt, p.rec, p.run,
-               p.engine_choice, p.engine, p.reason};
+               p.engine_choice, p.engine, p.reason, std::move(p.friction)};
 }
 
 }  // namespace vibro::io

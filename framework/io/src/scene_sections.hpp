@@ -8,6 +8,7 @@
 #include "run_section.hpp"
 #include "scene_reader.hpp"
 
+#include "vibro/friction.hpp"
 #include "vibro/models/chain.hpp"
 
 #include <functional>
@@ -29,6 +30,7 @@ struct SceneParts {
   std::optional<BandedChain> banded;
   std::string not_banded;  ///< why a chain is not in banded form (its damping is not proportional)
   std::vector<Stop> stops;
+  std::vector<FrictionContact> friction;  ///< the `friction` section (scene_friction.cpp)
   double t0 = 0.0;
   Eigen::VectorXd x0, v0;
   SimulatorOptions opt;
@@ -51,5 +53,9 @@ void read_record(Reader& r, const YAML::Node& root, SceneParts& p);
 void check_sample_times(Reader& r, const YAML::Node& root, const SceneParts& p);
 void read_run(Reader& r, const YAML::Node& root, SceneParts& p);  // scene.cpp: the run kinds' table
 void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p);
+/// scene_friction.cpp: the `friction` section (after stops), and its checks on the resolved scene
+/// (after the engine: no stops, run.kind simulate, the dense engine).
+void read_friction(Reader& r, const YAML::Node& root, SceneParts& p);
+void check_friction(Reader& r, const YAML::Node& root, SceneParts& p);
 
 }  // namespace vibro::io::detail

@@ -25,6 +25,7 @@
 /// a scene that resolves to the modal engine (solver.engine, docs/scenes.md) is loaded, checked
 /// and run without any n × n matrix. Its stops and initial state are checked in O(n + m log m).
 #include "vibro/engine.hpp"
+#include "vibro/friction.hpp"
 #include "vibro/modal.hpp"
 #include "vibro/simulator.hpp"
 
@@ -219,6 +220,9 @@ struct Scene {
   EngineChoice engine_choice = EngineChoice::automatic;  ///< solver.engine as given
   EngineKind engine = EngineKind::dense;                         ///< as resolved
   std::string engine_reason;  ///< why it resolved so (for `vibro check` and `vibro info`)
+  /// The frictional contacts (friction.hpp), validated; empty: none. A scene with friction has no
+  /// stops, runs on the dense engine's FrictionSimulator and only as run.kind simulate.
+  std::vector<FrictionContact> friction;
 
   /// The dense system: built (O(n²) memory, O(n³) checks) and cached on the first call.
   const LinearSystem& system() const { return dense.get(); }
