@@ -17,6 +17,9 @@ const char* to_string(EventKind kind) {
     case EventKind::chatter_limit: return "chatter-limit";
     case EventKind::engage: return "engage";
     case EventKind::disengage: return "disengage";
+    case EventKind::friction_stick: return "friction-stick";
+    case EventKind::friction_slip: return "friction-slip";
+    case EventKind::friction_reversal: return "friction-reversal";
   }
   return "?";
 }

@@ -54,7 +54,8 @@ Scene make_scene(double frequency, RecordSpec record, RunSpec run) {
                .record = std::move(record),
                .run = std::move(run),
                .engine_reason = "a test scene made in code",
-               .forces = {}};
+               .forces = {},
+               .friction = {}};
 }
 
 RecordSpec record_everything() {

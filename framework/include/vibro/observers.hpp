@@ -24,7 +24,10 @@ namespace vibro {
 
 /// engage / disengage: a compliant stop's gap turning positive / returning to zero (stops.hpp);
 /// the state is continuous there, v_before = v_after = g'_j, force = its push N after the switch.
-enum class EventKind { impact, stick, release, chatter_limit, engage, disengage };
+/// friction_stick / friction_slip / friction_reversal: a frictional contact (friction.hpp; `stop` is
+/// then the contact's index) sticks, starts to slip, or reverses its slip; v_before = v_after = its
+/// relative velocity u (0 to the trigger), force = its friction force F after the event.
+enum class EventKind { impact, stick, release, chatter_limit, engage, disengage, friction_stick, friction_slip, friction_reversal };
 const char* to_string(EventKind kind);
 
 struct Event {

@@ -119,6 +119,33 @@ std::vector<Dataset> scene_datasets(const Scene& scene) {
     for (std::size_t j = 0; j < m; ++j) normals.row(static_cast<Eigen::Index>(j)) = stops[j].normal(scene.dof()).transpose();
     c.push_back(matrix_dataset("stop_normal", normals));
   }
+  if (!scene.friction.empty()) {  // frictional contacts (docs/results.md); absent without friction
+    const std::size_t q = scene.friction.size();
+    std::vector<std::int64_t> fkind, fmass, fother;
+    std::vector<double> load, mu_s, mu_k, famplitude, fphase;
+    std::vector<std::string> fname;
+    for (const FrictionContact& fc : scene.friction) {
+      fkind.push_back(static_cast<std::int64_t>(fc.kind));
+      fmass.push_back(fc.mass);
+      fother.push_back(fc.other);
+      load.push_back(fc.normal_load);
+      mu_s.push_back(fc.static_coefficient);
+      mu_k.push_back(fc.kinetic_coefficient);
+      famplitude.push_back(fc.amplitude);
+      fphase.push_back(fc.phase);
+      fname.push_back(fc.name);
+    }
+    c.push_back(integers("friction_kind", std::move(fkind), {q}, Type::i32));
+    c.back().labels.emplace_back("names", std::vector<std::string>{"surface", "between"});
+    c.push_back(integers("friction_mass", std::move(fmass), {q}));
+    c.push_back(integers("friction_other", std::move(fother), {q}));
+    c.push_back(reals("friction_normal_load", std::move(load), {q}));
+    c.push_back(reals("friction_static", std::move(mu_s), {q}));
+    c.push_back(reals("friction_kinetic", std::move(mu_k), {q}));
+    c.push_back(reals("friction_amplitude", std::move(famplitude), {q}));
+    c.push_back(reals("friction_phase", std::move(fphase), {q}));
+    c.push_back(texts("friction_name", std::move(fname)));
+  }
   c.push_back(vector_dataset("x0", scene.x0));
   c.push_back(vector_dataset("v0", scene.v0));
   return c;
@@ -188,7 +215,8 @@ ResultFile::Impl::Impl(std::unique_ptr<detail::OutputLock> output_lock, std::str
       sweep_run(scene.run.kind == RunSpec::Kind::sweep),
       dof(scene.dof()),
       stops(detail::stop_names(scene)),
-      compliant(has_compliant(scene.stops)) {}
+      compliant(has_compliant(scene.stops)),
+      friction(!scene.friction.empty()) {}
 
 void ResultFile::Impl::write_scene(const Scene& scene) const {
   store.create_group("/scene");

@@ -55,7 +55,8 @@ bool is_ragged(const std::string& group);
 /// The groups a recording writes (`dof` columns of states, the stops' names). `compliant`: the
 /// scene has compliant stops, so the event kinds' names include engage and disengage.
 std::vector<Table> recorded_tables(const Recording& rec, Eigen::Index dof,
-                                   const std::vector<std::string>& stop_names, bool compliant = false);
+                                   const std::vector<std::string>& stop_names, bool compliant = false,
+                                   bool friction = false);
 
 // /scene and /meta (result_file.cpp).
 
@@ -93,6 +94,7 @@ struct ResultFile::Impl {
   Eigen::Index dof = 0;
   std::vector<std::string> stops;
   bool compliant = false;  ///< the scene has compliant stops (events may be engage/disengage)
+  bool friction = false;   ///< the scene has friction (events may be friction-stick, -slip, -reversal)
   bool simulation_written = false;
   bool sweep_begun = false;
   std::size_t completed = 0, total = 0, parameters = 0;

@@ -89,6 +89,7 @@ std::unique_ptr<vibro::Engine> make_engine(const Scene& scene) {
     return std::make_unique<ModalEngine>(*scene.chain, scene.stops, modal_options(scene.solver));
   }
   if (scene.engine == EngineKind::taylor) return std::make_unique<TaylorEngine>(scene.impact_system(), scene.forces, scene.solver);
+  if (!scene.friction.empty()) return std::make_unique<FrictionEngine>(scene.system(), scene.friction, scene.solver);
   return std::make_unique<DenseEngine>(scene.impact_system(), scene.solver);
 }
 
@@ -367,14 +368,15 @@ void detail::read_run(Reader& r, const YAML::Node& root, SceneParts& p) {
 Scene SceneDocument::build_checked(bool check_sweep) const {
   Reader r(impl_->file, impl_->overrides);
   const YAML::Node& root = impl_->root;
-  r.expect_map(root, "", {"name", "model", "forcing", "base", "stops", "initial", "solver", "record", "run", "parameters",
-                          "forces"});
+  r.expect_map(root, "", {"name", "model", "forcing", "base", "stops", "friction", "initial", "solver", "record", "run",
+                          "parameters", "forces"});
   SceneParts p;
   p.doc = this;
   p.full = check_sweep;
   read_model(r, root, p);
   read_forcing(r, root, p);
   read_stops(r, root, p);
+  read_friction(r, root, p);
   read_initial(r, root, p);
   read_solver(r, root, p);
   check_initial_state(r, root, p);
@@ -383,9 +385,10 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   read_run(r, root, p);
   check_sample_times(r, root, p);  // (with the default run.periods when there is no run section)
   resolve_engine(r, root, p);
+  check_friction(r, root, p);
   Scene scene{impl_->file, impl_->text, root["name"] ? r.text(root["name"], "name") : std::string(),
               std::move(p.dense), std::move(p.banded), std::move(p.stops), p.t0, p.x0, p.v0, p.opt, p.rec, p.run,
-              p.engine_choice, p.engine, p.reason, std::move(p.base), std::move(p.forces)};
+              p.engine_choice, p.engine, p.reason, std::move(p.base), std::move(p.forces), std::move(p.friction)};
   return scene;
 }
 

@@ -9,6 +9,7 @@
 #include "scene_reader.hpp"
 
 #include "vibro/base_motion.hpp"
+#include "vibro/friction.hpp"
 #include "vibro/models/chain.hpp"
 #include "vibro/taylor_simulator.hpp"
 
@@ -33,6 +34,7 @@ struct SceneParts {
   std::string not_banded;  ///< why a chain is not in banded form (its damping is not proportional)
   std::vector<Stop> stops;
   NonlinearForces forces;  ///< `parameters` and `forces` (scene_forces.cpp); none: a linear scene
+  std::vector<FrictionContact> friction;  ///< the `friction` section (scene_friction.cpp)
   double t0 = 0.0;
   Eigen::VectorXd x0, v0;
   SimulatorOptions opt;
@@ -65,5 +67,9 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p);
 // the scene runs on it).
 void read_forces(Reader& r, const YAML::Node& root, SceneParts& p);
 bool resolve_taylor_engine(Reader& r, const YAML::Node& root, SceneParts& p);
+/// scene_friction.cpp: the `friction` section (after stops), and its checks on the resolved scene
+/// (after the engine: no stops, run.kind simulate, the dense engine).
+void read_friction(Reader& r, const YAML::Node& root, SceneParts& p);
+void check_friction(Reader& r, const YAML::Node& root, SceneParts& p);
 
 }  // namespace vibro::io::detail

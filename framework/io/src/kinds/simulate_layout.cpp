@@ -18,14 +18,18 @@ namespace {
 constexpr const char* kGroups[] = {"events", "contacts", "samples", "poincare", "impact_map", "stats"};
 
 /// The kinds' names in code order; engage and disengage only for scenes with compliant stops
-/// (a scene without them writes the four rigid kinds, as it always has).
-std::vector<std::string> event_kind_names(bool compliant) {
+/// (a scene without them writes the four rigid kinds); the friction kinds (after those six) only
+/// for scenes with friction.
+std::vector<std::string> event_kind_names(bool compliant, bool friction) {
   std::vector<std::string> names{to_string(EventKind::impact), to_string(EventKind::stick),
                                  to_string(EventKind::release), to_string(EventKind::chatter_limit)};
-  if (compliant) {
+  if (compliant || friction) {
     names.emplace_back(to_string(EventKind::engage));
     names.emplace_back(to_string(EventKind::disengage));
   }
+  if (friction)
+    for (EventKind k : {EventKind::friction_stick, EventKind::friction_slip, EventKind::friction_reversal})
+      names.emplace_back(to_string(k));
   return names;
 }
 
@@ -50,7 +54,8 @@ bool is_ragged(const std::string& group) {
 /// when the run completed: periods without contact or impact leave no row in the observer and
 /// are zero rows here.
 std::vector<Table> recorded_tables(const Recording& rec, Eigen::Index dof,
-                                   const std::vector<std::string>& stop_names, bool compliant) {
+                                   const std::vector<std::string>& stop_names, bool compliant,
+                                   bool friction) {
   std::vector<Table> tables;
   if (rec.events) {
     const std::vector<Event>& events = rec.events->events;
@@ -69,7 +74,7 @@ std::vector<Table> recorded_tables(const Recording& rec, Eigen::Index dof,
     table.datasets.push_back(reals("t", std::move(t), {r}));
     table.datasets.push_back(integers("stop", std::move(stop), {r}, Type::i32));
     table.datasets.push_back(integers("kind", std::move(kind), {r}, Type::i32));
-    table.datasets.back().labels.emplace_back("names", event_kind_names(compliant));
+    table.datasets.back().labels.emplace_back("names", event_kind_names(compliant, friction));
     table.datasets.push_back(reals("v_before", std::move(before), {r}));
     table.datasets.push_back(reals("v_after", std::move(after), {r}));
     table.datasets.push_back(reals("force", std::move(force), {r}));
@@ -166,7 +171,7 @@ void ResultFile::Impl::require_groups(const Recording& rec) const {
 std::vector<detail::Table> ResultFile::Impl::checked_tables(const Recording& rec,
                                                             const std::string& where) const {
   require_groups(rec);
-  std::vector<Table> tables = detail::recorded_tables(rec, dof, stops, compliant);
+  std::vector<Table> tables = detail::recorded_tables(rec, dof, stops, compliant, friction);
   for (const Table& t : tables)
     for (const Dataset& c : t.datasets)
       detail::require_finite(store.name(), "/" + t.group + "/" + c.name, c, where);

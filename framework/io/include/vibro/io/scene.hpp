@@ -27,6 +27,7 @@
 #include "vibro/base_motion.hpp"
 #include "vibro/engine.hpp"
 #include "vibro/taylor_simulator.hpp"
+#include "vibro/friction.hpp"
 #include "vibro/modal.hpp"
 #include "vibro/simulator.hpp"
 
@@ -229,6 +230,9 @@ struct Scene {
   /// `parameters` and `forces` (docs/scenes.md): nonlinear forces, run by the Taylor engine
   /// (taylor_simulator.hpp); empty forces for a linear scene.
   NonlinearForces forces;
+  /// The frictional contacts (friction.hpp), validated; empty: none. A scene with friction has no
+  /// stops, runs on the dense engine's FrictionSimulator and only as run.kind simulate.
+  std::vector<FrictionContact> friction;
 
   /// The dense system: built (O(n²) memory, O(n³) checks) and cached on the first call.
   const LinearSystem& system() const { return dense.get(); }

@@ -1,0 +1,570 @@
+#include "vibro/friction.hpp"
+
+#include "vibro/events.hpp"
+#include "vibro/flow.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <numbers>
+#include <optional>
+#include <stdexcept>
+
+namespace vibro {
+
+FrictionContact FrictionContact::on_surface(Eigen::Index mass, double load, double mu_s, double mu_k,
+                                            double amplitude, double phase) {
+  FrictionContact c;
+  c.kind = Kind::surface;
+  c.mass = mass;
+  c.normal_load = load;
+  c.static_coefficient = mu_s;
+  c.kinetic_coefficient = mu_k;
+  c.amplitude = amplitude;
+  c.phase = phase;
+  return c;
+}
+
+FrictionContact FrictionContact::between(Eigen::Index mass, Eigen::Index other, double load, double mu_s,
+                                         double mu_k) {
+  FrictionContact c = on_surface(mass, load, mu_s, mu_k);
+  c.kind = Kind::between;
+  c.other = other;
+  return c;
+}
+
+Eigen::VectorXd FrictionContact::tangent(Eigen::Index n) const {
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(n);
+  w(mass) = 1.0;
+  if (kind == Kind::between) w(other) = -1.0;
+  return w;
+}
+
+const char* to_string(FrictionEventKind kind) {
+  switch (kind) {
+    case FrictionEventKind::stick: return "stick";
+    case FrictionEventKind::slip: return "slip";
+    case FrictionEventKind::reversal: return "reversal";
+  }
+  return "?";
+}
+
+std::vector<FrictionContact> validated_friction(std::vector<FrictionContact> contacts, Eigen::Index n) {
+  for (std::size_t j = 0; j < contacts.size(); ++j) {
+    FrictionContact& c = contacts[j];
+    const std::string at = "friction[" + std::to_string(j) + "]";
+    auto index_ok = [n](Eigen::Index i) { return i >= 0 && i < n; };
+    if (!index_ok(c.mass))
+      throw InvalidInput(at + ": mass index " + std::to_string(c.mass) + " is out of range [0, " +
+                         std::to_string(n - 1) + "]");
+    if (c.kind == FrictionContact::Kind::between) {
+      if (!index_ok(c.other))
+        throw InvalidInput(at + ": between index " + std::to_string(c.other) + " is out of range [0, " +
+                           std::to_string(n - 1) + "]");
+      if (c.other == c.mass) throw InvalidInput(at + ": between needs two different masses");
+      if (c.amplitude != 0.0)
+        throw InvalidInput(at + ": a contact between two masses has no surface motion (amplitude must be 0)");
+    }
+    const std::pair<const char*, double> values[] = {{"normal_load", c.normal_load},
+                                                      {"static", c.static_coefficient},
+                                                      {"kinetic", c.kinetic_coefficient},
+                                                      {"surface.amplitude", c.amplitude},
+                                                      {"surface.phase", c.phase}};
+    for (const auto& [key, value] : values)
+      if (!std::isfinite(value)) throw InvalidInput(at + ": " + key + " = " + number_text(value) + " is not finite");
+    if (c.normal_load < 0.0)
+      throw InvalidInput(at + ": normal_load = " + number_text(c.normal_load) + " must be ≥ 0");
+    if (c.kinetic_coefficient < 0.0)
+      throw InvalidInput(at + ": kinetic = " + number_text(c.kinetic_coefficient) + " must be ≥ 0");
+    if (c.static_coefficient < c.kinetic_coefficient)
+      throw InvalidInput(at + ": static = " + number_text(c.static_coefficient) + " is below kinetic = " +
+                         number_text(c.kinetic_coefficient) + " (μ_s ≥ μ_k is required)");
+    if (c.name.empty())
+      c.name = c.kind == FrictionContact::Kind::between
+                   ? "between x" + std::to_string(c.mass) + "-x" + std::to_string(c.other)
+                   : "mass x" + std::to_string(c.mass);
+  }
+  return contacts;
+}
+
+namespace {
+
+int sign_of(FrictionState s) { return static_cast<int>(s); }
+
+/// The pieces every mode and every resolution share: tangents, M⁻¹, and the rows that map the
+/// augmented state z to u_j, s_j'' and r's parts.
+struct Tables {
+  Eigen::Index n = 0, N = 0, off = 0;  // dof, augmented size, index of cos Ωt in z
+  Eigen::MatrixXd W, minv, minv_W;     // n × m tangents; M⁻¹; M⁻¹W
+  Eigen::MatrixXd u_rows, s2_rows;     // m × N: u_j = u_rows z, s_j'' = s2_rows z
+  Eigen::MatrixXd r_rows;              // n × N: r = f(t) − C v − K x, no friction
+  Eigen::VectorXd limit_static, limit_kinetic;  // μ_s N, μ_k N
+
+  Tables(const LinearSystem& sys, const std::vector<FrictionContact>& contacts) {
+    n = sys.dof();
+    N = augmented_size(n, sys.forcing());
+    off = 2 * n;
+    const auto m = static_cast<Eigen::Index>(contacts.size());
+    const double omega = sys.forcing().frequency;
+    W.resize(n, m);
+    u_rows = Eigen::MatrixXd::Zero(m, N);
+    s2_rows = Eigen::MatrixXd::Zero(m, N);
+    limit_static.resize(m);
+    limit_kinetic.resize(m);
+    for (Eigen::Index j = 0; j < m; ++j) {
+      const FrictionContact& c = contacts[static_cast<std::size_t>(j)];
+      W.col(j) = c.tangent(n);
+      u_rows.row(j).segment(n, n) = W.col(j).transpose();
+      // s = a cos(Ωt + φ) = a (cos φ cos Ωt − sin φ sin Ωt); u = wᵀv − s'.
+      const double a = c.amplitude, cp = std::cos(c.phase), sp = std::sin(c.phase);
+      u_rows(j, off) += a * omega * sp;
+      u_rows(j, off + 1) += a * omega * cp;
+      s2_rows(j, off) = -a * omega * omega * cp;
+      s2_rows(j, off + 1) = a * omega * omega * sp;
+      limit_static(j) = c.static_coefficient * c.normal_load;
+      limit_kinetic(j) = c.kinetic_coefficient * c.normal_load;
+    }
+    minv = sys.mass().llt().solve(Eigen::MatrixXd::Identity(n, n));
+    minv_W = minv * W;
+    r_rows = Eigen::MatrixXd::Zero(n, N);
+    r_rows.leftCols(n) = -sys.stiffness();
+    r_rows.middleCols(n, n) = -sys.damping();
+    const HarmonicForcing& f = sys.forcing();
+    r_rows.col(off) = f.cosine;
+    r_rows.col(off + 1) = f.sine;
+    r_rows.col(off + 2) = f.constant;
+    for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+      r_rows.col(off + 3 + 2 * static_cast<Eigen::Index>(h)) = f.harmonics[h].cosine;
+      r_rows.col(off + 4 + 2 * static_cast<Eigen::Index>(h)) = f.harmonics[h].sine;
+    }
+  }
+
+  /// In the given states: rows (m × N) of every contact's force F_j, and rows (n × N) of the
+  /// acceleration x'' (both linear in z).
+  void mode_rows(const std::vector<FrictionState>& states, Eigen::MatrixXd& force_rows,
+                 Eigen::MatrixXd& accel_rows) const {
+    const auto m = static_cast<Eigen::Index>(states.size());
+    force_rows = Eigen::MatrixXd::Zero(m, N);
+    std::vector<Eigen::Index> stuck;
+    for (Eigen::Index j = 0; j < m; ++j) {
+      const FrictionState s = states[static_cast<std::size_t>(j)];
+      if (s == FrictionState::stuck) stuck.push_back(j);
+      else force_rows(j, off + 2) = -limit_kinetic(j) * sign_of(s);
+    }
+    Eigen::MatrixXd r = r_rows;  // r with the slipping forces
+    for (Eigen::Index j = 0; j < m; ++j)
+      if (states[static_cast<std::size_t>(j)] != FrictionState::stuck) r.col(off + 2) += W.col(j) * force_rows(j, off + 2);
+    accel_rows = minv * r;
+    if (stuck.empty()) return;
+    const auto s = static_cast<Eigen::Index>(stuck.size());
+    Eigen::MatrixXd Ws(n, s), MWs(n, s), S2(s, N);
+    for (Eigen::Index k = 0; k < s; ++k) {
+      Ws.col(k) = W.col(stuck[static_cast<std::size_t>(k)]);
+      MWs.col(k) = minv_W.col(stuck[static_cast<std::size_t>(k)]);
+      S2.row(k) = s2_rows.row(stuck[static_cast<std::size_t>(k)]);
+    }
+    const Eigen::MatrixXd G = Ws.transpose() * MWs;
+    const Eigen::MatrixXd hold = G.ldlt().solve(S2 - Ws.transpose() * accel_rows);  // F_S rows
+    for (Eigen::Index k = 0; k < s; ++k) force_rows.row(stuck[static_cast<std::size_t>(k)]) = hold.row(k);
+    accel_rows += MWs * hold;
+  }
+};
+
+}  // namespace
+
+/// A mode's exact flow (its generator is the free one with the slipping forces in f and the
+/// stuck contacts' constraint rows, friction.hpp) and its guards.
+class FrictionSimulator::Mode {
+ public:
+  Mode(const LinearSystem& sys, const Tables& tab, const std::vector<FrictionState>& states, FlowOptions options)
+      : states_(states) {
+    const Eigen::Index n = tab.n, N = tab.N;
+    Eigen::MatrixXd accel;
+    tab.mode_rows(states, force_rows_, accel);
+    Eigen::MatrixXd A = augmented_generator(sys.mass(), sys.damping(), sys.stiffness(), sys.forcing());
+    A.middleRows(n, n) = accel;
+    flow_ = std::make_unique<LinearFlow>(std::move(A), n, sys.forcing().frequency, options);
+    // Guards: −σ u_j while slipping; ±F_j − μ_s N while stuck.
+    std::vector<Eigen::VectorXd> rows;
+    for (std::size_t j = 0; j < states.size(); ++j) {
+      const auto J = static_cast<Eigen::Index>(j);
+      if (states[j] != FrictionState::stuck) {
+        rows.emplace_back(-sign_of(states[j]) * tab.u_rows.row(J).transpose());
+        contact_.push_back(static_cast<int>(j));
+        force_guard_.push_back(false);
+      } else {
+        for (double sign : {1.0, -1.0}) {
+          Eigen::VectorXd row = sign * force_rows_.row(J).transpose();
+          row(tab.off + 2) -= tab.limit_static(J);
+          rows.push_back(row);
+          contact_.push_back(static_cast<int>(j));
+          force_guard_.push_back(true);
+        }
+      }
+    }
+    Eigen::MatrixXd guard_rows(static_cast<Eigen::Index>(rows.size()), N);
+    for (std::size_t i = 0; i < rows.size(); ++i) guard_rows.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
+    guards_ = std::make_unique<Functionals>(*flow_, std::move(guard_rows));
+  }
+
+  const LinearFlow& flow() const { return *flow_; }
+  const Functionals& guards() const { return *guards_; }
+  const Eigen::MatrixXd& force_rows() const { return force_rows_; }
+  int contact_of(Eigen::Index row) const { return contact_[static_cast<std::size_t>(row)]; }
+  bool force_guard(Eigen::Index row) const { return force_guard_[static_cast<std::size_t>(row)]; }
+
+ private:
+  std::vector<FrictionState> states_;
+  std::unique_ptr<LinearFlow> flow_;
+  std::unique_ptr<Functionals> guards_;
+  Eigen::MatrixXd force_rows_;
+  std::vector<int> contact_;
+  std::vector<char> force_guard_;
+};
+
+namespace {
+
+/// A friction segment for the usual observers: full states from the exact flow; no stops.
+class FrictionSegmentView final : public SegmentView {
+ public:
+  FrictionSegmentView(const Segment& segment, Eigen::Index n, double t_begin, double t_end)
+      : SegmentView(t_begin, t_end), segment_(&segment), n_(n), z_(segment.initial_state().size()) {}
+  Eigen::Index dof() const override { return n_; }
+  const ContactSet& active() const override { return none_; }
+  void state(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const override {
+    segment_->state_unstored(t - segment_->t0(), z_);
+    x = z_.head(n_);
+    v = z_.segment(n_, n_);
+  }
+  double force(Eigen::Index, double) const override { throw std::logic_error("friction segment: no stops held"); }
+  Minimum force_minimum(Eigen::Index) const override { throw std::logic_error("friction segment: no stops held"); }
+  std::vector<Minimum> force_local_minima(Eigen::Index) const override { return {}; }
+
+ private:
+  const Segment* segment_;
+  Eigen::Index n_;
+  mutable Eigen::VectorXd z_;
+  ContactSet none_;
+};
+
+}  // namespace
+
+FrictionSimulator::FrictionSimulator(const LinearSystem& system, std::vector<FrictionContact> contacts,
+                                     SimulatorOptions options)
+    : system_(&system), contacts_(validated_friction(std::move(contacts), system.dof())), options_(options) {
+  options_.validate();
+}
+
+FrictionSimulator::~FrictionSimulator() = default;
+
+const FrictionSimulator::Mode& FrictionSimulator::mode(const std::vector<FrictionState>& states) {
+  auto it = modes_.find(states);
+  if (it == modes_.end()) {
+    const Tables tab(*system_, contacts_);
+    it = modes_.emplace(states, std::make_unique<Mode>(*system_, tab, states, options_.flow)).first;
+  }
+  return *it->second;
+}
+
+namespace {
+
+/// z = [x; v; cos Ωt; sin Ωt; 1; cos k₁Ωt; sin k₁Ωt; …] (flow.hpp's layout).
+Eigen::VectorXd augmented(const LinearSystem& sys, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
+  const Eigen::Index n = sys.dof();
+  const HarmonicForcing& f = sys.forcing();
+  Eigen::VectorXd z(augmented_size(n, f));
+  z << x, v, std::cos(f.frequency * t), std::sin(f.frequency * t), 1.0,
+      Eigen::VectorXd::Zero(2 * static_cast<Eigen::Index>(f.harmonics.size()));
+  for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+    const double rate = f.harmonics[h].rate(f.frequency);
+    z(2 * n + 3 + 2 * static_cast<Eigen::Index>(h)) = std::cos(rate * t);
+    z(2 * n + 4 + 2 * static_cast<Eigen::Index>(h)) = std::sin(rate * t);
+  }
+  return z;
+}
+
+}  // namespace
+
+Eigen::VectorXd FrictionSimulator::relative_velocities(double t, const Eigen::VectorXd& v) const {
+  const Tables tab(*system_, contacts_);
+  return tab.u_rows * augmented(*system_, t, Eigen::VectorXd::Zero(tab.n), v);
+}
+
+Eigen::VectorXd FrictionSimulator::forces(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                                          const std::vector<FrictionState>& states) const {
+  const Tables tab(*system_, contacts_);
+  Eigen::MatrixXd F, A;
+  tab.mode_rows(states, F, A);
+  return F * augmented(*system_, t, x, v);
+}
+
+namespace {
+
+/// The resolution of friction.hpp: the states of every contact at z, given the old states, the
+/// contact whose guard fired (−1: none, the start) and the tolerances. Returns false when no
+/// assignment is consistent.
+bool resolve_states(const Tables& tab, const Eigen::VectorXd& z, std::vector<FrictionState>& states, int fired,
+                    double eps_v, double eps_f, double eps_a) {
+  const auto m = static_cast<Eigen::Index>(states.size());
+  const Eigen::VectorXd u = tab.u_rows * z;
+  std::vector<Eigen::Index> cand;
+  std::vector<FrictionState> trial(states.size());
+  for (Eigen::Index j = 0; j < m; ++j) {
+    const auto J = static_cast<std::size_t>(j);
+    const bool near = std::abs(u(j)) <= eps_v;
+    if (near || states[J] == FrictionState::stuck || j == fired) cand.push_back(j);
+    else trial[J] = u(j) > 0.0 ? FrictionState::slip_positive : FrictionState::slip_negative;
+  }
+  const auto c = cand.size();
+  if (c > 10) return false;
+  std::size_t total = 1;
+  for (std::size_t k = 0; k < c; ++k) total *= 3;
+  // Options per candidate, in order: stuck, +, −; the fired contact may not keep its state.
+  int best_stuck = -1;
+  std::vector<FrictionState> best;
+  Eigen::MatrixXd F, A;
+  for (int pass = 0; pass < 2 && best_stuck < 0; ++pass) {  // pass 1: the fired contact unrestricted
+    for (std::size_t code = 0; code < total; ++code) {
+      std::size_t rest = code;
+      int stuck_count = 0;
+      bool allowed = true;
+      for (std::size_t k = 0; k < c; ++k) {
+        const int option = static_cast<int>(rest % 3);
+        rest /= 3;
+        const FrictionState s = option == 0 ? FrictionState::stuck
+                                : option == 1 ? FrictionState::slip_positive
+                                              : FrictionState::slip_negative;
+        const auto J = static_cast<std::size_t>(cand[k]);
+        if (pass == 0 && cand[k] == fired && s == states[J]) allowed = false;
+        trial[J] = s;
+        stuck_count += s == FrictionState::stuck;
+      }
+      if (!allowed || stuck_count <= best_stuck) continue;
+      tab.mode_rows(trial, F, A);
+      const Eigen::VectorXd force = F * z;
+      const Eigen::VectorXd udot = tab.W.transpose() * (A * z) - tab.s2_rows * z;  // u' = Wᵀx'' − s''
+      bool ok = true;
+      for (std::size_t k = 0; k < c && ok; ++k) {
+        const Eigen::Index j = cand[k];
+        const FrictionState s = trial[static_cast<std::size_t>(j)];
+        if (s == FrictionState::stuck) ok = std::abs(force(j)) <= tab.limit_static(j) + eps_f;
+        else ok = sign_of(s) * udot(j) >= -eps_a;
+      }
+      if (ok) {
+        best_stuck = stuck_count;
+        best = trial;
+      }
+    }
+  }
+  if (best_stuck < 0) return false;
+  states = best;
+  return true;
+}
+
+}  // namespace
+
+FrictionSummary FrictionSimulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t_end,
+                                       const std::vector<Observer*>& observers,
+                                       const std::vector<FrictionObserver*>& friction_observers) {
+  const LinearSystem& sys = *system_;
+  const Eigen::Index n = sys.dof();
+  if (x0.size() != n || v0.size() != n)
+    throw InvalidInput("initial state: x has " + std::to_string(x0.size()) + " and v has " +
+                       std::to_string(v0.size()) + " entries, expected " + std::to_string(n));
+  if (!x0.allFinite() || !v0.allFinite()) throw InvalidInput("initial state is not finite");
+  if (!std::isfinite(t0) || !std::isfinite(t_end) || t_end < t0)
+    throw InvalidInput("time span: [" + number_text(t0) + ", " + number_text(t_end) + "] must be finite with t_end ≥ t0");
+
+  const Tables tab(sys, contacts_);
+  const HarmonicForcing& f = sys.forcing();
+  // Scales (simulator.hpp's): ω the forcing frequency or the fastest mode's; L from the state,
+  // the static deflection of the forcing and of the friction limits, the surfaces' amplitudes.
+  double omega = f.frequency;
+  if (omega == 0.0) {
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(sys.stiffness(), sys.mass(), Eigen::EigenvaluesOnly);
+    omega = std::sqrt(std::max(0.0, eig.eigenvalues().maxCoeff()));
+    if (omega == 0.0) omega = 1.0;
+  }
+  const double kmax = sys.stiffness().cwiseAbs().maxCoeff(), mmax = sys.mass().cwiseAbs().maxCoeff();
+  const double stiff = std::max(kmax, mmax * omega * omega);
+  double fmax = f.constant.cwiseAbs().maxCoeff() + f.cosine.cwiseAbs().maxCoeff() + f.sine.cwiseAbs().maxCoeff();
+  for (const ForcingHarmonic& h : f.harmonics) fmax += h.cosine.cwiseAbs().maxCoeff() + h.sine.cwiseAbs().maxCoeff();
+  double L = std::max({x0.cwiseAbs().maxCoeff(), v0.cwiseAbs().maxCoeff() / omega, fmax / stiff, 1e-300});
+  for (Eigen::Index j = 0; j < tab.W.cols(); ++j)
+    L = std::max({L, tab.limit_static(j) / stiff, std::abs(contacts_[static_cast<std::size_t>(j)].amplitude)});
+  if (options_.length_scale > 0.0) L = options_.length_scale;
+  const double V = L * omega, Fs = stiff * L, T = 2.0 * std::numbers::pi / omega;
+  const double eps_v = options_.trigger * V, eps_f = options_.trigger * Fs, eps_a = options_.trigger * V * omega;
+  const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t_end), T);
+  const double window = options_.event_window > 0.0 ? options_.event_window : T;
+
+  FrictionSummary summary;
+  summary.length_scale = L;
+  summary.velocity_scale = V;
+  summary.force_scale = Fs;
+  double t = t0;
+  Eigen::VectorXd x = x0, v = v0;
+  std::vector<FrictionState> states(contacts_.size(), FrictionState::slip_positive);
+
+  auto finish = [&](RunStatus status, std::string message) {
+    summary.status = status;
+    summary.message = std::move(message);
+    summary.t = t;
+    summary.x = x;
+    summary.v = v;
+    summary.states = states;
+    summary.modes_built = modes_.size();
+    for (Observer* o : observers) o->end(t);
+    return summary;
+  };
+  auto emit_changes = [&](const std::vector<FrictionState>& before, const Eigen::VectorXd& z, bool initial,
+                          const std::vector<char>& candidate) {
+    const Eigen::VectorXd force = mode(states).force_rows() * z;
+    for (std::size_t j = 0; j < states.size(); ++j) {
+      FrictionEventKind kind;
+      if (initial) {
+        if (!candidate[j]) continue;
+        kind = states[j] == FrictionState::stuck ? FrictionEventKind::stick : FrictionEventKind::slip;
+      } else if (states[j] == before[j]) {
+        continue;
+      } else if (states[j] == FrictionState::stuck) {
+        kind = FrictionEventKind::stick;
+      } else if (before[j] == FrictionState::stuck) {
+        kind = FrictionEventKind::slip;
+      } else {
+        kind = FrictionEventKind::reversal;
+      }
+      (kind == FrictionEventKind::stick ? summary.sticks : kind == FrictionEventKind::slip ? summary.slips
+                                                                                          : summary.reversals)++;
+      const FrictionEvent e{t, static_cast<int>(j), kind, force(static_cast<Eigen::Index>(j))};
+      for (FrictionObserver* o : friction_observers) o->friction_event(e, x, v);
+    }
+  };
+
+  for (Observer* o : observers) o->begin(RunContext{n, 0, f.frequency}, t0);
+  {
+    // The start: the contacts at u = 0 are decided by the resolution.
+    const LinearFlow& free_flow = mode(states).flow();
+    const Eigen::VectorXd z = free_flow.augment(t, x, v);
+    const Eigen::VectorXd u = tab.u_rows * z;
+    std::vector<char> candidate(states.size());
+    for (std::size_t j = 0; j < states.size(); ++j) {
+      const auto J = static_cast<Eigen::Index>(j);
+      candidate[j] = std::abs(u(J)) <= eps_v;
+      if (!candidate[j]) states[j] = u(J) > 0.0 ? FrictionState::slip_positive : FrictionState::slip_negative;
+    }
+    const std::vector<FrictionState> before = states;
+    if (!resolve_states(tab, z, states, -1, eps_v, eps_f, eps_a))
+      return finish(RunStatus::numerical_failure,
+                    "friction: no consistent stick/slip state at the start t = " + number_text(t));
+    emit_changes(before, z, true, candidate);
+  }
+
+  std::deque<double> recent;
+  Eigen::VectorXd z, zt;
+  CrossingFinder finder;
+  while (true) {
+    const Mode& md = mode(states);
+    const LinearFlow& flow = md.flow();
+    z = flow.augment(t, x, v);
+    Segment segment(md.guards(), t, z);
+    const Eigen::Index rows = md.guards().count();
+    Eigen::VectorXd triggers(rows);
+    for (Eigen::Index i = 0; i < rows; ++i) triggers(i) = md.force_guard(i) ? eps_f : eps_v;
+    finder.retarget(segment, triggers, resolution, true);
+    const double step = 1.0 / std::max(flow.spectral_radius(), 1e-300);
+    const double reach = std::min(t_end - t, flow.horizon());
+    std::optional<Crossing> hit;
+    try {
+      for (double a = 0.0; a < reach && !hit;) {
+        const double b = std::min(a + step, reach);
+        if (rows > 0) hit = finder.first(a, b);
+        a = b;
+      }
+    } catch (const std::runtime_error& e) {
+      return finish(RunStatus::numerical_failure, std::string("friction: event search failed: ") + e.what());
+    }
+    const double tau = hit ? hit->tau : reach;
+    const double t_next = hit ? t + tau : (reach == t_end - t ? t_end : t + reach);
+    ++summary.segments;
+    {
+      const FrictionSegmentView view(segment, n, t, t_next);
+      for (Observer* o : observers) o->segment(view);
+    }
+    zt.resize(z.size());
+    if (hit && t_next - t == hit->tau) segment.state(finder.crossing_sample(), zt);
+    else segment.state(t_next - t, zt);
+    t = t_next;
+    x = zt.head(n);
+    v = zt.segment(n, n);
+    if (!x.allFinite() || !v.allFinite())
+      return finish(RunStatus::numerical_failure, "friction: the state is not finite at t = " + number_text(t));
+    if (!hit) {
+      if (t >= t_end) return finish(RunStatus::completed, "");
+      continue;
+    }
+    const int fired = md.contact_of(hit->row);
+    const std::vector<FrictionState> before = states;
+    if (!resolve_states(tab, zt, states, fired, eps_v, eps_f, eps_a))
+      return finish(RunStatus::numerical_failure, "friction: no consistent stick/slip state at t = " + number_text(t) +
+                                                      " (friction[" + std::to_string(fired) + "])");
+    emit_changes(before, zt, false, {});
+    recent.push_back(t);
+    while (!recent.empty() && recent.front() < t - window) recent.pop_front();
+    if (static_cast<long>(recent.size()) > options_.max_events)
+      return finish(RunStatus::event_cap, "event cap: more than " + std::to_string(options_.max_events) +
+                                              " friction events within " + number_text(window) +
+                                              " time units at t = " + number_text(t) + ", friction[" +
+                                              std::to_string(fired) + "]");
+    if (t >= t_end) return finish(RunStatus::completed, "");
+  }
+}
+
+FrictionEngine::FrictionEngine(LinearSystem system, std::vector<FrictionContact> contacts,
+                               const SimulatorOptions& options)
+    : system_(std::make_unique<LinearSystem>(std::move(system))),
+      sim_(std::make_unique<FrictionSimulator>(*system_, std::move(contacts), options)) {}
+
+namespace {
+
+/// Friction events as the observers' Events.
+struct ForwardEvents final : FrictionObserver {
+  const std::vector<Observer*>* observers = nullptr;
+  const FrictionSimulator* sim = nullptr;
+  void friction_event(const FrictionEvent& e, const Eigen::VectorXd& /*x*/, const Eigen::VectorXd& v) override {
+    const EventKind kind = e.kind == FrictionEventKind::stick  ? EventKind::friction_stick
+                           : e.kind == FrictionEventKind::slip ? EventKind::friction_slip
+                                                               : EventKind::friction_reversal;
+    const double u = sim->relative_velocities(e.t, v)(e.contact);
+    const Event out{e.t, e.contact, kind, u, u, e.force};
+    for (Observer* o : *observers) o->event(out);
+  }
+};
+
+}  // namespace
+
+RunSummary FrictionEngine::run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t_end,
+                               const std::vector<Observer*>& observers) {
+  ForwardEvents forward;
+  forward.observers = &observers;
+  forward.sim = sim_.get();
+  const FrictionSummary f = sim_->run(t0, x0, v0, t_end, observers, {&forward});
+  RunSummary s;
+  s.status = f.status;
+  s.message = f.message;
+  s.t = f.t;
+  s.x = f.x;
+  s.v = f.v;
+  s.sticks = f.sticks;
+  s.releases = f.slips + f.reversals;
+  s.segments = f.segments;
+  s.contact_sets_built = f.modes_built;
+  s.sticking_flows_built = f.modes_built;
+  s.length_scale = f.length_scale;
+  s.velocity_scale = f.velocity_scale;
+  s.force_scale = f.force_scale;
+  return s;
+}
+
+}  // namespace vibro

@@ -1,0 +1,84 @@
+/// Friction in scene files and result files (docs/scenes.md `friction`, docs/results.md):
+///  1. experiments/examples/stick_slip.yaml loads as its comment says: one contact on a moving
+///     surface, run on the dense engine (auto says why);
+///  2. its simulation through the scene's engine writes friction-stick, -slip and -reversal
+///     events, named in /events/kind, with the friction force, and the contacts in /scene;
+///  3. a scene without friction writes no friction datasets and the four rigid event kinds.
+/// The refusals (μ_s < μ_k, negative or infinite loads, NaN, indices out of range, unknown keys,
+/// stops or a run kind other than simulate or the modal engine with friction) are files of
+/// tests/io/malformed/friction_*.yaml.
+#include "vibro/io/result_file.hpp"
+#include "vibro/io/results.hpp"
+#include "vibro/io/scene.hpp"
+
+#include "support/temp_dir.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+namespace {
+
+const std::string kStickSlip = std::string(VIBRO_EXPERIMENTS) + "/examples/stick_slip.yaml";
+
+}  // namespace
+
+TEST_CASE("the stick-slip example loads with a frictional contact on the dense engine", "[friction]") {
+  const vibro::io::Scene s = vibro::io::SceneDocument::load(kStickSlip).build();
+  REQUIRE(s.friction.size() == 1);
+  const vibro::FrictionContact& c = s.friction[0];
+  CHECK(c.kind == vibro::FrictionContact::Kind::surface);
+  CHECK(c.mass == 0);
+  CHECK(c.normal_load == 1.0);
+  CHECK(c.static_coefficient == 0.5);
+  CHECK(c.kinetic_coefficient == 0.3);
+  CHECK(c.amplitude == 0.5);
+  CHECK(c.phase == 0.3);
+  CHECK(c.name == "belt");
+  CHECK(s.stops.empty());
+  CHECK(s.engine == vibro::io::EngineKind::dense);
+  CHECK_THAT(s.engine_reason, Catch::Contains("friction"));
+}
+
+TEST_CASE("friction switches are recorded as friction-stick, -slip and -reversal events", "[friction]") {
+  const vibro::test::TempDir dir;
+  const std::string path = dir / "stick_slip.h5";
+  const vibro::io::Scene scene = vibro::io::SceneDocument::load(kStickSlip).build();
+  const std::unique_ptr<vibro::Engine> engine = vibro::io::make_engine(scene);
+  const double t_start = scene.t0 + scene.run.transient_periods * scene.period();
+  const vibro::RunSummary transient = engine->run(scene.t0, scene.x0, scene.v0, t_start);
+  REQUIRE(transient.status == vibro::RunStatus::completed);
+  vibro::io::Recording rec = vibro::io::Recording::for_scene(scene, t_start);
+  rec.summary = engine->run(t_start, transient.x, transient.v, rec.t_end, rec.observers());
+  REQUIRE(rec.summary.status == vibro::RunStatus::completed);
+  const std::vector<vibro::Event>& ev = rec.events->events;
+  REQUIRE(ev.size() >= 20);  // a stick and a slip in each half period, 10 periods recorded
+  const double limit_static = 0.5, limit_kinetic = 0.3;
+  for (std::size_t i = 0; i < ev.size(); ++i) {
+    CHECK(ev[i].stop == 0);
+    CHECK(std::abs(ev[i].v_before) < 1e-12);  // the relative velocity is zero at every switch
+    if (ev[i].kind == vibro::EventKind::friction_stick) {
+      CHECK(std::abs(ev[i].force) <= limit_static + 1e-12);
+      if (i + 1 < ev.size()) CHECK(ev[i + 1].kind == vibro::EventKind::friction_slip);
+    } else {
+      REQUIRE((ev[i].kind == vibro::EventKind::friction_slip || ev[i].kind == vibro::EventKind::friction_reversal));
+      CHECK(std::abs(std::abs(ev[i].force) - limit_kinetic) < 1e-15);  // slipping: −μ_k N sign(u)
+    }
+  }
+  CHECK(rec.summary.sticks > 0);
+  vibro::io::ResultFile file = vibro::io::ResultFile::create(path, scene, vibro::io::current_meta(1));
+  file.write_simulation(rec);
+  file.finish(vibro::io::current_meta(1));
+  const vibro::io::ResultReader r(path);
+  CHECK(r.attribute_strings("/events/kind", "names") ==
+        std::vector<std::string>{"impact", "stick", "release", "chatter-limit", "engage", "disengage", "friction-stick",
+                                 "friction-slip", "friction-reversal"});
+  CHECK(r.read_integers("/events/kind").front() == static_cast<std::int64_t>(ev.front().kind));
+  CHECK(r.read("/events/force").size() == ev.size());
+  CHECK(r.read("/scene/friction_static") == std::vector<double>{0.5});
+  CHECK(r.read("/scene/friction_kinetic") == std::vector<double>{0.3});
+  CHECK(r.read("/scene/friction_amplitude") == std::vector<double>{0.5});
+  CHECK(r.read_integers("/scene/friction_mass") == std::vector<std::int64_t>{0});
+}
