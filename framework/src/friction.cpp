@@ -478,6 +478,14 @@ FrictionSummary FrictionSimulator::run(double t0, const Eigen::VectorXd& x0, con
     std::optional<Crossing> hit;
     try {
       for (double a = 0.0; a < reach && !hit;) {
+        // Interruption and progress polled once per step of the search, as the event loop's
+        // frame does for the impact engines (event_loop.hpp).
+        if (options_.reached) options_.reached->store(t + a, std::memory_order_relaxed);
+        if (options_.interrupt && options_.interrupt->load(std::memory_order_relaxed))
+          return finish(RunStatus::interrupted, "interrupted at t = " + number_text(t + a) +
+                                                    (a > 0.0 ? " (the state kept is the one at t = " + number_text(t) +
+                                                                   ", where the segment began)"
+                                                             : std::string()));
         const double b = std::min(a + step, reach);
         if (rows > 0) hit = finder.first(a, b);
         a = b;

@@ -6,6 +6,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <atomic>
 #include <cmath>
 #include <complex>
 #include <numbers>
@@ -237,4 +238,20 @@ TEST_CASE("friction refuses bad contacts with the contact and the key named", "[
   CHECK_THAT(message(FrictionContact::on_surface(0, 1.0, INFINITY, 0.2)), Contains("not finite"));
   CHECK_THAT(message(FrictionContact::on_surface(0, 1.0, 0.3, -0.2)), Contains("kinetic"));
   CHECK(message(FrictionContact::on_surface(0, 1.0, 0.3, 0.2)) == "accepted");
+}
+
+TEST_CASE("a friction run answers its interrupt flag and reports the time it reached", "[friction]") {
+  // Den Hartog's oscillator over 1e9 time units: only the flag ends it.
+  const LinearSystem sys = one_mass(1.0, 0.1, 1.0, 1.0, 0.8);
+  std::atomic<bool> stop{true};
+  std::atomic<double> reached{-1.0};
+  SimulatorOptions options;
+  options.interrupt = &stop;
+  options.reached = &reached;
+  FrictionSimulator sim(sys, {FrictionContact::on_surface(0, 1.0, 0.2, 0.2)}, options);
+  const FrictionSummary s = sim.run(0.0, Eigen::VectorXd::Constant(1, 0.3), Eigen::VectorXd::Constant(1, 0.0), 1e9);
+  CHECK(s.status == RunStatus::interrupted);
+  CHECK(s.t == 0.0);
+  CHECK(reached.load() == 0.0);
+  CHECK_THAT(s.message, Catch::Matchers::StartsWith("interrupted at t = 0"));
 }
