@@ -10,6 +10,7 @@
 /// stretch of the orbit and the tangent carried to it by the tangent map of the stretch.
 #include "branch_runner.hpp"
 
+#include "known_branches.hpp"
 #include "section.hpp"
 #include "test_functions.hpp"
 
@@ -118,6 +119,18 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
       branch.end = "merged into the period-" + std::to_string(c_.k / 2) + "T branch near p = " + number_text(next.e.p);
       return;
     }
+    // A switched branch that reaches the orbits of a branch already followed, or its own orbits
+    // shifted by some periods (it has come round through a doubling of its parent), is that
+    // branch from here on: it ends there (known_branches.hpp).
+    if (branch_index > 0)
+      if (const std::optional<KnownMatch> m = on_known_branch(c_, next, &branch, branch_index)) {
+        branch.joins = m->branch;
+        branch.end = m->branch == branch_index
+                         ? "closes on itself near p = " + number_text(next.e.p) + " (its own orbits shifted by " +
+                               std::to_string(m->shift) + " periods)"
+                         : "joins branch " + std::to_string(m->branch) + " (already followed) near p = " + number_text(next.e.p);
+        return;
+      }
     // Leaving the scan limits: place the last point on the limit.
     const bool out = next.e.p < o_.p_min || next.e.p > o_.p_max;
     if (out) {

@@ -11,7 +11,9 @@
 #include "branch_runner.hpp"
 #include "branch_switching.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -65,6 +67,8 @@ void ContinuationOptions::validate() const {
   if (!(parameter_scale >= 0.0) || !std::isfinite(parameter_scale)) bad("parameter_scale", parameter_scale, "must be ≥ 0");
   if (!(locate_tolerance > 0.0) || !std::isfinite(locate_tolerance)) bad("locate_tolerance", locate_tolerance, "must be > 0");
   if (max_doublings < 0 || max_doublings > 8) bad("max_doublings", max_doublings, "must be in [0, 8]");
+  if (max_branches < 1) bad("max_branches", max_branches, "must be ≥ 1");
+  if (max_total_points < 2) bad("max_total_points", static_cast<double>(max_total_points), "must be ≥ 2");
   solver.validate();
 }
 
@@ -86,10 +90,39 @@ ContinuationResult continue_orbits(const ParameterFamily& family, double p0, dou
   return continue_orbits(dense_engines(family, options.solver), p0, t_guess, x, v, options, progress);
 }
 
+namespace {
+
+/// Each point's state at the fixed phase θ (BranchPoint::x_fixed): its orbit run from its section
+/// time t0 to the first t ≥ t0 with Ωt ≡ θ (mod 2π).
+void carry_to_phase(const ContinuationFamily& family, BranchPoint& b, double theta, Index n) {
+  b.x_fixed = VectorXd::Constant(n, detail::kNaN);
+  b.v_fixed = VectorXd::Constant(n, detail::kNaN);
+  try {
+    std::unique_ptr<FamilyEngine> engine = family(b.p);
+    const double w = engine->frequency();
+    double t = (theta + detail::kTwoPi * std::ceil((w * b.t0 - theta) / detail::kTwoPi - 1e-12)) / w;
+    if (t < b.t0) t += detail::kTwoPi / w;
+    if (t == b.t0) {
+      b.x_fixed = b.x;
+      b.v_fixed = b.v;
+      return;
+    }
+    const RunSummary r = engine->run(b.t0, b.x, b.v, t);
+    if (r.status != RunStatus::completed) return;
+    b.x_fixed = r.x;
+    b.v_fixed = r.v;
+  } catch (const InvalidInput&) {
+  }
+}
+
+}  // namespace
+
 ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, double t_guess, const VectorXd& x,
-                                   const VectorXd& v, const ContinuationOptions& options,
+                                   const VectorXd& v, const ContinuationOptions& options_in,
                                    const ContinuationProgress& progress) {
-  options.validate();
+  options_in.validate();
+  // A copy: its max_points is lowered where the run's budget of points is nearer.
+  ContinuationOptions options = options_in;
   if (!(p0 >= options.p_min && p0 <= options.p_max))
     throw InvalidInput("continuation: the start p = " + number_text(p0) + " is outside [" +
                        number_text(options.p_min) + ", " + number_text(options.p_max) + "]");
@@ -132,10 +165,20 @@ ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, 
   std::vector<std::pair<Node, int>> doublings;
   Branch forward, backward;
   forward.k = backward.k = c.k;
+  const int max_points = options.max_points;
+  options.max_points = static_cast<int>(std::min<long>(max_points, options.max_total_points));
   runner.append(forward, s0);
   runner.follow(s0, s0.t, forward, 0, 0, &doublings);
   c.theta = s0.b.phase;  // the forward half may have moved the section
+  const long left = options.max_total_points - static_cast<long>(forward.points.size());
+  options.max_points = static_cast<int>(std::clamp<long>(left, 2, max_points));
   runner.follow(s0, -s0.t, backward, 0, 0, &doublings);
+  for (Branch* half : {&forward, &backward})
+    if (options.max_points < max_points && static_cast<int>(half->points.size()) >= options.max_points) {
+      half->end = "max_total_points (" + std::to_string(options.max_total_points) + ") reached: the run's budget of points";
+      result.budget = "max_total_points (" + std::to_string(options.max_total_points) + ") reached (branch 0 cut short)";
+    }
+  options.max_points = max_points;
   Branch whole;
   whole.k = c.k;
   // The backward half was followed against the branch's orientation: reversed, its tangents too.
@@ -144,12 +187,18 @@ ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, 
     whole.points.back().tangent_p = -whole.points.back().tangent_p;
   }
   whole.points.insert(whole.points.end(), forward.points.begin(), forward.points.end());
+  whole.start = "the orbit shot at p = " + number_text(p0);
   whole.end = "one end: " + backward.end + "; other end: " + forward.end;
   result.branches.push_back(std::move(whole));
 
-
   // Branch switching at period doublings: along the eigenvector of μ = −1, period 2k.
   detail::switch_at_doublings(family, options, c, doublings, result, progress);
+
+  // Every point also at the fixed phase (the sections move along a branch).
+  result.fixed_phase = options.phase;
+  for (Branch& b : result.branches)
+    for (BranchPoint& q : b.points) carry_to_phase(family, q, options.phase, n);
+  for (Bifurcation& b : result.bifurcations) carry_to_phase(family, b.point, options.phase, n);
   return result;
 }
 

@@ -35,7 +35,12 @@
 ///  * fold (saddle-node): the p-component of the tangent; a multiplier passes through +1;
 ///  * period doubling: Π(1 + μ_i) over the non-structural multipliers; a multiplier at −1.
 ///    The doubled branch (period 2k) is then continued from the located point along the
-///    multiplier's eigenvector (branch switching), recursively up to max_doublings deep;
+///    multiplier's eigenvector (branch switching), recursively up to max_doublings deep. Each
+///    branch is followed once: a switched branch whose first point's orbit lies on a branch of
+///    the same period already followed (shifted by some periods, at the same p, to 1e3 ×
+///    tolerance) is recorded as recognised instead, and a branch that reaches such orbits while
+///    followed ends there (known_branches.hpp). max_branches and max_total_points bound the run;
+///    reaching one is stated in ContinuationResult::budget;
 ///  * Neimark–Sacker: Π_{i<j}(μ_iμ_j − 1); kept only if a complex pair lies on the unit circle;
 ///  * grazing of stop j (the number of impacts on j per orbit changes, chatter excluded): the
 ///    orbit's nearest approach to the stop, continuous through the grazing — below it the
@@ -117,6 +122,11 @@ struct ContinuationOptions {
   bool locate = true;               ///< locate bifurcations (else only detect them)
   double locate_tolerance = 1e-10;  ///< |Δp| of a located point (absolute, in p's units)
   int max_doublings = 3;            ///< depth of branch switching at period doublings (0: none)
+  /// The run's budget: at most this many branches, and this many points over all branches.
+  /// Once either is reached no further branch is switched onto (a branch being followed stops at
+  /// the points budget), and ContinuationResult::budget says which was hit and what was left.
+  int max_branches = 64;
+  long max_total_points = 40000;
   /// The dense engine's settings (the ParameterFamily overloads); an ContinuationFamily's engines carry
   /// their own (family_engine.hpp).
   SimulatorOptions solver;
@@ -141,6 +151,11 @@ struct BranchPoint {
   Signature signature;
   Eigen::VectorXd sticking;      ///< per stop: the fraction of kT it is held
   double tangent_p = 0.0;        ///< dp/ds (scaled): its sign change is a fold
+  /// The orbit's state at the fixed phase ContinuationResult::fixed_phase (Ωt ≡ phase mod 2π, the
+  /// first such time ≥ t0), carried there from (x, v) by an exact run of the orbit: unlike
+  /// (x, v), whose section phase moves along a branch where continuation moves its section, it
+  /// is continuous in p along a smooth stretch. NaN where that run fails.
+  Eigen::VectorXd x_fixed, v_fixed;
   double residual = 0.0;
   int corrector_iterations = 0;
   bool located = false;          ///< a located bifurcation point (not a regular step)
@@ -162,13 +177,31 @@ struct Bifurcation {
 struct Branch {
   int k = 1;
   int parent = -1;        ///< the branch it was switched from (period doubling), or −1
+  int bifurcation = -1;   ///< the period doubling (index into bifurcations) it was switched at, or −1
+  int joins = -1;         ///< the branch it ran onto (then it ends there: already followed), or −1
   std::vector<BranchPoint> points;  ///< in arclength order
+  std::string start;      ///< how it began
   std::string end;        ///< why it stopped
+};
+
+/// A branch switching that found a branch already followed: its first point lies on the orbits
+/// of a known branch of the same period (orbit_on_branch), so it was not followed again.
+struct RecognisedBranch {
+  int parent = -1;        ///< the branch of the period doubling
+  int bifurcation = -1;   ///< the period doubling (index into bifurcations)
+  int k = 1;              ///< the period of the doubled branch
+  double p = 0.0;         ///< the parameter of its first point
+  int known = -1;         ///< the branch it lies on
+  int shift = 0;          ///< forcing periods between its state and the known orbit's
+  double distance = 0.0;  ///< max(|Δx|/L, |Δv|/V) between the two there
 };
 
 struct ContinuationResult {
   std::vector<Branch> branches;
   std::vector<Bifurcation> bifurcations;  ///< in the order found
+  std::vector<RecognisedBranch> recognised;  ///< switchings onto branches already followed
+  std::string budget;     ///< empty, or which budget (max_branches, max_total_points) stopped the run and what it left
+  double fixed_phase = 0.0;  ///< the phase of BranchPoint::x_fixed, v_fixed (ContinuationOptions::phase)
   long maps = 0;          ///< tangent maps computed (one per Newton iteration)
 };
 

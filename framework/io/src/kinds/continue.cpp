@@ -229,8 +229,14 @@ void write_branches(ResultFile& file, const ContinuationResult& r, std::size_t n
     }
   }
   std::vector<double> p, phase, t0, radius, tangent, residual;
-  std::vector<Eigen::VectorXd> x, v, signature, sticking;
+  std::vector<Eigen::VectorXd> x, v, signature, sticking, x_fixed, v_fixed;
+  std::vector<std::int64_t> fixed_ok;
   for (const BranchPoint& q : all) {
+    // The state at the fixed phase (0 where its run failed: fixed_ok says which).
+    const bool ok = q.x_fixed.size() == q.x.size() && q.x_fixed.allFinite() && q.v_fixed.allFinite();
+    fixed_ok.push_back(ok ? 1 : 0);
+    x_fixed.push_back(ok ? q.x_fixed : Eigen::VectorXd::Zero(q.x.size()));
+    v_fixed.push_back(ok ? q.v_fixed : Eigen::VectorXd::Zero(q.v.size()));
     sticking.push_back(q.sticking);
     p.push_back(q.p);
     phase.push_back(q.phase);
@@ -267,11 +273,72 @@ void write_branches(ResultFile& file, const ContinuationResult& r, std::size_t n
                     table("multipliers_imag", multipliers_part(all, true), 2 * n), sig,
                     table("sticking_fraction", sticking, m), reals("tangent_p", tangent, {rows}),
                     reals("residual", residual, {rows}),
-                    integers("located", located), integers("corrector_iterations", iterations)},
-                   {{"parameter", path}});
+                    integers("located", located), integers("corrector_iterations", iterations),
+                    table("x_fixed", x_fixed, n), table("v_fixed", v_fixed, n), integers("fixed_ok", fixed_ok)},
+                   {{"parameter", path}, {"fixed_phase", fmt::format("{}", r.fixed_phase)}});
+  // The summary of the branches and how they connect.
+  std::vector<std::int64_t> from, joins, located_on;
+  std::vector<double> p_min, p_max;
+  std::vector<std::string> starts;
+  for (std::size_t b = 0; b < r.branches.size(); ++b) {
+    const Branch& br = r.branches[b];
+    from.push_back(br.bifurcation);
+    joins.push_back(br.joins);
+    starts.push_back(br.start);
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (const BranchPoint& q : br.points) lo = std::min(lo, q.p), hi = std::max(hi, q.p);
+    p_min.push_back(br.points.empty() ? 0.0 : lo);
+    p_max.push_back(br.points.empty() ? 0.0 : hi);
+    located_on.push_back(std::count_if(r.bifurcations.begin(), r.bifurcations.end(),
+                                       [b](const Bifurcation& f) { return f.branch == static_cast<int>(b); }));
+  }
+  const std::size_t nb = r.branches.size();
   Dataset end_count = integers("count", count);
   end_count.labels.emplace_back("end", ends);
-  file.write_group("branches", {integers("k", branch_k), integers("parent", parent), integers("first", first), end_count});
+  file.write_group("branches",
+                   {integers("k", branch_k), integers("parent", parent), integers("first", first), end_count,
+                    integers("bifurcation", from), integers("joins", joins), reals("p_min", p_min, {nb}),
+                    reals("p_max", p_max, {nb}), integers("bifurcations", located_on), detail::texts("start", starts)},
+                   {{"budget", r.budget}});
+  std::vector<std::int64_t> rp, rb, rk, rknown, rshift;
+  std::vector<double> rpv, rdist;
+  for (const RecognisedBranch& q : r.recognised) {
+    rp.push_back(q.parent);
+    rb.push_back(q.bifurcation);
+    rk.push_back(q.k);
+    rknown.push_back(q.known);
+    rshift.push_back(q.shift);
+    rpv.push_back(q.p);
+    rdist.push_back(q.distance);
+  }
+  const std::size_t nr = r.recognised.size();
+  file.write_group("recognised", {integers("parent", rp), integers("bifurcation", rb), integers("k", rk),
+                                  reals("p", rpv, {nr}), integers("known", rknown), integers("shift", rshift),
+                                  reals("distance", rdist, {nr})});
+}
+
+/// The branches and how they connect: per branch its period, parameter range, parent and the
+/// doubling it was switched at, the bifurcations located on it and its end; the switchings onto
+/// branches already followed; the budget, if one was reached.
+std::string branch_summary(const ContinuationResult& r, const std::string& path) {
+  std::string text = fmt::format("  {:>6} {:>6} {:>15} {:>15} {:>6} {:>6} {:>6}  {}\n", "branch", "period",
+                                 path.size() <= 15 ? path + " min" : "p min", "p max", "parent", "from", "bifs", "end");
+  for (std::size_t b = 0; b < r.branches.size(); ++b) {
+    const Branch& br = r.branches[b];
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (const BranchPoint& q : br.points) lo = std::min(lo, q.p), hi = std::max(hi, q.p);
+    const auto located = std::count_if(r.bifurcations.begin(), r.bifurcations.end(),
+                                       [b](const Bifurcation& f) { return f.branch == static_cast<int>(b); });
+    auto id = [](int i) { return i >= 0 ? std::to_string(i) : std::string("-"); };
+    text += fmt::format("  {:>6} {:>5}T {:>15.10f} {:>15.10f} {:>6} {:>6} {:>6}  {}\n", b, br.k, lo, hi, id(br.parent),
+                        id(br.bifurcation), located, br.end);
+  }
+  for (const RecognisedBranch& q : r.recognised)
+    text += fmt::format("  the period-{}T branch from bifurcation {} (on branch {}) is branch {}, already followed "
+                        "(its orbit at {} = {:.10f}, shifted by {} periods, within {:.1e}): not followed again\n",
+                        q.k, q.bifurcation, q.parent, q.known, path, q.p, q.shift, q.distance);
+  if (!r.budget.empty()) text += "  budget: " + r.budget + "\n";
+  return text;
 }
 
 void write_bifurcations(ResultFile& file, const ContinuationResult& r, std::size_t n) {
@@ -377,6 +444,8 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   o.locate = spec.locate;
   o.locate_tolerance = spec.locate_tolerance;
   o.max_doublings = spec.max_doublings;
+  o.max_branches = spec.max_branches;
+  o.max_total_points = spec.max_total_points;
   o.solver = scene.solver;
   o.solver.interrupt = request.interrupt;
   const ContinuationFamily family = continuation_family(doc, spec.path, scene.engine, o.solver);
@@ -442,10 +511,12 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   std::size_t points = 0;
   for (const Branch& b : result.branches) points += b.points.size();
   file.set_outcome(interrupted ? "interrupted" : "completed",
-                   interrupted ? "interrupted: the branches end where the interrupt stopped their orbits" : "",
+                   interrupted ? "interrupted: the branches end where the interrupt stopped their orbits"
+                               : (result.budget.empty() ? "" : "budget: " + result.budget),
                    {{"branches", static_cast<std::int64_t>(result.branches.size())},
                     {"points", static_cast<std::int64_t>(points)},
                     {"bifurcations", static_cast<std::int64_t>(result.bifurcations.size())},
+                    {"recognised", static_cast<std::int64_t>(result.recognised.size())},
                     {"tangent_maps", result.maps}});
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   RunMeta meta = current_meta(1);
@@ -454,10 +525,7 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
 
   std::string text = fmt::format("Continued {} in [{}, {}]: {} branches, {} points, {} tangent maps, {:.2f} s.\n",
                                  spec.path, spec.p_min, spec.p_max, result.branches.size(), points, result.maps, wall);
-  for (std::size_t b = 0; b < result.branches.size(); ++b)
-    text += fmt::format("  branch {} (period {}T{}): {}\n", b, result.branches[b].k,
-                        result.branches[b].parent >= 0 ? fmt::format(", from branch {}", result.branches[b].parent) : "",
-                        result.branches[b].end);
+  text += branch_summary(result, spec.path);
   text += fmt::format("  {:<16} {:>6} {:>18} {:>10} {:>11} {:>7}\n", "bifurcation", "stop", spec.path, "bracket", "value", "branch");
   for (const Bifurcation& b : result.bifurcations)
     text += fmt::format("  {:<16} {:>6} {:>18.12f} {:>10.1e} {:>11} {:>7}\n", to_string(b.kind),
@@ -489,7 +557,8 @@ void parse_continue_section(RunSection& s) {
   if (ct && s.full) {
     ContinueSpec& c = run.continuation;
     r.expect_map(ct, "run.continue", {"path", "range", "direction", "period", "phase", "step", "min_step", "max_step",
-                                      "max_points", "tolerance", "locate", "locate_tolerance", "max_doublings", "curve"});
+                                      "max_points", "tolerance", "locate", "locate_tolerance", "max_doublings", "max_branches",
+                                      "max_total_points", "curve"});
     // A continuation parameter: a number the file sets, outside `run` (and, below, one that
     // moves the system: kinds/continue.cpp checks that through the parameter's derivative).
     auto parameter = [&](const YAML::Node& node, const std::string& path) {
@@ -537,6 +606,8 @@ void parse_continue_section(RunSection& s) {
     if (ct["locate"]) c.locate = r.boolean(ct["locate"], "run.continue.locate");
     if (ct["locate_tolerance"]) c.locate_tolerance = r.number_in(ct["locate_tolerance"], "run.continue.locate_tolerance", 1e-15, 1e300, "a width > 0 in the parameter's units");
     if (ct["max_doublings"]) c.max_doublings = static_cast<int>(r.integer(ct["max_doublings"], "run.continue.max_doublings", 0, 8));
+    if (ct["max_branches"]) c.max_branches = static_cast<int>(r.integer(ct["max_branches"], "run.continue.max_branches", 1, 100000));
+    if (ct["max_total_points"]) c.max_total_points = static_cast<long>(r.integer(ct["max_total_points"], "run.continue.max_total_points", 2, 100000000));
     if (const YAML::Node cv = ct["curve"]) {
       r.expect_map(cv, "run.continue.curve", {"path", "range", "step", "max_points", "kinds"});
       c.curve_path = parameter(cv["path"], "run.continue.curve.path");
@@ -580,7 +651,7 @@ RunKindInfo continue_kind() {
   k.summary = "branches of periodic orbits by shooting and pseudo-arclength continuation, their stability and bifurcations";
   k.section = "continue";
   k.missing = "missing: run.kind: continue needs run.continue (path and range)";
-  k.groups = {"branch", "branches", "bifurcations", "curve"};
+  k.groups = {"branch", "branches", "recognised", "bifurcations", "curve"};
   k.every_process = false;
   k.stoppable = true;
   k.parse = parse_continue_section;

@@ -98,6 +98,8 @@ struct ContinueSpec {
   bool locate = true;
   double locate_tolerance = 1e-10;
   int max_doublings = 3;
+  int max_branches = 64;           ///< the run's budget: branches
+  long max_total_points = 40000;   ///< the run's budget: points over all branches
   /// run.continue.curve: a second parameter for the located grazing and rising points.
   std::string curve_path;             ///< empty: no curves
   double curve_min = 0.0, curve_max = 0.0;
