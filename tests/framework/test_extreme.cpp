@@ -99,6 +99,8 @@ double gap(const Stop& s, const VectorXd& x) {
       return s.position - x(s.mass);
     case Stop::Kind::between:
       return x(s.mass) - x(s.other) - s.position;
+    case Stop::Kind::normal:  // general normals: none in this file
+      break;
   }
   return 0.0;
 }

@@ -111,6 +111,8 @@ double gap(const Stop& s, double omega, double t, const VectorXd& x) {
       return p - x(s.mass);
     case Stop::Kind::between:
       return x(s.mass) - x(s.other) - p;
+    case Stop::Kind::normal:  // general normals: none in these scenes
+      break;
   }
   return 0.0;
 }
@@ -125,6 +127,8 @@ double gap_rate(const Stop& s, double omega, double t, const VectorXd& v) {
       return p - v(s.mass);
     case Stop::Kind::between:
       return v(s.mass) - v(s.other) - p;
+    case Stop::Kind::normal:  // general normals: none in these scenes
+      break;
   }
   return 0.0;
 }
@@ -829,8 +833,11 @@ ReferenceComparison compare_events(const std::vector<Event>& lib,
         c.release_time = std::max(c.release_time, dt);
         break;
       case EventKind::chatter_limit:
-      case EventKind::engage:  // compliant stops: none in these scenes
+      case EventKind::engage:  // compliant stops and friction: none in these scenes
       case EventKind::disengage:
+      case EventKind::friction_stick:
+      case EventKind::friction_slip:
+      case EventKind::friction_reversal:
         break;
     }
   }

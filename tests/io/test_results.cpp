@@ -54,6 +54,7 @@ Scene make_scene(double frequency, RecordSpec record, RunSpec run) {
                .record = std::move(record),
                .run = std::move(run),
                .engine_reason = "a test scene made in code",
+               .base = {},
                .forces = {},
                .friction = {}};
 }
