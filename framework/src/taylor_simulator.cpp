@@ -3,6 +3,7 @@
 #include "event_loop.hpp"
 
 #include "vibro/taylor/guard_roots.hpp"
+#include "vibro/taylor/horner.hpp"
 #include "vibro/taylor/taylor_step.hpp"
 
 #include <algorithm>
@@ -13,6 +14,8 @@
 
 namespace vibro {
 namespace {
+
+using taylor::horner_compensated;
 
 /// Coefficients of cos(w (t0 + τ)) and sin(w (t0 + τ)) in τ up to order `order`: the k-th
 /// derivatives cycle through (cos, −sin, −cos, sin) and (sin, cos, −sin, −cos), times w^k/k!.
@@ -30,21 +33,6 @@ void harmonic_series(double w, double t0, int order, double* c, double* s) {
   }
 }
 
-/// Σ a_k τ^k by compensated Horner (as TaylorStep::state): the state to the coefficients' own
-/// rounding.
-double horner_compensated(const double* a, int p, double tau) {
-  double s = a[p], c = 0.0;
-  for (int k = p - 1; k >= 0; --k) {
-    const double product = s * tau;
-    const double product_error = std::fma(s, tau, -product);
-    const double sum = product + a[k];
-    const double virtual_a = sum - product;
-    const double sum_error = (product - (sum - virtual_a)) + (a[k] - virtual_a);
-    c = c * tau + (product_error + sum_error);
-    s = sum;
-  }
-  return s + c;
-}
 double horner(const double* a, int p, double tau) {
   double s = a[p];
   for (int k = p - 1; k >= 0; --k) s = s * tau + a[k];

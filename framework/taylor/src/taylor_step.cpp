@@ -1,4 +1,5 @@
 #include "vibro/taylor/taylor_step.hpp"
+#include "vibro/taylor/horner.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -352,25 +353,9 @@ StepStatus TaylorStep::expand(double t0, const Eigen::Ref<const Eigen::VectorXd>
 }
 
 void TaylorStep::state(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
-  // Compensated Horner (Graillat, Langlois & Louvet 2005, Alg. 4): the rounding error of each
-  // product (by an FMA) and each sum (TwoSum, Knuth) is carried along and added at the end, so
-  // the value is as accurate as if computed in twice the working precision and then rounded.
-  // The state update then carries only the coefficients' own rounding (z_[1] = v exact, v_[1]
-  // = f(z) to ε|f|, entering as ε|f|h).
-  for (int i = 0; i < dim_; ++i) {
-    const double* a = state_coefficients(i);
-    double s = a[p_], c = 0.0;
-    for (int k = p_ - 1; k >= 0; --k) {
-      const double product = s * tau;
-      const double product_error = std::fma(s, tau, -product);
-      const double sum = product + a[k];
-      const double virtual_a = sum - product;
-      const double sum_error = (product - (sum - virtual_a)) + (a[k] - virtual_a);
-      c = c * tau + (product_error + sum_error);
-      s = sum;
-    }
-    out[i] = s + c;
-  }
+  // Compensated Horner (horner.hpp): the state update then carries only the coefficients' own
+  // rounding (z_[1] = v exact, v_[1] = f(z) to ε|f|, entering as ε|f|h).
+  for (int i = 0; i < dim_; ++i) out[i] = horner_compensated(state_coefficients(i), p_, tau);
 }
 
 void TaylorStep::derivative(double tau, Eigen::Ref<Eigen::VectorXd> out) const {
