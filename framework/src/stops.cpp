@@ -9,6 +9,16 @@
 namespace vibro {
 namespace {
 
+/// The least clearance min_t (α s_a(t) + β s_b(t)) between two stops on opposite sides of one
+/// direction (α, β > 0 scale each to the unit normal): s(t) = s0 + s_c cos Ωt + s_s sin Ωt, so
+/// the sum's least value is its mean minus the amplitude of the summed harmonic. Exact: two
+/// stops that move together (fixed to one shaken rig) keep their clearance however far they
+/// move, while the amplitudes summed would refuse them.
+double least_room(const Stop& a, const Stop& b, double alpha, double beta) {
+  return alpha * a.s0() + beta * b.s0() -
+         std::hypot(alpha * a.s_cos() + beta * b.s_cos(), alpha * a.s_sin() + beta * b.s_sin());
+}
+
 std::string label(const Stop& stop, std::size_t j) {
   return "stops[" + std::to_string(j) + "] (" + stop.name + ")";
 }
@@ -74,14 +84,16 @@ void check_general_pairs(const std::vector<Stop>& stops, Eigen::Index n) {
         throw InvalidInput(label(b, k) + ": duplicates " + label(a, j) +
                            " (parallel normals, same side: the nearer stop always binds first); keep one stop per side");
       if (cosine <= -1.0 + 1e-12) {
-        // u x ≤ s_a/|w_a| and -u x ≤ s_b/|w_b| need room between them at all times.
+        // u x ≤ s_a/|w_a| and -u x ≤ s_b/|w_b| need room between them at all times
+        // (least_room: two stops moving together keep their clearance).
         const double clearance = a.s0() / na + b.s0() / nb;
-        const double room = clearance - a.amplitude / na - b.amplitude / nb;
+        const double room = least_room(a, b, 1.0 / na, 1.0 / nb);
         if (!(room > 0.0))
           throw InvalidInput(label(a, j) + " and " + label(b, k) +
                              " leave no room between them (opposite normals; clearance along the unit normal " +
                              number_text(clearance) + ", stop amplitudes " + number_text(a.amplitude / na) +
-                             " + " + number_text(b.amplitude / nb) + "): the clearance must stay positive");
+                             " + " + number_text(b.amplitude / nb) + ", least clearance while they move " +
+                             number_text(room) + "): the clearance must stay positive");
       }
     }
   }
@@ -248,11 +260,12 @@ std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, doubl
         throw InvalidInput(label(b, k) + ": duplicates " + label(a, j) +
                            " (same coordinate, same side); keep one stop per side");
       // g_j = w x - s_j ≤ 0 and g_k = -w x - s_k ≤ 0 need -s_k ≤ w x ≤ s_j at all times.
-      const double room = a.s0() + b.s0() - a.amplitude - b.amplitude;
+      const double room = least_room(a, b, 1.0, 1.0);
       if (!(room > 0.0))
         throw InvalidInput(label(a, j) + " and " + label(b, k) +
                            " leave no room between them (clearance " + number_text(a.s0() + b.s0()) +
                            ", stop amplitudes " + number_text(a.amplitude) + " + " + number_text(b.amplitude) +
+                           ", least clearance while they move " + number_text(room) +
                            "): the clearance must stay positive");
     }
   }

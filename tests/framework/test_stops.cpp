@@ -141,13 +141,18 @@ TEST_CASE("stops: upper and lower stops leaving no room are rejected with the cl
   // Zero clearance (upper and lower at the same place) also leaves no room.
   CHECK_THAT(rejection({Stop::lower(2, 0.3, 0.5), Stop::upper(2, 0.3, 0.5)}),
              Contains("leave no room"));
-  // Clearance 0.15 eaten by moving stops: 0.1 + 0.1 > 0.15.
-  CHECK_THAT(rejection({Stop::upper(0, 0.1, 0.5).moving(0.1, 0.0),
-                        Stop::lower(0, -0.05, 0.5).moving(0.1, 1.0)}),
-             Contains("leave no room") && Contains("stop amplitudes"));
-  // ... but amplitudes 0.07 + 0.07 < 0.15 leave room.
-  CHECK(rejection({Stop::upper(0, 0.1, 0.5).moving(0.07, 0.0),
-                   Stop::lower(0, -0.05, 0.5).moving(0.07, 1.0)}) == "<no exception>");
+  // Clearance 0.15 eaten by stops moving in antiphase: 0.15 − 2·0.1 < 0 at Ωt = π.
+  const std::string antiphase = rejection({Stop::upper(0, 0.1, 0.5).moving(0.1, std::numbers::pi),
+                                           Stop::lower(0, -0.05, 0.5).moving(0.1, 0.0)});
+  CHECK_THAT(antiphase, Contains("leave no room") && Contains("stop amplitudes"));
+  CHECK(std::abs(number_after(antiphase, "least clearance while they move ") - (0.15 - 0.2)) < 1e-15);
+  // ... but the same amplitudes one radian apart leave room: the clearance is
+  // 0.15 + 0.1 (cos Ωt − cos(Ωt + 1)) ≥ 0.15 − 0.2 sin ½ = 0.054 (the amplitudes summed would
+  // refuse it), and stops moving together keep their clearance whatever they move by.
+  CHECK(rejection({Stop::upper(0, 0.1, 0.5).moving(0.1, 0.0),
+                   Stop::lower(0, -0.05, 0.5).moving(0.1, 1.0)}) == "<no exception>");
+  CHECK(rejection({Stop::upper(0, 0.1, 0.5).moving(0.5, 0.3),
+                   Stop::lower(0, -0.05, 0.5).moving(0.5, 0.3)}) == "<no exception>");
   // Two between stops x0 - x1 ≤ 0.1 and x1 - x0 ≤ -0.2 (x0 - x1 ≥ 0.2): no room either.
   CHECK_THAT(rejection({Stop::between(0, 1, 0.1, 0.5), Stop::between(1, 0, -0.2, 0.5)}),
              Contains("leave no room"));
