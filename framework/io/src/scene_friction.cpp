@@ -23,7 +23,7 @@ void read_friction(Reader& r, const YAML::Node& root, SceneParts& p) {
       if (c["mass"]) r.fail(c["mass"], path + ".mass", "a contact between masses takes 'between', not 'mass'");
       if (c["surface"])
         r.fail(c["surface"], path + ".surface", "a contact between two masses has no surface: remove 'surface'");
-      const auto pair = r.numbers(c["between"], path + ".between", 2, "the two masses i, k rubbing on each other");
+      const auto pair = r.numbers(c["between"], path + ".between", 2, "the two masses i, k rubbing on each other", false);
       for (int q = 0; q < 2; ++q)
         r.integer(c["between"][static_cast<std::size_t>(q)], path + ".between[" + std::to_string(q) + "]", 0, n - 1);
       if (pair[0] == pair[1])

@@ -127,6 +127,10 @@ struct ContinuationOptions {
   /// the points budget), and ContinuationResult::budget says which was hit and what was left.
   int max_branches = 64;
   long max_total_points = 40000;
+  /// The start orbit is a period doubling (a restart from a located one): follow only the
+  /// period-2k branch that bifurcates there (branch 1; branch 0 is the start orbit alone), not the
+  /// period-k branch through it. The start must have a multiplier within 1e-3 of −1.
+  bool switch_at_start = false;
   /// The dense engine's settings (the ParameterFamily overloads); an ContinuationFamily's engines carry
   /// their own (family_engine.hpp).
   SimulatorOptions solver;

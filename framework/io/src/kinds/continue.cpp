@@ -446,6 +446,7 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   o.max_doublings = spec.max_doublings;
   o.max_branches = spec.max_branches;
   o.max_total_points = spec.max_total_points;
+  o.switch_at_start = spec.switch_at_start;
   o.solver = scene.solver;
   o.solver.interrupt = request.interrupt;
   const ContinuationFamily family = continuation_family(doc, spec.path, scene.engine, o.solver);
@@ -558,7 +559,7 @@ void parse_continue_section(RunSection& s) {
     ContinueSpec& c = run.continuation;
     r.expect_map(ct, "run.continue", {"path", "range", "direction", "period", "phase", "step", "min_step", "max_step",
                                       "max_points", "tolerance", "locate", "locate_tolerance", "max_doublings", "max_branches",
-                                      "max_total_points", "curve"});
+                                      "max_total_points", "curve", "switch"});
     // A continuation parameter: a number the file sets, outside `run` (and, below, one that
     // moves the system: kinds/continue.cpp checks that through the parameter's derivative).
     auto parameter = [&](const YAML::Node& node, const std::string& path) {
@@ -574,7 +575,7 @@ void parse_continue_section(RunSection& s) {
     };
     auto range = [&](const YAML::Node& node, const std::string& path, double& lo, double& hi, double value) {
       if (!node) r.fail(ct, path, "missing: [min, max], the limits of the parameter");
-      const std::vector<double> v = r.numbers(node, path, 2, "min, max");
+      const std::vector<double> v = r.numbers(node, path, 2, "min, max", false);
       if (!(v[0] < v[1])) r.fail(node, path, "expected min < max, found [" + number_text(v[0]) + ", " + number_text(v[1]) + "]");
       if (!(value >= v[0] && value <= v[1]))
         r.fail(node, path, "the scene's value " + number_text(value) + " lies outside [" + number_text(v[0]) + ", " +
@@ -608,6 +609,8 @@ void parse_continue_section(RunSection& s) {
     if (ct["max_doublings"]) c.max_doublings = static_cast<int>(r.integer(ct["max_doublings"], "run.continue.max_doublings", 0, 8));
     if (ct["max_branches"]) c.max_branches = static_cast<int>(r.integer(ct["max_branches"], "run.continue.max_branches", 1, 100000));
     if (ct["max_total_points"]) c.max_total_points = static_cast<long>(r.integer(ct["max_total_points"], "run.continue.max_total_points", 2, 100000000));
+    if (ct["switch"])  // the only switching a start can ask for (a restart at a located doubling)
+      c.switch_at_start = r.choice(ct["switch"], "run.continue.switch", {"period_doubling", "none"}) == "period_doubling";
     if (const YAML::Node cv = ct["curve"]) {
       r.expect_map(cv, "run.continue.curve", {"path", "range", "step", "max_points", "kinds"});
       c.curve_path = parameter(cv["path"], "run.continue.curve.path");
