@@ -10,6 +10,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -18,25 +21,21 @@ using namespace vibro::io;
 
 namespace {
 
-// A three-mass chain (experiments/examples/three_mass_switching.yaml) over Ω ∈ [0.665, 0.69]:
-// its period-1 branch doubles at Ω ≈ 0.6753 and 0.6823.
-const std::string kInitial = "initial: {x: [0, 0, 0], v: [0, 0, 0]}";
+// The three-mass chain of experiments/examples/three_mass_switching.yaml at Ω = 0.67, over
+// Ω ∈ [0.665, 0.69]: its period-1 branch doubles at Ω ≈ 0.6753 and 0.6823.
+std::string model_text() {
+  std::ifstream in(std::string(VIBRO_EXPERIMENTS) + "/examples/three_mass_switching.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string s = text.str();
+  s = s.substr(0, s.find("\ninitial:") + 1);
+  const std::string from = "frequency: 1.0", to = "frequency: 0.67";
+  if (s.find(from) == std::string::npos) throw std::runtime_error("three_mass_switching.yaml: no '" + from + "'");
+  return s.replace(s.find(from), from.size(), to);
+}
 
-const std::string kModel = R"(
-name: restart-test
-model:
-  chain:
-    masses: [1, 1, 1]
-    springs: [1, 1]
-    dampers: [0.05, 0.05]
-    left_wall: {spring: 1, damper: 0.05}
-forcing:
-  frequency: 0.67
-  cosine: [0, 0, 0.3]
-stops:
-  - {mass: 0, side: lower, position: -0.1, restitution: 0.8, name: below m0}
-  - {between: [1, 2], gap: 0.05, restitution: 0.8, name: m1-m2 clearance}
-)";
+const std::string kModel = model_text();
+const std::string kInitial = "initial: {x: [0, 0, 0], v: [0, 0, 0]}";
 
 std::string continuation(int max_doublings) {
   return kModel + kInitial + R"(
