@@ -165,69 +165,110 @@ def plane(result, *, ax=None):
     return ax
 
 
-def basin(result, *, ax=None):
-    """A basin run's label image: one colour per attractor (its period in the legend), grey for
-    not converged, white for stopped early, not run or inadmissible."""
+def basin(result, *, ax=None, legend=True):
+    """A basin run's label image over its two varied values (rows /basin/p1, columns p2), each cell
+    centred on its start: one colour per attractor (the legend gives its period and share of the
+    grid), grey for not converged within the period budget, black for runs stopped early, white
+    for starts not run (interrupted) or outside a stop. Where both values are components of the
+    initial state (initial.x[i], initial.v[i]) the attractors' stroboscopic points are marked,
+    projected onto the plane."""
+    import re
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
     r = _result(result)
     g = _need(r, "basin", "basin")
     ax = _axes(ax)
-    import matplotlib.colors as mcolors
-    label = g.label
-    n = int(label.max()) + 1 if label.size and label.max() >= 0 else 0
-    colours = ["white", "white", "white", "0.6"] + [f"C{i % 10}" for i in range(n)]
-    cmap = mcolors.ListedColormap(colours)
-    image = np.clip(label, -4, None) + 4  # −4 … n−1 → 0 … n+3
-    ax.imshow(image, origin="lower", aspect="auto", interpolation="nearest", cmap=cmap, vmin=-0.5,
-              vmax=len(colours) - 0.5, extent=[g.p2[0], g.p2[-1], g.p1[0], g.p1[-1]])
-    if "attractors" in r:
-        period = r["attractors"].period
-        from matplotlib.patches import Patch
-        handles = [Patch(color=f"C{i % 10}", label=f"attractor {i} ({int(period[i])}T)") for i in range(n)]
-        if np.any(label == -1):
-            handles.append(Patch(color="0.6", label="not converged"))
-        ax.legend(handles=handles, fontsize=7, loc="best")
-    ax.set_xlabel(g.attrs.get("p2", "p2"))
-    ax.set_ylabel(g.attrs.get("p1", "p1"))
+    label, p1, p2 = g.label, g.p1, g.p2
+    a = r["attractors"] if "attractors" in r else None
+    period = a.period if a is not None else np.zeros(0, int)
+    n = len(period)
+    codes = {-4: ("white", "outside a stop (not run)"), -3: ("white", "not run (interrupted)"),
+             -2: ("black", "stopped early"), -1: ("0.75", "not converged")}
+    colours = [codes[c][0] for c in (-4, -3, -2, -1)] + [f"C{k % 10}" for k in range(n)]
+    dx = (p2[-1] - p2[0]) / max(len(p2) - 1, 1) / 2
+    dy = (p1[-1] - p1[0]) / max(len(p1) - 1, 1) / 2
+    ax.imshow(label + 4, origin="lower", cmap=ListedColormap(colours), vmin=-0.5, vmax=len(colours) - 0.5,
+              extent=[p2[0] - dx, p2[-1] + dx, p1[0] - dy, p1[-1] + dy], aspect="auto", interpolation="nearest")
+
+    def component(path, x, v):
+        m = re.fullmatch(r"initial\.([xv])\[(\d+)\]", path)
+        return None if not m else (x if m.group(1) == "x" else v)[:, int(m.group(2))]
+
+    handles, total = [], label.size
+    path1, path2 = g.attrs.get("p1", "p1"), g.attrs.get("p2", "p2")
+    for k in range(n):
+        share = 100.0 * np.count_nonzero(label == k) / total
+        handles.append(Patch(color=colours[k + 4], label=f"attractor {k}: period {int(period[k])} ({share:.1f} %)"))
+        rows = slice(int(a.first[k]), int(a.first[k]) + int(period[k]))
+        c1, c2 = component(path1, a.x[rows], a.v[rows]), component(path2, a.x[rows], a.v[rows])
+        if c1 is not None and c2 is not None:
+            ax.plot(c2, c1, "o", ms=5, mfc=colours[k + 4], mec="black", mew=0.8)
+    for code in (-1, -2, -3, -4):
+        count = np.count_nonzero(label == code)
+        if count:
+            handles.append(Patch(facecolor=codes[code][0], edgecolor="0.5",
+                                 label=f"{codes[code][1]} ({100.0 * count / total:.1f} %)"))
+    if legend:
+        ax.legend(handles=handles, loc="upper right", framealpha=0.9, fontsize=7)
+    ax.set_xlabel(path2)
+    ax.set_ylabel(path1)
     return ax
 
 
 def impact_map(result, stop=0, *, ax=None):
-    """A simulation's impact map of one stop (/impact_map): forcing phase Ωt mod 2π against the
-    approach speed before each impact."""
+    """The impact map of one stop (/impact_map): for a simulation, the forcing phase Ωt mod 2π
+    against the approach speed before each impact (a period-k orbit with one impact per period
+    shows k points); for a sweep, the approach speed of every impact of every point against the
+    swept value (the first sweep parameter): the bifurcation diagram of impact velocity."""
     r = _result(result)
-    g = _need(r, "impact_map", "simulation (with record.impact_map)")
+    g = _need(r, "impact_map", "simulation or sweep (with record.impact_map)")
     ax = _axes(ax)
-    rows = g.stop == stop
-    ax.plot(g.phase[rows], g.velocity[rows], ".", ms=2, color="tab:blue", rasterized=True)
-    ax.set_xlim(0.0, 2.0 * np.pi)
-    ax.set_xlabel("forcing phase $\\Omega t$ mod $2\\pi$")
-    ax.set_ylabel("approach speed before impact")
+    on = g.stop == stop
+    colour = f"C{stop % 10}"
+    if "sweep" in r:
+        values = r["sweep"].values[:, 0]
+        ax.plot(values[g.point[on]], g.velocity[on], ".", ms=1.5, color=colour, rasterized=True)
+        ax.set_xlabel(str(r["sweep"].attrs["parameters"][0]))
+    else:
+        ax.plot(g.phase[on], g.velocity[on], ".", ms=3, color=colour, rasterized=True)
+        ax.set_xlim(0.0, 2.0 * np.pi)
+        ax.set_xlabel("forcing phase $\\Omega t$ mod $2\\pi$")
+    ax.set_ylabel("approach speed at impact")
     stops = g.labels("stop").get("stops", [])
-    name = stops[stop] if stop < len(stops) else f"stop {stop}"
-    ax.set_title(f"impact map of {name.decode() if isinstance(name, bytes) else name}: {int(np.count_nonzero(rows))} impacts",
-                 fontsize=8)
+    name = stops[stop] if stop < len(stops) and stops[stop] else f"stop {stop}"
+    ax.set_title(f"{name.decode() if isinstance(name, bytes) else name}: {int(np.count_nonzero(on))} impacts", fontsize=8)
     return ax
 
 
 def lyapunov(result, *, ax=None):
-    """Lyapunov exponents: against the parameter (one line per exponent) for a run along a grid,
-    as bars at the scene's values otherwise; structural exponents (−∞, a stop held) left out."""
+    """Lyapunov exponents λ_1 ≥ … ≥ λ_p (per unit time): against the parameter, one colour per
+    index, for a run along a grid (the structural exponents, −∞ where a stop is held, as ▼ on the
+    bottom edge); as bars at the scene's values otherwise (structural ones left out). Zero as a
+    thin line: a positive λ_1 is chaos."""
     r = _result(result)
     g = _need(r, "lyapunov", "lyapunov")
     ax = _axes(ax)
-    exponents, finite, reached = g.exponents, g.finite.astype(bool), g.reached.astype(bool)
+    e, finite, reached = g.exponents, g.finite == 1, g.reached == 1
+    ax.axhline(0.0, color="0.4", lw=0.6)
     if "parameter" in g:
         p = g.parameter
-        for i in range(exponents.shape[1]):
-            y = np.where(finite[:, i] & reached, exponents[:, i], np.nan)
-            ax.plot(p, y, "-", lw=1.0, label=f"$\\lambda_{{{i + 1}}}$")
+        values = e[finite & reached[:, None]]
+        bottom = values.min() - 0.1 * np.ptp(values) if values.size else -1.0
+        for i in range(e.shape[1]):
+            colour = f"C{i % 10}"
+            ax.plot(p, np.where(finite[:, i] & reached, e[:, i], np.nan), "-", marker=".", ms=3, lw=0.8,
+                    color=colour, label=f"$\\lambda_{{{i + 1}}}$")
+            s = ~finite[:, i] & reached
+            if s.any():
+                ax.plot(p[s], np.full(s.sum(), bottom), "v", ms=4, color=colour, clip_on=False)
+        if (~finite & reached[:, None]).any():
+            ax.text(0.01, 0.03, "▼: −∞ (structural: a stop held)", transform=ax.transAxes, fontsize=7)
+        ax.set_ylim(bottom=bottom - 0.02 * abs(bottom))
         ax.set_xlabel(g.attrs.get("parameter", "p"))
+        ax.legend(loc="upper left", ncol=e.shape[1], fontsize=7)
     else:
-        values = exponents[0][finite[0]]
+        values = e[0][finite[0]]
         ax.bar(np.arange(1, values.size + 1), values, color="tab:blue")
         ax.set_xlabel("exponent index")
-    ax.axhline(0.0, color="0.5", lw=0.6)
-    ax.set_ylabel(f"exponent [{g.attrs.get('units', '1/time')}]")
-    if "parameter" in g:
-        ax.legend(fontsize=7, loc="best", ncol=2)
+    ax.set_ylabel("Lyapunov exponent (per unit time)")
     return ax
