@@ -63,7 +63,7 @@ def _names(group, dataset):
 def branch(result, coordinate=0, *, velocity=False, ax=None, markers=True):
     """A continuation's branches: x_coordinate (or v with velocity=True) at the fixed phase
     (/branch x_fixed, continuous along a branch) against the parameter; stable stretches solid,
-    unstable dashed, one colour per branch; the located bifurcations marked by kind at their
+    unstable dashed, one colour per period; the located bifurcations marked by kind at their
     parameter on their branch (the branch's value there by linear interpolation between its
     neighbouring points: a located point is not always a point of /branch)."""
     r = _result(result)
@@ -72,19 +72,24 @@ def branch(result, coordinate=0, *, velocity=False, ax=None, markers=True):
     p, ids, stable = g.p, g.branch, g.stable
     y = (g.v_fixed if velocity else g.x_fixed)[:, coordinate]
     ok = g.fixed_ok.astype(bool)
-    colours = [f"C{i % 10}" for i in range(int(ids.max()) + 1 if ids.size else 0)]
+    periods = sorted(set(int(k) for k in g.k))
+    labelled = set()
     for b in np.unique(ids):
         rows = np.nonzero((ids == b) & ok)[0]
         if rows.size == 0:
             continue
         k = int(g.k[rows[0]])
+        colour = f"C{periods.index(k) % 10}"  # one colour per period: many branches stay readable
         # Split at stability changes; each stretch drawn with its style and joined to the next.
         start = 0
         for i in range(1, rows.size + 1):
             if i == rows.size or stable[rows[i]] != stable[rows[start]]:
                 seg = rows[start:min(i + 1, rows.size)]
-                ax.plot(p[seg], y[seg], "-" if stable[rows[start]] else "--", color=colours[int(b)], lw=1.0,
-                        label=f"branch {int(b)} ({k}T)" if start == 0 else None)
+                style = "-" if stable[rows[start]] else "--"
+                key = (k, style)
+                ax.plot(p[seg], y[seg], style, color=colour, lw=1.0,
+                        label=f"period {k}T, {'stable' if style == '-' else 'unstable'}" if key not in labelled else None)
+                labelled.add(key)
                 start = i
     if markers and "bifurcations" in r:
         f = r["bifurcations"]
