@@ -59,3 +59,23 @@ def test_a_scene_without_it_has_no_group():
     r = vibro.simulate(BASE + "\nrecord: {events: true}\nrun: {kind: simulate, transient_periods: 2, periods: 2}\n")
     with pytest.raises((AttributeError, KeyError)):
         r.impact_map
+
+
+def test_a_diagram_records_the_map_of_every_value_it_records():
+    P = 8
+    r = vibro.diagram(BASE + "\nrecord: {impact_map: true}\nrun: {kind: diagram, transient_periods: 30, diagram: "
+                             "{path: forcing.frequency, linspace: [0.25, 0.26, 5], points: %d, max_period: 4, "
+                             "transient: 20}}\n" % P)
+    m, d = r.impact_map, r.diagram
+    assert set(m.direction) == {0, 1} and r.impact_map.labels("direction")["names"] == ["up", "down"]
+    for direction, name in enumerate(["up", "down"]):
+        for g, omega in enumerate(d.parameter):
+            rows = (m.direction == direction) & (m.point == g)
+            # Every impact of the P recorded periods, no more: the diagram's own count of them.
+            assert rows.sum() == round(d[f"impacts_{name}"][g] * P) > 0
+            t = m.t[rows]
+            assert (np.diff(t) > 0).all()
+            assert np.allclose(m.phase[rows], np.mod(omega * t, 2 * math.pi), rtol=0, atol=1e-9)
+            on0, on1 = rows & (m.stop == 0), rows & (m.stop == 1)
+            assert np.abs(m.x[on0, 0] - LOWER).max(initial=0) < 1e-9 and np.abs(m.x[on1, 1] - UPPER).max(initial=0) < 1e-9
+    assert (m.velocity > 0).all()

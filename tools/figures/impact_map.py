@@ -6,7 +6,7 @@ A simulation: one panel per stop with impacts, forcing phase Ωt mod 2π against
 speed at impact (the section papers in the field plot; a period-k orbit with one impact per
 period shows k points). A sweep: one panel per stop, the approach speed of every impact of every
 point against the swept value (the first sweep parameter) — the bifurcation diagram of impact
-velocity.
+velocity; a diagram run's (record.impact_map) the same, its up and down sweeps overlaid.
 
 Checks (the script fails if one does not hold): every approach speed is positive, every phase is
 in [0, 2π), every stop index names a stop of /scene, and a sweep's rows add up to its points'.
