@@ -79,3 +79,21 @@ def test_a_diagram_records_the_map_of_every_value_it_records():
             on0, on1 = rows & (m.stop == 0), rows & (m.stop == 1)
             assert np.abs(m.x[on0, 0] - LOWER).max(initial=0) < 1e-9 and np.abs(m.x[on1, 1] - UPPER).max(initial=0) < 1e-9
     assert (m.velocity > 0).all()
+
+
+def test_a_continuation_records_the_map_of_every_branch_point():
+    cascade = (SOURCE / "experiments/examples/pd_cascade.yaml").read_text().split("\nrun:")[0]
+    r = vibro.continuation(cascade + "\nrecord: {impact_map: true}\nrun: {kind: continue, transient_periods: 300, "
+                                     "continue: {path: forcing.frequency, range: [1.66, 1.74], max_doublings: 1}}\n")
+    m, b = r.impact_map, r.branch
+    assert set(b.k) == {1, 2}
+    # Each point's orbit over kT: its impacts are the signature's (no chatter on these orbits),
+    # in time order over one period kT from the section, each on the stop x1 ≤ 0.
+    assert (b.signature[:, 1] == 0).all()
+    counts = np.bincount(m.point, minlength=b.p.size)
+    assert np.array_equal(counts, b.signature[:, 0].astype(int))
+    for i in range(0, b.p.size, 7):
+        t = m.t[m.point == i]
+        assert (np.diff(t) > 0).all() and t.min() >= b.t0[i] and t.max() <= b.t0[i] + b.k[i] * 2 * math.pi / b.p[i]
+        assert np.allclose(m.phase[m.point == i], np.mod(b.p[i] * t, 2 * math.pi), rtol=0, atol=1e-9)
+    assert np.abs(m.x[:, 1]).max() < 1e-9 and (m.velocity > 0).all()

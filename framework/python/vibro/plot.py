@@ -223,11 +223,12 @@ def basin(result, *, ax=None, legend=True):
 def impact_map(result, stop=0, *, ax=None):
     """The impact map of one stop (/impact_map): for a simulation, the forcing phase Ωt mod 2π
     against the approach speed before each impact (a period-k orbit with one impact per period
-    shows k points); for a sweep or a diagram, the approach speed of every impact of every point
-    against the swept value (the first sweep parameter; a diagram's up and down sweeps overlaid):
+    shows k points); for a sweep, a diagram or a continuation, the approach speed of every impact of every point
+    against the swept value (the first sweep parameter; a diagram's up and down sweeps overlaid; a
+    continuation's branch points, each orbit over its period):
     the bifurcation diagram of impact velocity."""
     r = _result(result)
-    g = _need(r, "impact_map", "simulation, sweep or diagram (with record.impact_map)")
+    g = _need(r, "impact_map", "simulation, sweep, diagram or continuation (with record.impact_map)")
     ax = _axes(ax)
     on = g.stop == stop
     colour = f"C{stop % 10}"
@@ -235,6 +236,10 @@ def impact_map(result, stop=0, *, ax=None):
         values = r["sweep"].values[:, 0]
         ax.plot(values[g.point[on]], g.velocity[on], ".", ms=1.5, color=colour, rasterized=True)
         ax.set_xlabel(str(r["sweep"].attrs["parameters"][0]))
+    elif "branch" in r:  # each branch point's orbit over kT
+        p = r["branch"].p
+        ax.plot(p[g.point[on]], g.velocity[on], ".", ms=1.5, color=colour, rasterized=True)
+        ax.set_xlabel(str(r["branch"].attrs["parameter"]))
     elif "diagram" in r:  # every value's recorded periods, up and down
         values = r["diagram"].parameter
         for d, (c, size) in enumerate((("tab:blue", 2.0), ("tab:orange", 0.7))):

@@ -424,6 +424,45 @@ ContinuationFamily continuation_family(const SceneDocument& doc, const std::stri
   };
 }
 
+/// /impact_map of a continuation (record.impact_map; docs/results.md): each branch point's orbit
+/// run once over its period kT from its section state, with the impacts of that run and the
+/// point's row of /branch. An orbit whose run stops early (or an interrupted run) has no rows.
+void write_impact_map(ResultFile& file, const SceneDocument& doc, const Scene& scene, const std::string& path,
+                      const ContinuationResult& result, const RunRequest& request) {
+  std::vector<double> t, phase, velocity;
+  std::vector<std::int64_t> stop, point;
+  std::vector<Eigen::VectorXd> x, v;
+  SceneDocument at(doc);
+  std::int64_t row = 0;
+  for (const Branch& b : result.branches)
+    for (const BranchPoint& q : b.points) {
+      if (request.interrupt && request.interrupt->load()) break;
+      at.set(path, q.p);
+      Scene built = at.build_point();
+      built.solver.interrupt = request.interrupt;
+      ImpactMap map;
+      const RunSummary s = make_engine(built)->run(q.t0, q.x, q.v, q.t0 + q.k * built.period(), {&map});
+      if (s.status == RunStatus::completed) {
+        t.insert(t.end(), map.t.begin(), map.t.end());
+        phase.insert(phase.end(), map.phase.begin(), map.phase.end());
+        velocity.insert(velocity.end(), map.velocity.begin(), map.velocity.end());
+        stop.insert(stop.end(), map.stop.begin(), map.stop.end());
+        x.insert(x.end(), map.x.begin(), map.x.end());
+        v.insert(v.end(), map.v.begin(), map.v.end());
+        point.insert(point.end(), map.t.size(), row);
+      }
+      ++row;
+    }
+  std::vector<std::string> names;
+  for (const Stop& st : scene.stops) names.push_back(st.name);
+  const std::size_t r = t.size(), n = static_cast<std::size_t>(scene.dof());
+  Dataset stops = integers("stop", stop, {r}, Dataset::Type::i32);
+  stops.labels.emplace_back("stops", names);
+  file.write_group("impact_map", {reals("t", t, {r}), std::move(stops), reals("phase", phase, {r}),
+                                  reals("velocity", velocity, {r}), table("x", x, n), table("v", v, n),
+                                  integers("point", point)});
+}
+
 RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
   const auto wall_start = std::chrono::steady_clock::now();
   const ContinueSpec& spec = scene.run.continuation;
@@ -507,6 +546,7 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
 
   write_branches(file, result, n, m, spec.path);
   write_bifurcations(file, result, n);
+  if (scene.record.impact_map) write_impact_map(file, doc, scene, spec.path, result, request);
   if (!spec.curve_path.empty()) write_curves(file, curves, spec.path, spec.curve_path);
   const bool interrupted = request.interrupt && request.interrupt->load();
   std::size_t points = 0;
@@ -654,7 +694,7 @@ RunKindInfo continue_kind() {
   k.summary = "branches of periodic orbits by shooting and pseudo-arclength continuation, their stability and bifurcations";
   k.section = "continue";
   k.missing = "missing: run.kind: continue needs run.continue (path and range)";
-  k.groups = {"branch", "branches", "recognised", "bifurcations", "curve"};
+  k.groups = {"branch", "branches", "recognised", "bifurcations", "curve", "impact_map"};
   k.every_process = false;
   k.stoppable = true;
   k.parse = parse_continue_section;
