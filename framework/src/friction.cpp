@@ -100,6 +100,9 @@ struct Tables {
   Eigen::MatrixXd u_rows, s2_rows;     // m × N: u_j = u_rows z, s_j'' = s2_rows z
   Eigen::MatrixXd r_rows;              // n × N: r = f(t) − C v − K x, no friction
   Eigen::VectorXd limit_static, limit_kinetic;  // μ_s N, μ_k N
+  /// Per contact j: Σ_k |(Wᵀ M⁻¹ W)_jk|, the largest relative acceleration u_j' that a force error
+  /// of 1 on every contact can make (resolve_states' tolerance on u').
+  Eigen::VectorXd accel_per_force;
 
   Tables(const LinearSystem& sys, const std::vector<FrictionContact>& contacts) {
     n = sys.dof();
@@ -127,6 +130,7 @@ struct Tables {
     }
     minv = sys.mass().llt().solve(Eigen::MatrixXd::Identity(n, n));
     minv_W = minv * W;
+    accel_per_force = (W.transpose() * minv_W).cwiseAbs().rowwise().sum();
     r_rows = Eigen::MatrixXd::Zero(n, N);
     r_rows.leftCols(n) = -sys.stiffness();
     r_rows.middleCols(n, n) = -sys.damping();
@@ -348,8 +352,14 @@ bool resolve_states(const Tables& tab, const Eigen::VectorXd& z, std::vector<Fri
       for (std::size_t k = 0; k < c && ok; ++k) {
         const Eigen::Index j = cand[k];
         const FrictionState s = trial[static_cast<std::size_t>(j)];
+        // A slip is consistent if it does not decelerate, to the tolerance of what located the
+        // switch: a stuck force guard fires within eps_f of μ_s N, so at a stick → slip switch
+        // with μ_s = μ_k the slip's u' = (F − μ_k N)(WᵀM⁻¹W) may be −eps_f (WᵀM⁻¹W) where the
+        // exact value is 0 (and u'' > 0). A tolerance below that would refuse the slip, keep the
+        // contact stuck (its force is within μ_s N + eps_f) and let the guard fire again at once,
+        // for ever.
         if (s == FrictionState::stuck) ok = std::abs(force(j)) <= tab.limit_static(j) + eps_f;
-        else ok = sign_of(s) * udot(j) >= -eps_a;
+        else ok = sign_of(s) * udot(j) >= -(eps_a + eps_f * tab.accel_per_force(j));
       }
       if (ok) {
         best_stuck = stuck_count;
