@@ -8,7 +8,9 @@
 /// family in σ with derivative n1 P1 ∂/∂p1 + n2 P2 ∂/∂p2, and the branch through the previous
 /// curve point's orbit is continued along that line for σ ∈ [−4h, 4h] until the point of the
 /// same kind (and stop) is located; the located point nearest the predictor is the next curve
-/// point. h grows by 1.5 (to 4 × step) after a point and halves when none is found. Grazing,
+/// point. h grows by 1.5 (to 4 × step) after a point and halves when none is found (for folds,
+/// doublings and tori also when the nearest lies further than h/2 from the predictor: the lines
+/// are long, and at a sharp turn the nearest point can lie on another part of the curve). Grazing,
 /// rising, period-doubling and Neimark–Sacker points are followed so: their orbits exist on
 /// both sides of the curve, and the previous point's orbit is a regular start at the predictor.
 ///
@@ -42,7 +44,11 @@
 ///    the line at step u (so the codimension-two point is a curve point, exact as above, where
 ///    the second condition holds to the iteration's tolerance in u);
 ///  * orbits with other events (a grazing: the smooth curve's orbit touches a stop) by
-///    bisection on u, whether the curve point at u has the earlier point's events;
+///    bisection on u, whether the curve point at u has the earlier point's events; a curve that
+///    is lost (steps halved below 1e-6) where its last orbit has an impact slower than 1e-3 V or
+///    a gap maximum within 1e-3 L of a stop ends at a grazing (reported, not located: near a
+///    grazing the multipliers vary like the square root of the distance, and the line's branch
+///    cannot be followed past it with the same events);
 ///  * a fold curve whose secant reverses (consecutive secants at more than 90°) is reported as a
 ///    cusp's turning (not located; the fold's quadratic coefficient is not computed);
 ///  * a torus curve that ends with its pair within 0.05 of θ = 0 or π is reported as near a 1:1
@@ -153,6 +159,9 @@ class CurveFollower {
                                    std::string& failed) const;
   std::optional<CurvePoint> fold_across(const CurvePoint& last, const Eigen::Vector2d& dir, double h, int& side,
                                         std::string& failed) const;
+  /// Whether the predictor follows a secant (from the second step on): the first step goes
+  /// along p2, which may be far from the curve's tangent, so its point is not held to h/2.
+  bool secant = false;
   /// The codimension-two points between prev and cur (cur at step h along dir from prev).
   void between(Curve& curve, int after, const CurvePoint& prev, const CurvePoint& cur, const Eigen::Vector2d& dir,
                double h, int side) const;
@@ -161,6 +170,12 @@ class CurveFollower {
                           const std::function<double(const BranchPoint&)>& g) const;
   void locate_events(Curve& curve, int after, const CurvePoint& prev, const CurvePoint& cur, const Eigen::Vector2d& dir,
                      double h, int side) const;
+  /// A lost curve whose last orbit nearly grazes a stop: reported as a grazing (not located).
+  void grazing_at_end(Curve& curve) const;
+  bool multiplier_kind() const {
+    return start_.kind == BifurcationKind::fold || start_.kind == BifurcationKind::period_doubling ||
+           start_.kind == BifurcationKind::neimark_sacker;
+  }
 
   const PlaneContinuationFamily& family_;
   const Bifurcation& start_;
@@ -217,6 +232,9 @@ std::optional<CurvePoint> CurveFollower::across(const CurvePoint& last, const Ei
   }
   const Bifurcation* best = nearest(r, start_.kind, start_.stop, 0.0);
   if (!best) return std::nullopt;
+  // Folds, doublings and tori: a located point far off the predictor belongs to another part of
+  // the curve (the lines reach ±4h): refused, and the step is halved.
+  if (multiplier_kind() && secant && std::abs(best->p) > 0.5 * h) return std::nullopt;
   CurvePoint cp;
   cp.p1 = a1 + best->p * normal(0) * P1;
   cp.p2 = a2 + best->p * normal(1) * P2;
@@ -252,6 +270,11 @@ std::optional<CurvePoint> CurveFollower::fold_across(const CurvePoint& last, con
     so.max_points = 60;
     so.max_doublings = 0;
     so.locate = false;  // the fold at τ = 0 is the last point's
+    // Its start is the located fold orbit, whose residual may lie a little above the tolerance
+    // (the corrector's floor, 100 ε ‖J‖), where shooting's Newton would meet J − I singular: a
+    // looser tolerance on the segment, a path to b only (stage 2 polishes b's orbit to the
+    // tolerance and locates the fold with it).
+    so.tolerance = std::max(so.tolerance, 1e-9);
     ContinuationResult r1;
     try {
       r1 = continue_orbits(segment, 0.0, last.point.t0, last.point.x, last.point.v, so);
@@ -289,7 +312,7 @@ std::optional<CurvePoint> CurveFollower::fold_across(const CurvePoint& last, con
       continue;
     }
     const Bifurcation* best = nearest(r2, BifurcationKind::fold, -1, h);
-    if (!best) continue;
+    if (!best || (secant && std::abs(best->p - h) > 0.5 * h)) continue;
     side = s;
     CurvePoint cp;
     cp.p1 = b1 - s * best->p * normal(0) * P1;
@@ -426,6 +449,46 @@ void CurveFollower::locate_events(Curve& curve, int after, const CurvePoint& pre
   curve.special.push_back(c);
 }
 
+/// The last point's orbit run once more with its features: an impact slower than 1e-3 V or a
+/// gap maximum within 1e-3 L of its stop (continuation's test for a nearby grazing) marks the
+/// end of the smooth curve at a grazing.
+void CurveFollower::grazing_at_end(Curve& curve) const {
+  const CurvePoint& last = curve.points.back();
+  TangentMap m;
+  try {
+    PlaneEngine pe = family_(last.p1, last.p2);
+    LinearisationOptions lo;
+    lo.jacobian = false;
+    lo.features = true;
+    const double T = 2.0 * std::numbers::pi / pe.engine->frequency();
+    m = pe.engine->linearise(last.point.t0, last.point.x, last.point.v, last.point.t0 + last.point.k * T, lo);
+  } catch (const InvalidInput&) {
+    return;
+  }
+  if (m.summary.status != RunStatus::completed) return;
+  const double L = m.summary.length_scale, V = m.summary.velocity_scale;
+  int stop = -1;
+  double how = 0.0;
+  std::string what;
+  for (const ImpactRecord& r : m.impacts)
+    if (r.speed < 1e-3 * V && (stop < 0 || r.speed / V < how))
+      stop = r.stop, how = r.speed / V, what = "an impact of speed " + number_text(r.speed);
+  for (const GapPeak& g : m.gap_peaks)
+    if (g.value > -1e-3 * L && (stop < 0 || -g.value / L < how))
+      stop = g.stop, how = -g.value / L, what = "a gap maximum of " + number_text(g.value);
+  if (stop < 0) return;
+  CodimTwoPoint c;
+  c.kind = CodimTwoKind::grazing;
+  c.stop = stop;
+  c.after = static_cast<int>(curve.points.size()) - 1;
+  c.p1 = last.p1;
+  c.p2 = last.p2;
+  c.value = how;
+  c.point = last.point;
+  c.note = "the curve ends where its orbit grazes (the last point has " + what + "; not located)";
+  curve.special.push_back(c);
+}
+
 Curve CurveFollower::follow(double p2_start) {
   const Bifurcation& start = start_;
   const CurveOptions& options = o_;
@@ -447,6 +510,7 @@ Curve CurveFollower::follow(double p2_start) {
   int side = 0;
   auto finish = [&](const std::string& end) {
     curve.end = end;
+    if (smooth_kind && curve.end.find("lost") != std::string::npos) grazing_at_end(curve);
     if (start.kind == BifurcationKind::neimark_sacker && curve.end.find("lost") != std::string::npos) {
       const double theta = pair_angle(curve.points.back().point.multipliers);
       if (std::isfinite(theta) && (theta < 0.05 || theta > std::numbers::pi - 0.05)) {
@@ -470,6 +534,7 @@ Curve CurveFollower::follow(double p2_start) {
       const CurvePoint& prev = curve.points[curve.points.size() - 2];
       Eigen::Vector2d s((last.p1 - prev.p1) / P1, (last.p2 - prev.p2) / P2);
       if (s.norm() > 0.0) dir = s.normalized();
+      secant = true;
     }
     // A fold curve whose secant reverses has turned back (a cusp passed between the points).
     if (start.kind == BifurcationKind::fold && curve.points.size() >= 3 && previous_dir.dot(dir) < 0.0) {
