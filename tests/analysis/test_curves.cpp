@@ -128,6 +128,41 @@ TEST_CASE("curves: the designed oscillator's period-doubling curve in (Ω, A) pa
   check_against_brute_force(vibro::BifurcationKind::period_doubling, 0.9898);
 }
 
+TEST_CASE("curves: the designed oscillator's period-doubling curve, followed down in A, ends where its orbit "
+          "grazes, on the closed-form grazing curve A = s √((1 − Ω²)² + c²Ω²)",
+          "[continuation][curve][codim2]") {
+  const DesignedOrbit d(0.125);
+  const vibro::ContinuationResult r = branch_at(d, d.A, 0.8, 1.45);
+  const vibro::Bifurcation* start = nearest(r, vibro::BifurcationKind::period_doubling, 0.9898);
+  REQUIRE(start != nullptr);
+  vibro::CurveOptions co;
+  co.p1_min = 0.8;
+  co.p1_max = 1.2;
+  co.p2_min = 0.03;
+  co.p2_max = 0.15;
+  co.step = 0.05;
+  co.max_points = 60;
+  co.direction = -1;
+  co.branch.max_doublings = 0;
+  const vibro::Curve curve = vibro::follow_curve(designed_plane(d), *start, d.A, co);
+  INFO(curve.points.size() << " points, end: " << curve.end);
+  REQUIRE(curve.special.size() == 1);
+  const vibro::CodimTwoPoint& g = curve.special.front();
+  INFO(vibro::to_string(g.kind) << " at (" << g.p1 << ", " << g.p2 << "): " << g.note);
+  CHECK(g.kind == vibro::CodimTwoKind::grazing);
+  CHECK(g.stop == 0);
+  CHECK(g.after == static_cast<int>(curve.points.size()) - 1);
+  // The non-impacting orbit's amplitude at the point equals the stop's distance (the grazing
+  // curve in closed form). The point is the last curve point, whose slowest impact is below
+  // 1e-3 V: the orbit is within O(u²/|g''|) ≈ 1e-6 L of grazing, so A within ~1e-6 of the curve.
+  const double w = g.p1;
+  const double grazing_amplitude = d.s * std::sqrt((1.0 - w * w) * (1.0 - w * w) + d.c * d.c * w * w);
+  INFO("closed-form grazing amplitude " << grazing_amplitude << ", difference " << g.p2 - grazing_amplitude);
+  CHECK(std::abs(g.p2 - grazing_amplitude) <= 1e-5 * d.A);
+  WARN("period-doubling curve ends at a grazing: (" << g.p1 << ", " << g.p2 << "), |A − A_grazing| "
+                                                    << std::abs(g.p2 - grazing_amplitude));
+}
+
 TEST_CASE("curves: a kind other than grazing, rising, fold, period doubling and Neimark–Sacker is refused by name",
           "[continuation][curve]") {
   const DesignedOrbit d(0.125);

@@ -45,10 +45,10 @@
 ///    the second condition holds to the iteration's tolerance in u);
 ///  * orbits with other events (a grazing: the smooth curve's orbit touches a stop) by
 ///    bisection on u, whether the curve point at u has the earlier point's events; a curve that
-///    is lost (steps halved below 1e-6) where its last orbit has an impact slower than 1e-3 V or
-///    a gap maximum within 1e-3 L of a stop ends at a grazing (reported, not located: near a
-///    grazing the multipliers vary like the square root of the distance, and the line's branch
-///    cannot be followed past it with the same events);
+///    is lost (steps halved below 1e-6, or no orbit found) where its last orbit has an impact
+///    slower than 1e-3 V or a gap maximum within 1e-3 L of a stop ends at a grazing (reported,
+///    not located: near a grazing the map's Jacobian grows like 1/u, u the slowest impact's
+///    speed, and the line's branch cannot be followed past it with the same events);
 ///  * a fold curve whose secant reverses (consecutive secants at more than 90°) is reported as a
 ///    cusp's turning (not located; the fold's quadratic coefficient is not computed);
 ///  * a torus curve that ends with its pair within 0.05 of θ = 0 or π is reported as near a 1:1
@@ -510,7 +510,8 @@ Curve CurveFollower::follow(double p2_start) {
   int side = 0;
   auto finish = [&](const std::string& end) {
     curve.end = end;
-    if (smooth_kind && curve.end.find("lost") != std::string::npos) grazing_at_end(curve);
+    if (smooth_kind && (curve.end.find("lost") != std::string::npos || curve.end.find("no orbit") != std::string::npos))
+      grazing_at_end(curve);
     if (start.kind == BifurcationKind::neimark_sacker && curve.end.find("lost") != std::string::npos) {
       const double theta = pair_angle(curve.points.back().point.multipliers);
       if (std::isfinite(theta) && (theta < 0.05 || theta > std::numbers::pi - 0.05)) {
