@@ -264,7 +264,7 @@ run:
 
 }  // namespace
 
-TEST_CASE("a continue run with curve.kinds: [fold] writes the fold's curves and /codim2; an unknown kind is "
+TEST_CASE("a continue run with curve.kinds: [fold] writes the fold's curves and /codim2, and an unknown kind is "
           "refused at its place", "[runner][continue][curve]") {
   const vibro::test::TempDir dir;
   const ResultReader r = run_into(dir, kFoldCurve, "fold");
