@@ -400,6 +400,35 @@ void write_curves(ResultFile& file, const std::vector<Curve>& curves, const std:
                    {{"p1", p1}, {"p2", p2}});
 }
 
+/// /codim2: the codimension-two points of the curves, one row each (docs/results.md).
+void write_codim_two(ResultFile& file, const std::vector<Curve>& curves, const std::string& p1, const std::string& p2) {
+  std::vector<std::int64_t> id, kind, stop, after, located;
+  std::vector<double> a, b, width, value;
+  std::vector<std::string> notes;
+  for (std::size_t c = 0; c < curves.size(); ++c)
+    for (const CodimTwoPoint& q : curves[c].special) {
+      id.push_back(static_cast<std::int64_t>(c));
+      kind.push_back(static_cast<std::int64_t>(q.kind));
+      stop.push_back(q.stop);
+      after.push_back(q.after);
+      located.push_back(q.located ? 1 : 0);
+      a.push_back(q.p1);
+      b.push_back(q.p2);
+      width.push_back(q.width);
+      value.push_back(std::isfinite(q.value) ? q.value : 0.0);
+      notes.push_back(q.note);
+    }
+  const std::size_t rows = id.size();
+  Dataset kinds = integers("kind", kind);
+  kinds.labels.emplace_back("names", codim_two_kind_names());
+  Dataset curve = integers("curve", id);
+  if (rows > 0) curve.labels.emplace_back("notes", notes);
+  file.write_group("codim2", {curve, kinds, integers("stop", stop), integers("after", after), reals("p1", a, {rows}),
+                              reals("p2", b, {rows}), integers("located", located), reals("width", width, {rows}),
+                              reals("value", value, {rows})},
+                   {{"p1", p1}, {"p2", p2}});
+}
+
 }  // namespace
 
 SystemDerivative parameter_derivative(const SceneDocument& doc, const std::string& path) {
@@ -514,13 +543,19 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   std::vector<Curve> curves;
   if (!spec.curve_path.empty()) {
     const Entry e1 = classify(doc, spec.path), e2 = classify(doc, spec.curve_path);
+    // A point the scene rejects (a corrector's step can reach Ω < 0) is no system there, as in
+    // continuation_family: InvalidInput, which the line's continuation takes as no orbit.
     const PlaneContinuationFamily plane = [&doc, &spec, &o, e1, e2, engine = scene.engine](double a, double b) {
-      SceneDocument point(doc);
-      point.set(spec.path, a);
-      point.set(spec.curve_path, b);
-      const Scene s = point.build_point();
-      SystemDerivative d1 = derivative_at(e1, s);
-      return PlaneEngine{engine_at(s, engine, d1, o.solver), d1, derivative_at(e2, s)};
+      try {
+        SceneDocument point(doc);
+        point.set(spec.path, a);
+        point.set(spec.curve_path, b);
+        const Scene s = point.build_point();
+        SystemDerivative d1 = derivative_at(e1, s);
+        return PlaneEngine{engine_at(s, engine, d1, o.solver), d1, derivative_at(e2, s)};
+      } catch (const SceneError& e) {
+        throw InvalidInput(e.what());
+      }
     };
     CurveOptions co;
     co.p1_min = spec.p_min;
@@ -540,6 +575,10 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
         std::fprintf(stderr, "  curve of the %s at %s = %.10f (stop %d), %s: %zu points (%s)\n", kind.c_str(),
                      spec.path.c_str(), b.p, b.stop, dir > 0 ? "up" : "down", curves.back().points.size(),
                      curves.back().end.c_str());
+        for (const CodimTwoPoint& q : curves.back().special)
+          std::fprintf(stderr, "    %s at %s = %.10f, %s = %.10f%s%s%s\n", to_string(q.kind), spec.path.c_str(), q.p1,
+                       spec.curve_path.c_str(), q.p2, q.located ? "" : " (not located)", q.note.empty() ? "" : ": ",
+                       q.note.c_str());
       }
     }
   }
@@ -548,6 +587,10 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   write_bifurcations(file, result, n);
   if (scene.record.impact_map) write_impact_map(file, doc, scene, spec.path, result, request);
   if (!spec.curve_path.empty()) write_curves(file, curves, spec.path, spec.curve_path);
+  // Codimension-two points exist on curves of folds, doublings and tori only.
+  bool multiplier_kinds = false;
+  for (const std::string& kind : spec.curve_kinds) multiplier_kinds |= kind != "grazing" && kind != "rising";
+  if (!spec.curve_path.empty() && multiplier_kinds) write_codim_two(file, curves, spec.path, spec.curve_path);
   const bool interrupted = request.interrupt && request.interrupt->load();
   std::size_t points = 0;
   for (const Branch& b : result.branches) points += b.points.size();
@@ -660,10 +703,12 @@ void parse_continue_section(RunSection& s) {
       if (cv["step"]) c.curve_step = r.number_in(cv["step"], "run.continue.curve.step", 1e-9, 1.0, "a step in (0, 1] (scaled)");
       if (cv["max_points"]) c.curve_max_points = static_cast<int>(r.integer(cv["max_points"], "run.continue.curve.max_points", 2, 100000));
       if (const YAML::Node k = cv["kinds"]) {
-        if (!k.IsSequence() || k.size() == 0) r.fail(k, "run.continue.curve.kinds", "expected a list of grazing and/or rising");
+        if (!k.IsSequence() || k.size() == 0)
+          r.fail(k, "run.continue.curve.kinds", "expected a list of grazing, rising, fold, period_doubling, neimark_sacker");
         c.curve_kinds.clear();
         for (std::size_t i = 0; i < k.size(); ++i)
-          c.curve_kinds.push_back(r.choice(k[i], "run.continue.curve.kinds[" + std::to_string(i) + "]", {"grazing", "rising"}));
+          c.curve_kinds.push_back(r.choice(k[i], "run.continue.curve.kinds[" + std::to_string(i) + "]",
+                                           {"grazing", "rising", "fold", "period_doubling", "neimark_sacker"}));
       }
     }
   }
@@ -694,7 +739,7 @@ RunKindInfo continue_kind() {
   k.summary = "branches of periodic orbits by shooting and pseudo-arclength continuation, their stability and bifurcations";
   k.section = "continue";
   k.missing = "missing: run.kind: continue needs run.continue (path and range)";
-  k.groups = {"branch", "branches", "recognised", "bifurcations", "curve", "impact_map"};
+  k.groups = {"branch", "branches", "recognised", "bifurcations", "curve", "codim2", "impact_map"};
   k.every_process = false;
   k.stoppable = true;
   k.parse = parse_continue_section;
