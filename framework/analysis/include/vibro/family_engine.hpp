@@ -63,7 +63,8 @@ class FamilyEngine {
 
   /// Stop j's normal w (its gap is g = wᵀx − s_j(t)) and the velocity jump of a lone impact on it
   /// per unit approach speed, −(1 + r_j) M⁻¹w / (wᵀM⁻¹w): what an impact born at a grazing adds
-  /// to the orbit, to first order in its speed (continuation's grazing corners).
+  /// to the orbit, to first order in its speed (continuation's grazing corners). For a compliant
+  /// stop the jump is empty: its engagement has no impulse (the corner step does not apply).
   virtual std::pair<Eigen::VectorXd, Eigen::VectorXd> impact_direction(int j) const = 0;
   /// dD/dp at this p (parameter.hpp). Continuation along a line in a plane of two parameters
   /// (follow_curve) replaces it by the line's combination.

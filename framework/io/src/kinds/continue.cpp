@@ -115,6 +115,12 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
     refuse(doc, path,
            "a stop's normal is not a continuation parameter (the derivatives follow a stop's position, "
            "amplitude, phase and restitution); continue in one of those, or sweep the normal (run.kind: sweep)");
+  static const std::regex law(R"(stops\[(\d+)\]\.(stiffness|damping|preload))");
+  if (std::regex_match(path, m, law))
+    refuse(doc, path,
+           "a compliant stop's stiffness, damping and preload are not continuation parameters (the derivatives "
+           "follow the model, the forcing and a stop's position, amplitude, phase and restitution); continue in "
+           "one of those, or sweep it (run.kind: sweep)");
   const double p = doc.get(path);
   const Data d0 = data_of(doc.build_point());
   // The largest step that keeps the scene valid on both sides: affine data make the central
