@@ -15,6 +15,8 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace {
 
@@ -59,6 +61,7 @@ constexpr double kFoldStart = 1.3;
 constexpr double kFoldRange[2] = {0.8, 1.4};
 constexpr double kFoldDelta = 2e-3;
 constexpr int kFoldPeriods = 400;
+constexpr int kDoublingPeriods = 1500;
 
 }  // namespace
 
@@ -292,6 +295,74 @@ TEST_CASE("Taylor engine: a fold of the Duffing impact oscillator's branch, loca
        << " from the fold orbit, outside " << outside << "; at δ/4: " << inside4 << ", " << outside4);
 }
 
+// With lighter damping (c = 0.02) the period-1 branch has a period-doubling bubble: continuation
+// locates its two period doublings, and long runs check them. Between them the period-1 orbit is
+// unstable (μ < −1) and a run started on it settles on a period-2 orbit (its stroboscopic state
+// returns after two periods, not after one); just above the upper doubling the run settles on the
+// period-1 orbit again.
+TEST_CASE("Taylor engine: the period doublings of a Duffing impact oscillator's branch, checked by runs",
+          "[taylor][analysis]") {
+  const double omega0 = 0.78;
+  std::string text = duffing(omega0);
+  text.replace(text.find("damper: 0.05"), 12, "damper: 0.02");
+  const vibro::io::SceneDocument doc = vibro::io::SceneDocument::parse(text);
+  const vibro::io::Scene scene = doc.build();
+  const vibro::ContinuationFamily family =
+      vibro::io::continuation_family(doc, "forcing.frequency", vibro::io::EngineKind::taylor, scene.solver);
+  vibro::ContinuationOptions o;
+  o.p_min = 0.69;
+  o.p_max = 0.80;
+  o.step = 0.01;
+  o.max_step = 0.02;
+  o.max_doublings = 0;
+  o.solver = scene.solver;
+  const vibro::ImpactSystem sys = scene.impact_system();
+  vibro::TaylorSimulator sim(sys, scene.forces, scene.solver);
+  const vibro::RunSummary warm = sim.run(0.0, scene.x0, scene.v0, 60.0 * scene.period());
+  REQUIRE(warm.status == vibro::RunStatus::completed);
+  const vibro::ContinuationResult r = vibro::continue_orbits(family, omega0, warm.t, warm.x, warm.v, o);
+  std::vector<const vibro::Bifurcation*> pd;
+  for (const vibro::Bifurcation& b : r.bifurcations)
+    if (b.kind == vibro::BifurcationKind::period_doubling && b.branch == 0) pd.push_back(&b);
+  REQUIRE(pd.size() == 2);
+  if (pd[0]->p > pd[1]->p) std::swap(pd[0], pd[1]);
+  // Stroboscopic distances |z(N+1) − z(N)| and |z(N+2) − z(N)| (in units of L and V) of a run at
+  // Ω = p from the upper doubling's orbit.
+  const vibro::BranchPoint& start = pd[1]->point;
+  auto returns = [&](double p, int periods) {
+    vibro::io::SceneDocument d(doc);
+    d.set("forcing.frequency", p);
+    const vibro::io::Scene s = d.build_point();
+    const vibro::ImpactSystem at = s.impact_system();
+    vibro::TaylorSimulator run(at, s.forces, s.solver);
+    const double T = s.period();
+    std::vector<VectorXd> z;
+    double L = 1.0, V = 1.0;
+    vibro::RunSummary e = run.run(start.t0, start.x, start.v, start.t0 + periods * T);
+    for (int k = 0; k < 3; ++k) {
+      REQUIRE(e.status == vibro::RunStatus::completed);
+      z.push_back(stacked(e.x, e.v));
+      L = e.length_scale;
+      V = e.velocity_scale;
+      e = run.run(e.t, e.x, e.v, e.t + T);
+    }
+    auto dist = [&](const VectorXd& a, const VectorXd& b) {
+      return std::max(std::abs(a(0) - b(0)) / L, std::abs(a(1) - b(1)) / V);
+    };
+    return std::pair{dist(z[1], z[0]), dist(z[2], z[0])};
+  };
+  const double mid = 0.5 * (pd[0]->p + pd[1]->p);
+  const auto [one_mid, two_mid] = returns(mid, kDoublingPeriods);
+  const auto [one_above, two_above] = returns(pd[1]->p + 0.01, kDoublingPeriods);
+  INFO("doublings at Ω = " << pd[0]->p << ", " << pd[1]->p << "; between: |P z − z| = " << one_mid
+       << ", |P² z − z| = " << two_mid << "; above: " << one_above << ", " << two_above);
+  CHECK(one_mid > 1e-3);
+  CHECK(two_mid < 1e-3 * one_mid);
+  CHECK(one_above < 1e-6);
+  WARN("period doublings located at Ω = " << pd[0]->p << " and " << pd[1]->p << "; runs between: |Pz − z| = "
+       << one_mid << ", |P²z − z| = " << two_mid << "; above: |Pz − z| = " << one_above);
+}
+
 // Held stops are not derived on the Taylor engine: a map through a sticking phase is refused.
 TEST_CASE("Taylor engine: a tangent map through sticking is refused", "[taylor][analysis]") {
   const std::string text =
@@ -309,4 +380,18 @@ TEST_CASE("Taylor engine: a tangent map through sticking is refused", "[taylor][
   } catch (const vibro::InvalidInput& e) {
     CHECK(std::string(e.what()).find("held (sticking)") != std::string::npos);
   }
+}
+
+// Shooting asks for runs of zero length (the section at the guess's own time): the Taylor engine
+// takes no step and returns the state it was given.
+TEST_CASE("Taylor engine: a run of zero length returns its start", "[taylor][analysis]") {
+  const vibro::io::Scene scene = vibro::io::SceneDocument::parse(duffing(0.78)).build();
+  const vibro::ImpactSystem sys = scene.impact_system();
+  vibro::TaylorSimulator sim(sys, scene.forces, scene.solver);
+  const VectorXd x = VectorXd::Constant(1, 0.3), v = VectorXd::Constant(1, -0.2);
+  const vibro::RunSummary s = sim.run(7.5, x, v, 7.5);
+  REQUIRE(s.status == vibro::RunStatus::completed);
+  CHECK(s.t == 7.5);
+  CHECK(s.x == x);
+  CHECK(s.v == v);
 }
