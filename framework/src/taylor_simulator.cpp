@@ -268,6 +268,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
   void end_search() {}
   void report(double t, double t_next, const std::vector<Observer*>& observers);
   bool advance(detail::RunState& st, const Crossing* hit, double /*tau*/, double t_next) {
+    if (used_ == 0) return true;  // a segment of zero length (t_next = st.t): no step was taken
     const double elapsed = t_next - st.t;
     std::size_t r = hit_record_;
     double tau = hit_tau_;
@@ -368,6 +369,11 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
 
   // ---- for the segment view (LoopAccess) ----
   void state_at(double elapsed, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const override {
+    if (used_ == 0) {  // a segment of zero length: its start
+      x = z_.head(n_);
+      v = z_.tail(n_);
+      return;
+    }
     std::size_t r = 0;
     double tau = 0.0;
     locate_time(elapsed, &r, &tau);
@@ -377,6 +383,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
     }
   }
   double force_at(Eigen::Index a, double elapsed) const override {
+    if (used_ == 0) return 0.0;  // a segment of zero length has no step (and no force series)
     std::size_t r = 0;
     double tau = 0.0;
     locate_time(elapsed, &r, &tau);

@@ -1,6 +1,7 @@
 #include "vibro/linearisation.hpp"
 
 #include "mechanics.hpp"
+#include "nonlinear_part.hpp"
 #include "orthonormal_frame.hpp"
 #include "transition.hpp"
 #include "vibro/contact.hpp"
@@ -161,8 +162,8 @@ struct Mode {
 class TangentRecorder final : public Observer {
  public:
   TangentRecorder(const ImpactSystem& system, const SimulatorOptions& solver,
-                  const LinearisationOptions& options, TangentMap& out)
-      : system_(system), solver_(solver), options_(options), out_(out), n_(system.dof()),
+                  const LinearisationOptions& options, TangentMap& out, detail::NonlinearPart* nonlinear = nullptr)
+      : system_(system), solver_(solver), options_(options), out_(out), nonlinear_(nonlinear), n_(system.dof()),
         mech_(system), mech0_(system), frame_(options.directions.size() > 0),
         phases_(out.phases, system.stop_count()) {
     if (options.parameter) mechp_ = std::make_unique<Mechanics<Dual>>(system, &*options.parameter);
@@ -187,6 +188,11 @@ class TangentRecorder final : public Observer {
   void segment(const SegmentView& view) override {
     const double tb = view.t_begin(), te = view.t_end();
     const ContactSet& S = mode_key(view);
+    // (A run that carries nothing — shooting's probe of the events — passes through.)
+    if (nonlinear_ && !S.empty() && (carries() || mechp_ || options_.features))
+      throw InvalidInput("linearisation: stop " + std::to_string(S.front()) + " is held (sticking) from t = " +
+                         number_text(tb) + "; with nonlinear forces the tangent map handles impacts in free "
+                         "flight only (the held flow's variational equations are not derived)");
     VectorXd xb(n_), vb(n_);
     view.state(tb, xb, vb);
     if (first_) {
@@ -295,7 +301,9 @@ class TangentRecorder final : public Observer {
   /// f(z, t) = (v, a_S) from the generator.
   VectorXd rate(const Mode& mode, double t, const VectorXd& x, const VectorXd& v) const {
     const VectorXd z = mode.flow->augment(t, x, v);
-    return (mode.generator * z).head(2 * n_);
+    VectorXd f = (mode.generator * z).head(2 * n_);
+    if (nonlinear_) f.tail(n_) += nonlinear_->acceleration(t, x, v);  // free flight only (see segment())
+    return f;
   }
 
   /// The state block of exp(Â_S τ): from the eigen-decomposition for large well-conditioned
@@ -367,7 +375,13 @@ class TangentRecorder final : public Observer {
   void propagate(Mode& mode, double tau, double tb, const VectorXd& zb) {
     const Index N2 = 2 * n_;
     const Index dim = mode.basis.cols();
-    if (tau > 0.0) {
+    if (nonlinear_) {
+      if (tau > 0.0 && (carries() || mechp_)) {
+        const MatrixXd T = nonlinear_->transition(tb, zb.head(n_), zb.segment(n_, n_), tb + tau);
+        if (mechp_) zeta_ = T.leftCols(N2) * zeta_ + T.col(N2);
+        if (carries()) K_ = T.leftCols(N2) * K_;
+      }
+    } else if (tau > 0.0) {
       if (mechp_ && spectral(mode)) {
         propagate_spectral(mode, tau, tb, zb);
       } else if (mechp_) {
@@ -585,6 +599,21 @@ class TangentRecorder final : public Observer {
   // ---- features ------------------------------------------------------------------------
 
   void features(Mode& mode, double tb, double te, const VectorXd& zb) {
+    if (nonlinear_) {  // free flight only (segment()): the gaps' peaks from the Taylor steps
+      std::vector<int> free;
+      for (int j = 0; j < static_cast<int>(system_.stop_count()); ++j)
+        if (!contains(mode.set, j)) free.push_back(j);
+      const double tau = te - tb;
+      const VectorXd x = zb.head(n_), v = zb.segment(n_, n_);
+      const std::vector<GapPeak> peaks = nonlinear_->gap_peaks(tb, x, v, te, free);
+      for (const GapPeak& pk : peaks) {
+        const double g_start = mech_.gap(pk.stop, x, tb);
+        const double size = std::max(std::abs(g_start), std::abs(pk.value));
+        if (detail::flight_start_artifact(pk.t - tb, tau, pk.value, g_start, size)) continue;
+        out_.gap_peaks.push_back(pk);
+      }
+      return;
+    }
     const Segment seg(*mode.rows, tb, zb);
     const Index ms = static_cast<Index>(system_.stop_count());
     const double resolution = 16.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(te), 1.0);
@@ -650,6 +679,7 @@ class TangentRecorder final : public Observer {
   SimulatorOptions solver_;
   const LinearisationOptions& options_;
   TangentMap& out_;
+  detail::NonlinearPart* nonlinear_;
   Index n_;
   Mechanics<double> mech_;
   Mechanics<Dual> mech0_;
@@ -714,6 +744,24 @@ CarriedFrame carry_orthonormal_frame(const ImpactSystem& system, const Simulator
   out.summary = sim.run(t0, x0, v0, t1, {&recorder});
   if (out.summary.velocity_scale > 0.0) out.least_guard_rate /= out.summary.velocity_scale;
   return frame;
+}
+
+TangentMap linearise_nonlinear(const ImpactSystem& system, const SimulatorOptions& solver, NonlinearPart& part,
+                               const ObservedRun& run, double t0, const VectorXd& x0, const VectorXd& v0,
+                               const LinearisationOptions& options, VectorXd* log_growth) {
+  refuse_compliant(system);
+  if (options.directions.size() > 0 && options.directions.rows() != 2 * system.dof())
+    throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +
+                       " rows, expected 2n = " + std::to_string(2 * system.dof()));
+  TangentMap out;
+  out.t0 = t0;
+  out.x0 = x0;
+  out.v0 = v0;
+  TangentRecorder recorder(system, solver, options, out, &part);
+  if (log_growth) recorder.orthonormalise_into(log_growth);
+  out.summary = run({&recorder});
+  if (out.summary.velocity_scale > 0.0) out.least_guard_rate /= out.summary.velocity_scale;
+  return out;
 }
 
 }  // namespace detail

@@ -85,6 +85,7 @@
 #include "vibro/observers.hpp"
 #include "vibro/parameter.hpp"
 #include "vibro/simulator.hpp"
+#include "vibro/taylor_simulator.hpp"
 
 #include <optional>
 #include <string>
@@ -183,6 +184,23 @@ struct TangentMap {
 /// in the engaged forcing); k_s, c_s and F_p are not among D.
 TangentMap linearise(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
                      const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
+                     const LinearisationOptions& options = {});
+
+/// The same map on the Taylor engine (taylor_simulator.hpp): `system` with the nonlinear forces
+/// F(x, v, t) added. Between events the tangent map of a segment comes from the variational
+/// equations Φ' = (∂f/∂z) Φ, integrated by the Taylor core's forward-mode differentiation of the
+/// same series (taylor_step.hpp) from the engine's state at the segment's start to its end, so it
+/// is the derivative of the flow to the series' tolerance (rounding by default). At an impact the
+/// saltation matrix is the one above, S = R_z + (f⁺ − R_z f⁻ − R_t) h_zᵀ / ḣ⁻, with the reset R
+/// of the linear engines (the Newton law depends on M, the normals and the restitutions, not on
+/// the forces) and the vector fields f∓ = (v, a_lin + M⁻¹F) of the nonlinear system.
+///
+/// Supported: impacts in free flight (single and simultaneous). Refused with InvalidInput (not
+/// derived for nonlinear forces): a stop held (sticking, a chatter caught by its rule) anywhere
+/// along the run, a parameter derivative (`options.parameter`), `options.features`, compliant
+/// stops. Throws as TaylorSimulator does for bad forces.
+TangentMap linearise(const ImpactSystem& system, const NonlinearForces& forces, const SimulatorOptions& solver,
+                     double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
                      const LinearisationOptions& options = {});
 
 }  // namespace vibro

@@ -88,8 +88,9 @@ SystemDerivative difference(const Data& plus, const Data& minus, double h) {
 /// How a path enters the system: the frequency, a stop's phase (closed forms), or affinely
 /// with a constant derivative.
 struct Entry {
-  enum class Kind { frequency, phase, affine } kind = Kind::affine;
+  enum class Kind { frequency, phase, affine, force_parameter } kind = Kind::affine;
   int stop = -1;
+  std::string name;  // force_parameter: the name in `parameters`
   SystemDerivative affine;
 };
 
@@ -108,6 +109,16 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
   if (std::regex_match(path, m, phase)) {
     e.kind = Entry::Kind::phase;
     e.stop = std::stoi(m[1].str());
+    return e;
+  }
+  // A named parameter of the nonlinear forces: it moves only the forces (the Taylor engine's
+  // variational equations take its derivative, SystemDerivative::force_parameters).
+  static const std::regex named(R"(parameters\.([A-Za-z_][A-Za-z0-9_]*))");
+  if (std::regex_match(path, m, named)) {
+    e.kind = Entry::Kind::force_parameter;
+    e.name = m[1].str();
+    if (doc.build_point().forces.forces.empty())
+      refuse(doc, path, "is a parameter of the nonlinear forces, and this scene has none: it moves nothing");
     return e;
   }
   static const std::regex normal(R"(stops\[(\d+)\]\.normal\[(\d+)\])");
@@ -197,6 +208,14 @@ SystemDerivative derivative_at(const Entry& e, const Scene& s) {
       return d;
     }
     case Entry::Kind::affine: return e.affine;
+    case Entry::Kind::force_parameter: {
+      SystemDerivative d;
+      const auto& params = s.forces.parameters;
+      d.force_parameters = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(params.size()));
+      for (std::size_t j = 0; j < params.size(); ++j)
+        if (params[j].first == e.name) d.force_parameters(static_cast<Eigen::Index>(j)) = 1.0;
+      return d;
+    }
   }
   return {};
 }
@@ -208,6 +227,7 @@ std::unique_ptr<FamilyEngine> engine_at(const Scene& s, EngineKind engine, Syste
     if (!s.chain) throw InvalidInput("the chain's damping is not proportional at this value (modal engine)");
     return modal_family_engine(*s.chain, s.stops, std::move(d), modal_options(solver));
   }
+  if (engine == EngineKind::taylor) return taylor_family_engine(s.impact_system(), s.forces, std::move(d), solver);
   return dense_family_engine(s.impact_system(), std::move(d), solver);
 }
 
@@ -733,6 +753,13 @@ void parse_continue_section(RunSection& s) {
                    "), whose continuation differentiates only along the forcing frequency, the forcing and the stops' "
                    "data (M, C and K fix its modes): set solver.engine: dense, or continue in one of those");
       }
+    if (engine == EngineKind::taylor)  // the lifted variational equation does not move M (taylor_tangent.cpp)
+      for (const ContinuationPath& c : *paths)
+        if (c.derivative.mass.size() > 0 && !c.derivative.mass.isZero(0.0))
+          r.fail(c.at, c.key,
+                 "'" + c.path + "' moves the mass matrix, and this scene runs on the Taylor engine (" + reason +
+                     "), whose continuation differentiates along Ω, the forcing, C, K, the stops' data and the "
+                     "parameters of the forces: continue in one of those");
   });
 }
 
