@@ -41,8 +41,14 @@ def test_both_engines_give_the_same_map():
     modal = vibro.simulate(SCENE + "solver: {engine: modal}\n").impact_map
     assert np.array_equal(dense.stop, modal.stop)
     # Two exact flows computed differently: they agree to rounding grown over 26 periods of
-    # impacts and chatter (the engines' own comparison in tests/io/test_engine.cpp uses 1e-9).
-    assert np.abs(dense.t - modal.t).max() < 1e-9 and np.abs(dense.x - modal.x).max() < 1e-9
+    # impacts and chatter (the engines' own comparison in tests/io/test_engine.cpp uses 1e-9). An
+    # impact time is conditioned by 1/g' (a chatter's late bounces arrive at 1e-5 of the speeds):
+    # its error is measured by the gap it implies, |Δt| g', to rounding of L = O(1); the times of
+    # impacts faster than 1e-3 to 1e-10 (measured: 3.4e-14, 9.9e-12; states 2.2e-10).
+    dt = np.abs(dense.t - modal.t)
+    assert (dt * dense.velocity).max() < 1e-12
+    assert dt[dense.velocity > 1e-3].max() < 1e-10
+    assert np.abs(dense.x - modal.x).max() < 1e-9
 
 
 def test_a_sweep_stacks_the_map_point_by_point():

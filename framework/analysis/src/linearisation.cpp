@@ -749,7 +749,12 @@ CarriedFrame carry_orthonormal_frame(const ImpactSystem& system, const Simulator
 TangentMap linearise_nonlinear(const ImpactSystem& system, const SimulatorOptions& solver, NonlinearPart& part,
                                const ObservedRun& run, double t0, const VectorXd& x0, const VectorXd& v0,
                                const LinearisationOptions& options, VectorXd* log_growth) {
-  refuse_compliant(system);
+  // The Taylor engine runs rigid stops only (a scene with forces and a compliant stop is refused
+  // when it is read); the nonlinear part's tangent map is derived for those.
+  for (std::size_t j = 0; j < system.stop_count(); ++j)
+    if (system.stops()[j].is_compliant())
+      throw InvalidInput("linearisation: stop " + std::to_string(j) +
+                         " is compliant; with nonlinear forces the tangent map handles rigid stops only");
   if (options.directions.size() > 0 && options.directions.rows() != 2 * system.dof())
     throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +
                        " rows, expected 2n = " + std::to_string(2 * system.dof()));

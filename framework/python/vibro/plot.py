@@ -151,7 +151,7 @@ def diagram(result, mass=0, *, ax=None):
 
 def plane(result, *, ax=None):
     """Two-parameter curves (/curve): each followed bifurcation as a line in (p1, p2), coloured and
-    marked by kind."""
+    marked by kind; the codimension-two points met on them (/codim2) as black stars."""
     r = _result(result)
     g = _need(r, "curve", "continuation (with run.continue.curve)")
     ax = _axes(ax)
@@ -164,6 +164,9 @@ def plane(result, *, ax=None):
         ax.plot(g.p1[rows], g.p2[rows], "-", color=colour, lw=1.0, marker=m, ms=2.5,
                 label=kind if kind not in shown else None)
         shown.add(kind)
+    if "codim2" in r and r["codim2"].p1.size:  # codimension-two points met on the curves
+        c2 = r["codim2"]
+        ax.plot(c2.p1, c2.p2, "*", color="black", ms=7, label="codimension two")
     ax.set_xlabel(g.attrs.get("p1", "p1"))
     ax.set_ylabel(g.attrs.get("p2", "p2"))
     ax.legend(fontsize=7, loc="best")
