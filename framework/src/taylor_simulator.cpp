@@ -3,6 +3,7 @@
 #include "event_loop.hpp"
 
 #include "vibro/taylor/guard_roots.hpp"
+#include "vibro/taylor/harmonic_series.hpp"
 #include "vibro/taylor/horner.hpp"
 #include "vibro/taylor/taylor_step.hpp"
 
@@ -16,22 +17,7 @@ namespace vibro {
 namespace {
 
 using taylor::horner_compensated;
-
-/// Coefficients of cos(w (t0 + τ)) and sin(w (t0 + τ)) in τ up to order `order`: the k-th
-/// derivatives cycle through (cos, −sin, −cos, sin) and (sin, cos, −sin, −cos), times w^k/k!.
-void harmonic_series(double w, double t0, int order, double* c, double* s) {
-  const double C = std::cos(w * t0), S = std::sin(w * t0);
-  double f = 1.0;
-  for (int k = 0; k <= order; ++k) {
-    switch (k % 4) {
-      case 0: c[k] = f * C; s[k] = f * S; break;
-      case 1: c[k] = -f * S; s[k] = f * C; break;
-      case 2: c[k] = -f * C; s[k] = -f * S; break;
-      default: c[k] = f * S; s[k] = -f * C; break;
-    }
-    f *= w / (k + 1);
-  }
-}
+using taylor::harmonic_series;
 
 double horner(const double* a, int p, double tau) {
   double s = a[p];

@@ -6,6 +6,7 @@
 
 #include "vibro/linearisation.hpp"
 #include "vibro/taylor/guard_roots.hpp"
+#include "vibro/taylor/harmonic_series.hpp"
 #include "vibro/taylor/horner.hpp"
 #include "vibro/taylor/taylor_step.hpp"
 #include "vibro/taylor_simulator.hpp"
@@ -74,20 +75,7 @@ std::string substitute(const std::string& text, const std::map<std::string, std:
   return out;
 }
 
-/// Coefficients of cos(w (t0 + τ)) and sin(w (t0 + τ)) in τ up to `order` (as the engine's).
-void harmonic_series(double w, double t0, int order, double* c, double* s) {
-  const double C = std::cos(w * t0), S = std::sin(w * t0);
-  double f = 1.0;
-  for (int k = 0; k <= order; ++k) {
-    switch (k % 4) {
-      case 0: c[k] = f * C; s[k] = f * S; break;
-      case 1: c[k] = -f * S; s[k] = f * C; break;
-      case 2: c[k] = -f * C; s[k] = -f * S; break;
-      default: c[k] = f * S; s[k] = -f * C; break;
-    }
-    f *= w / (k + 1);
-  }
-}
+using taylor::harmonic_series;
 
 /// The nonlinear part from Taylor systems:
 ///  * `forces_`: M and the forces only (no C, K, drive): its rate's velocity part is M⁻¹F;
