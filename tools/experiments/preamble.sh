@@ -7,7 +7,8 @@
 #   out    the output directory (second argument; default DEFAULT_OUT),
 #   d      "$out/data", created, where result files go (git ignores it),
 #   vibro  the CLI of that build (the script stops with exit 2 and a one-line message if it is
-#          not built), py the Python interpreter figure scripts run with;
+#          not built), py the Python interpreter figure scripts run with, VIBRO_BUILD (exported)
+#          where they find that build's Python module (tools/figures/common.py: vibro_module);
 # prints the machine's load (the times the scripts print are read beside it) and defines
 #   quiet  a filter for a run's output that drops the progress lines ("vibro: …" and continuation's
 #          "  branch k=…"); errors ("error: …") and summaries pass.
@@ -21,6 +22,7 @@ build=${1:-build/release}
 out=${2:-$experiment_default_out}
 vibro="$build/tools/vibro/vibro"
 py=/usr/bin/python3
+export VIBRO_BUILD="$build"
 [ -x "$vibro" ] || {
   echo "$experiment_name: $vibro not found: build first (cmake --preset release && cmake --build --preset release)" >&2
   exit 2

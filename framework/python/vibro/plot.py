@@ -60,10 +60,12 @@ def _names(group, dataset):
     return [n.decode() if isinstance(n, bytes) else str(n) for n in names]
 
 
-def branch(result, coordinate=0, *, velocity=False, ax=None, markers=True):
+def branch(result, coordinate=0, *, velocity=False, ax=None, markers=True, palette=None):
     """A continuation's branches: x_coordinate (or v with velocity=True) at the fixed phase
     (/branch x_fixed, continuous along a branch) against the parameter; stable stretches solid,
-    unstable dashed, one colour per period; the located bifurcations marked by kind at their
+    unstable dashed, one colour per period (matplotlib's cycle C0, C1, …, or the colours of
+    `palette` in turn, e.g. to keep clear of a diagram drawn on the same axes in C0 and C1);
+    the located bifurcations marked by kind at their
     parameter on their branch (the branch's value there by linear interpolation between its
     neighbouring points: a located point is not always a point of /branch)."""
     r = _result(result)
@@ -79,7 +81,8 @@ def branch(result, coordinate=0, *, velocity=False, ax=None, markers=True):
         if rows.size == 0:
             continue
         k = int(g.k[rows[0]])
-        colour = f"C{periods.index(k) % 10}"  # one colour per period: many branches stay readable
+        i = periods.index(k)  # one colour per period: many branches stay readable
+        colour = palette[i % len(palette)] if palette else f"C{i % 10}"
         # Split at stability changes; each stretch drawn with its style and joined to the next.
         start = 0
         for i in range(1, rows.size + 1):
