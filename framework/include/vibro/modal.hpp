@@ -481,6 +481,8 @@ class ModalChainSimulator {
  public:
   ModalChainSimulator(const ChainModes& modes, std::vector<Stop> stops,
                       ModalSimulatorOptions options = {});
+  /// The simulator keeps a reference to the modes: temporary ones would dangle.
+  ModalChainSimulator(ChainModes&& modes, std::vector<Stop> stops, ModalSimulatorOptions options = {}) = delete;
   ~ModalChainSimulator();
   ModalChainSimulator(const ModalChainSimulator&) = delete;
   ModalChainSimulator& operator=(const ModalChainSimulator&) = delete;
