@@ -14,7 +14,9 @@
 #        the engine's curves at commit 2de0370 drawn dashed from docs/data/);
 #     3. the allocation test (vibro_tests_allocations: replaced operator new / malloc);
 #     4. bench_chain: the modal engine at N = 10 … 10 000 (contact-set build time, peak memory,
-#        fitted slope of CPU per event).
+#        fitted slope of CPU per event);
+#     5. bench_laws: CPU per event of a rigid stop, a compliant stop and dry friction on one
+#        2-DOF scene (alternated runs, medians).
 #   options: --build DIR (default build/release), --out FILE (default docs/performance.md)
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -32,7 +34,7 @@ if [[ "$build" == "$root/build/release" ]]; then
   # the benchmarks are built by the dev preset (the release preset is the user's lean build)
   cmake --preset dev -DCMAKE_CXX_COMPILER_LAUNCHER="$(command -v ccache || true)" > /dev/null
 fi
-cmake --build "$build" -j2 --target bench_engine work_precision bench_chain vibro_tests_allocations
+cmake --build "$build" -j2 --target bench_engine work_precision bench_chain bench_laws vibro_tests_allocations
 
 raw="$build/performance_raw"
 mkdir -p "$raw"
@@ -45,7 +47,7 @@ load_before=$(uptime | sed 's/.*load average: //')
 started=$(date -u '+%Y-%m-%d %H:%M UTC')
 t0=$(date +%s)
 
-echo "report.sh: 1/4 bench_engine" >&2
+echo "report.sh: 1/5 bench_engine" >&2
 "$build/tools/bench/bench_engine" --problem ab --repeat 7 --reference > "$raw/engine.md"
 "$build/tools/bench/bench_engine" --problem ab --repeat 7 --trigger 1e-9 > "$raw/engine_trigger.md"
 # The chatter rules compared (accuracy only: one timing repeat): the second order against the default third.
@@ -57,12 +59,14 @@ if command -v perf > /dev/null && perf record -q -o "$raw/perf.data" "$build/too
   perf report -i "$raw/perf.data" --no-children --sort symbol -g none 2> /dev/null | grep '%' | grep -v '^#' \
     | head -25 | sed -E 's/^ *([0-9.]+%) +\[.\] +(.*)$/\1 \2/; s/[ -]+$//' > "$raw/profile.txt" || true
 fi
-echo "report.sh: 2/4 work precision" >&2
+echo "report.sh: 2/5 work precision" >&2
 bash tools/bench/work_precision.sh --build "$build" > "$raw/work_precision.log"
-echo "report.sh: 3/4 allocations" >&2
+echo "report.sh: 3/5 allocations" >&2
 "$build/tests/vibro_tests_allocations" --success > "$raw/allocations.txt" 2>&1 && alloc_status=passed || alloc_status=FAILED
-echo "report.sh: 4/4 bench_chain" >&2
+echo "report.sh: 4/5 bench_chain" >&2
 "$build/tools/bench/bench_chain" --max-n 10000 --impacts 400 > "$raw/chain.txt"
+echo "report.sh: 5/5 bench_laws" >&2
+"$build/tools/bench/bench_laws" --periods 400 --repeat 7 > "$raw/laws.md"
 
 wall=$(( $(date +%s) - t0 ))
 load_after=$(uptime | sed 's/.*load average: //')
