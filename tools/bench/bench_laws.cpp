@@ -14,13 +14,15 @@
 /// alternated between the laws, `repeat` times, and the median CPU time (this thread's) per event
 /// is reported with its spread, beside the rigid law's in the same sitting.
 ///
-/// Usage: bench_laws [--periods P] [--repeat R]
+/// Usage: bench_laws [--periods P] [--repeat R] [--law rigid|compliant|friction]
+/// (--law runs that law alone, e.g. under a profiler).
 #include "vibro/friction.hpp"
 #include "vibro/models/chain.hpp"
 #include "vibro/simulator.hpp"
 
 #include <algorithm>
 #include <cstdio>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
@@ -87,24 +89,28 @@ double median(std::vector<double> v) {
 int main(int argc, char** argv) {
   double periods = 400;
   int repeat = 7;
+  std::string only;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--periods")) periods = std::atof(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--repeat")) repeat = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--law")) only = argv[i + 1];
     else {
-      std::fprintf(stderr, "usage: bench_laws [--periods P] [--repeat R]\n");
+      std::fprintf(stderr, "usage: bench_laws [--periods P] [--repeat R] [--law rigid|compliant|friction]\n");
       return 2;
     }
   }
-  if (!(periods > 0) || repeat < 1) {
-    std::fprintf(stderr, "bench_laws: --periods must be > 0 and --repeat ≥ 1\n");
+  const char* names[] = {"rigid", "compliant", "friction"};
+  if (!(periods > 0) || repeat < 1 ||
+      (!only.empty() && only != names[0] && only != names[1] && only != names[2])) {
+    std::fprintf(stderr, "bench_laws: --periods must be > 0, --repeat ≥ 1, --law rigid, compliant or friction\n");
     return 2;
   }
-  const char* names[] = {"rigid", "compliant", "friction"};
   std::vector<double> us[3];
   long events[3] = {0, 0, 0};
   std::string status[3];
   for (int r = 0; r < repeat; ++r) {
     for (int law = 0; law < 3; ++law) {
+      if (!only.empty() && only != names[law]) continue;
       const Sample s = law == 0   ? run_stop(vibro::Stop::upper(0, 0.3, 0.8), periods)
                        : law == 1 ? run_stop(vibro::Stop::upper(0, 0.3, 1.0).compliant(20.0, 0.1), periods)
                                   : run_friction(periods);
@@ -117,8 +123,9 @@ int main(int argc, char** argv) {
               repeat);
   std::printf("| law | events | events per period | CPU µs per event, median | min … max | / rigid | status |\n");
   std::printf("|---|---|---|---|---|---|---|\n");
-  const double rigid = median(us[0]);
+  const double rigid = us[0].empty() ? std::nan("") : median(us[0]);
   for (int law = 0; law < 3; ++law) {
+    if (us[law].empty()) continue;
     const auto [lo, hi] = std::minmax_element(us[law].begin(), us[law].end());
     std::printf("| %s | %ld | %.1f | %.3f | %.3f … %.3f | %.2f | %s |\n", names[law], events[law],
                 static_cast<double>(events[law]) / periods, median(us[law]), *lo, *hi, median(us[law]) / rigid,
