@@ -16,7 +16,11 @@
 #     4. bench_chain: the modal engine at N = 10 … 10 000 (contact-set build time, peak memory,
 #        fitted slope of CPU per event);
 #     5. bench_laws: CPU per event of a rigid stop, a compliant stop and dry friction on one
-#        2-DOF scene (alternated runs, medians).
+#        2-DOF scene (alternated runs, medians);
+#     6. bench_taylor_odeint: the Taylor engine against Boost.Odeint (Dormand–Prince 5(4) and
+#        Bulirsch–Stoer with dense output) on the Duffing impact oscillator, error against CPU
+#        time (where Boost was found; ~5 s). Alone: build/release/tools/bench/bench_taylor_odeint
+#        --periods 200 --repeat 5.
 #   options: --build DIR (default build/release), --out FILE (default docs/performance.md)
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -34,7 +38,10 @@ if [[ "$build" == "$root/build/release" ]]; then
   # the benchmarks are built by the dev preset (the release preset is the user's lean build)
   cmake --preset dev -DCMAKE_CXX_COMPILER_LAUNCHER="$(command -v ccache || true)" > /dev/null
 fi
-cmake --build "$build" -j2 --target bench_engine work_precision bench_chain bench_laws vibro_tests_allocations
+targets=(bench_engine work_precision bench_chain bench_laws vibro_tests_allocations)
+# The Taylor engine against Boost.Odeint: built where Boost's headers were found at configure time.
+grep -q '^VIBRO_BOOST_ODEINT_INCLUDE:PATH=/' "$build/CMakeCache.txt" && targets+=(bench_taylor_odeint)
+cmake --build "$build" -j2 --target "${targets[@]}"
 
 raw="$build/performance_raw"
 mkdir -p "$raw"
@@ -66,7 +73,12 @@ echo "report.sh: 3/5 allocations" >&2
 echo "report.sh: 4/5 bench_chain" >&2
 "$build/tools/bench/bench_chain" --max-n 10000 --impacts 400 > "$raw/chain.txt"
 echo "report.sh: 5/5 bench_laws" >&2
-"$build/tools/bench/bench_laws" --periods 400 --repeat 7 > "$raw/laws.md"
+"$build/tools/bench/bench_laws" --periods 4000 --repeat 7 > "$raw/laws.md"
+rm -f "$raw/taylor_odeint.md"
+if [[ -x "$build/tools/bench/bench_taylor_odeint" ]]; then
+  echo "report.sh: Taylor engine against Boost.Odeint" >&2
+  "$build/tools/bench/bench_taylor_odeint" --periods 200 --repeat 5 > "$raw/taylor_odeint.md"
+fi
 
 wall=$(( $(date +%s) - t0 ))
 load_after=$(uptime | sed 's/.*load average: //')
