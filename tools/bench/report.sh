@@ -32,7 +32,7 @@ if [[ "$build" == "$root/build/release" ]]; then
   # the benchmarks are built by the dev preset (the release preset is the user's lean build)
   cmake --preset dev -DCMAKE_CXX_COMPILER_LAUNCHER="$(command -v ccache || true)" > /dev/null
 fi
-cmake --build "$build" -j2 --target bench_engine work_precision bench_chain vibro_tests_allocations
+cmake --build "$build" -j2 --target bench_engine work_precision bench_chain vibro_tests_allocations bench_harmonics
 
 raw="$build/performance_raw"
 mkdir -p "$raw"
@@ -63,6 +63,8 @@ echo "report.sh: 3/4 allocations" >&2
 "$build/tests/vibro_tests_allocations" --success > "$raw/allocations.txt" 2>&1 && alloc_status=passed || alloc_status=FAILED
 echo "report.sh: 4/4 bench_chain" >&2
 "$build/tools/bench/bench_chain" --max-n 10000 --impacts 400 > "$raw/chain.txt"
+echo "report.sh: drives with several harmonics" >&2
+"$build/tools/bench/bench_harmonics" --periods 400 --rounds 5 > "$raw/harmonics.txt"
 
 wall=$(( $(date +%s) - t0 ))
 load_after=$(uptime | sed 's/.*load average: //')
