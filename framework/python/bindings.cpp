@@ -92,6 +92,8 @@ py::dict describe(const vibro::io::Scene& s) {
   d["stops"] = stops;
   d["engine"] = vibro::io::to_string(s.engine);
   d["engine_reason"] = s.engine_reason;
+  if (s.base) d["frame"] = s.record.frame == vibro::BaseFrame::relative ? "relative" : "absolute";
+  else d["frame"] = py::none();
   d["run_kind"] = vibro::io::to_string(s.run.kind);
   d["transient_periods"] = s.run.transient_periods;
   d["periods"] = s.run.periods;

@@ -381,7 +381,9 @@ RunReport run_rank0(const SweepPlan& plan, const Scene& scene, const RunRequest&
         MPI_Recv(head, 2, MPI_UNSIGNED_LONG_LONG, source, tag::result, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
         const std::size_t point = static_cast<std::size_t>(head[0]);
         if (point >= plan.total) throw std::logic_error("runner: rank " + std::to_string(source) + " sent point " + std::to_string(point));
-        writer(point, decode(receive_bytes(source, static_cast<std::size_t>(head[1]), tag::result_data)));
+        Recording rec = decode(receive_bytes(source, static_cast<std::size_t>(head[1]), tag::result_data));
+        rec.frame = ResultFrame::of(plan.scenes[point]);  // (mapped the samples on the worker; x_end here)
+        writer(point, std::move(rec));
       } else if (status.MPI_TAG == tag::bye) {
         MPI_Recv(nullptr, 0, MPI_BYTE, source, tag::bye, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
         ++byes;

@@ -68,7 +68,20 @@ Recording Recording::for_scene(const Scene& scene, double t_start) {
   if (spec.poincare) rec.poincare.emplace(t_start);
   if (spec.impact_map) rec.impact_map.emplace();
   if (spec.statistics) rec.statistics.emplace();
+  rec.frame = ResultFrame::of(scene);
   return rec;
+}
+
+void Recording::map_to_result_frame() {
+  if (frame.identity()) return;
+  if (samples)
+    for (Eigen::Index i = 0; i < samples->x.cols(); ++i)
+      frame.to_result(samples->t[static_cast<std::size_t>(i)], samples->x.col(i), samples->v.col(i));
+  if (poincare)
+    for (std::size_t i = 0; i < poincare->t.size(); ++i) frame.to_result(poincare->t[i], poincare->x[i], poincare->v[i]);
+  if (impact_map)
+    for (std::size_t i = 0; i < impact_map->t.size(); ++i)
+      frame.to_result(impact_map->t[i], impact_map->x[i], impact_map->v[i]);
 }
 
 std::vector<Observer*> Recording::observers() {

@@ -399,6 +399,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   check_initial_state(r, root, p);
   read_forces(r, root, p);
   read_record(r, root, p);
+  check_result_frame(r, root, p);  // (before the run section, whose checks may build the scene)
   read_run(r, root, p);
   check_sample_times(r, root, p);  // (with the default run.periods when there is no run section)
   resolve_engine(r, root, p);

@@ -133,12 +133,13 @@ void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p) {
   // --- forcing ---
   f = HarmonicForcing::zero(n);
   if (const YAML::Node fn = root["forcing"]) {
-    r.expect_map(fn, "forcing", {"frequency", "constant", "cosine", "sine", "harmonics"});
+    r.expect_map(fn, "forcing", {"frequency", "constant", "cosine", "sine", "harmonics", "file"});
     if (fn["frequency"]) f.frequency = r.number_in(fn["frequency"], "forcing.frequency", 0, 1e300, "a frequency ≥ 0 (rad per unit time)");
     if (fn["constant"]) f.constant = to_vector(r.numbers(fn["constant"], "forcing.constant", n, "one force per mass"));
     if (fn["cosine"]) f.cosine = to_vector(r.numbers(fn["cosine"], "forcing.cosine", n, "one amplitude per mass"));
     if (fn["sine"]) f.sine = to_vector(r.numbers(fn["sine"], "forcing.sine", n, "one amplitude per mass"));
     if (fn["harmonics"]) read_harmonics(r, fn, n, f);
+    if (fn["file"]) read_drive_file(r, fn, n, p.doc ? p.doc->file() : std::string(), f);
   }
   read_base(r, root, p);
   if (chain_links) {
@@ -438,9 +439,10 @@ void check_sample_times(Reader& r, const YAML::Node& root, const SceneParts& p) 
 void read_record(Reader& r, const YAML::Node& root, SceneParts& p) {
   auto& f = p.f;
   auto& rec = p.rec;
+  if (p.base) rec.frame = p.base->frame;  // the default: the frame the scene computes in
   // --- record ---
   if (const YAML::Node rn = root["record"]) {
-    r.expect_map(rn, "record", {"events", "contacts", "statistics", "poincare", "impact_map", "samples"});
+    r.expect_map(rn, "record", {"events", "contacts", "statistics", "poincare", "impact_map", "samples", "frame"});
     if (rn["events"]) rec.events = r.boolean(rn["events"], "record.events");
     if (rn["contacts"]) rec.contacts = r.boolean(rn["contacts"], "record.contacts");
     if (rn["statistics"]) rec.statistics = r.boolean(rn["statistics"], "record.statistics");
@@ -459,6 +461,14 @@ void read_record(Reader& r, const YAML::Node& root, SceneParts& p) {
         if (!std::is_sorted(rec.sample_times.begin(), rec.sample_times.end()))
           r.fail(sm["times"], "record.samples.times", "expected times in increasing order");
       }
+    }
+    if (rn["frame"]) {
+      const std::string frame = r.choice(rn["frame"], "record.frame", {"absolute", "relative"});
+      if (!p.base)
+        r.fail(rn["frame"], "record.frame",
+               "the frame of the results is chosen for a base-excited scene: this scene has no base section "
+               "(its coordinates are the laboratory's)");
+      rec.frame = frame == "relative" ? BaseFrame::relative : BaseFrame::absolute;
     }
     for (const char* key : {"statistics", "poincare"})
       if (rn[key] && r.boolean(rn[key], std::string("record.") + key) && !(f.frequency > 0.0))

@@ -38,6 +38,7 @@ Recording simulate(const Scene& base, const StartState& start, std::atomic<doubl
     rec.summary = sim.run(t1, transient.x, transient.v, t1 + scene.run.periods * T, rec.observers());
   }
   check_recorded_gaps(scene, rec);  // no state past a stop is stored as a result
+  rec.map_to_result_frame();        // (the gaps are checked in the frame the engine computed in)
   for (const std::string& w : transient.warnings)
     if (std::find(rec.summary.warnings.begin(), rec.summary.warnings.end(), w) == rec.summary.warnings.end())
       rec.summary.warnings.insert(rec.summary.warnings.begin(), "during the transient: " + w);

@@ -187,6 +187,9 @@ class Scene:
     v0 = property(lambda self: np.array(self._resolved["v0"]), doc="Initial velocities.")
     engine = property(lambda self: self._resolved["engine"], doc="'dense' or 'modal' (solver.engine).")
     run_kind = property(lambda self: self._resolved["run_kind"], doc="'simulate', 'sweep' or 'locate'.")
+    frame = property(lambda self: self._resolved["frame"],
+                     doc="A base-excited scene's frame of its results (record.frame; default base.frame): "
+                         "'absolute' or 'relative'; None without a base.")
     periods = property(lambda self: self._resolved["periods"], doc="Recorded forcing periods.")
     transient_periods = property(lambda self: self._resolved["transient_periods"],
                                  doc="Forcing periods run before recording.")
@@ -700,6 +703,9 @@ class Result:
         return self._image.attributes("/meta")
 
     status = property(lambda self: self.meta["status"], doc="/meta status ('completed', …).")
+    frame = property(lambda self: self.meta.get("frame"),
+                     doc="A base-excited scene's frame of the states written (/meta frame, record.frame): "
+                         "'absolute' or 'relative'; None without a base.")
     message = property(lambda self: self.meta["message"], doc="/meta message: why it stopped early.")
 
     def __getitem__(self, path):

@@ -201,12 +201,20 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
       out.message = fmt::format("at {} = {:.12g}: {}", path, grid[g], s.message);
       return;
     }
-    for (std::size_t i = 0; i < P; ++i)
+    // Written in the result's frame (record.frame): z[i] is the state at t0 + (first + i + 1) T,
+    // first = transient + extra the last block's first period (the map's states carry their times).
+    const ResultFrame frame = ResultFrame::of(built);
+    for (std::size_t i = 0; i < P; ++i) {
+      Eigen::VectorXd xi = z[i].head(n), vi = z[i].tail(n);
+      frame.to_result(t0 + static_cast<double>(transient + extra + static_cast<long>(i) + 1) * T, xi, vi);
       for (Eigen::Index j = 0; j < n; ++j) {
         const std::size_t at = (g * P + i) * static_cast<std::size_t>(n) + static_cast<std::size_t>(j);
-        out.x[at] = z[i](j);
-        out.v[at] = z[i](n + j);
+        out.x[at] = xi(j);
+        out.v[at] = vi(j);
       }
+    }
+    if (map)
+      for (std::size_t i = 0; i < map->t.size(); ++i) frame.to_result(map->t[i], map->x[i], map->v[i]);
     out.k[g] = k;
     out.residual[g] = residual;
     out.extra[g] = extra;

@@ -71,6 +71,8 @@ RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunR
       im.push_back(f.values(i).imag());
     }
   auto values = [](const Eigen::VectorXd& a) { return std::vector<double>(a.data(), a.data() + a.size()); };
+  // The state (at t0, or where the guess's run stopped) in the result's frame (record.frame).
+  ResultFrame::of(scene).to_result(guess.status != RunStatus::completed ? guess.t : r.t0, r.x, r.v);
   std::vector<Dataset> datasets{reals("x", values(r.x), {static_cast<std::size_t>(r.x.size())}),
                                 reals("v", values(r.v), {static_cast<std::size_t>(r.v.size())}),
                                 reals("residuals", r.residuals, {r.residuals.size()}),

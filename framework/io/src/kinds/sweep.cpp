@@ -67,7 +67,11 @@ ResultFile open_sweep_file(const SweepPlan& plan, const Scene& scene, const RunR
   start.resumed.reset();
   if (plan.follow && start.first > 0 && start.first % plan.chain_length != 0) {
     StartState s{scene.t0, {}, {}};
-    if (file.last_state(s.t, s.x, s.v)) start.resumed = s;
+    if (file.last_state(s.t, s.x, s.v)) {
+      // x_end, v_end are written in the result's frame: back to the one the last point computed in
+      ResultFrame::of(plan.scenes[start.first - 1]).to_scene(s.t, s.x, s.v);
+      start.resumed = s;
+    }
   }
   return file;
 }

@@ -20,6 +20,7 @@
 /// Files are written under `OUT.partial` and renamed on success; a sweep appends its points in
 /// grid order as they complete (chunked, flushed), so an interrupted sweep keeps its finished
 /// points and `vibro run --resume` continues it.
+#include "vibro/io/result_frame.hpp"
 #include "vibro/io/scene.hpp"
 
 #include <optional>
@@ -41,6 +42,11 @@ struct Recording {
   double t_start = 0.0;     ///< the recorded part starts here (after the transient)
   double t_end = 0.0;       ///< and ends here: t_start + run.periods·T; run the simulator to it
   std::size_t periods = 0;  ///< forcing periods begun in [t_start, t_end): rows of /stats
+  /// The scene's map to the frame its results are written in (record.frame): samples, Poincaré
+  /// points and the impact map are mapped by map_to_result_frame(), the final state (a sweep's
+  /// x_end, v_end) when it is written; summary keeps the engine's frame (a followed sweep
+  /// starts its next point from it).
+  ResultFrame frame;
 
   /// Observers for the recorded part of a run starting at t_start. Samples are taken at
   /// t_start + i·T/N, i = 0 … ⌊N·periods⌋ - 1 (N = samples_per_period, T = scene.period()), or
@@ -52,6 +58,8 @@ struct Recording {
   /// Pointers to the engaged observers: take them once the Recording is in its final place
   /// (moving or copying it leaves them pointing at the old one).
   std::vector<Observer*> observers();
+  /// Maps the recorded states (samples, Poincaré points, impact map) to `frame`, once, after the run.
+  void map_to_result_frame();
 };
 
 /// Facts about the run written to /meta.

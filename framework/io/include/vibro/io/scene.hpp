@@ -66,6 +66,9 @@ struct RecordSpec {
   bool impact_map = false;             ///< the state before every impact (ImpactMap)
   int samples_per_period = 0;          ///< exact samples, evenly spaced in each recorded period
   std::vector<double> sample_times;    ///< or explicit times (relative to the recording start)
+  /// `record.frame`: the frame a base-excited scene's states are written in (result_frame.hpp);
+  /// defaults to base.frame (and is absolute, and unused, without a base).
+  BaseFrame frame = BaseFrame::absolute;
 };
 
 /// One swept parameter: a path into the scene and its values.
