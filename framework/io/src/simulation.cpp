@@ -29,7 +29,11 @@ Recording simulate(const Scene& base, const StartState& start, std::atomic<doubl
   transient.x = start.x;
   transient.v = start.v;
   if (scene.run.transient_periods > 0.0) transient = sim.run(start.t, start.x, start.v, t1, {});
-  Recording rec = Recording::for_scene(scene, t1);
+  // An interrupted transient records nothing: no sample times laid out for the recorded periods
+  // (millions of them take seconds to allocate, after the signal).
+  Scene shape = scene;
+  if (transient.status == RunStatus::interrupted) shape.run.periods = 0.0;
+  Recording rec = Recording::for_scene(shape, t1);
   if (transient.status != RunStatus::completed) {
     rec.summary = transient;
     rec.summary.message = "during the transient: " + transient.message;
