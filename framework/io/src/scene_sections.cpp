@@ -568,7 +568,8 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
   }
 
   // Sections are searched in the exact flows of the dense and the modal engine (vibro/section.hpp).
-  if (const YAML::Node sn = root["record"] ? root["record"]["section"] : YAML::Node()) {
+  if (const YAML::Node rn = root["record"]; rn && rn["section"]) {
+    const YAML::Node sn = rn["section"];
     if (engine == EngineKind::taylor)
       r.fail(sn, "record.section", "the Taylor engine (nonlinear forces, or solver.engine: taylor) does not locate "
                                    "crossings of a hyperplane; the dense and the modal engine do");
