@@ -115,7 +115,7 @@ void run_event_loop(Engine& engine, const SimulatorOptions& options, double t0, 
   st.v = v0;
   st.stuck.reserve(static_cast<std::size_t>(m));
   engine.start(sc, st);
-  const RunContext context{n, stops.size(), engine.frequency()};
+  const RunContext context{n, stops.size(), engine.frequency(), eps_gap};
   for (Observer* o : observers) o->begin(context, t0);
 
   ContactSet impacting, releasing, resting;

@@ -67,6 +67,7 @@ Recording Recording::for_scene(const Scene& scene, double t_start) {
   if (detail::records_samples(spec)) rec.samples.emplace(sample_times(scene, t_start));
   if (spec.poincare) rec.poincare.emplace(t_start);
   if (spec.impact_map) rec.impact_map.emplace();
+  if (spec.section) rec.section.emplace(spec.section->plane, spec.section->direction);
   if (spec.statistics) rec.statistics.emplace();
   rec.frame = ResultFrame::of(scene);
   return rec;
@@ -91,6 +92,7 @@ std::vector<Observer*> Recording::observers() {
   if (samples) out.push_back(&*samples);
   if (poincare) out.push_back(&*poincare);
   if (impact_map) out.push_back(&*impact_map);
+  if (section) out.push_back(&*section);
   if (statistics) out.push_back(&*statistics);
   return out;
 }

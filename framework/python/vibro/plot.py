@@ -13,13 +13,14 @@ a function needs is refused with a ValueError naming the group and what the resu
 
 Functions: branch (continuation: stable solid, unstable dashed, bifurcations marked by kind),
 diagram (brute-force diagram: up and down sweeps overlaid), plane (two-parameter curves),
-basin (label image), impact_map (forcing phase against approach speed), lyapunov (the spectrum
-against the parameter, or as bars at one value).
+basin (label image), impact_map (forcing phase against approach speed), section (the crossings of a
+hyperplane: forcing phase, or a coordinate, against a coordinate), lyapunov (the spectrum against
+the parameter, or as bars at one value).
 """
 
 import numpy as np
 
-__all__ = ["branch", "diagram", "plane", "basin", "impact_map", "lyapunov", "KIND_MARKERS"]
+__all__ = ["branch", "diagram", "plane", "basin", "impact_map", "section", "lyapunov", "KIND_MARKERS"]
 
 # One marker per bifurcation kind (docs/results.md, /bifurcations kind names).
 KIND_MARKERS = {
@@ -263,6 +264,43 @@ def impact_map(result, stop=0, *, ax=None):
     stops = g.labels("stop").get("stops", [])
     name = stops[stop] if stop < len(stops) and stops[stop] else f"stop {stop}"
     ax.set_title(f"{name.decode() if isinstance(name, bytes) else name}: {int(np.count_nonzero(on))} impacts", fontsize=8)
+    return ax
+
+
+def section(result, coordinate=0, quantity="v", *, against="phase", ax=None):
+    """The Poincaré section on a hyperplane (/section, record.section): ``quantity`` ("x" or "v")
+    of ``coordinate`` at each crossing. For a simulation, against the forcing phase Ωt mod 2π
+    (``against="phase"``) or against x or v of another coordinate (``against=("x", j)``); for a
+    sweep or a diagram, against the swept value (a diagram's up and down sweeps overlaid)."""
+    r = _result(result)
+    g = _need(r, "section", "simulation, sweep or diagram (with record.section)")
+    if quantity not in ("x", "v"):
+        raise ValueError(f"vibro.plot.section: quantity is 'x' or 'v', not {quantity!r}")
+    ax = _axes(ax)
+    y = np.asarray(getattr(g, quantity))
+    y = y[:, coordinate] if y.ndim == 2 else y
+    if "diagram" in r:
+        for d, (c, size) in enumerate((("tab:blue", 2.0), ("tab:orange", 0.7))):
+            rows = g.sweep == d
+            if rows.any():
+                ax.plot(g.parameter[rows], y[rows], ".", ms=size, color=c, rasterized=True, label=("up", "down")[d])
+        ax.legend(fontsize=7, markerscale=4, loc="best")
+        ax.set_xlabel(str(r["diagram"].attrs["parameter"]))
+    elif "sweep" in r:
+        values = r["sweep"].values[:, 0]
+        ax.plot(values[g.point], y, ".", ms=1.5, color="C0", rasterized=True)
+        ax.set_xlabel(str(r["sweep"].attrs["parameters"][0]))
+    elif against == "phase":
+        ax.plot(g.phase, y, ".", ms=3, color="C0", rasterized=True)
+        ax.set_xlim(0.0, 2.0 * np.pi)
+        ax.set_xlabel("forcing phase $\\Omega t$ mod $2\\pi$")
+    else:
+        what, j = against
+        other = np.asarray(getattr(g, what))
+        ax.plot(other[:, j] if other.ndim == 2 else other, y, ".", ms=3, color="C0", rasterized=True)
+        ax.set_xlabel(f"${what}_{{{j}}}$ at the crossing")
+    ax.set_ylabel(f"${quantity}_{{{coordinate}}}$ at the crossing")
+    ax.set_title(f"section: {len(g.t)} crossings", fontsize=8)
     return ax
 
 

@@ -157,7 +157,7 @@ RunKindInfo sweep_kind() {
   k.summary = "one run per point of a grid of one or two scene values (OpenMP threads, MPI processes), resumable";
   k.section = "sweep";
   k.missing = "missing: a sweep needs run.sweep.parameters";
-  k.groups = {"sweep", "events", "contacts", "samples", "poincare", "impact_map", "stats"};
+  k.groups = {"sweep", "events", "contacts", "samples", "poincare", "impact_map", "section", "stats"};
   k.resumable = true;
   k.every_process = true;
   k.parse = parse_sweep_section;

@@ -13,6 +13,7 @@
 ///   /contacts/{stop,t_start,t_end,force_min,t_force_min,closed}
 ///   /samples/{t,x,v}  /poincare/{t,x,v}                (x, v: rows = times, columns = DOF)
 ///   /stats/{sticking_fraction,impacts}                 (rows = periods, columns = stops)
+///   /impact_map/{t,stop,phase,velocity,x,v}  /section/{t,phase,direction,x,v}  (rows = crossings)
 /// Only what the scene records exists. A sweep adds /sweep/values (points × parameters, the
 /// paths as attribute `parameters`), /sweep/status; fixed-size data gain a leading point axis,
 /// ragged data (events, contacts) are concatenated with a `point` column.
@@ -36,6 +37,7 @@ struct Recording {
   std::optional<Samples> samples;
   std::optional<Poincare> poincare;
   std::optional<ImpactMap> impact_map;
+  std::optional<Section> section;
   std::optional<PeriodStatistics> statistics;
   RunSummary summary;
   double wall_seconds = 0.0;

@@ -29,6 +29,7 @@
 #include "vibro/taylor_simulator.hpp"
 #include "vibro/friction.hpp"
 #include "vibro/modal.hpp"
+#include "vibro/section.hpp"
 #include "vibro/simulator.hpp"
 
 #include <functional>
@@ -57,6 +58,13 @@ class SceneError : public std::runtime_error {
   std::string path_, problem_;
 };
 
+/// record.section: a hyperplane nᵀx = c in the positions and the direction of the crossings
+/// recorded (vibro/section.hpp).
+struct SectionSpec {
+  Hyperplane plane;
+  Section::Direction direction = Section::Direction::both;
+};
+
 /// What a run records (each observer exists only if asked for).
 struct RecordSpec {
   bool events = false;
@@ -64,6 +72,7 @@ struct RecordSpec {
   bool statistics = false;
   bool poincare = false;
   bool impact_map = false;             ///< the state before every impact (ImpactMap)
+  std::optional<SectionSpec> section;  ///< crossings of a hyperplane (Section)
   int samples_per_period = 0;          ///< exact samples, evenly spaced in each recorded period
   std::vector<double> sample_times;    ///< or explicit times (relative to the recording start)
   /// `record.frame`: the frame a base-excited scene's states are written in (result_frame.hpp);
