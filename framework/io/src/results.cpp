@@ -83,6 +83,8 @@ void Recording::map_to_result_frame() {
   if (impact_map)
     for (std::size_t i = 0; i < impact_map->t.size(); ++i)
       frame.to_result(impact_map->t[i], impact_map->x[i], impact_map->v[i]);
+  if (section)  // crossings of the scene's own coordinates; their states in the result's frame
+    for (std::size_t i = 0; i < section->t.size(); ++i) frame.to_result(section->t[i], section->x[i], section->v[i]);
 }
 
 std::vector<Observer*> Recording::observers() {

@@ -253,6 +253,8 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
     }
     if (map)
       for (std::size_t i = 0; i < map->t.size(); ++i) frame.to_result(map->t[i], map->x[i], map->v[i]);
+    if (section)  // the crossings of the scene's own coordinates, their states written in the result's frame
+      for (std::size_t i = 0; i < section->t.size(); ++i) frame.to_result(section->t[i], section->x[i], section->v[i]);
     out.k[g] = k;
     out.residual[g] = residual;
     out.extra[g] = extra;
