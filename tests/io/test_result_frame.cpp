@@ -108,12 +108,16 @@ TEST_CASE("record.frame: a simulation's states in both frames differ by the base
       INFO("attached " << attached << ", computed " << computed);
       const vibro::test::TempDir dir;
       const std::string runs = "run: {periods: 30, transient_periods: 10}\n";
-      const ResultReader own = run(dir, scene(computed, kRecord, attached, runs), "own");
-      const ResultReader mapped = run(dir, scene(computed, kRecord + "  frame: " + other + "\n", attached, runs), "mapped");
+      // With a section too: its hyperplane (x_1 = 0.02) is in the coordinates computed in, so both
+      // runs cross it at the same times; the states written differ by the base motion.
+      const std::string record = kRecord + "  section: {coordinate: 1, value: 0.02}\n";
+      const ResultReader own = run(dir, scene(computed, record, attached, runs), "own");
+      const ResultReader mapped = run(dir, scene(computed, record + "  frame: " + other + "\n", attached, runs), "mapped");
       CHECK(own.attribute_string("/meta", "frame") == computed);  // the default: the frame computed in
       CHECK(mapped.attribute_string("/meta", "frame") == other);
       REQUIRE(own.read("/impact_map/t").size() >= 10);  // it impacts
-      for (const char* group : {"samples", "poincare", "impact_map"}) differ_by_base(own, mapped, group, computed == "relative");
+      for (const char* group : {"samples", "poincare", "impact_map", "section"})
+        differ_by_base(own, mapped, group, computed == "relative");
       // Event data is the same in both frames (gap rates), and so is /scene (what was integrated).
       CHECK(own.read("/impact_map/velocity") == mapped.read("/impact_map/velocity"));
       CHECK(own.read("/scene/forcing_cosine") == mapped.read("/scene/forcing_cosine"));
