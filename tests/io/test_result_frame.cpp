@@ -89,7 +89,9 @@ void differ_by_base(const ResultReader& a, const ResultReader& b, const std::str
     }
   INFO(group << ": largest relative difference " << worst);
   CHECK(worst <= 8 * 2.2e-16);
-  CHECK(largest > 0.01);  // the frames do differ
+  // The frames do differ at these times (|x_b| ≤ 0.054 here; a section's crossings fall at a few
+  // forcing phases, where |x_b| may be smaller, but far above the one rounding checked above).
+  CHECK(largest > (group == "section" ? 1e-3 : 0.01));
 }
 
 double max_abs_difference(const std::vector<double>& a, const std::vector<double>& b) {
