@@ -406,8 +406,8 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   check_friction(r, root, p);
   Scene scene{impl_->file, impl_->text, root["name"] ? r.text(root["name"], "name") : std::string(),
               std::move(p.dense), std::move(p.banded), std::move(p.stops), p.t0, p.x0, p.v0, p.opt, p.rec, p.run,
-              p.engine_choice, p.engine, p.reason, std::move(p.base), std::move(p.forces), std::move(p.friction)};
-  scene.restart = impl_->restart;
+              p.engine_choice, p.engine, p.reason, std::move(p.base), std::move(p.forces), std::move(p.friction),
+              impl_->restart};
   return scene;
 }
 
