@@ -107,6 +107,21 @@ double relative_difference(const std::vector<double>& a, const std::vector<doubl
 // impact, a different chatter count) changes them by O(1e-2) or more.
 constexpr double kSame = 2e-11;
 
+/// The located bifurcations of `kind` in a continuation's result (on `branch`; any branch when
+/// −1), in increasing parameter.
+std::vector<double> located(const ResultReader& r, const std::string& kind, std::int64_t branch = -1) {
+  const auto names = r.attribute_strings("/bifurcations/kind", "names");
+  const auto kinds = r.read_integers("/bifurcations/kind");
+  const auto branches = r.read_integers("/bifurcations/branch");
+  const auto ps = r.read("/bifurcations/p");
+  std::vector<double> out;
+  for (std::size_t i = 0; i < kinds.size(); ++i)
+    if (names.at(static_cast<std::size_t>(kinds[i])) == kind && (branch < 0 || branches[i] == branch))
+      out.push_back(ps[i]);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 }  // namespace
 
 // Two stretches of the paper's system: Ω ∈ [0.24, 0.28], where the orbits stick and chatter, and
@@ -255,14 +270,8 @@ TEST_CASE("Taylor engine: the Duffing impact oscillator's diagram jumps at the f
     step: 0.01
     max_step: 0.02
 )"), "fold_continue", "taylor"));
-  const auto names = cont.attribute_strings("/bifurcations/kind", "names");
-  const auto kinds = cont.read_integers("/bifurcations/kind");
-  const auto ps = cont.read("/bifurcations/p");
-  std::vector<double> folds;
-  for (std::size_t i = 0; i < kinds.size(); ++i)
-    if (names.at(static_cast<std::size_t>(kinds[i])) == "fold") folds.push_back(ps[i]);
+  const std::vector<double> folds = located(cont, "fold");
   REQUIRE(folds.size() == 2);
-  std::sort(folds.begin(), folds.end());
 
   const ResultReader diagram(run(duffing(0.83, 0.05, R"(run:
   kind: diagram
@@ -329,13 +338,7 @@ TEST_CASE("Taylor engine: locate's period transition of a Duffing impact oscilla
     step: 0.01
     max_step: 0.02
 )"), "pd_continue", "taylor"));
-  const auto names = cont.attribute_strings("/bifurcations/kind", "names");
-  const auto kinds = cont.read_integers("/bifurcations/kind");
-  const auto branch = cont.read_integers("/bifurcations/branch");
-  std::vector<double> pd;
-  for (std::size_t i = 0; i < kinds.size(); ++i)
-    if (names.at(static_cast<std::size_t>(kinds[i])) == "period_doubling" && branch[i] == 0)
-      pd.push_back(cont.read("/bifurcations/p")[i]);
+  const std::vector<double> pd = located(cont, "period_doubling", 0);
   REQUIRE(pd.size() == 1);
 
   const ResultReader locate(run(duffing(0.71, 0.02, R"(run:
