@@ -280,7 +280,7 @@ def main():
         r = big[0]
         p(f"| modal contact set at N = 10 000 ≤ 1 s and ≤ 100 MB | {BEFORE['set_build']} | set {{0}} {r['set0']:.3g} s, "
           f"set {{0, 1}} {r['set01']:.3g} s; peak memory {r['mib_before']:.0f} → {r['mib_after']:.0f} MiB over both "
-          f"builds ({r['mib_after'] - r['mib_before']:.0f} MiB) | {met(r['set0'] <= 1 and r['set01'] <= 1 and r['mib_after'] - r['mib_before'] <= 200)} |")
+          f"builds ({r['mib_after'] - r['mib_before']:.0f} MiB) | {met(r['set0'] <= 1 and r['set01'] <= 1 and r['mib_after'] - r['mib_before'] <= 100)} |")
     if "compliant" in lw and "friction" in lw:
         c, fr = lw["compliant"], lw["friction"]
         p(f"| a compliant switch or a stick-slip event ≤ 2 µs (2-DOF scene, `bench_laws`) | — | compliant "
@@ -288,9 +288,13 @@ def main():
           f"{met(c[1] <= 2.0 and fr[1] <= 2.0)} |")
     if slope:
         s4, s10, sst = slope
-        ok = all(x not in ("nan", "-nan") and float(x) <= 1.2 for x in (s4, sst))
-        p(f"| CPU per event slope N = 100 … 10 000 ≤ 1.2 (with sticking) | {BEFORE['slope']} | 4 stops {s4}, "
-          f"4 sticking {sst}, every 10th {s10} (stops grow with N) | {met(ok)} |")
+        def at_most(x, bound):
+            return x not in ("nan", "-nan") and float(x) <= bound
+        p(f"| CPU per event slope N = 100 … 10 000 ≤ 1.2, four stops (with sticking) | {BEFORE['slope']} | 4 stops {s4}, "
+          f"4 sticking {sst} | {met(at_most(s4, 1.2) and at_most(sst, 1.2))} |")
+        # The stops grow with N here (N/10 of them): every guard is bounded at every event, O(N·m).
+        p(f"| CPU per event slope N = 100 … 10 000 ≤ 1.2, a stop on every 10th mass | — | {s10} | "
+          f"{met(at_most(s10, 1.2))} |")
     p("")
     try:
         profile = open(f"{args.raw}/profile.txt").read().strip().splitlines()
@@ -394,7 +398,7 @@ def main():
           f"(e.g. (a) at 1e-9: {eng['a']['1e-09']['error']:.2e} → {trig['a']['1e-09']['error']:.2e}), and it is "
           f"slower at {len(slower)} of them; those runs resolve more bounces per chatter sequence (bench_engine's "
           "tables with --trigger 1e-9). Why the certified search does worse with a loose trigger was not "
-          "investigated in this session.")
+          "investigated.")
     else:
         p("The looser trigger gives identical errors here; the full test suite decides the default.")
     p("")
@@ -406,7 +410,7 @@ def main():
           "199 chatter limits): " + ", ".join(f"{h}: {v[1]}" for h, v in ca.items()) + ". At the default 1e-9 "
           "they agree to the reference's own noise; at chatter_height ≤ 1e-11 they get worse as the threshold "
           "tightens (at commit 2de0370 the 1e-13 run agreed to 7.8e-10): the deepest bounces, rising ~1e-12 L, are "
-          "not resolved as well by the new search (not investigated further in this session). The work-precision "
+          "not resolved as well by the new search (not investigated further). The work-precision "
           "report's reference is that 1e-13 run, so its impact-time and sticking columns have a floor near 1e-7 "
           "for every method; its state columns (the ratios) are unaffected (the cross-check table there: 3e-12).")
     p("")
