@@ -194,6 +194,39 @@ def harmonics_statement(rows):
             f"longer rows of every guard and state product, linear in H as measured.")
 
 
+def study_rows(path):
+    """study_throughput.py's table: kind -> (points, median s, min s, max s, points/s); {} when absent."""
+    import os
+    rows = {}
+    if not os.path.exists(path):
+        return rows
+    for line in open(path).read().splitlines():
+        m = re.match(r"^(basin|diagram|continue)\s+\S+\s+(\d+)\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)\s+([\d.]+)$", line)
+        if m:
+            rows[m.group(1)] = (int(m.group(2)),) + tuple(float(m.group(i)) for i in range(3, 7))
+    return rows
+
+
+def study(path, p):
+    """The section on the study run kinds' throughput, from study_throughput.py's table."""
+    import os
+    if not os.path.exists(path):
+        return
+    p("## Study run kinds: points per second (`tools/bench/study_throughput.py --rounds 5`)")
+    p("")
+    p("The paper's system in three run kinds, each a scene of the repository run by `vibro run` as a user runs it "
+      "(wall-clock time from start to exit, the result file written; OMP_NUM_THREADS = 2, the rounds alternating the "
+      "three scenes; the table's first line gives its time and the machine's load). A basin point is one start run "
+      "until it is on a known attractor, on a new one, or out of periods; a diagram point one value of Ω in one "
+      "direction (transient and 32 recorded periods); a continuation point one corrected orbit of the branch with its "
+      "multipliers.")
+    p("")
+    p("```")
+    p(open(path).read().strip())
+    p("```")
+    p("")
+
+
 def main():
     ap = argparse.ArgumentParser()
     for a in ("raw", "out", "commit", "cpu", "cores", "load-before", "load-after", "date", "wall", "allocations",
@@ -295,6 +328,15 @@ def main():
         # The stops grow with N here (N/10 of them): every guard is bounded at every event, O(N·m).
         p(f"| CPU per event slope N = 100 … 10 000 ≤ 1.2, a stop on every 10th mass | — | {s10} | "
           f"{met(at_most(s10, 1.2))} |")
+    st = study_rows(f"{args.raw}/study.txt")
+    if "basin" in st:
+        n, med, lo, hi, rate = st["basin"]
+        side = round(n ** 0.5)
+        p(f"| basin {side}² of the paper's system ≤ 15 s on 2 cores (`study_throughput.py`) | — | {med:.1f} s median "
+          f"({lo:.1f}–{hi:.1f}), {rate:.0f} points/s | {met(med <= 15)} |")
+    if "diagram" in st and "continue" in st:
+        p(f"| diagram and continuation points per second reported | — | diagram {st['diagram'][4]:.0f} points/s, "
+          f"continuation {st['continue'][4]:.0f} points/s | met |")
     p("")
     try:
         profile = open(f"{args.raw}/profile.txt").read().strip().splitlines()
@@ -454,6 +496,7 @@ def main():
     p("")
     w.extend(taylor_odeint_section(f"{args.raw}/taylor_odeint.md"))
     harmonics(f"{args.raw}/harmonics.txt", p)
+    study(f"{args.raw}/study.txt", p)
     with open(args.out, "w") as f:
         f.write("\n".join(w) + "\n")
 
