@@ -124,12 +124,12 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
   static const std::regex normal(R"(stops\[(\d+)\]\.normal\[(\d+)\])");
   if (std::regex_match(path, m, normal))
     refuse(doc, path,
-           "a stop's normal is not a continuation parameter (the derivatives follow a stop's position, "
+           "is a component of a stop's normal, which is not a continuation parameter (the derivatives follow a stop's position, "
            "amplitude, phase and restitution); continue in one of those, or sweep the normal (run.kind: sweep)");
   static const std::regex law(R"(stops\[(\d+)\]\.(stiffness|damping|preload))");
   if (std::regex_match(path, m, law))
     refuse(doc, path,
-           "a compliant stop's stiffness, damping and preload are not continuation parameters (the derivatives "
+           "is a compliant stop's stiffness, damping or preload, which are not continuation parameters (the derivatives "
            "follow the model, the forcing and a stop's position, amplitude, phase and restitution); continue in "
            "one of those, or sweep it (run.kind: sweep)");
   const double p = doc.get(path);
