@@ -256,3 +256,67 @@ TEST_CASE("continuation of Den Hartog's oscillator in Ω locates the onset of st
   CHECK(last.sticking(0) > 0.0);
   CHECK(last.multipliers.structural_zeros == 1);
 }
+
+namespace {
+
+/// The least interior local minimum of x' over the half period (t1, t1 + T/2) of Den Hartog's
+/// closed form (4000 samples, then golden-section search on x'), or +∞ if x' has none there.
+long double interior_velocity_minimum(const test::DenHartog& dh) {
+  const int samples = 4000;
+  const long double h = dh.T / 2 / samples;
+  auto v = [&](long double s) { return dh.at(dh.t1 + s).second; };
+  long double best = INFINITY;
+  for (int i = 5; i < samples - 5; ++i) {
+    if (!(v((i - 1) * h) > v(i * h) && v(i * h) <= v((i + 1) * h))) continue;
+    long double a = (i - 1) * h, b = (i + 1) * h;
+    const long double g = (std::sqrt(5.0L) - 1) / 2;
+    for (int it = 0; it < 120; ++it) {
+      const long double c = b - g * (b - a), d = a + g * (b - a);
+      (v(c) < v(d) ? b : a) = v(c) < v(d) ? d : c;
+    }
+    best = std::min(best, v(0.5L * (a + b)));
+  }
+  return best;
+}
+
+}  // namespace
+
+TEST_CASE("continuation locates a stick phase born inside a slip (grazing-sliding) against Den Hartog's closed form",
+          "[friction][analysis]") {
+  // F_f = 0.1: below Ω ≈ 0.387 the velocity of the half period without stops has an interior
+  // local minimum, which falls to 0 at Ω_g ≈ 0.3839 while the turning points still reverse
+  // (x''(t1) > 0): the mass stops inside the slip there (his boundary of motion without stops
+  // at these low frequencies).
+  const double m = 1.0, c = 0.05, k = 1.0, F0 = 1.0, Ff = 0.1;
+  long double lo = 0.383L, hi = 0.3855L;
+  REQUIRE(interior_velocity_minimum(test::DenHartog(m, c, k, F0, Ff, lo)) < 0);
+  REQUIRE(interior_velocity_minimum(test::DenHartog(m, c, k, F0, Ff, hi)) > 0);
+  for (int i = 0; i < 60; ++i) {
+    const long double mid = 0.5L * (lo + hi);
+    (interior_velocity_minimum(test::DenHartog(m, c, k, F0, Ff, mid)) > 0 ? hi : lo) = mid;
+  }
+  const double omega_g = static_cast<double>(0.5L * (lo + hi));
+  REQUIRE(test::DenHartog(m, c, k, F0, Ff, omega_g).turning_acceleration() > 0.01L);
+  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, Ff, Ff)};
+  const ContinuationFamily family = [&](double omega) {
+    return friction_family_engine(one_mass(m, c, k, F0, omega), contacts, SystemDerivative::frequency_only(), {});
+  };
+  ContinuationOptions o;
+  o.p_min = 0.378;
+  o.p_max = 0.45;
+  o.direction = -1;
+  o.max_points = 200;
+  const LinearSystem start = one_mass(m, c, k, F0, 0.45);
+  FrictionSimulator sim(start, contacts);
+  const FrictionSummary settle = sim.run(0.0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), 900.0);
+  REQUIRE(settle.status == RunStatus::completed);
+  const ContinuationResult r = continue_orbits(family, 0.45, settle.t, settle.x, settle.v, o);
+  const Bifurcation* onset = nullptr;
+  for (const Bifurcation& b : r.bifurcations)
+    if (b.kind == BifurcationKind::rising && b.stop == 0 && (!onset || b.p > onset->p)) onset = &b;
+  REQUIRE(onset != nullptr);
+  WARN("grazing-sliding: Ω = " << onset->p << " (closed form " << omega_g << ", difference " << onset->p - omega_g
+                               << "), smooth " << onset->smooth);
+  CHECK(onset->smooth);
+  CHECK(std::abs(onset->p - omega_g) < 1e-8);
+}
