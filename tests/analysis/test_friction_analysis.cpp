@@ -121,7 +121,7 @@ TEST_CASE("the tangent map of a stick-slip period against central differences of
   CHECK(std::abs(m.reduced(0, 0) - m.jacobian.trace()) < 1e-12 * (1.0 + std::abs(m.jacobian.trace())));
 }
 
-TEST_CASE("a Den Hartog orbit's multipliers against the finite-difference Jacobian; its Lyapunov exponents",
+TEST_CASE("a Den Hartog orbit's multipliers against the finite-difference Jacobian, and its Lyapunov exponents",
           "[friction][analysis]") {
   const double m = 1.0, c = 0.1, k = 1.0, F0 = 1.0, Ff = 0.2, W = 0.8;
   const LinearSystem sys = one_mass(m, c, k, F0, W);
