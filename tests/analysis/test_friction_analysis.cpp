@@ -320,3 +320,40 @@ TEST_CASE("continuation locates a stick phase born inside a slip (grazing-slidin
   CHECK(onset->smooth);
   CHECK(std::abs(onset->p - omega_g) < 1e-8);
 }
+
+TEST_CASE("two masses with a surface contact and a rubbing pair: the tangent map against central differences",
+          "[friction][analysis]") {
+  // Several contacts sticking and slipping, coupled through the masses: the settling projection
+  // over every contact stuck before or after a switch is part of each saltation.
+  Eigen::MatrixXd K(2, 2);
+  K << 2.0, -1.0, -1.0, 1.0;
+  HarmonicForcing f{.constant = Eigen::VectorXd::Zero(2), .cosine = Eigen::Vector2d(0.0, 0.8),
+                    .sine = Eigen::VectorXd::Zero(2), .frequency = 0.9};
+  const LinearSystem sys(Eigen::MatrixXd::Identity(2, 2), 0.05 * Eigen::MatrixXd::Identity(2, 2), K, f);
+  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, 0.5, 0.35),
+                                              FrictionContact::between(0, 1, 1.0, 0.3, 0.2)};
+  const double T = 2.0 * std::numbers::pi / 0.9;
+  FrictionSimulator sim(sys, contacts);
+  const FrictionSummary settle = sim.run(0.0, Eigen::Vector2d(0.3, -0.2), Eigen::Vector2d(0.0, 0.1), 30 * T);
+  REQUIRE(settle.status == RunStatus::completed);
+  LinearisationOptions probe;
+  probe.jacobian = false;
+  const TangentMap look = linearise(sys, contacts, {}, settle.t, settle.x, settle.v, settle.t + T, probe);
+  const double ta = free_time(look);
+  const Eigen::VectorXd za = map_of(sys, contacts, settle.t, stacked(settle.x, settle.v), ta);
+  const TangentMap m = linearise(sys, contacts, {}, ta, za.head(2), za.tail(2), ta + T);
+  REQUIRE(m.summary.status == RunStatus::completed);
+  REQUIRE_FALSE(m.non_smooth);
+  int sticks = 0;
+  for (const Event& e : m.events) sticks += e.kind == EventKind::friction_stick;
+  WARN("two masses: " << m.events.size() << " switches, " << sticks << " sticks, least tangent dimension "
+                      << m.free_dimension);
+  REQUIRE(sticks >= 1);
+  const double L = m.summary.length_scale, V = m.summary.velocity_scale;
+  // Step and tolerance as for the one-mass stick-slip period above.
+  const Eigen::MatrixXd fd = central_differences(sys, contacts, ta, za, ta + T, 1e-6, L, V);
+  Eigen::Vector4d D(L, L, V, V);
+  const double err = (D.cwiseInverse().asDiagonal() * (m.jacobian - fd) * D.asDiagonal()).cwiseAbs().maxCoeff();
+  WARN("two masses: max |J − J_fd| (scaled) = " << err);
+  CHECK(err < 1e-6);
+}
