@@ -105,12 +105,15 @@ struct Tables {
   /// of 1 on every contact can make (resolve_states' tolerance on u').
   Eigen::VectorXd accel_per_force;
 
-  Tables(const LinearSystem& sys, const std::vector<FrictionContact>& contacts) {
-    n = sys.dof();
-    N = augmented_size(n, sys.forcing());
+  Tables(const LinearSystem& sys, const std::vector<FrictionContact>& contacts)
+      : Tables(sys.mass(), sys.damping(), sys.stiffness(), sys.forcing(), contacts) {}
+  Tables(const Eigen::MatrixXd& M, const Eigen::MatrixXd& C, const Eigen::MatrixXd& K, const HarmonicForcing& f,
+         const std::vector<FrictionContact>& contacts) {
+    n = M.rows();
+    N = augmented_size(n, f);
     off = 2 * n;
     const auto m = static_cast<Eigen::Index>(contacts.size());
-    const double omega = sys.forcing().frequency;
+    const double omega = f.frequency;
     W.resize(n, m);
     u_rows = Eigen::MatrixXd::Zero(m, N);
     s2_rows = Eigen::MatrixXd::Zero(m, N);
@@ -129,13 +132,12 @@ struct Tables {
       limit_static(j) = c.static_coefficient * c.normal_load;
       limit_kinetic(j) = c.kinetic_coefficient * c.normal_load;
     }
-    minv = sys.mass().llt().solve(Eigen::MatrixXd::Identity(n, n));
+    minv = M.llt().solve(Eigen::MatrixXd::Identity(n, n));
     minv_W = minv * W;
     accel_per_force = (W.transpose() * minv_W).cwiseAbs().rowwise().sum();
     r_rows = Eigen::MatrixXd::Zero(n, N);
-    r_rows.leftCols(n) = -sys.stiffness();
-    r_rows.middleCols(n, n) = -sys.damping();
-    const HarmonicForcing& f = sys.forcing();
+    r_rows.leftCols(n) = -K;
+    r_rows.middleCols(n, n) = -C;
     r_rows.col(off) = f.cosine;
     r_rows.col(off + 1) = f.sine;
     r_rows.col(off + 2) = f.constant;
@@ -206,33 +208,45 @@ class FrictionSimulator::Mode {
  public:
   Mode(const LinearSystem& sys, const Tables& tab, const std::vector<FrictionState>& states, FlowOptions options)
       : states_(states) {
-    const Eigen::Index n = tab.n, N = tab.N;
+    Eigen::MatrixXd A = mode_generator(sys.mass(), sys.damping(), sys.stiffness(), sys.forcing(), tab, states, force_rows_);
+    flow_ = std::make_unique<LinearFlow>(std::move(A), tab.n, sys.forcing().frequency, options);
+    guards_ = std::make_unique<Functionals>(*flow_, mode_guards(tab, states, force_rows_, &contact_, &force_guard_));
+  }
+
+  /// The mode's generator: the free one with the accelerations of the mode (friction.hpp).
+  static Eigen::MatrixXd mode_generator(const Eigen::MatrixXd& M, const Eigen::MatrixXd& C, const Eigen::MatrixXd& K,
+                                        const HarmonicForcing& f, const Tables& tab,
+                                        const std::vector<FrictionState>& states, Eigen::MatrixXd& force_rows) {
     Eigen::MatrixXd accel;
-    tab.mode_rows(states, force_rows_, accel);
-    Eigen::MatrixXd A = augmented_generator(sys.mass(), sys.damping(), sys.stiffness(), sys.forcing());
-    A.middleRows(n, n) = accel;
-    flow_ = std::make_unique<LinearFlow>(std::move(A), n, sys.forcing().frequency, options);
-    // Guards: −σ u_j while slipping; ±F_j − μ_s N while stuck.
+    tab.mode_rows(states, force_rows, accel);
+    Eigen::MatrixXd A = augmented_generator(M, C, K, f);
+    A.middleRows(tab.n, tab.n) = accel;
+    return A;
+  }
+  /// Guards: −σ u_j while slipping; ±F_j − μ_s N while stuck (per contact, in order).
+  static Eigen::MatrixXd mode_guards(const Tables& tab, const std::vector<FrictionState>& states,
+                                     const Eigen::MatrixXd& force_rows, std::vector<int>* contact,
+                                     std::vector<char>* force_guard) {
     std::vector<Eigen::VectorXd> rows;
     for (std::size_t j = 0; j < states.size(); ++j) {
       const auto J = static_cast<Eigen::Index>(j);
       if (states[j] != FrictionState::stuck) {
         rows.emplace_back(-sign_of(states[j]) * tab.u_rows.row(J).transpose());
-        contact_.push_back(static_cast<int>(j));
-        force_guard_.push_back(false);
+        if (contact) contact->push_back(static_cast<int>(j));
+        if (force_guard) force_guard->push_back(false);
       } else {
         for (double sign : {1.0, -1.0}) {
-          Eigen::VectorXd row = sign * force_rows_.row(J).transpose();
+          Eigen::VectorXd row = sign * force_rows.row(J).transpose();
           row(tab.off + 2) -= tab.limit_static(J);
           rows.push_back(row);
-          contact_.push_back(static_cast<int>(j));
-          force_guard_.push_back(true);
+          if (contact) contact->push_back(static_cast<int>(j));
+          if (force_guard) force_guard->push_back(true);
         }
       }
     }
-    Eigen::MatrixXd guard_rows(static_cast<Eigen::Index>(rows.size()), N);
+    Eigen::MatrixXd guard_rows(static_cast<Eigen::Index>(rows.size()), tab.N);
     for (std::size_t i = 0; i < rows.size(); ++i) guard_rows.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
-    guards_ = std::make_unique<Functionals>(*flow_, std::move(guard_rows));
+    return guard_rows;
   }
 
   const LinearFlow& flow() const { return *flow_; }
@@ -331,6 +345,17 @@ Eigen::VectorXd augmented(const LinearSystem& sys, double t, const Eigen::Vector
 }
 
 }  // namespace
+
+FrictionModeRows friction_mode_rows(const Eigen::MatrixXd& M, const Eigen::MatrixXd& C, const Eigen::MatrixXd& K,
+                                    const HarmonicForcing& forcing, const std::vector<FrictionContact>& contacts,
+                                    const std::vector<FrictionState>& states) {
+  const Tables tab(M, C, K, forcing, contacts);
+  FrictionModeRows out;
+  out.generator = FrictionSimulator::Mode::mode_generator(M, C, K, forcing, tab, states, out.force);
+  out.guards = FrictionSimulator::Mode::mode_guards(tab, states, out.force, nullptr, nullptr);
+  out.relative = tab.u_rows;
+  return out;
+}
 
 Eigen::VectorXd FrictionSimulator::relative_velocities(double t, const Eigen::VectorXd& v) const {
   const Tables tab(*system_, contacts_);
@@ -548,6 +573,10 @@ FrictionSummary FrictionSimulator::run(double t0, const Eigen::VectorXd& x0, con
   std::deque<double> recent;
   Eigen::VectorXd z, zt;
   CrossingFinder finder;
+  std::vector<FrictionObserver*> mode_observers;  // those that follow the modes and switches
+  for (FrictionObserver* o : friction_observers)
+    if (o->wants_modes()) mode_observers.push_back(o);
+  FrictionSwitch sw;
   while (true) {
     const Mode& md = mode(states);
     const LinearFlow& flow = md.flow();
@@ -578,6 +607,7 @@ FrictionSummary FrictionSimulator::run(double t0, const Eigen::VectorXd& x0, con
     const double tau = hit ? hit->tau : reach;
     const double t_next = hit ? t + tau : (reach == t_end - t ? t_end : t + reach);
     ++summary.segments;
+    for (FrictionObserver* o : mode_observers) o->friction_segment(t, t_next, states, z);
     {
       const FrictionSegmentView view(segment, n, t, t_next);
       for (Observer* o : observers) o->segment(view);
@@ -599,8 +629,20 @@ FrictionSummary FrictionSimulator::run(double t0, const Eigen::VectorXd& x0, con
     if (!resolve_states(tab, zt, states, fired, eps_v, eps_f, eps_a))
       return finish(RunStatus::numerical_failure, "friction: no consistent stick/slip state at t = " + number_text(t) +
                                                       " (friction[" + std::to_string(fired) + "])");
+    if (!mode_observers.empty()) {
+      sw.t = t;
+      sw.fired = fired;
+      sw.guard_index = hit->row;
+      sw.before = before;
+      sw.after = states;
+      sw.z_before = zt;
+    }
     settle_relative_velocities(tab, before, states, zt);
     v = zt.segment(n, n);
+    if (!mode_observers.empty()) {
+      sw.z_after = zt;
+      for (FrictionObserver* o : mode_observers) o->friction_switch(sw);
+    }
     emit_changes(before, zt, false, {});
     recent.push_back(t);
     while (!recent.empty() && recent.front() < t - window) recent.pop_front();
@@ -641,7 +683,10 @@ RunSummary FrictionEngine::run(double t0, const Eigen::VectorXd& x0, const Eigen
   ForwardEvents forward;
   forward.observers = &observers;
   forward.sim = sim_.get();
-  const FrictionSummary f = sim_->run(t0, x0, v0, t_end, observers, {&forward});
+  return run_summary(sim_->run(t0, x0, v0, t_end, observers, {&forward}));
+}
+
+RunSummary run_summary(const FrictionSummary& f) {
   RunSummary s;
   s.status = f.status;
   s.message = f.message;

@@ -5,10 +5,11 @@
 ///     events, named in /events/kind, with the friction force, and the contacts in /scene;
 ///  3. a scene without friction writes no friction datasets and the four rigid event kinds.
 /// The refusals (μ_s < μ_k, negative or infinite loads, NaN, indices out of range, unknown keys,
-/// stops or a run kind other than simulate or the modal engine with friction) are files of
+/// stops, nonlinear forces or the modal engine with friction) are files of
 /// tests/io/malformed/friction_*.yaml.
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/results.hpp"
+#include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"
 
 #include "support/temp_dir.hpp"
@@ -81,4 +82,42 @@ TEST_CASE("friction switches are recorded as friction-stick, -slip and -reversal
   CHECK(r.read("/scene/friction_kinetic") == std::vector<double>{0.3});
   CHECK(r.read("/scene/friction_amplitude") == std::vector<double>{0.5});
   CHECK(r.read_integers("/scene/friction_mass") == std::vector<std::int64_t>{0});
+}
+
+TEST_CASE("friction scenes run as orbits and continuations: structural zeros and the onset of sticking", "[friction]") {
+  const vibro::test::TempDir dir;
+  auto run = [&](vibro::io::SceneDocument doc, const std::string& name) {
+    const vibro::io::Scene scene = doc.build();
+    vibro::io::RunRequest request;
+    request.output = dir / name;
+    request.threads = 1;
+    const vibro::io::RunReport report = vibro::io::run_scene(doc, scene, request);
+    CAPTURE(report.summary);
+    REQUIRE(report.exit_code == 0);
+    return vibro::io::ResultReader(dir / name);
+  };
+  // The stick-slip example as a periodic orbit: it sticks once per period, so one multiplier is
+  // a structural zero.
+  vibro::io::SceneDocument orbit = vibro::io::SceneDocument::load(kStickSlip);
+  orbit.replace("run", "{kind: orbit, transient_periods: 20}");
+  orbit.replace("record", "");
+  const vibro::io::ResultReader o = run(orbit, "orbit.h5");
+  CHECK(o.attribute_string("/orbit", "status") == "converged");
+  CHECK(o.attribute_string("/orbit", "structural_zeros") == "1");
+  CHECK(o.attribute_string("/orbit", "stability") == "stable");
+  // Den Hartog's oscillator continued in Ω through the onset of sticking (the number is checked
+  // against his closed form in tests/analysis/test_friction_analysis.cpp).
+  const vibro::io::ResultReader c =
+      run(vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/friction/den_hartog_continuation.yaml"),
+          "continuation.h5");
+  const std::vector<std::string> names = c.attribute_strings("/bifurcations/kind", "names");
+  const std::vector<std::int64_t> kinds = c.read_integers("/bifurcations/kind");
+  const std::vector<double> p = c.read("/bifurcations/p");
+  int onsets = 0;
+  for (std::size_t i = 0; i < kinds.size(); ++i)
+    if (names.at(static_cast<std::size_t>(kinds[i])) == "rising") {
+      ++onsets;
+      CHECK(std::abs(p[i] - 0.6007) < 1e-3);
+    }
+  CHECK(onsets == 1);
 }

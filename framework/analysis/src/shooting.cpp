@@ -2,6 +2,7 @@
 
 #include "krylov.hpp"
 #include "section.hpp"
+#include "vibro/friction_tangent.hpp"
 #include "vibro/modal_tangent.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -190,6 +191,39 @@ class TaylorBackend final : public FullJacobianBackend {
  private:
   const ImpactSystem& system_;
   const NonlinearForces& forces_;
+  SimulatorOptions solver_;
+  LinearisationOptions options_;
+};
+
+/// A friction scene (friction.hpp): maps from linearise(system, contacts, …) (friction_tangent.hpp).
+class FrictionBackend final : public FullJacobianBackend {
+ public:
+  FrictionBackend(const LinearSystem& system, const std::vector<FrictionContact>& contacts,
+                  const SimulatorOptions& solver, const LinearisationOptions& o)
+      : system_(system), contacts_(contacts), solver_(solver), options_(o) {
+    options_.jacobian = true;
+  }
+  Index dof() const override { return system_.dof(); }
+  double frequency() const override { return system_.forcing().frequency; }
+  TangentMap probe(double t0, const VectorXd& z, double t1) override {
+    LinearisationOptions probe;
+    probe.jacobian = false;
+    return linearise(system_, contacts_, solver_, t0, z.head(dof()), z.tail(dof()), t1, probe);
+  }
+  Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
+    return evaluate_with(
+        [&] { return linearise(system_, contacts_, solver_, t0, z.head(dof()), z.tail(dof()), t1, options_); });
+  }
+
+ protected:
+  RunSummary run(double from, const VectorXd& z, double to) override {
+    FrictionSimulator sim(system_, contacts_, solver_);
+    return run_summary(sim.run(from, z.head(dof()), z.tail(dof()), to));
+  }
+
+ private:
+  const LinearSystem& system_;
+  const std::vector<FrictionContact>& contacts_;
   SimulatorOptions solver_;
   LinearisationOptions options_;
 };
@@ -384,6 +418,14 @@ ShootingResult shoot(const ImpactSystem& system, const NonlinearForces& forces, 
                      double t_guess, const VectorXd& x, const VectorXd& v, const LinearisationOptions& options_map) {
   options.validate();
   TaylorBackend backend(system, forces, options.solver, options_map);
+  return shoot_with(backend, options, t_guess, x, v);
+}
+
+ShootingResult shoot(const LinearSystem& system, const std::vector<FrictionContact>& contacts,
+                     const ShootingOptions& options, double t_guess, const VectorXd& x, const VectorXd& v,
+                     const LinearisationOptions& options_map) {
+  options.validate();
+  FrictionBackend backend(system, contacts, options.solver, options_map);
   return shoot_with(backend, options, t_guess, x, v);
 }
 

@@ -49,9 +49,10 @@
 /// above picks one, and a run where none is consistent ends with RunStatus::numerical_failure.
 ///
 /// Limits: scenes with friction and stops together are refused (FrictionSimulator needs a scene
-/// without stops); the modal engine and the analysis layer refuse friction (the saltation of a
-/// friction switch is not implemented). The forcing may have extra harmonics; the surfaces move
-/// at the fundamental Ω.
+/// without stops); the modal and Taylor engines have no friction. The analysis layer's tangent
+/// maps of friction runs (saltation matrices of stick, slip and reversal; friction_tangent.hpp)
+/// are built from the switches this simulator reports to its FrictionObservers. The forcing may
+/// have extra harmonics; the surfaces move at the fundamental Ω.
 ///
 /// References: J. P. Den Hartog, "Forced vibrations with combined Coulomb and viscous friction",
 /// Trans. ASME 53 (1931) APM-53-9, 107–115 (the steady state without stops, tests); S. W. Shaw,
@@ -126,14 +127,50 @@ struct FrictionSummary {
   double length_scale = 0.0, velocity_scale = 0.0, force_scale = 0.0;
 };
 
+/// One switch of a friction run as a whole (every contact that changed at that instant), with
+/// what its saltation matrix needs (friction_tangent.hpp): the guard that fired, h = ℓᵀz with ℓ
+/// the `guard_index`-th row of the old mode's guards (friction_mode_rows), and the augmented
+/// state z = [x; v; cos Ωt; sin Ωt; 1; …] at the switch before and after the settling of the
+/// relative velocities (the reset z⁺ = z⁻ − B U_S z⁻ of settle_relative_velocities, S the
+/// contacts stuck before or after).
+struct FrictionSwitch {
+  double t = 0.0;
+  int fired = -1;            ///< the contact whose guard fired
+  Eigen::Index guard_index = -1;
+  std::vector<FrictionState> before, after;
+  Eigen::VectorXd z_before, z_after;
+};
+
 /// Observes a friction run: the usual observers (segments: states from the exact flow; no stops,
-/// so active() is empty) plus the friction events.
+/// so active() is empty) plus the friction events; and, for observers that ask for them
+/// (wants_modes), every segment's mode and every switch.
 class FrictionObserver {
  public:
   virtual ~FrictionObserver() = default;
   virtual void friction_event(const FrictionEvent& /*event*/, const Eigen::VectorXd& /*x*/,
                               const Eigen::VectorXd& /*v*/) {}
+  /// True: friction_segment and friction_switch are called (else they cost nothing).
+  virtual bool wants_modes() const { return false; }
+  /// A segment [t_begin, t_end] in the mode `states`, from the augmented state z_begin (before the
+  /// Observer::segment call of the same segment).
+  virtual void friction_segment(double /*t_begin*/, double /*t_end*/, const std::vector<FrictionState>& /*states*/,
+                                const Eigen::VectorXd& /*z_begin*/) {}
+  /// A switch (before the friction_event calls of its contacts).
+  virtual void friction_switch(const FrictionSwitch& /*s*/) {}
 };
+
+/// A mode's rows for the data (M, C, K, f) and the contacts, computed as the simulator computes
+/// them (friction.hpp's law): the augmented generator Â (N × N), the friction forces F = force z
+/// (m × N), the guards h = guards z (the mode's guard order: per contact, −σ_j u_j while slipping,
+/// F_j − μ_s N_j and −F_j − μ_s N_j while stuck) and the relative velocities u = relative z
+/// (m × N). The analysis layer takes its parameter derivatives from these (M must be positive
+/// definite; C, K, f are used as given, unchecked).
+struct FrictionModeRows {
+  Eigen::MatrixXd generator, force, guards, relative;
+};
+FrictionModeRows friction_mode_rows(const Eigen::MatrixXd& M, const Eigen::MatrixXd& C, const Eigen::MatrixXd& K,
+                                    const HarmonicForcing& forcing, const std::vector<FrictionContact>& contacts,
+                                    const std::vector<FrictionState>& states);
 
 class FrictionSimulator {
  public:
@@ -175,6 +212,9 @@ class FrictionSimulator {
 /// (`stop` = the contact's index, v_before = v_after = its relative velocity, force = F_j);
 /// RunSummary counts them as sticks (friction_stick) and releases (friction_slip and
 /// friction_reversal).
+/// A friction run's summary as the engines' RunSummary (as FrictionEngine::run reports it).
+RunSummary run_summary(const FrictionSummary& f);
+
 class FrictionEngine final : public Engine {
  public:
   FrictionEngine(LinearSystem system, std::vector<FrictionContact> contacts, const SimulatorOptions& options);

@@ -1,6 +1,6 @@
 // The `friction` section of a scene (docs/scenes.md): frictional contacts with stick-slip
-// (friction.hpp), and what the rest of the scene must be for them (no stops, the dense engine,
-// run.kind simulate).
+// (friction.hpp), and what the rest of the scene must be for them (no stops, no nonlinear forces,
+// the dense engine).
 #include "scene_sections.hpp"
 
 #include "vibro/friction.hpp"
@@ -72,18 +72,8 @@ void check_friction(Reader& r, const YAML::Node& root, SceneParts& p) {
   const YAML::Node fn = root["friction"];
   if (!p.stops.empty())
     r.fail(fn, "friction", "a scene with friction cannot have stops: the friction engine runs scenes without stops");
-  // The run kinds that only run the scene (simulate, sweep, diagram, basin, locate) take friction;
-  // those built on the tangent map (orbit, continue, lyapunov) need the saltation of a friction
-  // switch, which is not implemented.
-  using K = RunSpec::Kind;
-  if (p.run.kind == K::orbit || p.run.kind == K::continuation || p.run.kind == K::lyapunov) {
-    const YAML::Node kind = root["run"] ? root["run"]["kind"] : YAML::Node();
-    r.fail(kind ? kind : fn, kind ? "run.kind" : "friction",
-           std::string("a scene with friction runs with run.kind simulate, sweep, diagram, basin or locate (the saltation "
-                       "of a friction switch, which periodic orbits by shooting, continuation and Lyapunov exponents need, "
-                       "is not implemented), found ") +
-               to_string(p.run.kind));
-  }
+  // Every run kind takes friction: the tangent-map kinds (orbit, continue, lyapunov) through the
+  // friction saltations of the analysis layer (friction_tangent.hpp).
   if (p.engine == EngineKind::taylor)
     r.fail(root["forces"] ? root["forces"] : fn, root["forces"] ? "forces" : "friction",
            "friction and nonlinear forces cannot be combined: the friction engine's flows are exact and linear, the "

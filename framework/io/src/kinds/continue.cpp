@@ -5,6 +5,7 @@
 
 #include "../datasets.hpp"
 
+#include "vibro/friction_tangent.hpp"
 #include "vibro/io/result_file.hpp"
 
 #include <fmt/format.h>
@@ -223,6 +224,8 @@ SystemDerivative derivative_at(const Entry& e, const Scene& s) {
 /// The engine continuation drives at one point of the scene (the engine the base scene resolved to).
 std::unique_ptr<FamilyEngine> engine_at(const Scene& s, EngineKind engine, SystemDerivative d,
                                         const SimulatorOptions& solver) {
+  // A friction scene's contacts are the family's "stops" (friction_tangent.hpp).
+  if (!s.friction.empty()) return friction_family_engine(s.system(), s.friction, std::move(d), solver);
   if (engine == EngineKind::modal) {
     if (!s.chain) throw InvalidInput("the chain's damping is not proportional at this value (modal engine)");
     return modal_family_engine(*s.chain, s.stops, std::move(d), modal_options(solver));
@@ -521,7 +524,11 @@ void write_impact_map(ResultFile& file, const SceneDocument& doc, const Scene& s
 RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
   const auto wall_start = std::chrono::steady_clock::now();
   const ContinueSpec& spec = scene.run.continuation;
-  const std::size_t n = static_cast<std::size_t>(scene.dof()), m = scene.stops.size();
+  // The constraints of the signature and of the bifurcations: the stops, or the frictional contacts.
+  std::vector<std::string> constraint_names;
+  for (const Stop& st : scene.stops) constraint_names.push_back(st.name);
+  for (const FrictionContact& fc : scene.friction) constraint_names.push_back(fc.name);
+  const std::size_t n = static_cast<std::size_t>(scene.dof()), m = constraint_names.size();
   const double p0 = doc.get(spec.path);
 
   ContinuationOptions o;
@@ -639,7 +646,7 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   text += fmt::format("  {:<16} {:>6} {:>18} {:>10} {:>11} {:>7}\n", "bifurcation", "stop", spec.path, "bracket", "value", "branch");
   for (const Bifurcation& b : result.bifurcations)
     text += fmt::format("  {:<16} {:>6} {:>18.12f} {:>10.1e} {:>11} {:>7}\n", to_string(b.kind),
-                        b.stop >= 0 ? scene.stops[static_cast<std::size_t>(b.stop)].name : std::string("-"), b.p,
+                        b.stop >= 0 ? constraint_names.at(static_cast<std::size_t>(b.stop)) : std::string("-"), b.p,
                         b.p_high - b.p_low, b.smooth ? fmt::format("{:.2e}", b.value) : std::string("(bisected)"), b.branch);
   text += fmt::format("Results in {}.", file.path());
   return {interrupted ? 130 : 0, text, request.in_memory ? file.image() : std::vector<char>{}};

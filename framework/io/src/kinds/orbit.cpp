@@ -7,6 +7,7 @@
 #include "../progress.hpp"
 
 #include "vibro/engine.hpp"
+#include "vibro/friction_tangent.hpp"
 #include "vibro/io/result_file.hpp"
 #include "vibro/shooting.hpp"
 
@@ -58,6 +59,8 @@ RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunR
         KrylovOptions k;
         k.multipliers = spec.multipliers;
         r = shoot(*modal, o, guess.t, guess.x, guess.v, k);
+      } else if (!scene.friction.empty()) {
+        r = shoot(scene.system(), scene.friction, o, guess.t, guess.x, guess.v);
       } else if (scene.engine == EngineKind::taylor) {
         r = shoot(scene.impact_system(), scene.forces, o, guess.t, guess.x, guess.v);
       } else {

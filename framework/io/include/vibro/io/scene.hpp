@@ -246,8 +246,8 @@ struct Scene {
   /// (taylor_simulator.hpp); empty forces for a linear scene.
   NonlinearForces forces;
   /// The frictional contacts (friction.hpp), validated; empty: none. A scene with friction has no
-  /// stops and runs on the dense engine's FrictionSimulator, in the run kinds that only run a scene
-  /// (simulate, sweep, diagram, basin, locate; the analysis kinds refuse it).
+  /// stops and runs on the dense engine's FrictionSimulator, in every run kind (the analysis kinds
+  /// through friction_tangent.hpp).
   std::vector<FrictionContact> friction;
   /// `initial.from`: the saved orbit the scene was put on ("FILE: branch B, point I …"), else "".
   std::string restart;

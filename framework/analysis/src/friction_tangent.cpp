@@ -1,0 +1,543 @@
+/// \file friction_tangent.cpp
+/// The tangent maps of friction runs (friction_tangent.hpp): a FrictionObserver that follows the
+/// modes and switches of FrictionSimulator and composes the flows' propagators with the switches'
+/// saltation matrices; the Lyapunov spectrum and the continuation engine built on it. (Shooting on
+/// friction scenes is in shooting.cpp, beside the other engines' backends.)
+#include "vibro/friction_tangent.hpp"
+
+#include <Eigen/QR>
+#include <unsupported/Eigen/MatrixFunctions>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <string>
+#include <utility>
+
+namespace vibro {
+namespace {
+
+using Eigen::Index;
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+
+/// The rows of every mode the run visits, with their parameter derivatives (when asked for).
+struct ModeData {
+  FrictionModeRows rows;
+  MatrixXd dgenerator, dguards, drelative;  // d/dp (parameter runs)
+  MatrixXd basis;                           // 2n × d: {W_Sᵀ δv = 0}
+  int stuck = 0;
+};
+
+/// The data D moved by h along dD (M fixed): C, K, the forcing, Ω.
+struct MovedData {
+  MatrixXd C, K;
+  HarmonicForcing f;
+};
+MovedData moved(const LinearSystem& s, const SystemDerivative& d, double h) {
+  MovedData out{s.damping(), s.stiffness(), s.forcing()};
+  if (d.damping.size()) out.C += h * d.damping;
+  if (d.stiffness.size()) out.K += h * d.stiffness;
+  if (d.constant.size()) out.f.constant += h * d.constant;
+  if (d.cosine.size()) out.f.cosine += h * d.cosine;
+  if (d.sine.size()) out.f.sine += h * d.sine;
+  for (std::size_t i = 0; i < out.f.harmonics.size(); ++i) {
+    if (i < d.harmonic_cosine.size() && d.harmonic_cosine[i].size()) out.f.harmonics[i].cosine += h * d.harmonic_cosine[i];
+    if (i < d.harmonic_sine.size() && d.harmonic_sine[i].size()) out.f.harmonics[i].sine += h * d.harmonic_sine[i];
+  }
+  out.f.frequency += h * d.frequency;
+  return out;
+}
+
+template <class Derived>
+double max_abs(const Eigen::MatrixBase<Derived>& a) {
+  return a.size() ? a.cwiseAbs().maxCoeff() : 0.0;
+}
+
+class FrictionTangentRecorder final : public FrictionObserver {
+ public:
+  FrictionTangentRecorder(const LinearSystem& system, const std::vector<FrictionContact>& contacts,
+                          const FrictionSimulator& sim, const LinearisationOptions& options, TangentMap& out)
+      : system_(system), contacts_(contacts), sim_(sim), options_(options), out_(out), n_(system.dof()),
+        N_(augmented_size(system.dof(), system.forcing())) {
+    frame_ = options.directions.size() > 0;
+    carries_ = frame_ || options.jacobian;
+    minv_ = system.mass().llt().solve(MatrixXd::Identity(n_, n_));
+    W_.resize(n_, static_cast<Index>(contacts.size()));
+    for (std::size_t j = 0; j < contacts.size(); ++j) W_.col(static_cast<Index>(j)) = contacts[j].tangent(n_);
+    if (options.parameter) {
+      const SystemDerivative& d = *options.parameter;
+      d.validate(n_, 0);
+      if (d.mass.size() && !d.mass.isZero(0.0))
+        throw InvalidInput("linearisation (friction): the parameter moves the mass matrix; continue in Ω, the forcing, "
+                           "C or K");
+      // The rows are polynomials of degree ≤ 2 in h along dD with M fixed (C, K and f enter
+      // linearly, Ω linearly in the oscillator and the surfaces' velocities and quadratically in
+      // their accelerations; M⁻¹ and W_SᵀM⁻¹W_S do not move), so the central difference below is
+      // their exact derivative up to rounding, about ε‖rows‖/h: h moves the data by 1e-3 of its size.
+      const HarmonicForcing& f = system.forcing();
+      double size = std::max({max_abs(system.damping()), max_abs(system.stiffness()), max_abs(f.constant),
+                              max_abs(f.cosine), max_abs(f.sine), std::abs(f.frequency), 1e-300});
+      double move = std::max({max_abs(d.damping), max_abs(d.stiffness), max_abs(d.constant), max_abs(d.cosine),
+                              max_abs(d.sine), std::abs(d.frequency)});
+      for (const auto& v : d.harmonic_cosine) move = std::max(move, max_abs(v));
+      for (const auto& v : d.harmonic_sine) move = std::max(move, max_abs(v));
+      for (const ForcingHarmonic& hh : f.harmonics) size = std::max({size, max_abs(hh.cosine), max_abs(hh.sine)});
+      step_ = move > 0.0 ? 1e-3 * size / move : 0.0;
+      if (step_ > 0.0) {
+        plus_ = moved(system, d, step_);
+        minus_ = moved(system, d, -step_);
+      }
+    }
+  }
+
+  bool wants_modes() const override { return true; }
+
+  void friction_segment(double tb, double te, const std::vector<FrictionState>& states, const VectorXd& zb) override {
+    ModeData& mode = mode_for(states);
+    const Index N2 = 2 * n_;
+    if (first_) {
+      first_ = false;
+      if (frame_) K_ = options_.directions;
+      else K_ = MatrixXd::Identity(N2, N2);
+      Jmid_ = MatrixXd::Identity(N2, N2);
+      basis_ = MatrixXd::Identity(N2, N2);
+      min_dim_ = N2;
+      zeta_ = VectorXd::Zero(N_);
+      if (options_.parameter) zeta_.segment(N2, N_ - N2) = oscillator_sensitivity(tb);
+      for (std::size_t j = 0; j < states.size(); ++j)
+        if (states[j] == FrictionState::stuck) {
+          out_.starts_held = true;
+          open_phase(static_cast<int>(j), tb);
+        }
+      out_.rate_start = (mode.rows.generator * zb).head(N2);
+    }
+    const double tau = te - tb;
+    if (tau > 0.0 && (carries_ || options_.parameter)) {
+      const MatrixXd& A = mode.rows.generator;
+      if (options_.parameter) {
+        MatrixXd block = MatrixXd::Zero(2 * N_, 2 * N_);
+        block.topLeftCorner(N_, N_) = A * tau;
+        block.topRightCorner(N_, N_) = mode.dgenerator * tau;
+        block.bottomRightCorner(N_, N_) = A * tau;
+        const MatrixXd E = block.exp();
+        zeta_ = E.topLeftCorner(N_, N_) * zeta_ + E.topRightCorner(N_, N_) * zb;
+        if (carries_) K_ = E.topLeftCorner(N2, N2) * K_;
+      } else {
+        const MatrixXd E = (A * tau).exp();
+        K_ = E.topLeftCorner(N2, N2) * K_;
+      }
+    }
+    // The least tangent dimension (friction_tangent.hpp): a contact stuck since the start has not
+    // lost its direction (no stick's saltation yet).
+    const Index dim = switched_ ? mode.basis.cols() : N2;
+    if (dim < min_dim_) {
+      min_dim_ = dim;
+      if (options_.jacobian && !frame_) {
+        Jmid_ = K_ * Jmid_;
+        K_.setIdentity();
+        basis_ = mode.basis;
+      }
+    }
+    if (options_.features && tau > 0.0) slip_minima(mode, states, tb, tau, zb);
+    last_ = &mode;
+  }
+
+  void friction_switch(const FrictionSwitch& s) override {
+    switched_ = true;
+    const ModeData& before = mode_for(s.before);
+    const ModeData& after = mode_for(s.after);
+    const VectorXd ell = before.rows.guards.row(s.guard_index).transpose();
+    const VectorXd fm = before.rows.generator * s.z_before, fp = after.rows.generator * s.z_after;
+    // R_z = I − B U_S over the contacts stuck before or after.
+    std::vector<Index> S;
+    int changed = 0;
+    for (std::size_t j = 0; j < s.after.size(); ++j) {
+      if (s.after[j] == FrictionState::stuck || s.before[j] == FrictionState::stuck) S.push_back(static_cast<Index>(j));
+      changed += s.after[j] != s.before[j];
+    }
+    MatrixXd B = MatrixXd::Zero(N_, static_cast<Index>(S.size())), U(static_cast<Index>(S.size()), N_);
+    if (!S.empty()) {
+      MatrixXd Ws(n_, static_cast<Index>(S.size()));
+      for (std::size_t a = 0; a < S.size(); ++a) {
+        Ws.col(static_cast<Index>(a)) = W_.col(S[a]);
+        U.row(static_cast<Index>(a)) = after.rows.relative.row(S[a]);
+      }
+      const MatrixXd MW = minv_ * Ws;
+      B.middleRows(n_, n_) = MW * (Ws.transpose() * MW).ldlt().solve(MatrixXd::Identity(Ws.cols(), Ws.cols()));
+    }
+    MatrixXd Rz = MatrixXd::Identity(N_, N_);
+    if (!S.empty()) Rz -= B * U;
+    const double rate = ell.dot(fm);
+    const VectorXd jump = fp - Rz * fm;
+    const MatrixXd Sal = Rz + jump * ell.transpose() / rate;
+    const Index N2 = 2 * n_;
+    if (carries_) K_ = Sal.topLeftCorner(N2, N2) * K_;
+    if (options_.parameter) {
+      VectorXd sp = jump * (before.dguards.row(s.guard_index).dot(s.z_before) / rate);
+      if (!S.empty()) {
+        MatrixXd dU(static_cast<Index>(S.size()), N_);
+        for (std::size_t a = 0; a < S.size(); ++a) dU.row(static_cast<Index>(a)) = after.drelative.row(S[a]);
+        sp -= B * (dU * s.z_before);
+      }
+      zeta_ = Sal * zeta_ + sp;
+    }
+    SaltationRecord r;
+    r.t = s.t;
+    r.guard_stop = s.fired;
+    r.impact = false;
+    r.guard_rate = rate;
+    r.simultaneous = changed > 1;
+    out_.saltations.push_back(r);
+    if (changed > 1 && !out_.non_smooth) {
+      out_.non_smooth = true;
+      out_.non_smooth_reason = "several frictional contacts switched at t = " + number_text(s.t) +
+                               " (taken as one switch: the map is not smooth there)";
+    }
+    // A normalised rate of the guard (continuation's "near a non-smooth point"): u' in V ω for a
+    // slip's guard, F' in F ω for a stuck contact's.
+    const bool force_guard = s.before[static_cast<std::size_t>(s.fired)] == FrictionState::stuck;
+    rates_.push_back({std::abs(rate), force_guard});
+    for (std::size_t j = 0; j < s.after.size(); ++j) {
+      const bool was = s.before[j] == FrictionState::stuck, is = s.after[j] == FrictionState::stuck;
+      if (is && !was) open_phase(static_cast<int>(j), s.t);
+      if (was && !is) close_phase(static_cast<int>(j), s.t);
+      if (options_.features && s.before[j] != FrictionState::stuck && s.after[j] != s.before[j])
+        margins_.push_back({static_cast<int>(j), s.t, margin(s.after, static_cast<int>(j), s.z_after), is});
+    }
+  }
+
+  void friction_event(const FrictionEvent& e, const Eigen::VectorXd& /*x*/, const Eigen::VectorXd& v) override {
+    const EventKind kind = e.kind == FrictionEventKind::stick  ? EventKind::friction_stick
+                           : e.kind == FrictionEventKind::slip ? EventKind::friction_slip
+                                                               : EventKind::friction_reversal;
+    const double u = sim_.relative_velocities(e.t, v)(e.contact);
+    out_.events.push_back({e.t, e.contact, kind, u, u, e.force});
+  }
+
+  /// After the run: the map's end, J, the reduced map, the scaled features.
+  void finish(const FrictionSummary& f) {
+    const Index N2 = 2 * n_;
+    out_.t1 = f.t;
+    out_.x1 = f.x;
+    out_.v1 = f.v;
+    if (!out_.events.empty() && out_.events.back().t == f.t) out_.ends_at_event = true;
+    if (last_) out_.rate_end = (last_->rows.generator * augmented(f.t, f.x, f.v)).head(N2);
+    for (const auto& open : open_)
+      if (open.second >= 0) out_.phases[static_cast<std::size_t>(open.second)].t_end = f.t;
+    out_.free_dimension = first_ ? N2 : min_dim_;
+    if (!first_) {
+      if (frame_) {
+        out_.products = K_;
+      } else if (options_.jacobian) {
+        out_.jacobian = K_ * Jmid_;
+        if (min_dim_ < N2) {
+          out_.reduced = basis_.transpose() * Jmid_ * K_ * basis_;
+          out_.lift = K_ * basis_;
+        } else {
+          out_.reduced = out_.jacobian;
+          out_.lift = MatrixXd::Identity(N2, N2);
+        }
+      }
+    } else if (options_.jacobian && !frame_) {  // an empty run: the identity
+      out_.jacobian = out_.reduced = out_.lift = MatrixXd::Identity(N2, N2);
+    } else if (frame_) {
+      out_.products = options_.directions;
+    }
+    if (options_.parameter) out_.parameter = first_ ? VectorXd::Zero(N2) : VectorXd(zeta_.head(N2));
+    const double V = f.velocity_scale, Fs = f.force_scale, L = f.length_scale;
+    const double omega = L > 0.0 ? V / L : 1.0;
+    double least = std::numeric_limits<double>::infinity();
+    for (const auto& [rate, force] : rates_) least = std::min(least, rate / ((force ? Fs : V) * omega));
+    out_.least_guard_rate = least;
+    if (options_.features) {
+      for (const Margin& m : margins_) out_.force_dips.push_back({m.contact, m.t, m.value, m.stuck});
+      for (const SlipMinimum& m : minima_) out_.force_dips.push_back({m.contact, m.t, m.value * Fs / V, false});
+    }
+  }
+
+ private:
+  struct Margin {
+    int contact;
+    double t, value;
+    bool stuck;
+  };
+  struct SlipMinimum {
+    int contact;
+    double t, value;
+  };
+
+  ModeData& mode_for(const std::vector<FrictionState>& states) {
+    auto it = modes_.find(states);
+    if (it != modes_.end()) return it->second;
+    ModeData d;
+    d.rows = friction_mode_rows(system_.mass(), system_.damping(), system_.stiffness(), system_.forcing(), contacts_, states);
+    if (step_ > 0.0) {
+      const FrictionModeRows p = friction_mode_rows(system_.mass(), plus_.C, plus_.K, plus_.f, contacts_, states);
+      const FrictionModeRows m = friction_mode_rows(system_.mass(), minus_.C, minus_.K, minus_.f, contacts_, states);
+      d.dgenerator = (p.generator - m.generator) / (2.0 * step_);
+      d.dguards = (p.guards - m.guards) / (2.0 * step_);
+      d.drelative = (p.relative - m.relative) / (2.0 * step_);
+    } else if (options_.parameter) {
+      d.dgenerator = MatrixXd::Zero(N_, N_);
+      d.dguards = MatrixXd::Zero(d.rows.guards.rows(), N_);
+      d.drelative = MatrixXd::Zero(d.rows.relative.rows(), N_);
+    }
+    std::vector<Index> stuck;
+    for (std::size_t j = 0; j < states.size(); ++j)
+      if (states[j] == FrictionState::stuck) stuck.push_back(static_cast<Index>(j));
+    d.stuck = static_cast<int>(stuck.size());
+    d.basis = MatrixXd::Zero(2 * n_, 2 * n_);
+    d.basis.topLeftCorner(n_, n_).setIdentity();
+    Index cols = n_;
+    if (stuck.empty()) {
+      d.basis.bottomRightCorner(n_, n_).setIdentity();
+      cols = 2 * n_;
+    } else {
+      MatrixXd Ws(n_, static_cast<Index>(stuck.size()));
+      for (std::size_t a = 0; a < stuck.size(); ++a) Ws.col(static_cast<Index>(a)) = W_.col(stuck[a]);
+      const Eigen::ColPivHouseholderQR<MatrixXd> qr(Ws);
+      const MatrixXd Q = qr.householderQ() * MatrixXd::Identity(n_, n_);
+      const Index r = qr.rank();
+      d.basis.block(n_, n_, n_, n_ - r) = Q.rightCols(n_ - r);
+      cols = 2 * n_ - r;
+    }
+    d.basis.conservativeResize(2 * n_, cols);
+    return modes_.emplace(states, std::move(d)).first->second;
+  }
+
+  /// z = [x; v; cos Ωt; sin Ωt; 1; cos k_hΩt; sin k_hΩt; …] (flow.hpp's layout).
+  VectorXd augmented(double t, const VectorXd& x, const VectorXd& v) const {
+    const HarmonicForcing& f = system_.forcing();
+    VectorXd z = VectorXd::Zero(N_);
+    z << x, v, std::cos(f.frequency * t), std::sin(f.frequency * t), 1.0,
+        VectorXd::Zero(2 * static_cast<Index>(f.harmonics.size()));
+    for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+      const double rate = f.harmonics[h].rate(f.frequency);
+      z(2 * n_ + 3 + 2 * static_cast<Index>(h)) = std::cos(rate * t);
+      z(2 * n_ + 4 + 2 * static_cast<Index>(h)) = std::sin(rate * t);
+    }
+    return z;
+  }
+
+  /// d/dp of (cos Ωt, sin Ωt, 1, cos k_hΩt, sin k_hΩt, …) at t: k t dΩ/dp (−sin, cos).
+  VectorXd oscillator_sensitivity(double t) const {
+    const HarmonicForcing& f = system_.forcing();
+    const double dw = options_.parameter->frequency, w = f.frequency;
+    VectorXd out = VectorXd::Zero(N_ - 2 * n_);
+    out(0) = -t * std::sin(w * t) * dw;
+    out(1) = t * std::cos(w * t) * dw;
+    for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+      const double rate = f.harmonics[h].rate(w), k = rate / w;
+      out(3 + 2 * static_cast<Index>(h)) = -k * t * std::sin(rate * t) * dw;
+      out(4 + 2 * static_cast<Index>(h)) = k * t * std::cos(rate * t) * dw;
+    }
+    return out;
+  }
+
+  /// |F_j^hold| − μ_s N_j at z: the force that holds contact j (the others as in `states`).
+  double margin(std::vector<FrictionState> states, int j, const VectorXd& z) {
+    states[static_cast<std::size_t>(j)] = FrictionState::stuck;
+    const ModeData& held = mode_for(states);
+    const FrictionContact& c = contacts_[static_cast<std::size_t>(j)];
+    return std::abs(held.rows.force.row(j).dot(z)) - c.static_coefficient * c.normal_load;
+  }
+
+  /// Interior local minima of σ_j u_j over a segment, for every slipping contact (features).
+  void slip_minima(const ModeData& mode, const std::vector<FrictionState>& states, double tb, double tau,
+                   const VectorXd& zb) {
+    constexpr int samples = 64;
+    const MatrixXd& A = mode.rows.generator;
+    const MatrixXd step = (A * (tau / samples)).exp();
+    std::vector<VectorXd> z(samples + 1);
+    z[0] = zb;
+    for (int i = 0; i < samples; ++i) z[static_cast<std::size_t>(i + 1)] = step * z[static_cast<std::size_t>(i)];
+    for (std::size_t j = 0; j < states.size(); ++j) {
+      if (states[j] == FrictionState::stuck) continue;
+      const double sigma = states[j] == FrictionState::slip_positive ? 1.0 : -1.0;
+      const VectorXd u_row = sigma * mode.rows.relative.row(static_cast<Index>(j)).transpose();
+      const VectorXd du_row = A.transpose() * u_row;  // (σu)' = σ ℓ_u Â z
+      for (int i = 0; i < samples; ++i) {
+        const double a = du_row.dot(z[static_cast<std::size_t>(i)]), b = du_row.dot(z[static_cast<std::size_t>(i + 1)]);
+        if (!(a < 0.0 && b >= 0.0)) continue;
+        // Bisection on (σu)' over [i, i + 1] samples.
+        double lo = i * tau / samples, hi = (i + 1) * tau / samples;
+        for (int it = 0; it < 60 && hi - lo > 1e-15 * std::max(1.0, std::abs(tb) + tau); ++it) {
+          const double mid = 0.5 * (lo + hi);
+          const VectorXd zm = (A * mid).exp() * zb;
+          (du_row.dot(zm) < 0.0 ? lo : hi) = mid;
+        }
+        const double s = 0.5 * (lo + hi);
+        if (s <= 1e-9 * tau || s >= (1.0 - 1e-9) * tau) continue;  // an end, not an interior minimum
+        minima_.push_back({static_cast<int>(j), tb + s, u_row.dot((A * s).exp() * zb)});
+      }
+    }
+  }
+
+  void open_phase(int j, double t) {
+    open_[j] = static_cast<long>(out_.phases.size());
+    out_.phases.push_back({j, t, t, false});
+  }
+  void close_phase(int j, double t) {
+    auto it = open_.find(j);
+    if (it == open_.end() || it->second < 0) return;
+    HeldPhase& p = out_.phases[static_cast<std::size_t>(it->second)];
+    p.t_end = t;
+    p.closed = true;
+    it->second = -1;
+  }
+
+  const LinearSystem& system_;
+  const std::vector<FrictionContact>& contacts_;
+  const FrictionSimulator& sim_;
+  const LinearisationOptions& options_;
+  TangentMap& out_;
+  Index n_, N_;
+  bool frame_ = false, carries_ = false, first_ = true, switched_ = false;
+  MatrixXd minv_, W_;
+  double step_ = 0.0;
+  MovedData plus_, minus_;
+  std::map<std::vector<FrictionState>, ModeData> modes_;
+  MatrixXd K_, Jmid_, basis_;
+  Index min_dim_ = 0;
+  VectorXd zeta_;
+  const ModeData* last_ = nullptr;
+  std::map<int, long> open_;
+  std::vector<std::pair<double, bool>> rates_;
+  std::vector<Margin> margins_;
+  std::vector<SlipMinimum> minima_;
+};
+
+}  // namespace
+
+TangentMap linearise(const LinearSystem& system, const std::vector<FrictionContact>& contacts,
+                     const SimulatorOptions& solver, double t0, const VectorXd& x0, const VectorXd& v0, double t1,
+                     const LinearisationOptions& options) {
+  if (options.directions.size() > 0 && options.directions.rows() != 2 * system.dof())
+    throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +
+                       " rows, expected 2n = " + std::to_string(2 * system.dof()));
+  FrictionSimulator sim(system, contacts, solver);
+  TangentMap out;
+  out.t0 = t0;
+  out.x0 = x0;
+  out.v0 = v0;
+  FrictionTangentRecorder recorder(system, sim.contacts(), sim, options, out);
+  const FrictionSummary f = sim.run(t0, x0, v0, t1, {}, {&recorder});
+  out.summary = run_summary(f);
+  recorder.finish(f);
+  return out;
+}
+
+LyapunovResult lyapunov_spectrum(const LinearSystem& system, const std::vector<FrictionContact>& contacts,
+                                 const SimulatorOptions& solver, double t0, const VectorXd& x0, const VectorXd& v0,
+                                 const LyapunovOptions& options) {
+  options.validate();
+  const Index n = system.dof(), n2 = 2 * n;
+  const double omega = system.forcing().frequency;
+  if (!(omega > 0.0)) throw InvalidInput("lyapunov: the forcing frequency must be > 0 (exponents are averaged per period)");
+  if (options.count > n2)
+    throw InvalidInput("lyapunov.count = " + std::to_string(options.count) + ": at most 2n = " + std::to_string(n2));
+  const Index p = options.count > 0 ? options.count : n2;
+  const double T = 2.0 * std::numbers::pi / omega;
+  LyapunovResult out;
+  out.period = T;
+  double t = t0;
+  VectorXd x = x0, v = v0;
+  FrictionSimulator sim(system, contacts, solver);
+  if (options.transient > 0) {
+    const FrictionSummary s = sim.run(t, x, v, t + options.transient * T);
+    if (s.status != RunStatus::completed) {
+      out.status = s.status;
+      out.message = "transient: " + s.message;
+      return out;
+    }
+    t = s.t, x = s.x, v = s.v;
+  }
+  // The QR method of lyapunov.hpp, once per period (friction's saltations are bounded: no
+  // impact speed divides them).
+  MatrixXd Q = MatrixXd::Identity(n2, p);
+  VectorXd sums = VectorXd::Zero(p);
+  Index least = n2;
+  LinearisationOptions lo;
+  lo.jacobian = false;
+  const long total = options.align + options.periods;
+  for (long k = 0; k < total; ++k) {
+    lo.directions = Q;
+    const TangentMap m = linearise(system, contacts, solver, t, x, v, t + T, lo);
+    if (m.summary.status != RunStatus::completed) {
+      out.status = m.summary.status;
+      out.message = m.summary.message;
+      return out;
+    }
+    t = m.t1, x = m.x1, v = m.v1;
+    const Eigen::HouseholderQR<MatrixXd> qr(m.products);
+    const MatrixXd R = qr.matrixQR().topRows(p).triangularView<Eigen::Upper>();
+    Q = qr.householderQ() * MatrixXd::Identity(n2, p);
+    for (Index i = 0; i < p; ++i)
+      if (R(i, i) < 0.0) Q.col(i) = -Q.col(i);
+    if (k < options.align) continue;
+    least = std::min(least, m.free_dimension);
+    for (Index i = 0; i < p; ++i) sums(i) += std::log(std::abs(R(i, i)));
+    const long done = k - options.align + 1;
+    if (options.history_every > 0 && done % options.history_every == 0)
+      out.history.push_back(sums.head(std::min(p, least)) / (static_cast<double>(done) * T));
+  }
+  out.least_free_dimension = least;
+  out.exponents = sums / (static_cast<double>(options.periods) * T);
+  out.structural = static_cast<int>(std::max<Index>(0, p - least));
+  for (Index i = std::min(p, least); i < p; ++i) out.exponents(i) = -std::numeric_limits<double>::infinity();
+  out.t_end = t;
+  out.x_end = x;
+  out.v_end = v;
+  return out;
+}
+
+namespace {
+
+class FrictionFamilyEngine final : public FamilyEngine {
+ public:
+  FrictionFamilyEngine(LinearSystem system, std::vector<FrictionContact> contacts, SystemDerivative d,
+                       const SimulatorOptions& solver)
+      : FamilyEngine(std::move(d)), system_(std::move(system)),
+        contacts_(validated_friction(std::move(contacts), system_.dof())), solver_(solver) {
+    derivative.validate(system_.dof(), 0);
+    if (derivative.mass.size() && !derivative.mass.isZero(0.0))
+      throw InvalidInput("continuation with friction: the parameter moves the mass matrix; continue in Ω, the "
+                         "forcing, C or K");
+  }
+  Eigen::Index dof() const override { return system_.dof(); }
+  std::size_t stop_count() const override { return contacts_.size(); }
+  double frequency() const override { return system_.forcing().frequency; }
+  TangentMap linearise(double t0, const VectorXd& x0, const VectorXd& v0, double t1,
+                       const LinearisationOptions& options) override {
+    return vibro::linearise(system_, contacts_, solver_, t0, x0, v0, t1, options);
+  }
+  RunSummary run(double t0, const VectorXd& x0, const VectorXd& v0, double t1) override {
+    FrictionSimulator sim(system_, contacts_, solver_);
+    return run_summary(sim.run(t0, x0, v0, t1));
+  }
+  ShootingResult shoot(const ShootingOptions& options, double t_guess, const VectorXd& x, const VectorXd& v) override {
+    return vibro::shoot(system_, contacts_, options, t_guess, x, v);
+  }
+  /// A frictional contact has no impulse: its tangent and an empty jump (the grazing corner's
+  /// step does not apply).
+  std::pair<VectorXd, VectorXd> impact_direction(int j) const override {
+    return {contacts_[static_cast<std::size_t>(j)].tangent(system_.dof()), VectorXd()};
+  }
+
+ private:
+  LinearSystem system_;
+  std::vector<FrictionContact> contacts_;
+  SimulatorOptions solver_;
+};
+
+}  // namespace
+
+std::unique_ptr<FamilyEngine> friction_family_engine(LinearSystem system, std::vector<FrictionContact> contacts,
+                                                     SystemDerivative derivative, const SimulatorOptions& solver) {
+  return std::make_unique<FrictionFamilyEngine>(std::move(system), std::move(contacts), std::move(derivative), solver);
+}
+
+}  // namespace vibro

@@ -1,0 +1,359 @@
+// The analysis layer on friction scenes (friction_tangent.hpp): the tangent map of a stick-slip
+// period against central differences of the map, a Den Hartog orbit's Floquet multipliers
+// against those of the finite-difference Jacobian, its Lyapunov spectrum against its multipliers,
+// and continuation in Ω locating the onset of sticking against Den Hartog's closed form.
+#include "support/den_hartog.hpp"
+#include "vibro/continuation.hpp"
+#include "vibro/friction_tangent.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <numbers>
+
+using namespace vibro;
+
+namespace {
+
+LinearSystem one_mass(double m, double c, double k, double fc, double omega) {
+  HarmonicForcing f{.constant = Eigen::VectorXd::Zero(1), .cosine = Eigen::VectorXd::Constant(1, fc),
+                    .sine = Eigen::VectorXd::Zero(1), .frequency = omega};
+  return LinearSystem(Eigen::MatrixXd::Constant(1, 1, m), Eigen::MatrixXd::Constant(1, 1, c),
+                      Eigen::MatrixXd::Constant(1, 1, k), f);
+}
+
+Eigen::VectorXd stacked(const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
+  Eigen::VectorXd z(x.size() + v.size());
+  z << x, v;
+  return z;
+}
+
+/// The map z ↦ (x, v)(t1) of a friction run from (t0, z).
+Eigen::VectorXd map_of(const LinearSystem& sys, const std::vector<FrictionContact>& contacts, double t0,
+                       const Eigen::VectorXd& z, double t1) {
+  FrictionSimulator sim(sys, contacts);
+  const Eigen::Index n = sys.dof();
+  const FrictionSummary s = sim.run(t0, z.head(n), z.tail(n), t1);
+  REQUIRE(s.status == RunStatus::completed);
+  return stacked(s.x, s.v);
+}
+
+/// Central differences of the map with step h (relative to the scales L, V).
+Eigen::MatrixXd central_differences(const LinearSystem& sys, const std::vector<FrictionContact>& contacts, double t0,
+                                    const Eigen::VectorXd& z, double t1, double h, double L, double V) {
+  const Eigen::Index n2 = z.size();
+  Eigen::MatrixXd J(n2, n2);
+  for (Eigen::Index i = 0; i < n2; ++i) {
+    const double step = h * (i < n2 / 2 ? L : V);
+    Eigen::VectorXd zp = z, zm = z;
+    zp(i) += step;
+    zm(i) -= step;
+    J.col(i) = (map_of(sys, contacts, t0, zp, t1) - map_of(sys, contacts, t0, zm, t1)) / (2.0 * step);
+  }
+  return J;
+}
+
+/// The middle of the longest stretch of [t0, t1] free of switches and stuck phases.
+double free_time(const TangentMap& m) {
+  std::vector<double> busy;
+  for (const Event& e : m.events) busy.push_back(e.t);
+  for (const HeldPhase& h : m.phases) {
+    busy.push_back(h.t_start);
+    busy.push_back(h.t_end);
+  }
+  std::sort(busy.begin(), busy.end());
+  double best = -1.0, mid = m.t0;
+  for (std::size_t i = 0; i + 1 < busy.size(); ++i) {
+    bool stuck = false;
+    for (const HeldPhase& h : m.phases) stuck = stuck || (h.t_start <= busy[i] && busy[i + 1] <= h.t_end);
+    if (!stuck && busy[i + 1] - busy[i] > best) best = busy[i + 1] - busy[i], mid = 0.5 * (busy[i] + busy[i + 1]);
+  }
+  return mid;
+}
+
+}  // namespace
+
+TEST_CASE("the tangent map of a stick-slip period against central differences of the map", "[friction][analysis]") {
+  // experiments/examples/stick_slip.yaml: a mass on a moving belt, μ_s > μ_k, sticking for part
+  // of each period.
+  const LinearSystem sys = one_mass(1.0, 0.05, 1.0, 1.0, 0.6);
+  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, 0.5, 0.3, 0.5, 0.3)};
+  const double T = 2.0 * std::numbers::pi / 0.6;
+  FrictionSimulator sim(sys, contacts);
+  const FrictionSummary settle = sim.run(0.0, Eigen::VectorXd::Constant(1, 0.2), Eigen::VectorXd::Constant(1, -0.1), 20 * T);
+  REQUIRE(settle.status == RunStatus::completed);
+  LinearisationOptions probe;
+  probe.jacobian = false;
+  const TangentMap look = linearise(sys, contacts, {}, settle.t, settle.x, settle.v, settle.t + T, probe);
+  const double ta = free_time(look);  // slipping, away from every switch
+  const Eigen::VectorXd za = map_of(sys, contacts, settle.t, stacked(settle.x, settle.v), ta);
+
+  const TangentMap m = linearise(sys, contacts, {}, ta, za.head(1), za.tail(1), ta + T);
+  REQUIRE(m.summary.status == RunStatus::completed);
+  int sticks = 0, slips = 0;
+  for (const Event& e : m.events) {
+    sticks += e.kind == EventKind::friction_stick;
+    slips += e.kind == EventKind::friction_slip;
+  }
+  REQUIRE(sticks >= 1);
+  REQUIRE(slips >= 1);
+  // The stuck direction collapses: the reduced map is 1 × 1 and J has an exact zero eigenvalue.
+  CHECK(m.free_dimension == 1);
+  CHECK(m.reduced.rows() == 1);
+  const double L = m.summary.length_scale, V = m.summary.velocity_scale;
+  // Step and tolerance: the central difference's truncation error is h²|P'''|/6 per unit, and
+  // its rounding error δ/h, δ the rounding of the map itself (the state after ~10 flows and
+  // located switches, ~1e-14 of the scales). With h = 1e-6 the first is ~1e-12 and the second
+  // ~1e-8: the difference to the exact J may be a few 1e-8 (scaled by L, V), and 1e-6 is the
+  // bound asked of it — a wrong saltation (a missing term, a wrong sign) changes J by O(1).
+  const Eigen::MatrixXd fd = central_differences(sys, contacts, ta, za, ta + T, 1e-6, L, V);
+  Eigen::Vector2d D(L, V);
+  const Eigen::MatrixXd scaled = D.cwiseInverse().asDiagonal() * (m.jacobian - fd) * D.asDiagonal();
+  const double err = scaled.cwiseAbs().maxCoeff();
+  WARN("stick-slip period: max |J − J_fd| (scaled) = " << err << ", |J| = " << m.jacobian.cwiseAbs().maxCoeff());
+  CHECK(err < 1e-6);
+  CHECK(std::abs(m.jacobian.determinant()) < 1e-12 * m.jacobian.squaredNorm());
+  // The other multiplier is the trace (the zero one adds nothing).
+  CHECK(std::abs(m.reduced(0, 0) - m.jacobian.trace()) < 1e-12 * (1.0 + std::abs(m.jacobian.trace())));
+}
+
+TEST_CASE("a Den Hartog orbit's multipliers against the finite-difference Jacobian, and its Lyapunov exponents",
+          "[friction][analysis]") {
+  const double m = 1.0, c = 0.1, k = 1.0, F0 = 1.0, Ff = 0.2, W = 0.8;
+  const LinearSystem sys = one_mass(m, c, k, F0, W);
+  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, Ff, Ff)};
+  const double T = 2.0 * std::numbers::pi / W;
+  ShootingOptions o;
+  const ShootingResult r = shoot(sys, contacts, o, 10 * T, Eigen::VectorXd::Constant(1, 0.3), Eigen::VectorXd::Zero(1));
+  REQUIRE(r.converged());
+  // The orbit is Den Hartog's: continuous motion, a reversal twice per period.
+  const test::DenHartog dh(m, c, k, F0, Ff, W);
+  const auto [x_ref, v_ref] = dh.at(r.t0);
+  CHECK(std::abs(r.x(0) - static_cast<double>(x_ref)) < 1e-10 * static_cast<double>(dh.X));
+  CHECK(std::abs(r.v(0) - static_cast<double>(v_ref)) < 1e-10 * static_cast<double>(dh.X * dh.W));
+  int reversals = 0;
+  for (const Event& e : r.map.events) reversals += e.kind == EventKind::friction_reversal;
+  CHECK(reversals == 2);
+  CHECK(r.map.events.size() == 2);
+  CHECK(r.multipliers.structural_zeros == 0);
+  // Floquet multipliers of J against those of central differences (step and tolerance as above).
+  const double L = r.map.summary.length_scale, V = r.map.summary.velocity_scale;
+  const Eigen::MatrixXd fd = central_differences(sys, contacts, r.t0, stacked(r.x, r.v), r.t0 + T, 1e-6, L, V);
+  Eigen::VectorXcd mu_fd = fd.eigenvalues();
+  std::sort(mu_fd.data(), mu_fd.data() + mu_fd.size(),
+            [](auto a, auto b) { return std::abs(a) != std::abs(b) ? std::abs(a) > std::abs(b) : a.imag() > b.imag(); });
+  const Eigen::VectorXcd& mu = r.multipliers.values;
+  REQUIRE(mu.size() == 2);
+  for (Eigen::Index i = 0; i < 2; ++i) {
+    WARN("Den Hartog multiplier " << i << ": " << mu(i) << " (finite differences " << mu_fd(i) << ")");
+    CHECK(std::abs(mu(i) - mu_fd(i)) < 1e-6);
+  }
+  // Between the reversals the motion is the viscous oscillator's, det Φ = e^{−(c/m) T} over a
+  // period (Liouville); a reversal's saltation I + (f⁺ − f⁻) ℓᵀ/(ℓᵀf⁻) has det = ℓᵀf⁺/ℓᵀf⁻ =
+  // u'⁺/u'⁻, at the lowest point (a − F_f)/(a + F_f) with a = F0 cos Ωt1 − k x(t1), and the same at
+  // the highest (the orbit is symmetric): μ₁μ₂ = e^{−cT/m} ((a − F_f)/(a + F_f))², all from the
+  // closed form.
+  const long double a = dh.F0 * std::cos(dh.W * dh.t1) - dh.k * dh.at(dh.t1).first;
+  const double ratio = static_cast<double>((a - dh.Ff) / (a + dh.Ff));
+  const double det = std::real(mu(0) * mu(1));
+  WARN("Den Hartog: μ₁μ₂ = " << det << ", closed form " << std::exp(-c / m * T) * ratio * ratio);
+  CHECK(std::abs(det - std::exp(-c / m * T) * ratio * ratio) < 1e-10);
+  // The Lyapunov exponents are log|μ_i|/T. Averaged over N periods from a frame that is not yet
+  // the orbit's, each is off by at most log κ/(N T), κ the condition of J's eigenvector basis
+  // (the frame's growth over any number of periods is within κ of |μ|^N); their sum is exact.
+  LyapunovOptions lo;
+  lo.transient = 0;
+  lo.align = 5;
+  lo.periods = 200;
+  const LyapunovResult ly = lyapunov_spectrum(sys, contacts, {}, r.t0, r.x, r.v, lo);
+  REQUIRE(ly.status == RunStatus::completed);
+  CHECK(ly.structural == 0);
+  const Eigen::EigenSolver<Eigen::MatrixXd> eig(r.map.jacobian);
+  const Eigen::MatrixXcd basis = eig.eigenvectors();
+  const double kappa = basis.norm() * basis.inverse().norm();
+  const double bound = std::log(kappa) / (lo.periods * T) + 1e-12;
+  for (Eigen::Index i = 0; i < 2; ++i) {
+    WARN("Den Hartog exponent " << i << ": " << ly.exponents(i) << " (log|μ|/T " << std::log(std::abs(mu(i))) / T
+                                << ", bound " << bound << ")");
+    CHECK(std::abs(ly.exponents(i) - std::log(std::abs(mu(i))) / T) <= bound);
+  }
+  CHECK(std::abs(ly.exponents.sum() - std::log(std::abs(det)) / T) < 1e-12);
+}
+
+TEST_CASE("a stick-slip orbit's stuck direction: a structural zero multiplier and an exponent −∞", "[friction][analysis]") {
+  const LinearSystem sys = one_mass(1.0, 0.05, 1.0, 1.0, 0.6);
+  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, 0.5, 0.3, 0.5, 0.3)};
+  const double T = 2.0 * std::numbers::pi / 0.6;
+  const ShootingResult r = shoot(sys, contacts, {}, 20 * T, Eigen::VectorXd::Constant(1, 0.2), Eigen::VectorXd::Constant(1, -0.1));
+  REQUIRE(r.converged());
+  CHECK(r.multipliers.structural_zeros == 1);
+  CHECK(r.multipliers.values(1) == std::complex<double>(0.0, 0.0));
+  LyapunovOptions lo;
+  lo.transient = 0;
+  lo.align = 2;
+  lo.periods = 10;
+  const LyapunovResult ly = lyapunov_spectrum(sys, contacts, {}, r.t0, r.x, r.v, lo);
+  REQUIRE(ly.status == RunStatus::completed);
+  CHECK(ly.structural == 1);
+  CHECK(std::isinf(ly.exponents(1)));
+  CHECK(ly.exponents(1) < 0.0);
+  CHECK(std::abs(ly.exponents(0) - std::log(std::abs(r.multipliers.values(0))) / T) < 1e-9);
+}
+
+TEST_CASE("continuation of Den Hartog's oscillator in Ω locates the onset of sticking to 1e-8", "[friction][analysis]") {
+  // m = k = F0 = 1, c = 0.05, F_f = 0.5: without stops above Ω* ≈ 0.6007, sticking at the
+  // turning points below (his boundary of motion without stops, here born at the turning point:
+  // a crossing-sliding bifurcation).
+  const double m = 1.0, c = 0.05, k = 1.0, F0 = 1.0, Ff = 0.5;
+  // Ω*: the zero of the turning point's acceleration of the closed form (long double bisection).
+  long double lo = 0.59L, hi = 0.62L;
+  REQUIRE(test::DenHartog(m, c, k, F0, Ff, lo).turning_acceleration() < 0);
+  REQUIRE(test::DenHartog(m, c, k, F0, Ff, hi).turning_acceleration() > 0);
+  for (int i = 0; i < 80; ++i) {
+    const long double mid = 0.5L * (lo + hi);
+    (test::DenHartog(m, c, k, F0, Ff, mid).turning_acceleration() > 0 ? hi : lo) = mid;
+  }
+  const double omega_star = static_cast<double>(0.5L * (lo + hi));
+  // Above it the closed form is without stops over the whole half period (not only at t1).
+  {
+    const test::DenHartog dh(m, c, k, F0, Ff, omega_star + 1e-6);
+    for (int i = 1; i < 2000; ++i) REQUIRE(dh.at(dh.t1 + dh.T / 2 * i / 2000.0L).second > 0.0L);
+  }
+  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, Ff, Ff)};
+  const ContinuationFamily family = [&](double omega) {
+    return friction_family_engine(one_mass(m, c, k, F0, omega), contacts, SystemDerivative::frequency_only(), {});
+  };
+  ContinuationOptions o;
+  o.p_min = 0.58;
+  o.p_max = 0.7;
+  o.direction = -1;
+  o.max_points = 200;
+  // The guess: Den Hartog's steady motion at Ω = 0.7 (the transient decays like e^{−0.025 t}).
+  const LinearSystem start = one_mass(m, c, k, F0, 0.7);
+  FrictionSimulator sim(start, contacts);
+  const FrictionSummary settle = sim.run(0.0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), 600.0);
+  REQUIRE(settle.status == RunStatus::completed);
+  const ContinuationResult r = continue_orbits(family, 0.7, settle.t, settle.x, settle.v, o);
+  REQUIRE(!r.branches.empty());
+  const Bifurcation* onset = nullptr;
+  for (const Bifurcation& b : r.bifurcations)
+    if (b.kind == BifurcationKind::rising && b.stop == 0) onset = &b;
+  REQUIRE(onset != nullptr);
+  WARN("onset of sticking: Ω = " << onset->p << " (closed form " << omega_star << ", difference " << onset->p - omega_star
+                                  << "), value " << onset->value << ", smooth " << onset->smooth);
+  CHECK(onset->smooth);
+  CHECK(std::abs(onset->p - omega_star) < 1e-8);
+  // Below it the orbit sticks at both turning points: four switches per period.
+  const Branch& b = r.branches.front();
+  REQUIRE(b.points.size() > 2);
+  const BranchPoint& last = b.points.back();
+  CHECK(last.p < omega_star);
+  CHECK(last.signature.phases.at(0) == 4);
+  CHECK(last.sticking(0) > 0.0);
+  CHECK(last.multipliers.structural_zeros == 1);
+}
+
+namespace {
+
+/// The least interior local minimum of x' over the half period (t1, t1 + T/2) of Den Hartog's
+/// closed form (4000 samples, then golden-section search on x'), or +∞ if x' has none there.
+long double interior_velocity_minimum(const test::DenHartog& dh) {
+  const int samples = 4000;
+  const long double h = dh.T / 2 / samples;
+  auto v = [&](long double s) { return dh.at(dh.t1 + s).second; };
+  long double best = INFINITY;
+  for (int i = 5; i < samples - 5; ++i) {
+    if (!(v((i - 1) * h) > v(i * h) && v(i * h) <= v((i + 1) * h))) continue;
+    long double a = (i - 1) * h, b = (i + 1) * h;
+    const long double g = (std::sqrt(5.0L) - 1) / 2;
+    for (int it = 0; it < 120; ++it) {
+      const long double c = b - g * (b - a), d = a + g * (b - a);
+      (v(c) < v(d) ? b : a) = v(c) < v(d) ? d : c;
+    }
+    best = std::min(best, v(0.5L * (a + b)));
+  }
+  return best;
+}
+
+}  // namespace
+
+TEST_CASE("continuation locates a stick phase born inside a slip (grazing-sliding) against Den Hartog's closed form",
+          "[friction][analysis]") {
+  // F_f = 0.1: below Ω ≈ 0.387 the velocity of the half period without stops has an interior
+  // local minimum, which falls to 0 at Ω_g ≈ 0.3839 while the turning points still reverse
+  // (x''(t1) > 0): the mass stops inside the slip there (his boundary of motion without stops
+  // at these low frequencies).
+  const double m = 1.0, c = 0.05, k = 1.0, F0 = 1.0, Ff = 0.1;
+  long double lo = 0.383L, hi = 0.3855L;
+  REQUIRE(interior_velocity_minimum(test::DenHartog(m, c, k, F0, Ff, lo)) < 0);
+  REQUIRE(interior_velocity_minimum(test::DenHartog(m, c, k, F0, Ff, hi)) > 0);
+  for (int i = 0; i < 60; ++i) {
+    const long double mid = 0.5L * (lo + hi);
+    (interior_velocity_minimum(test::DenHartog(m, c, k, F0, Ff, mid)) > 0 ? hi : lo) = mid;
+  }
+  const double omega_g = static_cast<double>(0.5L * (lo + hi));
+  REQUIRE(test::DenHartog(m, c, k, F0, Ff, omega_g).turning_acceleration() > 0.01L);
+  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, Ff, Ff)};
+  const ContinuationFamily family = [&](double omega) {
+    return friction_family_engine(one_mass(m, c, k, F0, omega), contacts, SystemDerivative::frequency_only(), {});
+  };
+  ContinuationOptions o;
+  o.p_min = 0.378;
+  o.p_max = 0.45;
+  o.direction = -1;
+  o.max_points = 200;
+  const LinearSystem start = one_mass(m, c, k, F0, 0.45);
+  FrictionSimulator sim(start, contacts);
+  const FrictionSummary settle = sim.run(0.0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), 900.0);
+  REQUIRE(settle.status == RunStatus::completed);
+  const ContinuationResult r = continue_orbits(family, 0.45, settle.t, settle.x, settle.v, o);
+  const Bifurcation* onset = nullptr;
+  for (const Bifurcation& b : r.bifurcations)
+    if (b.kind == BifurcationKind::rising && b.stop == 0 && (!onset || b.p > onset->p)) onset = &b;
+  REQUIRE(onset != nullptr);
+  WARN("grazing-sliding: Ω = " << onset->p << " (closed form " << omega_g << ", difference " << onset->p - omega_g
+                               << "), smooth " << onset->smooth);
+  CHECK(onset->smooth);
+  CHECK(std::abs(onset->p - omega_g) < 1e-8);
+}
+
+TEST_CASE("two masses with a surface contact and a rubbing pair: the tangent map against central differences",
+          "[friction][analysis]") {
+  // Several contacts sticking and slipping, coupled through the masses: the settling projection
+  // over every contact stuck before or after a switch is part of each saltation.
+  Eigen::MatrixXd K(2, 2);
+  K << 2.0, -1.0, -1.0, 1.0;
+  HarmonicForcing f{.constant = Eigen::VectorXd::Zero(2), .cosine = Eigen::Vector2d(0.0, 0.8),
+                    .sine = Eigen::VectorXd::Zero(2), .frequency = 0.9};
+  const LinearSystem sys(Eigen::MatrixXd::Identity(2, 2), 0.05 * Eigen::MatrixXd::Identity(2, 2), K, f);
+  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, 0.5, 0.35),
+                                              FrictionContact::between(0, 1, 1.0, 0.3, 0.2)};
+  const double T = 2.0 * std::numbers::pi / 0.9;
+  FrictionSimulator sim(sys, contacts);
+  const FrictionSummary settle = sim.run(0.0, Eigen::Vector2d(0.3, -0.2), Eigen::Vector2d(0.0, 0.1), 30 * T);
+  REQUIRE(settle.status == RunStatus::completed);
+  LinearisationOptions probe;
+  probe.jacobian = false;
+  const TangentMap look = linearise(sys, contacts, {}, settle.t, settle.x, settle.v, settle.t + T, probe);
+  const double ta = free_time(look);
+  const Eigen::VectorXd za = map_of(sys, contacts, settle.t, stacked(settle.x, settle.v), ta);
+  const TangentMap m = linearise(sys, contacts, {}, ta, za.head(2), za.tail(2), ta + T);
+  REQUIRE(m.summary.status == RunStatus::completed);
+  REQUIRE_FALSE(m.non_smooth);
+  int sticks = 0;
+  for (const Event& e : m.events) sticks += e.kind == EventKind::friction_stick;
+  WARN("two masses: " << m.events.size() << " switches, " << sticks << " sticks, least tangent dimension "
+                      << m.free_dimension);
+  REQUIRE(sticks >= 1);
+  const double L = m.summary.length_scale, V = m.summary.velocity_scale;
+  // Step and tolerance as for the one-mass stick-slip period above.
+  const Eigen::MatrixXd fd = central_differences(sys, contacts, ta, za, ta + T, 1e-6, L, V);
+  Eigen::Vector4d D(L, L, V, V);
+  const double err = (D.cwiseInverse().asDiagonal() * (m.jacobian - fd) * D.asDiagonal()).cwiseAbs().maxCoeff();
+  WARN("two masses: max |J − J_fd| (scaled) = " << err);
+  CHECK(err < 1e-6);
+}
