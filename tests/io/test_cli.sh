@@ -249,6 +249,38 @@ EOF
     ) || failures=$((failures + 1))
     files_are s.h5.partial scene.yaml sweep.yaml  # the sweep keeps its partial for --resume
     ;;
+  prompt_exit)  # was: "completed" printed after 0.5 s, and the process lived on for 12 s
+    cat > s.yaml <<EOF
+model: {chain: {masses: [0.388223, 2.988727, 2.915514], springs: [0.859055, 0.431005], dampers: [0.190722, 0.258244]}}
+forcing: {frequency: 0.10563}
+stops: []
+record: {events: true, samples: {times: [0.0377, 2.2935]}}
+run: {kind: simulate, transient_periods: 1, periods: 3}
+EOF
+    start=$(date +%s%N)
+    expect 0 "completed" timeout 30 "$vibro" run s.yaml -o o.h5
+    elapsed=$(( ($(date +%s%N) - start) / 1000000 ))
+    [ "$elapsed" -lt 5000 ] || fail "the process ended $elapsed ms after it started (the run itself takes 0.01 s)"
+    files_are o.h5 s.yaml
+    ;;
+  warn_slow)  # was: minutes at ~0 % progress with no word (a damper of 1e10 on a 6-mass chain)
+    cat > s.yaml <<EOF
+model: {chain: {masses: [2, 1.6, 1.9, 1.7, 1.8, 2.3], springs: [0.19, 2.8, 0.65, 0.31, 0.71], dampers: [0.27, 0.08, 1e10, 0.29, 0.21], left_wall: {spring: 2.9, damper: 0.1}}}
+forcing: {frequency: 1.91616, cosine: [0, 0, 0, -0.09, 0.66, 0.8]}
+stops: [{mass: 5, side: lower, position: -0.0, restitution: 0.83}]
+run: {kind: simulate, transient_periods: 10, periods: 1}
+EOF
+    "$vibro" run s.yaml -o o.h5 > out.txt 2> run.txt &
+    pid=$!
+    sleep 2
+    stop $pid TERM
+    [ $code -eq 130 ] || fail "exit code $code after SIGTERM: $(tail -3 run.txt)"
+    grep -qE "^warning: this run needs about [0-9.e+]+ steps of the certified event search .*progress lines follow" run.txt ||
+      fail "no estimate of the work: $(head -3 run.txt)"
+    grep -qE "^Interrupted during the transient at t = " run.txt || fail "interruption line: $(tail -1 run.txt)"
+    rm run.txt
+    files_are s.yaml
+    ;;
   *)
     echo "unknown case $case_name"
     exit 2

@@ -171,6 +171,15 @@ TEST_CASE("a run of more than 1e12 search steps is refused before it starts, wit
   const Scene tiny = build("model: {chain: {masses: [5e-324], left_wall: {spring: 1}}}\n"
                            "forcing: {frequency: 0.8, cosine: [1]}\n");
   CHECK_THAT(what_of([&] { check_run_resources(tiny, 1); }), Contains("stiffness over the mass of mass 0"));
+  // A spring of 1e308 (its rate overflows to inf) and a forcing period of 6e300 time units.
+  const Scene huge_spring = build("model: {chain: {masses: [1, 2], springs: [1e308], left_wall: {spring: 1}}}\n"
+                                  "forcing: {frequency: 0.8, cosine: [1, 0]}\n");
+  CHECK_THAT(what_of([&] { check_run_resources(huge_spring, 1); }),
+             Contains("needs about inf steps") && Contains("lower the springs at mass"));
+  const Scene slow_forcing = build("model: {chain: {masses: [1], left_wall: {spring: 1}}}\n"
+                                   "forcing: {frequency: 1e-300, cosine: [0]}\n");
+  CHECK_THAT(what_of([&] { check_run_resources(slow_forcing, 1); }),
+             Contains("refused above 1e+12") && Contains("raise the forcing frequency"));
 }
 
 TEST_CASE("per-period statistics of a scene without stops are written (an empty stop axis)", "[resources]") {

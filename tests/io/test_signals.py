@@ -2,8 +2,10 @@
 """SIGTERM answered within a second by `vibro run`, in every run kind and in its slow phases.
 
 Each case writes a scene chosen to sit in one phase for several seconds (a dense chain's check,
-a large contact set's flow, the modal engine, one long event-search segment, a sweep point, Newton-Krylov
-shooting on a 1000-mass chain, a continuation's corrector, a two-parameter curve, locate,
+a large contact set's flow, the modal engine's set-up and run, the layout of 3e7 sample times,
+one long event-search segment, in the recorded periods and in the transient, a sweep point,
+Newton-Krylov shooting on a 1000-mass chain, shooting on a dense chain (the section probe's scan,
+tangent maps), a continuation's start on it and its corrector, a two-parameter curve, locate,
 basin, diagram and Lyapunov points, the Taylor engine), starts `vibro run` on it in a folder of
 its own, waits until the run is in that phase (its output's lock made, or a fixed time for the
 check, which makes no file), sends SIGTERM and measures how long the process takes to end.
@@ -67,6 +69,16 @@ run:
   sweep: {parameters: [{path: forcing.frequency, linspace: [0.25, 0.27, 2]}]}
 """
 
+# One mass hitting a stop every period, 3·10⁷ sample times: laying them out takes a second or more.
+MANY_SAMPLES = """model: {chain: {masses: [1], left_wall: {spring: 1, damper: 0.01}}}
+forcing: {frequency: 1, cosine: [1]}
+stops: [{mass: 0, side: upper, position: 0.5, restitution: 0.9}]
+record: {samples: {per_period: 1000000}}
+run: {periods: 30}
+"""
+
+DENSE_ORBIT = "run: {kind: orbit, transient_periods: 0, orbit: {period: 1}}"
+
 LONG_SEGMENT = """model: {chain: {masses: [3], left_wall: {spring: 1.4, damper: 0.14}}}
 forcing: {frequency: 1e-9, cosine: [0]}
 stops: [{mass: 0, side: lower, position: -0.2, restitution: 0.9}, {mass: 0, side: upper, position: 0.1, restitution: 0}]
@@ -90,6 +102,13 @@ WRITTEN = r"Results in o\.h5\.$"
 
 def cases(args):
     """name: (scene text, extra arguments, when to signal, last stderr line, files left)."""
+    n = 200
+    ONE_STOP_200 = "\n".join([
+        "model: {chain: {masses: %s, springs: %s, dampers: %s, left_wall: {spring: 1, damper: 0.02}}}"
+        % (numbers(["1"] * n), numbers(["1"] * (n - 1)), numbers(["0.02"] * (n - 1))),
+        "forcing: {frequency: 0.8, cosine: %s}" % numbers(["0.6"] + ["0"] * (n - 1)),
+        "stops: [{mass: 0, side: upper, position: 0.1, restitution: 0.5}]",
+        "solver: {engine: dense}", "{run}", ""]).replace("{", "{{").replace("}", "}}").replace("{{run}}", "{run}")
     return {
         # The check before anything is written: the dense 1500-mass chain's n × n matrices are
         # tested for symmetry and definiteness by Eigen decompositions (seconds, not pollable).
@@ -100,10 +119,21 @@ def cases(args):
         # 500 × 500 generator (seconds; run where the wait is bounded).
         "simulate: dense contact-set flow of a 250-mass chain": (
             chain(250, "dense", "run: {periods: 3}"), [], "lock+0.5", SIMULATION_NOT_WRITTEN, []),
+        # The modal engine's set-up: the modes of a 3000-mass chain, one LAPACK call (seconds; run
+        # where the wait is bounded).
+        "simulate: modal engine's set-up of a 3000-mass chain": (
+            chain(3000, "modal", "run: {periods: 3}"), [], "lock+0.5", SIMULATION_NOT_WRITTEN, []),
+        # Laying out 3·10⁷ sample times (polled while it lays them out).
+        "simulate: laying out 3e7 sample times": (
+            MANY_SAMPLES, [], "lock+0.2", SIMULATION_NOT_WRITTEN, []),
         "simulate: modal engine, 1000-mass chain": (
             chain(1000, "modal", "run: {periods: 1e6}"), [], "lock+1", SIMULATION_NOT_WRITTEN, []),
         "simulate: event search in one long segment": (
             LONG_SEGMENT, [], "lock+1", SIMULATION_NOT_WRITTEN, []),
+        # The same in the transient: the line says so ("Interrupted during the transient at t = …").
+        "simulate: event search in the transient": (
+            LONG_SEGMENT.replace("run: {periods: 2}", "run: {transient_periods: 1, periods: 2}"), [], "lock+1",
+            r"^Interrupted during the transient at t = .*: o\.h5 was not written \(a simulation keeps nothing", []),
         "simulate: Taylor engine (forces)": (
             experiment(args, "examples/duffing_impact.yaml", (r"^(\s*)periods: .*$", r"\1periods: 1e5"),
                        (r"per_period: 100", "per_period: 1")),
@@ -113,6 +143,19 @@ def cases(args):
             r"^Interrupted: 0 of 2 sweep points are kept in o\.h5\.partial", ["o.h5.partial"]),
         "orbit: Newton-Krylov shooting on a 1000-mass chain": (
             experiment(args, "chains/chain_1000_orbit.yaml"), [], "lock+1", WRITTEN, ["o.h5"]),
+        # Shooting on the dense engine: on 150 masses with 15 stops the guess's section probe
+        # scans every segment for the gaps' peaks (seconds each, polled); on 200 masses with one
+        # stop each Newton iteration builds the flows of its tangent map and carries J through
+        # them (O(n³) products, bounded: bounded_wait.hpp), then factorises J − I.
+        "orbit: dense 150-mass chain, the section probe": (
+            chain(150, "dense", DENSE_ORBIT), [], "lock+2", WRITTEN, ["o.h5"]),
+        "orbit: dense 200-mass chain, tangent maps": (
+            ONE_STOP_200.format(run=DENSE_ORBIT), [], "lock+10", WRITTEN, ["o.h5"]),
+        # Continuation from that orbit: the start's shooting, interrupted, writes the file.
+        "continue: dense 200-mass chain, the start's shooting": (
+            ONE_STOP_200.format(run="run: {kind: continue, transient_periods: 0, continue: "
+                                    "{path: forcing.frequency, range: [0.7, 0.9], step: 0.01}}"),
+            [], "lock+10", WRITTEN, ["o.h5"]),
         "continue: the corrector, steps of 1e-7": (
             experiment(args, "wagg2004/continuation.yaml", (r"^(\s*)max_step: .*$", r"\1max_step: 1e-7\n\1max_points: 1000000"),
                        (r"^(\s*)step: .*$", r"\1step: 1e-7")),

@@ -10,6 +10,7 @@
 
 #include "branch_runner.hpp"
 #include "branch_switching.hpp"
+#include "vibro/bounded_wait.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -197,11 +198,20 @@ ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, 
   const int max_points = options.max_points;
   options.max_points = static_cast<int>(std::min<long>(max_points, options.max_total_points));
   runner.append(forward, s0);
-  runner.follow(s0, s0.t, forward, 0, 0, &doublings);
+  // A factorisation interrupted (Interrupted, bounded_wait.hpp) ends a half where it is, as an
+  // interrupted map does: the points so far are kept.
+  const auto follow = [&](const VectorXd& along, Branch& half) {
+    try {
+      runner.follow(s0, along, half, 0, 0, &doublings);
+    } catch (const Interrupted&) {
+      half.end = "interrupted";
+    }
+  };
+  follow(s0.t, forward);
   c.theta = s0.b.phase;  // the forward half may have moved the section
   const long left = options.max_total_points - static_cast<long>(forward.points.size());
   options.max_points = static_cast<int>(std::clamp<long>(left, 2, max_points));
-  runner.follow(s0, -s0.t, backward, 0, 0, &doublings);
+  follow(-s0.t, backward);
   for (Branch* half : {&forward, &backward})
     if (options.max_points < max_points && static_cast<int>(half->points.size()) >= options.max_points) {
       half->end = "max_total_points (" + std::to_string(options.max_total_points) + ") reached: the run's budget of points";
@@ -221,7 +231,10 @@ ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, 
   result.branches.push_back(std::move(whole));
 
   // Branch switching at period doublings: along the eigenvector of μ = −1, period 2k.
-  detail::switch_at_doublings(family, options, c, doublings, result, progress);
+  try {
+    detail::switch_at_doublings(family, options, c, doublings, result, progress);
+  } catch (const Interrupted&) {
+  }
 
   at_fixed_phase();
   return result;

@@ -4,6 +4,8 @@
 /// maths is in corrector.hpp.
 #include "corrector.hpp"
 
+#include "vibro/bounded_wait.hpp"
+
 #include <Eigen/LU>
 #include <Eigen/SVD>
 
@@ -11,6 +13,20 @@
 #include <cmath>
 
 namespace vibro::detail {
+namespace {
+
+/// Systems of at least this many degrees of freedom factorise under run_bounded.
+constexpr Index kBoundedFromCoordinates = 64;
+
+}  // namespace
+
+/// B's LU, its eigenvalues: O(n³) and not pollable, so from kBoundedFromCoordinates on under
+/// run_bounded with the run's interrupt flag, on copies of their inputs (bounded_wait.hpp): the
+/// same bits; raising the flag throws Interrupted within 10 ms.
+template <class F>
+auto Continuer::bounded(F fn) const -> decltype(fn()) {
+  return run_bounded(n_ >= kBoundedFromCoordinates ? o_.solver.interrupt : nullptr, std::move(fn));
+}
 
 Eval Continuer::evaluate(const VectorXd& z, double p) {
   Eval e;
@@ -62,7 +78,7 @@ VectorXd Continuer::tangent(const Eval& e, const VectorXd& along) const {
   B.row(N - 1) = along.transpose();
   VectorXd rhs = VectorXd::Zero(N);
   rhs(N - 1) = 1.0;
-  VectorXd t = B.fullPivLu().solve(rhs);
+  VectorXd t = bounded([B, rhs] { return VectorXd(B.fullPivLu().solve(rhs)); });
   if (!t.allFinite() || t.norm() == 0.0) {  // `along` ⟂ the null space: take it from the SVD
     Eigen::JacobiSVD<MatrixXd> svd(jacobian(e), Eigen::ComputeFullV);
     t = svd.matrixV().col(N - 1);
@@ -103,7 +119,14 @@ Eval Continuer::correct(const VectorXd& y_pred, const VectorXd& n, int* iteratio
     B.row(N - 1) = n.transpose();
     VectorXd rhs(N);
     rhs << -e.F.cwiseQuotient(d), -g;
-    const VectorXd delta = B.fullPivLu().solve(rhs);
+    VectorXd delta;
+    try {
+      delta = bounded([B, rhs] { return VectorXd(B.fullPivLu().solve(rhs)); });
+    } catch (const Interrupted&) {  // as an interrupted map: this correction fails
+      e.ok = false;
+      e.why = "interrupted";
+      return e;
+    }
     if (!delta.allFinite()) {
       e.ok = false;
       e.why = "singular corrector system";
@@ -133,7 +156,7 @@ BranchPoint Continuer::point(const Eval& e, const VectorXd& t, int iterations) c
   b.x = e.z.head(n_);
   b.v = e.z.tail(n_);
   b.k = k;
-  b.multipliers = floquet_multipliers(e.map, k);
+  b.multipliers = bounded([m = e.map, k = k] { return floquet_multipliers(m, k); });
   b.signature = orbit_signature(e.map, k, stops_);
   b.sticking = Eigen::VectorXd::Zero(static_cast<Index>(stops_));
   const double span = e.map.t1 - e.map.t0;

@@ -71,6 +71,10 @@ class Continuer {
   /// The engine at p: the last one made if it was made at this p (Newton at fixed p, shooting
   /// then evaluating, a section move: the modal engine's set-up and its contact sets' modes are
   /// paid once), else a new one. Valid until the next call with another p. Throws as the family.
+  /// fn() under run_bounded for large systems (corrector.cpp).
+  template <class F>
+  auto bounded(F fn) const -> decltype(fn());
+
   FamilyEngine& engine_at(double p) {
     if (!engine_ || !(engine_p_ == p)) {
       engine_.reset();

@@ -4,6 +4,7 @@
 #include "nonlinear_part.hpp"
 #include "orthonormal_frame.hpp"
 #include "transition.hpp"
+#include "vibro/bounded_wait.hpp"
 #include "vibro/contact.hpp"
 #include "vibro/flow.hpp"
 
@@ -12,6 +13,7 @@
 #include <unsupported/Eigen/MatrixFunctions>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <iterator>
 #include <limits>
@@ -24,6 +26,10 @@
 
 namespace vibro {
 namespace {
+
+/// Systems of at least this many degrees of freedom run their dense set-ups and products under
+/// run_bounded (TangentRecorder::bounded).
+constexpr Eigen::Index kBoundedFromCoordinates = 64;
 
 using detail::Dual;
 using detail::Mechanics;
@@ -69,11 +75,13 @@ double lower_bound(double ha, double da, double hb, double db, double B, double 
 /// interior local maxima (sign = +1) or minima (sign = −1) of the quantity whose derivative the
 /// row is. Certified with the row's second-derivative bound: an interval is passed over only
 /// when the Taylor bounds show no such change in it, and a root is accepted when the row is
-/// monotone around it; intervals shorter than `resolution` are not split further.
+/// monotone around it; intervals shorter than `resolution` are not split further. A scan can
+/// take seconds on a large system (each value is O(N)): it looks at `stop` every 1024 intervals
+/// and throws Interrupted once it is raised (the engine's event loop ends the run there).
 class SignChanges {
  public:
-  SignChanges(const Segment& segment, Index slope, double sign, double resolution)
-      : seg_(segment), row_(slope), sign_(sign), resolution_(resolution) {}
+  SignChanges(const Segment& segment, Index slope, double sign, double resolution, const std::atomic<bool>* stop)
+      : seg_(segment), row_(slope), sign_(sign), resolution_(resolution), stop_(stop) {}
 
   std::vector<double> in(double a, double b) {
     out_.clear();
@@ -86,6 +94,7 @@ class SignChanges {
   double dh(double tau) const { return sign_ * seg_.value(row_, tau, 1); }
 
   void scan(double a, double b, double ha, double da, double hb, double db, int depth) {
+    if (stop_ && (++intervals_ & 1023) == 0 && stop_->load(std::memory_order_relaxed)) throw Interrupted();
     const double L = b - a;
     if (L <= resolution_ || depth > 60) {
       if (ha > 0.0 && hb <= 0.0) out_.push_back(refine(a, b));
@@ -123,6 +132,8 @@ class SignChanges {
   const Segment& seg_;
   Index row_;
   double sign_, resolution_;
+  const std::atomic<bool>* stop_;
+  unsigned long intervals_ = 0;
   std::vector<double> out_;
 };
 
@@ -155,7 +166,7 @@ struct Mode {
   MatrixXd dforce_rows;     // dL/dp
   MatrixXd basis;           // tangent space of the manifold, 2n × d
   Eigen::MatrixXcd dmodal;  // V⁻¹ dÂ_S V (parameter runs on the spectral path; empty until used)
-  std::unique_ptr<LinearFlow> flow;
+  std::shared_ptr<const LinearFlow> flow;  // shared with a set-up or product under run_bounded
   std::unique_ptr<Functionals> rows;  // features: gaps, gap rates, forces, force rates
 };
 
@@ -237,13 +248,29 @@ class TangentRecorder final : public Observer {
     if (frame_) {
       out_.products = K_;
     } else if (options_.jacobian) {
-      out_.jacobian = K_ * Jmid_;
-      if (min_dim_ < N2) {
-        out_.reduced = basis_.transpose() * Jmid_ * K_ * basis_;
-        out_.lift = K_ * basis_;
-      } else {
-        out_.reduced = out_.jacobian;
-        out_.lift = MatrixXd::Identity(N2, N2);
+      // J = K Jmid and its reduced form, O(N³): bounded (bounded()). The run ends here, so an
+      // interruption is only noted (cut_short()) for linearise to report: end() never throws.
+      struct Products {
+        MatrixXd jacobian, reduced, lift;
+      };
+      try {
+        Products p = bounded([K = K_, J = Jmid_, B = basis_, N2, reduce = min_dim_ < N2] {
+          Products r;
+          r.jacobian = K * J;
+          if (reduce) {
+            r.reduced = B.transpose() * J * K * B;
+            r.lift = K * B;
+          } else {
+            r.reduced = r.jacobian;
+            r.lift = MatrixXd::Identity(N2, N2);
+          }
+          return r;
+        });
+        out_.jacobian = std::move(p.jacobian);
+        out_.reduced = std::move(p.reduced);
+        out_.lift = std::move(p.lift);
+      } catch (const Interrupted&) {
+        cut_short_ = true;
       }
     }
     if (options_.parameter) out_.parameter = zeta_;
@@ -277,7 +304,9 @@ class TangentRecorder final : public Observer {
       m->dforce_rows = m->held.empty() ? MatrixXd(0, mech_.augmented()) : derivative(mechp_->force_rows(S));
     }
     m->basis = tangent_basis(mech_.normals(m->held), n_);
-    m->flow = std::make_unique<LinearFlow>(m->generator, n_, value_of_omega(), solver_.flow);
+    m->flow = bounded([g = m->generator, n = n_, w = value_of_omega(), o = solver_.flow] {
+      return std::shared_ptr<const LinearFlow>(std::make_shared<LinearFlow>(g, n, w, o));
+    });
     if (options_.features) {
       const Index N = mech_.augmented(), ms = static_cast<Index>(system_.stop_count());
       const Index h = static_cast<Index>(m->held.size());
@@ -308,15 +337,34 @@ class TangentRecorder final : public Observer {
 
   /// The state block of exp(Â_S τ): from the eigen-decomposition for large well-conditioned
   /// systems, else the Padé exponential (exact to rounding; cheap at these sizes).
-  MatrixXd transition(const Mode& mode, double tau) const {
-    const Index N2 = 2 * n_;
-    const LinearFlow& f = *mode.flow;
+  static MatrixXd transition(const LinearFlow& f, double tau, Index N2) {
     if (f.size() > 64 && f.method() == LinearFlow::Method::spectral) {
       const Eigen::VectorXcd e = (f.eigenvalues() * tau).array().exp();
       const Eigen::MatrixXcd left = f.eigenvectors().topRows(N2) * e.asDiagonal();
       return (left * f.inverse_eigenvectors().leftCols(N2)).real();
     }
     return f.transition_matrix(tau).topLeftCorner(N2, N2);
+  }
+
+  /// K ← Φ(τ) K over a segment of `mode` (O(N³)): bounded for large systems (see bounded()).
+  void carry_over(const Mode& mode, double tau) {
+    K_ = bounded([f = mode.flow, tau, N2 = 2 * n_, K = K_] { return MatrixXd(transition(*f, tau, N2) * K); });
+  }
+
+  /// K ← S K at an event (O(N³)), bounded likewise.
+  void carry_through(const MatrixXd& S) {
+    K_ = bounded([S, K = K_] { return MatrixXd(S * K); });
+  }
+
+  /// The dense set-ups and products of a large system (a flow's eigen-decomposition, Φ K and
+  /// S K: seconds from a few hundred coordinates on) cannot be polled: from
+  /// kBoundedFromCoordinates on they run under run_bounded with the run's interrupt flag
+  /// (bounded_wait.hpp), on copies of their inputs, so that raising the flag ends the run
+  /// (Interrupted, which the engine's event loop takes as an interruption) within 10 ms. The
+  /// same code on the same data: the same bits.
+  template <class F>
+  auto bounded(F fn) const -> decltype(fn()) {
+    return run_bounded(n_ >= kBoundedFromCoordinates ? solver_.interrupt : nullptr, std::move(fn));
   }
 
   /// Large, well-conditioned flows use their eigen-decomposition (transition(); the parameter
@@ -347,7 +395,10 @@ class TangentRecorder final : public Observer {
     const Eigen::MatrixXcd& V = f.eigenvectors();
     const Eigen::MatrixXcd& W = f.inverse_eigenvectors();
     const Eigen::VectorXcd& L = f.eigenvalues();
-    if (mode.dmodal.size() == 0) mode.dmodal = W * mode.dgenerator.cast<std::complex<double>>() * V;
+    if (mode.dmodal.size() == 0)
+      mode.dmodal = bounded([f = mode.flow, d = mode.dgenerator] {
+        return Eigen::MatrixXcd(f->inverse_eigenvectors() * d.cast<std::complex<double>>() * f->eigenvectors());
+      });
     VectorXd zeta_aug = VectorXd::Zero(N);
     zeta_aug.head(N2) = zeta_;
     const double w = mech_.frequency(), dw = options_.parameter->frequency;
@@ -369,7 +420,7 @@ class TangentRecorder final : public Observer {
       c(i) += sum;
     }
     zeta_ = (V * c).real().head(N2);
-    if (carries()) K_ = transition(mode, tau) * K_;
+    if (carries()) carry_over(mode, tau);
   }
 
   void propagate(Mode& mode, double tau, double tb, const VectorXd& zb) {
@@ -400,7 +451,7 @@ class TangentRecorder final : public Observer {
         zeta_ = (E.topLeftCorner(N, N) * zeta_aug + E.topRightCorner(N, N) * zb).head(N2);
         if (carries()) K_ = E.topLeftCorner(N2, N2) * K_;
       } else if (carries()) {
-        K_ = transition(mode, tau) * K_;
+        carry_over(mode, tau);
       }
     }
     if (dim < min_dim_) {
@@ -505,7 +556,7 @@ class TangentRecorder final : public Observer {
     if (!tr.switched.empty()) {
       switched = switches(tr.switched, rec);
       if (impacting.empty() && released.empty() && mech_.held_part(held_) == mech_.held_part(held_after)) {
-        if (carries()) K_ = switched.S * K_;
+        if (carries()) carry_through(switched.S);
         if (frame_ && log_growth_) orthonormalise();
         if (mechp_) zeta_ = switched.S * zeta_ + switched.sp;
         out_.saltations.push_back(rec);
@@ -545,7 +596,7 @@ class TangentRecorder final : public Observer {
       if (mechp_) total.sp = total.S * switched.sp + total.sp;
       total.S = total.S * switched.S;
     }
-    if (carries()) K_ = total.S * K_;
+    if (carries()) carry_through(total.S);
     if (frame_ && log_growth_) orthonormalise();
     if (mechp_) zeta_ = total.S * zeta_ + total.sp;
     out_.saltations.push_back(rec);
@@ -622,7 +673,7 @@ class TangentRecorder final : public Observer {
       // Held rigid stops have no gap peaks; an engaged compliant stop's are its penetration's
       // maxima (g > 0), the other side of its grazing test function (test_functions.hpp).
       if (contains(mode.held, static_cast<int>(j))) continue;
-      SignChanges peaks(seg, ms + j, 1.0, resolution);
+      SignChanges peaks(seg, ms + j, 1.0, resolution, solver_.interrupt);
       // Not a peak: a rounding sign change at the start of a flight from the stop (transition.hpp).
       const double g_start = seg.value(j, 0.0);
       const double size = std::max({std::abs(g_start), std::abs(seg.value(j, 0.5 * tau)), std::abs(seg.value(j, tau))});
@@ -634,7 +685,7 @@ class TangentRecorder final : public Observer {
     }
     const Index h = static_cast<Index>(mode.held.size());
     for (Index a = 0; a < h; ++a) {
-      SignChanges dips(seg, 2 * ms + h + a, -1.0, resolution);
+      SignChanges dips(seg, 2 * ms + h + a, -1.0, resolution, solver_.interrupt);
       for (double s : dips.in(0.0, tau))
         out_.force_dips.push_back({mode.held[static_cast<std::size_t>(a)], tb + s, seg.value(2 * ms + a, s), false});
     }
@@ -655,7 +706,7 @@ class TangentRecorder final : public Observer {
       const auto it = std::lower_bound(mode.held.begin(), mode.held.end(), j);
       if (it == mode.held.end() || *it != j) continue;
       const Index a = it - mode.held.begin();
-      SignChanges dips(seg, 2 * ms + h + a, -1.0, resolution);
+      SignChanges dips(seg, 2 * ms + h + a, -1.0, resolution, solver_.interrupt);
       const std::vector<double> found = dips.in(from, to);
       if (!found.empty())
         out_.force_dips.push_back({j, last_tb_ + found.front(), seg.value(2 * ms + a, found.front()), true});
@@ -664,6 +715,12 @@ class TangentRecorder final : public Observer {
 
   /// Tangent vectors are carried: the whole Jacobian, or the given directions.
   bool carries() const { return options_.jacobian || frame_; }
+
+ public:
+  /// The run's end was interrupted while J was formed (end()): the map has no J.
+  bool cut_short() const { return cut_short_; }
+
+ private:
 
   /// K ← Q for the Householder QR K = Q R of the carried directions, log|R_ii| added to
   /// *log_growth_ (orthonormal_frame.hpp). A direction the event annihilated (sticking) has
@@ -701,7 +758,15 @@ class TangentRecorder final : public Observer {
   double last_tb_ = 0.0;
   VectorXd last_zb_;
   detail::PhaseBook phases_;
+  bool cut_short_ = false;
 };
+
+/// A run whose recorder was cut short (TangentRecorder::cut_short) is reported as interrupted.
+void note_cut_short(const TangentRecorder& recorder, RunSummary& summary) {
+  if (!recorder.cut_short() || summary.status != RunStatus::completed) return;
+  summary.status = RunStatus::interrupted;
+  summary.message = "interrupted at t = " + number_text(summary.t) + " while the tangent map was formed";
+}
 
 }  // namespace
 
@@ -718,6 +783,7 @@ TangentMap linearise(const ImpactSystem& system, const SimulatorOptions& solver,
   Simulator sim(system, solver);
   TangentRecorder recorder(system, solver, options, out);
   out.summary = sim.run(t0, x0, v0, t1, {&recorder});
+  note_cut_short(recorder, out.summary);
   if (out.summary.velocity_scale > 0.0) out.least_guard_rate /= out.summary.velocity_scale;
   return out;
 }

@@ -2,17 +2,20 @@
 
 #include "krylov.hpp"
 #include "section.hpp"
+#include "vibro/bounded_wait.hpp"
 #include "vibro/friction_tangent.hpp"
 #include "vibro/modal_tangent.hpp"
 
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <memory>
 #include <numbers>
 #include <string>
+#include <utility>
 
 namespace vibro {
 namespace {
@@ -20,6 +23,9 @@ namespace {
 using Eigen::Index;
 using Eigen::MatrixXd;
 using Eigen::VectorXd;
+
+/// Systems of at least this many degrees of freedom factorise under run_bounded.
+constexpr Index kBoundedFromCoordinates = 64;
 
 VectorXd stacked(const VectorXd& x, const VectorXd& v) {
   VectorXd z(x.size() + v.size());
@@ -101,8 +107,15 @@ class Backend {
 
 /// Newton steps by LU on the full J and all 2n multipliers from its reduced map: the dense
 /// engine's linear algebra, on maps that carry J (TangentMap::jacobian, reduced, lift).
+///
+/// The LU and the eigenvalues of a large system (seconds from a few hundred coordinates on)
+/// cannot be polled: from kBoundedFromCoordinates degrees of freedom on they run under
+/// run_bounded with the run's interrupt flag (bounded_wait.hpp), on copies of their inputs; the
+/// same code on the same data, so the same bits. Raising the flag throws Interrupted, which
+/// shoot() reports as an interrupted map.
 class FullJacobianBackend : public Backend {
  public:
+  explicit FullJacobianBackend(const std::atomic<bool>* interrupt) : interrupt_(interrupt) {}
   NewtonStep newton_step(const Evaluation& e, const VectorXd& z) override {
     const TangentMap& m = e.map;
     const Index n = m.x0.size();
@@ -110,14 +123,27 @@ class FullJacobianBackend : public Backend {
     const VectorXd F = stacked(m.x1, m.v1) - z;
     const MatrixXd A = s.scale.cwiseInverse().asDiagonal() * (m.jacobian - MatrixXd::Identity(2 * n, 2 * n)) *
                        s.scale.asDiagonal();
-    const Eigen::FullPivLU<MatrixXd> lu(A);
-    s.rcond = lu.isInvertible() ? lu.rcond() : 0.0;
-    if (s.rcond > 0.0) s.delta = lu.solve(VectorXd(-F.cwiseQuotient(s.scale)));
+    const auto [rcond, delta] =
+        bounded(n, [A, b = VectorXd(-F.cwiseQuotient(s.scale))]() -> std::pair<double, VectorXd> {
+          const Eigen::FullPivLU<MatrixXd> lu(A);
+          const double rc = lu.isInvertible() ? lu.rcond() : 0.0;
+          return {rc, rc > 0.0 ? VectorXd(lu.solve(b)) : VectorXd()};
+        });
+    s.rcond = rcond;
+    if (s.rcond > 0.0) s.delta = delta;
     return s;
   }
-  FloquetMultipliers multipliers(const Evaluation& e, int k) override { return floquet_multipliers(e.map, k); }
+  FloquetMultipliers multipliers(const Evaluation& e, int k) override {
+    return bounded(e.map.x0.size(), [m = e.map, k] { return floquet_multipliers(m, k); });
+  }
 
  protected:
+  template <class F>
+  auto bounded(Index n, F fn) const -> decltype(fn()) {
+    return run_bounded(n >= kBoundedFromCoordinates ? interrupt_ : nullptr, std::move(fn));
+  }
+  const std::atomic<bool>* interrupt_;
+
   /// The map with J from `linearise`, or the failure it threw.
   template <class Linearise>
   static Evaluation evaluate_with(Linearise&& linearise_map) {
@@ -135,7 +161,7 @@ class FullJacobianBackend : public Backend {
 class DenseBackend final : public FullJacobianBackend {
  public:
   DenseBackend(const ImpactSystem& system, const SimulatorOptions& solver, const LinearisationOptions& o)
-      : system_(system), solver_(solver), options_(o) {
+      : FullJacobianBackend(solver.interrupt), system_(system), solver_(solver), options_(o) {
     options_.jacobian = true;
   }
   Index dof() const override { return system_.dof(); }
@@ -167,7 +193,7 @@ class TaylorBackend final : public FullJacobianBackend {
  public:
   TaylorBackend(const ImpactSystem& system, const NonlinearForces& forces, const SimulatorOptions& solver,
                 const LinearisationOptions& o)
-      : system_(system), forces_(forces), solver_(solver), options_(o) {
+      : FullJacobianBackend(solver.interrupt), system_(system), forces_(forces), solver_(solver), options_(o) {
     options_.jacobian = true;
   }
   Index dof() const override { return system_.dof(); }
@@ -232,7 +258,8 @@ class FrictionBackend final : public FullJacobianBackend {
 template <class Base>
 class OnModalEngine : public Base {
  public:
-  explicit OnModalEngine(ModalEngine& engine) : engine_(engine) {}
+  template <class... Args>
+  explicit OnModalEngine(ModalEngine& engine, Args&&... base) : Base(std::forward<Args>(base)...), engine_(engine) {}
   Index dof() const override { return engine_.simulator().modes().dof(); }
   double frequency() const override { return engine_.frequency(); }
   TangentMap probe(double t0, const VectorXd& z, double t1) override {
@@ -250,7 +277,8 @@ class OnModalEngine : public Base {
 /// nothing needs refreshing after other runs.
 class ModalJacobianBackend final : public OnModalEngine<FullJacobianBackend> {
  public:
-  ModalJacobianBackend(ModalEngine& engine, const LinearisationOptions& o) : OnModalEngine(engine), options_(o) {
+  ModalJacobianBackend(ModalEngine& engine, const LinearisationOptions& o)
+      : OnModalEngine(engine, engine.simulator().options().interrupt), options_(o) {
     options_.jacobian = true;
     options_.directions.resize(0, 0);
   }
@@ -458,8 +486,28 @@ void KrylovOptions::validate() const {
 
 namespace {
 
+ShootingResult shoot_unguarded(Backend& backend, const ShootingOptions& options, double t_guess, const VectorXd& x,
+                               const VectorXd& v);
+
+/// Shooting, an interruption during a bounded factorisation (Interrupted) reported as a map that
+/// could not be evaluated, as an interrupted run is: the guess kept, message "interrupted".
 ShootingResult shoot_with(Backend& backend, const ShootingOptions& options, double t_guess, const VectorXd& x,
                           const VectorXd& v) {
+  try {
+    return shoot_unguarded(backend, options, t_guess, x, v);
+  } catch (const Interrupted&) {
+    ShootingResult out;
+    out.k = options.period;
+    out.status = ShootingStatus::map_failed;
+    out.message = "interrupted";
+    out.x = x;
+    out.v = v;
+    return out;
+  }
+}
+
+ShootingResult shoot_unguarded(Backend& backend, const ShootingOptions& options, double t_guess, const VectorXd& x,
+                               const VectorXd& v) {
   const Index n = backend.dof();
   const double omega = backend.frequency();
   if (!(omega > 0.0)) throw InvalidInput("shooting: the forcing frequency must be > 0 (the orbit's period is 2π/Ω)");

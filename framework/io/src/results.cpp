@@ -3,6 +3,10 @@
 /// is written by result_file.cpp and the units it names.
 #include "vibro/io/results.hpp"
 
+#include "simulation.hpp"
+
+#include "vibro/bounded_wait.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <ctime>
@@ -22,8 +26,9 @@ bool records_samples(const RecordSpec& spec) {
 
 namespace {
 
-/// Sample times of one recorded span (absolute), ascending.
-std::vector<double> sample_times(const Scene& scene, double t_start) {
+/// Sample times of one recorded span (absolute), ascending; throws Interrupted once `interrupt`
+/// is raised (looked at every 2²⁰ times).
+std::vector<double> sample_times(const Scene& scene, double t_start, const std::atomic<bool>* interrupt) {
   const RecordSpec& spec = scene.record;
   const double T = scene.period();
   const double span = scene.run.periods * T;
@@ -41,7 +46,11 @@ std::vector<double> sample_times(const Scene& scene, double t_start) {
   } else {
     const auto N = static_cast<double>(spec.samples_per_period);
     const auto count = static_cast<long>(std::floor(N * scene.run.periods + 1e-9));
-    for (long i = 0; i < count; ++i) times.push_back(t_start + static_cast<double>(i) * T / N);
+    constexpr long kPollEvery = 1L << 20;
+    for (long i = 0; i < count; ++i) {
+      if (interrupt && i % kPollEvery == 0 && interrupt->load(std::memory_order_relaxed)) throw Interrupted();
+      times.push_back(t_start + static_cast<double>(i) * T / N);
+    }
   }
   return times;
 }
@@ -49,6 +58,12 @@ std::vector<double> sample_times(const Scene& scene, double t_start) {
 }  // namespace
 
 Recording Recording::for_scene(const Scene& scene, double t_start) {
+  return detail::recording_for(scene, t_start, nullptr);
+}
+
+namespace detail {
+
+Recording recording_for(const Scene& scene, double t_start, const std::atomic<bool>* interrupt) {
   const RecordSpec& spec = scene.record;
   const double periods = scene.run.periods;
   Recording rec;
@@ -64,7 +79,7 @@ Recording Recording::for_scene(const Scene& scene, double t_start) {
 
   if (spec.events) rec.events.emplace();
   if (spec.contacts) rec.contacts.emplace();
-  if (detail::records_samples(spec)) rec.samples.emplace(sample_times(scene, t_start));
+  if (detail::records_samples(spec)) rec.samples.emplace(sample_times(scene, t_start, interrupt));
   if (spec.poincare) rec.poincare.emplace(t_start);
   if (spec.impact_map) rec.impact_map.emplace();
   if (spec.section) rec.section.emplace(spec.section->plane, spec.section->direction);
@@ -72,6 +87,8 @@ Recording Recording::for_scene(const Scene& scene, double t_start) {
   rec.frame = ResultFrame::of(scene);
   return rec;
 }
+
+}  // namespace detail
 
 void Recording::map_to_result_frame() {
   if (frame.identity()) return;

@@ -3,6 +3,7 @@
 #include "interrupt.hpp"
 #include "mpi_world.hpp"
 
+#include "vibro/bounded_wait.hpp"
 #include "vibro/io/resources.hpp"
 #include "vibro/io/run_kinds.hpp"
 
@@ -30,7 +31,15 @@ RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunReque
     guard.emplace();
     stoppable.interrupt = &detail::g_interrupted;
   }
-  return kind.run(doc, scene, stoppable);
+  try {
+    return kind.run(doc, scene, stoppable);
+  } catch (const Interrupted&) {
+    // A set-up under run_bounded (bounded_wait.hpp) that the kind did not end itself — the
+    // modal engine's modes of a long chain made for a point, a flow or a factorisation before
+    // the kind's file holds anything: its file was removed as the exception unwound.
+    if (request.in_memory) throw;
+    return {130, "Interrupted during a set-up computation: " + request.output + " was not written.", {}};
+  }
 }
 
 }  // namespace vibro::io

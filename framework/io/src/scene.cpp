@@ -4,6 +4,7 @@
 #include "scene_reader.hpp"
 #include "scene_sections.hpp"
 
+#include "vibro/bounded_wait.hpp"
 #include "vibro/io/resources.hpp"
 #include "vibro/io/run_kinds.hpp"
 
@@ -33,6 +34,9 @@ namespace vibro::io {
 using namespace detail;
 
 namespace {
+
+/// Modal chains of at least this many masses set up their modes under run_bounded (make_engine).
+constexpr Eigen::Index kBoundedModalFromMasses = 256;
 
 /// Splits "a.b[2].c" into keys and indices.
 struct PathStep {
@@ -87,7 +91,16 @@ double Scene::period() const {
 std::unique_ptr<vibro::Engine> make_engine(const Scene& scene) {
   if (scene.engine == EngineKind::modal) {
     if (!scene.chain) throw std::logic_error("make_engine: a modal scene without its banded chain");
-    return std::make_unique<ModalEngine>(*scene.chain, scene.stops, modal_options(scene.solver));
+    // The modal engine's set-up — the modes of the chain, one LAPACK call that nothing can poll
+    // (seconds from a few thousand masses on) — runs under run_bounded with the run's interrupt
+    // flag for long chains, as a dense contact set's flow does (bounded_wait.hpp): raising the
+    // flag throws Interrupted within 10 ms. The same construction: the same bits.
+    const bool long_chain = scene.chain->dof() >= kBoundedModalFromMasses;
+    return run_bounded(long_chain ? scene.solver.interrupt : nullptr,
+                       [chain = *scene.chain, stops = scene.stops,
+                        options = modal_options(scene.solver)]() -> std::unique_ptr<vibro::Engine> {
+                         return std::make_unique<ModalEngine>(chain, stops, options);
+                       });
   }
   if (scene.engine == EngineKind::taylor) return std::make_unique<TaylorEngine>(scene.impact_system(), scene.forces, scene.solver);
   if (!scene.friction.empty()) return std::make_unique<FrictionEngine>(scene.system(), scene.friction, scene.solver);

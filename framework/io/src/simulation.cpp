@@ -2,6 +2,7 @@
 
 #include "interrupt.hpp"
 
+#include "vibro/bounded_wait.hpp"
 #include "vibro/engine.hpp"
 #include "vibro/io/recorded_gaps.hpp"
 
@@ -9,17 +10,50 @@
 #include <chrono>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace vibro::io::detail {
+namespace {
+
+/// The recording of a run that records nothing (interrupted before its recorded periods): the
+/// scene's observers over no period, and no sample times (a listed time lies past a span of 0).
+Recording nothing_recorded(const Scene& scene, double t) {
+  Scene shape = scene;
+  shape.run.periods = 0.0;
+  const bool listed = !shape.record.sample_times.empty();
+  shape.record.sample_times.clear();
+  Recording rec = Recording::for_scene(shape, t);
+  if (listed && !rec.samples) rec.samples.emplace(std::vector<double>{});
+  return rec;
+}
+
+}  // namespace
 
 Recording simulate(const Scene& base, const StartState& start, std::atomic<double>* reached) {
   const auto clock = std::chrono::steady_clock::now();
   Scene scene = base;  // shares the built system; only the options change
   if (!scene.solver.interrupt) scene.solver.interrupt = &g_interrupted;  // the caller's flag, or signals
   scene.solver.reached = reached;
+  // Interrupted in a set-up that runs under run_bounded (the modal engine's modes of a long
+  // chain) or while the sample times are laid out: nothing recorded, the state kept at `t`.
+  const auto interrupted = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
+    Recording rec = nothing_recorded(scene, t);
+    rec.summary.status = RunStatus::interrupted;
+    rec.summary.message = "interrupted at t = " + number_text(t);
+    rec.summary.t = t;
+    rec.summary.x = x;
+    rec.summary.v = v;
+    rec.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock).count();
+    return rec;
+  };
   // One engine per run (a simulation, or a sweep point): everything else in this file (transient
   // then recorded run, observers, files, threads, processes) is the same for both engines.
-  const std::unique_ptr<vibro::Engine> engine = make_engine(scene);
+  std::unique_ptr<vibro::Engine> engine;
+  try {
+    engine = make_engine(scene);
+  } catch (const Interrupted&) {
+    return interrupted(start.t, start.x, start.v);
+  }
   vibro::Engine& sim = *engine;
   const double T = scene.period();
   const double t1 = start.t + scene.run.transient_periods * T;
@@ -31,9 +65,13 @@ Recording simulate(const Scene& base, const StartState& start, std::atomic<doubl
   if (scene.run.transient_periods > 0.0) transient = sim.run(start.t, start.x, start.v, t1, {});
   // An interrupted transient records nothing: no sample times laid out for the recorded periods
   // (millions of them take seconds to allocate, after the signal).
-  Scene shape = scene;
-  if (transient.status == RunStatus::interrupted) shape.run.periods = 0.0;
-  Recording rec = Recording::for_scene(shape, t1);
+  Recording rec;
+  try {
+    rec = transient.status == RunStatus::interrupted ? nothing_recorded(scene, t1)
+                                                     : recording_for(scene, t1, scene.solver.interrupt);
+  } catch (const Interrupted&) {
+    return interrupted(transient.t, transient.x, transient.v);
+  }
   if (transient.status != RunStatus::completed) {
     rec.summary = transient;
     rec.summary.message = "during the transient: " + transient.message;

@@ -5,6 +5,7 @@
 
 #include "../datasets.hpp"
 
+#include "vibro/bounded_wait.hpp"
 #include "vibro/friction_tangent.hpp"
 #include "vibro/io/result_file.hpp"
 
@@ -558,7 +559,8 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   Scene built = scene;
   built.solver = o.solver;
   const RunSummary warm = make_engine(built)->run(scene.t0, scene.x0, scene.v0, t_guess);
-  if (warm.status != RunStatus::completed)
+  const auto stopped = [&] { return request.interrupt && request.interrupt->load(); };
+  if (warm.status != RunStatus::completed && warm.status != RunStatus::interrupted)
     throw SceneError(scene.file, 1, 1, "run.transient_periods",
                      std::string("the transient before the first orbit stopped early (") + to_string(warm.status) +
                          "): " + warm.message);
@@ -567,11 +569,14 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
     std::fprintf(stderr, "  branch k=%d  %s = %.10f  %-8s  max|mu| = %-10.4g  %s\n", b.k, spec.path.c_str(), q.p,
                  q.multipliers.stable ? "stable" : "unstable", q.multipliers.spectral_radius, q.signature.text().c_str());
   };
+  // Interrupted before the first branch point (the transient, the start's shooting or its
+  // factorisations): no branch, the file written with status interrupted.
   ContinuationResult result;
   try {
-    result = continue_orbits(family, p0, t_guess, warm.x, warm.v, o, progress);
+    if (warm.status == RunStatus::completed) result = continue_orbits(family, p0, t_guess, warm.x, warm.v, o, progress);
+  } catch (const Interrupted&) {
   } catch (const InvalidInput& e) {
-    throw SceneError(scene.file, 1, 1, "run.continue", e.what());
+    if (!stopped()) throw SceneError(scene.file, 1, 1, "run.continue", e.what());
   }
   std::vector<Curve> curves;
   if (!spec.curve_path.empty()) {

@@ -37,7 +37,11 @@ RunReport run_simulation(const Scene& scene, const RunRequest& request) {
     // the state kept.
     std::string what = rec.summary.message.empty() ? fmt::format("interrupted at t = {:g}", rec.summary.t)
                                                    : rec.summary.message;
-    what[0] = 'I';
+    // "during the transient: interrupted at t = …" (simulation.cpp) reads "Interrupted during
+    // the transient at t = …".
+    const std::string transient = "during the transient: interrupted";
+    if (what.rfind(transient, 0) == 0) what = "Interrupted during the transient" + what.substr(transient.size());
+    else what[0] = 'I';
     return {130, fmt::format("{}: {} was not written (a simulation keeps nothing; only sweeps can be resumed).", what,
                              request.output),
             {}};  // the ResultFile removes its .partial
