@@ -107,9 +107,21 @@ void BandedChain::validate() const {
   require_finite_vector(forcing.constant, "forcing.constant");
   require_finite_vector(forcing.cosine, "forcing.cosine");
   require_finite_vector(forcing.sine, "forcing.sine");
-  if (!forcing.harmonics.empty())
-    throw InvalidInput("forcing.harmonics: the modal engine takes the first harmonic only (forcing.cosine, "
-                       "forcing.sine); a drive with extra harmonics runs on the dense engine");
+  for (std::size_t h = 0; h < forcing.harmonics.size(); ++h) {
+    const ForcingHarmonic& fh = forcing.harmonics[h];
+    const std::string who = "forcing.harmonics[" + std::to_string(h) + "]";
+    if (fh.order < 2)
+      throw InvalidInput(who + ".order: is " + std::to_string(fh.order) +
+                         ": an extra harmonic has order ≥ 2 (order 1 is forcing.cosine and forcing.sine)");
+    for (std::size_t g = 0; g < h; ++g)
+      if (forcing.harmonics[g].order == fh.order)
+        throw InvalidInput(who + ".order: order " + std::to_string(fh.order) + " is given twice (also harmonics[" +
+                           std::to_string(g) + "])");
+    require_length(fh.cosine, n, who + ".cosine");
+    require_length(fh.sine, n, who + ".sine");
+    require_finite_vector(fh.cosine, who + ".cosine");
+    require_finite_vector(fh.sine, who + ".sine");
+  }
   if (!std::isfinite(forcing.frequency) || forcing.frequency < 0.0)
     throw InvalidInput("forcing.frequency: is " + number_text(forcing.frequency) +
                        ": must be a finite number ≥ 0");
@@ -313,12 +325,24 @@ ChainModes::ChainModes(BandedChain chain, TridiagonalSolver solver)
   }
   // Modal forcing φ_kᵀ f = Qᵀ M^{-1/2} f.
   const HarmonicForcing& f = chain_.forcing;
+  const auto H = static_cast<Eigen::Index>(f.harmonics.size());
+  Eigen::MatrixXd Pc(n, H), Ps(n, H);
+  if (H > 0) {
+    Eigen::MatrixXd Fc(n, H), Fs(n, H);
+    for (Eigen::Index h = 0; h < H; ++h) {
+      Fc.col(h) = f.harmonics[static_cast<std::size_t>(h)].cosine.cwiseProduct(inv_sqrt_mass_);
+      Fs.col(h) = f.harmonics[static_cast<std::size_t>(h)].sine.cwiseProduct(inv_sqrt_mass_);
+    }
+    Pc.noalias() = q_.transpose() * Fc;
+    Ps.noalias() = q_.transpose() * Fs;
+  }
   finish(q_.transpose() * f.constant.cwiseProduct(inv_sqrt_mass_), q_.transpose() * f.cosine.cwiseProduct(inv_sqrt_mass_),
-         q_.transpose() * f.sine.cwiseProduct(inv_sqrt_mass_));
+         q_.transpose() * f.sine.cwiseProduct(inv_sqrt_mass_), Pc, Ps);
   setup_seconds_ = seconds_since(start);
 }
 
-void ChainModes::finish(const Eigen::VectorXd& p0, const Eigen::VectorXd& pc, const Eigen::VectorXd& ps) {
+void ChainModes::finish(const Eigen::VectorXd& p0, const Eigen::VectorXd& pc, const Eigen::VectorXd& ps,
+                        const Eigen::MatrixXd& Pc, const Eigen::MatrixXd& Ps) {
   const Eigen::Index n = omega2_.size();
   const double top = omega2_.maxCoeff();
   if (!(omega2_(0) > 1e-13 * top))
@@ -351,6 +375,37 @@ void ChainModes::finish(const Eigen::VectorXd& p0, const Eigen::VectorXd& pc, co
     c0_(k) = h.c0;
     cc_(k) = h.cc;
     cs_(k) = h.cs;
+  }
+  // The same for each extra harmonic at its rate k_h Ω (no constant part).
+  const auto H = static_cast<Eigen::Index>(chain_.forcing.harmonics.size());
+  rates_.resize(H);
+  hc_.resize(n, H);
+  hs_.resize(n, H);
+  for (Eigen::Index j = 0; j < H; ++j) {
+    const ForcingHarmonic& fh = chain_.forcing.harmonics[static_cast<std::size_t>(j)];
+    const double rate = fh.rate(W);
+    rates_(j) = rate;
+    for (Eigen::Index k = 0; k < n; ++k) {
+      const HarmonicResponse<double> h = harmonic_response(omega2_(k), sigma_(k), rate, 0.0, Pc(k, j), Ps(k, j));
+      const double scale = std::max(omega2_(k), rate * rate);
+      if (h.det <= 1e-24 * scale * scale && (Pc(k, j) != 0.0 || Ps(k, j) != 0.0))
+        throw InvalidInput("chain: mode " + std::to_string(k) + " (ω = " + number_text(omega_(k)) +
+                           ") is in undamped resonance with the forcing's harmonic of order " +
+                           std::to_string(fh.order) + " (" + std::to_string(fh.order) + "Ω = " + number_text(rate) +
+                           "): its response grows secularly, which the modal chain engine does not represent — use "
+                           "the dense Simulator or add damping");
+      hc_(k, j) = h.cc;
+      hs_(k, j) = h.cs;
+    }
+  }
+}
+
+void ChainModes::add_particular(double t, double sign, Eigen::Ref<Eigen::VectorXd> q,
+                                Eigen::Ref<Eigen::VectorXd> qd) const {
+  for (Eigen::Index j = 0; j < rates_.size(); ++j) {
+    const double r = rates_(j), c = std::cos(r * t), s = std::sin(r * t);
+    q += sign * (hc_.col(j) * c + hs_.col(j) * s);
+    qd += (sign * r) * (hs_.col(j) * c - hc_.col(j) * s);
   }
 }
 
@@ -454,15 +509,22 @@ ChainModes::ChainModes(BandedChain reduced, const ChainModes& free, ChainReducti
     b.setZero();
     for (const auto& [mass, weight] : normal) b += (weight * free.inv_sqrt_mass_(mass)) * free.q_.row(mass).transpose();
   };
+  // Columns: the constant, cosine and sine forcing, then the extra harmonics' cosines and sines.
   const HarmonicForcing& f = chain_.forcing;
-  Eigen::MatrixXd g(n, 3);
+  const auto H = static_cast<Eigen::Index>(f.harmonics.size());
+  const Eigen::Index F = 3 + 2 * H;
+  Eigen::MatrixXd g(n, F);
   g.col(0) = f.constant.cwiseQuotient(chain_.mass);
   g.col(1) = f.cosine.cwiseQuotient(chain_.mass);
   g.col(2) = f.sine.cwiseQuotient(chain_.mass);
-  Eigen::MatrixXd spread(N, 3), carry(N, 3 + std::max<Eigen::Index>(held - 1, 0));
+  for (Eigen::Index h = 0; h < H; ++h) {
+    g.col(3 + h) = f.harmonics[static_cast<std::size_t>(h)].cosine.cwiseQuotient(chain_.mass);
+    g.col(3 + H + h) = f.harmonics[static_cast<std::size_t>(h)].sine.cwiseQuotient(chain_.mass);
+  }
+  Eigen::MatrixXd spread(N, F), carry(N, F + std::max<Eigen::Index>(held - 1, 0));
   im->spread(g, spread);
-  times_once(free.q_, spread, carry.leftCols(3));
-  for (Eigen::Index j = 1; j < held; ++j) constraint(normals[static_cast<std::size_t>(j)], carry.col(2 + held - j));
+  times_once(free.q_, spread, carry.leftCols(F));
+  for (Eigen::Index j = 1; j < held; ++j) constraint(normals[static_cast<std::size_t>(j)], carry.col(F - 1 + held - j));
   Eigen::VectorXd d = free.omega2_, z(N);
   for (Eigen::Index j = 0; j < held; ++j) {
     if (j == 0) {
@@ -480,12 +542,12 @@ ChainModes::ChainModes(BandedChain reduced, const ChainModes& free, ChainReducti
   implicit_ = im;
   omega2_ = d;
   const Eigen::MatrixXd& p = carry;
-  finish(p.col(0), p.col(1), p.col(2));
+  finish(p.col(0), p.col(1), p.col(2), p.middleCols(3, H), p.middleCols(3 + H, H));
   setup_seconds_ = seconds_since(start);
 }
 
 std::size_t ChainModes::bytes() const {
-  std::size_t b = sizeof(double) * static_cast<std::size_t>(q_.size() + 12 * omega2_.size());
+  std::size_t b = sizeof(double) * static_cast<std::size_t>(q_.size() + 12 * omega2_.size() + hc_.size() + hs_.size());
   if (implicit_)
     for (const auto& level : implicit_->levels) b += level.bytes();
   return b;
@@ -551,6 +613,7 @@ void ChainModes::to_modal(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
   }
   u -= c0_ + cc_ * c + cs_ * s;
   ud -= W * (cs_ * c - cc_ * s);
+  if (rates_.size() > 0) add_particular(t, -1.0, u, ud);
 }
 
 void ChainModes::to_physical(double t, const Eigen::Ref<const Eigen::VectorXd>& u,
@@ -568,6 +631,7 @@ void ChainModes::to_physical(double t, const Eigen::Ref<const Eigen::VectorXd>& 
   Eigen::Map<Eigen::MatrixXd> q = work.matrix(3, n, 2);  // the modal state with its particular part
   q.col(0) = u + c0_ + cc_ * c + cs_ * s;
   q.col(1) = ud + W * (cs_ * c - cc_ * s);
+  if (rates_.size() > 0) add_particular(t, 1.0, q.col(0), q.col(1));
   if (implicit_) {
     const Implicit& im = *implicit_;
     const Eigen::Index N = im.free->dof();

@@ -94,8 +94,9 @@ void ModalGuardSource::sample(double tau, SegmentSample& out) const {
   out.h += g.h0 + g.hc * c + g.hs * s;
   out.d += W_ * (g.hs * c - g.hc * s);
   out.c -= (W_ * W_) * (g.hc * c + g.hs * s);
+  if (g.harmonics() > 0) g.add_extra(t, out.h, out.d, out.c);
   B2 = (B2 + g.curvature) * inflate_;
-  B3 = (B3 + W_ * g.curvature) * inflate_;
+  B3 = (B3 + g.jerk) * inflate_;
 }
 
 void ModalGuardSource::row_jet(Eigen::Index i, double tau, double* h, double* d, double* c) const {
@@ -120,6 +121,7 @@ void ModalGuardSource::row_jet(Eigen::Index i, double tau, double* h, double* d,
   *h = value + (g.h0(i) + g.hc(i) * cs + g.hs(i) * sn);
   *d = slope + W_ * (g.hs(i) * cs - g.hc(i) * sn);
   *c = curvature - (W_ * W_) * (g.hc(i) * cs + g.hs(i) * sn);
+  if (g.harmonics() > 0) g.add_extra_row(i, t, h, d, c);
 }
 
 double ModalGuardSource::value(Eigen::Index i, double tau, int derivative) const {

@@ -61,6 +61,30 @@ struct Harmonic {
   friend Harmonic operator*(double a, const Harmonic& h) { return {a * h.c0, a * h.cc, a * h.cs}; }
 };
 
+/// A harmonic part with the drive's extra harmonics: first + Σ_h (c_h cos r_h t + s_h sin r_h t),
+/// the rates r_h kept by the caller (empty c, s: none). For building guards, not for hot loops.
+struct Periodic {
+  Harmonic first;
+  Eigen::VectorXd c, s;
+  static Periodic of(const Harmonic& h, Eigen::Index extra) {
+    return {h, Eigen::VectorXd::Zero(extra), Eigen::VectorXd::Zero(extra)};
+  }
+  Periodic derivative(double W, const Eigen::VectorXd& rates) const {
+    return {first.derivative(W), rates.cwiseProduct(s), -rates.cwiseProduct(c)};
+  }
+  Periodic& operator+=(const Periodic& o) {
+    first += o.first;
+    c += o.c;
+    s += o.s;
+    return *this;
+  }
+  Periodic& operator+=(const Harmonic& o) {
+    first += o;
+    return *this;
+  }
+  friend Periodic operator*(double a, const Periodic& p) { return {a * p.first, a * p.c, a * p.s}; }
+};
+
 inline Harmonic stop_motion(const Stop& s) { return {s.s0(), s.s_cos(), s.s_sin()}; }
 
 inline double value_at(const Harmonic& h, double W, double t) {

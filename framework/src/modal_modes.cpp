@@ -15,6 +15,32 @@ void ModalGuards::finish(double frequency) {
   abs_P = P.cwiseAbs();
   abs_D = D.cwiseAbs();
   curvature = (frequency * frequency) * (hc.cwiseAbs2() + hs.cwiseAbs2()).cwiseSqrt();
+  jerk = frequency * curvature;
+  for (Eigen::Index h = 0; h < rates.size(); ++h) {
+    const double r = rates(h);
+    const Eigen::VectorXd A = (xc.col(h).cwiseAbs2() + xs.col(h).cwiseAbs2()).cwiseSqrt();
+    curvature += (r * r) * A;
+    jerk += (r * r * r) * A;
+  }
+}
+
+void ModalGuards::add_extra_row(Eigen::Index i, double t, double* value, double* slope, double* curvature) const {
+  for (Eigen::Index h = 0; h < rates.size(); ++h) {
+    const double r = rates(h), c = std::cos(r * t), s = std::sin(r * t);
+    *value += xc(i, h) * c + xs(i, h) * s;
+    *slope += r * (xs(i, h) * c - xc(i, h) * s);
+    if (curvature) *curvature -= (r * r) * (xc(i, h) * c + xs(i, h) * s);
+  }
+}
+
+void ModalGuards::add_extra(double t, Eigen::Ref<Eigen::VectorXd> value, Eigen::Ref<Eigen::VectorXd> slope,
+                            Eigen::Ref<Eigen::VectorXd> curvature) const {
+  for (Eigen::Index h = 0; h < rates.size(); ++h) {
+    const double r = rates(h), c = std::cos(r * t), s = std::sin(r * t);
+    value += xc.col(h) * c + xs.col(h) * s;
+    slope += r * (xs.col(h) * c - xc.col(h) * s);
+    curvature -= (r * r) * (xc.col(h) * c + xs.col(h) * s);
+  }
 }
 
 namespace detail {
@@ -30,6 +56,10 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
   const Eigen::Index n = free.dof();
   const double W = free.frequency();
   const double alpha = ch.rayleigh_mass, beta = ch.rayleigh_stiffness;
+  // The drive's extra harmonics (system.hpp): their rates, as ChainModes has them.
+  const auto H = static_cast<Eigen::Index>(ch.forcing.harmonics.size());
+  Eigen::VectorXd rates(H);
+  for (Eigen::Index h = 0; h < H; ++h) rates(h) = ch.forcing.harmonics[static_cast<std::size_t>(h)].rate(W);
   mode->coordinate.assign(static_cast<std::size_t>(n), -1);
   mode->o0 = Eigen::VectorXd::Zero(n);
   mode->oc = Eigen::VectorXd::Zero(n);
@@ -153,6 +183,10 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
       red.rayleigh_mass = alpha;
       red.rayleigh_stiffness = beta;
       red.forcing = HarmonicForcing::zero(nr, W);
+      // The held stops move with the first harmonic only, so the extra harmonics force the reduced
+      // chain as Tᵀ f_h.
+      for (const ForcingHarmonic& fh : f.harmonics)
+        red.forcing.harmonics.push_back({fh.order, Eigen::VectorXd::Zero(nr), Eigen::VectorXd::Zero(nr)});
       for (Eigen::Index r = 0; r < nr; ++r) {
         const Eigen::Index a = mode->first[static_cast<std::size_t>(r)], b = mode->last[static_cast<std::size_t>(r)];
         for (Eigen::Index l = a; l <= b; ++l) {
@@ -161,6 +195,10 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
           red.forcing.constant(r) += F0(l);
           red.forcing.cosine(r) += Fc(l);
           red.forcing.sine(r) += Fs(l);
+          for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+            red.forcing.harmonics[h].cosine(r) += f.harmonics[h].cosine(l);
+            red.forcing.harmonics[h].sine(r) += f.harmonics[h].sine(l);
+          }
         }
         if (r + 1 < nr && b + 1 == mode->first[static_cast<std::size_t>(r + 1)])
           red.stiffness_off(r) = ch.stiffness_off(b);
@@ -198,18 +236,25 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
   // formed only for the masses a guard needs.
   const ChainModes* md = mode->modes;
   const Eigen::Index nr = mode->size();
-  std::map<Eigen::Index, std::pair<Eigen::VectorXd, Harmonic>> rows;
-  auto mass_row = [&](Eigen::Index l) -> const std::pair<Eigen::VectorXd, Harmonic>& {
+  // The extra harmonics of X_l are φ_l·p_h(t) (the offsets move with the first harmonic only).
+  std::map<Eigen::Index, std::pair<Eigen::VectorXd, Periodic>> rows;
+  auto add_particular = [&](std::pair<Eigen::VectorXd, Periodic>& entry) {
+    entry.second += Harmonic{entry.first.dot(md->particular_constant()), entry.first.dot(md->particular_cosine()),
+                             entry.first.dot(md->particular_sine())};
+    if (H > 0) {
+      entry.second.c = md->particular_harmonic_cosine().transpose() * entry.first;
+      entry.second.s = md->particular_harmonic_sine().transpose() * entry.first;
+    }
+  };
+  auto mass_row = [&](Eigen::Index l) -> const std::pair<Eigen::VectorXd, Periodic>& {
     auto it = rows.find(l);
     if (it != rows.end()) return it->second;
-    std::pair<Eigen::VectorXd, Harmonic> entry{Eigen::VectorXd::Zero(nr),
-                                               {mode->o0(l), mode->oc(l), mode->os(l)}};
+    std::pair<Eigen::VectorXd, Periodic> entry{Eigen::VectorXd::Zero(nr),
+                                               Periodic::of({mode->o0(l), mode->oc(l), mode->os(l)}, H)};
     const Eigen::Index r = mode->coordinate[static_cast<std::size_t>(l)];
     if (r >= 0) {
       entry.first = md->phi_row(r);
-      entry.second += Harmonic{entry.first.dot(md->particular_constant()),
-                               entry.first.dot(md->particular_cosine()),
-                               entry.first.dot(md->particular_sine())};
+      add_particular(entry);
     }
     return rows.emplace(l, std::move(entry)).first->second;
   };
@@ -238,10 +283,9 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
     const Eigen::MatrixXd phi = md->phi_rows(coordinates);
     for (std::size_t c = 0; c < wanted.size(); ++c) {
       const Eigen::Index l = wanted[c];
-      std::pair<Eigen::VectorXd, Harmonic> entry{phi.row(static_cast<Eigen::Index>(c)).transpose(),
-                                                 {mode->o0(l), mode->oc(l), mode->os(l)}};
-      entry.second += Harmonic{entry.first.dot(md->particular_constant()), entry.first.dot(md->particular_cosine()),
-                               entry.first.dot(md->particular_sine())};
+      std::pair<Eigen::VectorXd, Periodic> entry{phi.row(static_cast<Eigen::Index>(c)).transpose(),
+                                                 Periodic::of({mode->o0(l), mode->oc(l), mode->os(l)}, H)};
+      add_particular(entry);
       rows.emplace(l, std::move(entry));
     }
   }
@@ -254,10 +298,17 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
   g.h0 = Eigen::VectorXd::Zero(m);
   g.hc = Eigen::VectorXd::Zero(m);
   g.hs = Eigen::VectorXd::Zero(m);
-  auto set_harmonic = [&](Eigen::Index row, const Harmonic& h) {
-    g.h0(row) = h.c0;
-    g.hc(row) = h.cc;
-    g.hs(row) = h.cs;
+  g.xc = Eigen::MatrixXd::Zero(m, H);
+  g.xs = Eigen::MatrixXd::Zero(m, H);
+  g.rates = rates;
+  auto set_harmonic = [&](Eigen::Index row, const Periodic& h) {
+    g.h0(row) = h.first.c0;
+    g.hc(row) = h.first.cc;
+    g.hs(row) = h.first.cs;
+    if (H > 0) {
+      g.xc.row(row) = h.c.transpose();
+      g.xs.row(row) = h.s.transpose();
+    }
   };
   // Gaps of the stops not held: g_j = w_jᵀ x - s_j(t).
   for (int j = 0; j < static_cast<int>(m); ++j) {
@@ -266,7 +317,7 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
     mode->watched.push_back(j);
     const Stop& s = stops[static_cast<std::size_t>(j)];
     const Normal w = normal_of(s);
-    Harmonic h = -1.0 * stop_motion(s);
+    Periodic h = Periodic::of(-1.0 * stop_motion(s), H);
     for (const auto& [l, weight] : {std::pair{w.i, w.wi}, std::pair{w.k, w.wk}}) {
       if (l < 0) continue;
       const auto& [phi, X] = mass_row(l);
@@ -301,27 +352,31 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
       }
       const Eigen::MatrixXd pinv = Wg.completeOrthogonalDecomposition().pseudoInverse();
       Eigen::MatrixXd Pg = Eigen::MatrixXd::Zero(size, nr);
-      std::vector<Harmonic> hg(static_cast<std::size_t>(size));
+      std::vector<Periodic> hg(static_cast<std::size_t>(size));
       for (Eigen::Index l = grp.lo; l <= grp.hi; ++l) {
         const Eigen::Index a = l - grp.lo;
         const auto [phi, X] = mass_row(l);
         if (nr > 0) Pg.row(a) = -ch.mass(l) * phi.cwiseProduct(w2).transpose();
-        Harmonic h = ch.mass(l) * X.derivative(W).derivative(W);
-        h += (alpha * ch.mass(l)) * X.derivative(W);
+        Periodic h = ch.mass(l) * X.derivative(W, rates).derivative(W, rates);
+        h += (alpha * ch.mass(l)) * X.derivative(W, rates);
         for (Eigen::Index lp = std::max<Eigen::Index>(l - 1, 0); lp <= std::min(l + 1, n - 1); ++lp) {
           const double k = stiffness_entry(ch, l, lp);
           const auto& [phi_p, X_p] = mass_row(lp);
           if (nr > 0) Pg.row(a) += k * phi_p.transpose();
           h += k * X_p;
-          h += (beta * k) * X_p.derivative(W);
+          h += (beta * k) * X_p.derivative(W, rates);
         }
         h += Harmonic{-ch.forcing.constant(l), -ch.forcing.cosine(l), -ch.forcing.sine(l)};
+        for (Eigen::Index e = 0; e < H; ++e) {
+          h.c(e) -= ch.forcing.harmonics[static_cast<std::size_t>(e)].cosine(l);
+          h.s(e) -= ch.forcing.harmonics[static_cast<std::size_t>(e)].sine(l);
+        }
         hg[static_cast<std::size_t>(a)] = h;
       }
       for (std::size_t c = 0; c < members.size(); ++c) {
         const auto a_idx = std::lower_bound(set.begin(), set.end(), members[c]) - set.begin();
         const Eigen::Index row = mode->gap_rows + a_idx;
-        Harmonic h;
+        Periodic h = Periodic::of({}, H);
         for (Eigen::Index a = 0; a < size; ++a) {
           const double p = pinv(static_cast<Eigen::Index>(c), a);
           if (p == 0.0) continue;
@@ -389,6 +444,7 @@ void guard_at(const ModalContactMode& mode, double W, double t0, const Eigen::Re
   *value = g.h0(row) + g.hc(row) * c + g.hs(row) * s;
   *slope = W * (g.hs(row) * c - g.hc(row) * s);
   if (curvature) *curvature = -W * W * (g.hc(row) * c + g.hs(row) * s);
+  if (g.harmonics() > 0) g.add_extra_row(row, t, value, slope, curvature);
   if (!mode.modes) return;
   const Eigen::Index nr = mode.size();
   auto u = b.u.head(nr), ud = b.ud.head(nr), udd = b.udd.head(nr);

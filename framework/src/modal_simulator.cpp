@@ -94,6 +94,10 @@ class ChainAlgebra final : public detail::ContactAlgebra {
     const HarmonicForcing& f = ch_.forcing;
     const double c = std::cos(W_ * t), s = std::sin(W_ * t);
     acc_ = f.constant + f.cosine * c + f.sine * s - kx_ - ch_.rayleigh_stiffness * kv_;
+    for (const ForcingHarmonic& h : f.harmonics) {
+      const double r = h.rate(W_);
+      acc_ += h.cosine * std::cos(r * t) + h.sine * std::sin(r * t);
+    }
     acc_.array() /= ch_.mass.array();
     acc_ -= ch_.rayleigh_mass * v;
     const auto k = static_cast<Eigen::Index>(candidates.size());
@@ -325,8 +329,10 @@ class ModalChainSimulator::Loop {
     const Eigen::Index n = md_.dof();
     const double kmax = std::max(ch_.stiffness_diagonal.cwiseAbs().maxCoeff(),
                                  n > 1 ? ch_.stiffness_off.cwiseAbs().maxCoeff() : 0.0);
-    const double fmax = ch_.forcing.constant.cwiseAbs().maxCoeff() + ch_.forcing.cosine.cwiseAbs().maxCoeff() +
+    double fmax = ch_.forcing.constant.cwiseAbs().maxCoeff() + ch_.forcing.cosine.cwiseAbs().maxCoeff() +
                         ch_.forcing.sine.cwiseAbs().maxCoeff();
+    for (const ForcingHarmonic& h : ch_.forcing.harmonics)
+      fmax += h.cosine.cwiseAbs().maxCoeff() + h.sine.cwiseAbs().maxCoeff();
     return {W_ > 0.0 ? W_ : md_.omega().maxCoeff(), kmax, ch_.mass.maxCoeff(), fmax};
   }
   void check_scene(const detail::RunScales& /*sc*/, std::vector<std::string>& /*warnings*/) const {}
@@ -436,8 +442,13 @@ class ModalChainSimulator::Loop {
  private:
   Eigen::VectorXd::SegmentReturnType u0() { return sim_.u0_.head(sim_.nr_); }
   Eigen::VectorXd::SegmentReturnType ud0() { return sim_.ud0_.head(sim_.nr_); }
-  /// The search's step rate: the forcing's or the mode's fastest frequency (1/ω_max steps).
-  double top_rate() const { return std::max(W_, mode_->modes ? mode_->modes->omega().maxCoeff() : 0.0); }
+  /// The search's step rate: the forcing's (its highest harmonic's) or the mode's fastest
+  /// frequency (1/ω_max steps).
+  double top_rate() const {
+    const ModalGuards& g = mode_->guards;
+    const double drive = g.harmonics() > 0 ? std::max(W_, g.rates.maxCoeff()) : W_;
+    return std::max(drive, mode_->modes ? mode_->modes->omega().maxCoeff() : 0.0);
+  }
   /// Enters the mode of `stuck` from the physical state (x, v) at t. False if unsupported.
   bool enter(const detail::RunState& st, std::string* why) {
     const ModalContactMode* next = sim_.mode_for(st.stuck, why, summary_);
@@ -467,7 +478,11 @@ class ModalChainSimulator::Loop {
       auto udd = buffers_.udd.head(sim_.nr_);
       udd = -(2.0 * md_.decay().cwiseProduct(ud0()) + md_.omega_squared().cwiseProduct(u0()));
       const double c = std::cos(W_ * t), s = std::sin(W_ * t);
-      const double accel = guards.P.row(row).dot(udd) - W_ * W_ * (guards.hc(row) * c + guards.hs(row) * s);
+      double accel = guards.P.row(row).dot(udd) - W_ * W_ * (guards.hc(row) * c + guards.hs(row) * s);
+      if (guards.harmonics() > 0) {
+        double value = 0.0, slope = 0.0;
+        guards.add_extra_row(row, t, &value, &slope, &accel);
+      }
       slow = accel > 0.0 &&
              (before <= rules_.v_chatter || (r * before) * (r * before) / (2.0 * accel) <= rules_.h_chatter);
     }
@@ -475,10 +490,12 @@ class ModalChainSimulator::Loop {
     sets_seen_.insert(impacting);
     const double impulse = before > 0.0 ? (1.0 + r) * before / algebra_->delassus_diagonal(j) : 0.0;
     ud0() -= guards.P.row(row).transpose() * impulse;
-    const double g = guards.P.row(row).dot(u0()) + value_at({guards.h0(row), guards.hc(row), guards.hs(row)}, W_, t);
-    if (g > 0.0) u0() -= guards.P.row(row).transpose() * (g / algebra_->delassus_diagonal(j));
+    double g = guards.P.row(row).dot(u0()) + value_at({guards.h0(row), guards.hc(row), guards.hs(row)}, W_, t);
     const double c = std::cos(W_ * t), s = std::sin(W_ * t);
-    const double after_rate = guards.P.row(row).dot(ud0()) + W_ * (guards.hs(row) * c - guards.hc(row) * s);
+    double after_rate = W_ * (guards.hs(row) * c - guards.hc(row) * s);
+    if (guards.harmonics() > 0) guards.add_extra_row(row, t, &g, &after_rate, nullptr);
+    if (g > 0.0) u0() -= guards.P.row(row).transpose() * (g / algebra_->delassus_diagonal(j));
+    after_rate += guards.P.row(row).dot(ud0());
     emit_({t, j, EventKind::impact, before, after_rate, 0.0});
     ++summary_.impacts;
     return true;

@@ -62,6 +62,7 @@ void ModalSegmentState::rows(double t, const std::vector<Eigen::Index>& masses, 
     m.advance(t - t_begin_, u_, ud_, q, qd);
     q += m.particular_constant() + m.particular_cosine() * c + m.particular_sine() * s;
     qd += W * (m.particular_sine() * c - m.particular_cosine() * s);
+    if (m.harmonic_rates().size() > 0) m.add_particular(t, 1.0, q, qd);
     phi = m.phi_rows(coordinates);
   }
   Eigen::Index next = 0;
@@ -116,6 +117,14 @@ std::vector<Minimum> guard_maxima(const ModalChainSimulator& sim, const ModalCon
   slope.h0 = Eigen::Vector2d(-h_slope.c0, h_slope.c0);
   slope.hc = Eigen::Vector2d(-h_slope.cc, h_slope.cc);
   slope.hs = Eigen::Vector2d(-h_slope.cs, h_slope.cs);
+  slope.rates = g.rates;
+  slope.xc.resize(2, g.harmonics());
+  slope.xs.resize(2, g.harmonics());
+  for (Eigen::Index h = 0; h < g.harmonics(); ++h) {  // d/dt of xc cos rt + xs sin rt
+    const double r = g.rates(h), c = r * g.xs(row, h), s = -r * g.xc(row, h);
+    slope.xc.col(h) = Eigen::Vector2d(-c, c);
+    slope.xs.col(h) = Eigen::Vector2d(-s, s);
+  }
   slope.finish(W);
 
   ModalGuardSource source(nr);
@@ -201,12 +210,22 @@ void ModalSegmentView::plane_crossings(const Hyperplane& plane, double trigger, 
   ModalGuards g;
   g.P = Eigen::MatrixXd::Zero(2, nr);
   g.D.resize(0, nr);
+  g.rates = md.guards.rates;
+  const Eigen::Index H = g.harmonics();
+  g.xc = Eigen::MatrixXd::Zero(2, H);
+  g.xs = Eigen::MatrixXd::Zero(2, H);
   if (nr > 0 && !coordinates.empty()) {
     const ChainModes& m = *md.modes;
     const Eigen::MatrixXd phi = m.phi_rows(coordinates);
     for (Eigen::Index k = 0; k < phi.rows(); ++k) g.P.row(0) += weights[static_cast<std::size_t>(k)] * phi.row(k);
     offset += Harmonic{g.P.row(0).dot(m.particular_constant()), g.P.row(0).dot(m.particular_cosine()),
                        g.P.row(0).dot(m.particular_sine())};
+    if (H > 0) {  // the extra harmonics of φ·p(t) (the offsets move with the first harmonic only)
+      g.xc.row(0) = g.P.row(0) * m.particular_harmonic_cosine();
+      g.xs.row(0) = g.P.row(0) * m.particular_harmonic_sine();
+      g.xc.row(1) = -g.xc.row(0);
+      g.xs.row(1) = -g.xs.row(0);
+    }
   }
   g.P.row(1) = -g.P.row(0);
   g.h0 = Eigen::Vector2d(offset.c0, -offset.c0);

@@ -127,14 +127,18 @@ TEST_CASE("base: a stop attached to the base is the force form with the stop mov
   CHECK((tx.x - tf.x).cwiseAbs().maxCoeff() > 1e-3);
 }
 
-TEST_CASE("base: higher harmonics run on the dense engine, and with a stop on the base are refused", "[scene][base]") {
+TEST_CASE("base: higher harmonics run on both engines, and with a stop on the base are refused", "[scene][base]") {
   const std::string base = "base:\n  displacement:\n    cosine: 0.05\n    harmonics:\n      - {order: 2, cosine: 0.01}\n";
   const Scene s = SceneDocument::parse(kModel + "forcing: {frequency: 0.3}\n" + base + stops(""), "h.yaml").build();
-  CHECK(s.engine == EngineKind::dense);
-  CHECK_THAT(s.engine_reason, Contains("base.displacement.harmonics"));
-  const SceneError modal = error_of(kModel + "forcing: {frequency: 0.3}\n" + base + stops("") + "solver: {engine: modal}\n");
-  CHECK(modal.path() == "solver.engine");
-  CHECK_THAT(modal.problem(), Contains("base.displacement.harmonics") && Contains("dense engine"));
+  CHECK(s.engine == EngineKind::dense);  // two masses: auto chooses as without harmonics
+  CHECK_THAT(s.engine_reason, Contains("2 masses"));
+  const Scene modal =
+      SceneDocument::parse(kModel + "forcing: {frequency: 0.3}\n" + base + stops("") + "solver: {engine: modal}\n", "m.yaml")
+          .build();
+  CHECK(modal.engine == EngineKind::modal);
+  REQUIRE(modal.chain);
+  REQUIRE(modal.chain->forcing.harmonics.size() == 1);
+  CHECK(modal.chain->forcing.harmonics[0].cosine(0) == 0.01);
   REQUIRE(s.forcing().harmonics.size() == 1);
   CHECK(s.forcing().harmonics[0].order == 2);
   // k x_b for the 2nd harmonic on mass 0: 1 · 0.01, and its dashpot's sine −c a 2Ω.

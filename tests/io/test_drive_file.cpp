@@ -1,12 +1,15 @@
-// `forcing.file` (docs/scenes.md): a drive given by its harmonics in a CSV file runs bit for bit
-// as the same harmonics written inline; a sampled period made of exactly H harmonics is reduced by
-// the DFT to them to 1e-13; bad files are refused at file:line:col.
+// `forcing.file` (docs/scenes.md): a drive given by its harmonics in a CSV or an HDF5 file runs
+// bit for bit as the same harmonics written inline; a sampled period made of exactly H harmonics
+// is reduced by the DFT to them to 1e-13, from either container; bad files are refused at
+// file:line:col (CSV) or file:dataset (HDF5).
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"
 #include "support/temp_dir.hpp"
 
 #include <catch2/catch.hpp>
+
+#include <hdf5.h>
 
 #include <cmath>
 #include <fstream>
@@ -42,6 +45,28 @@ void write(const std::string& path, const std::string& text) {
   out << text;
 }
 
+/// Writes `rows` (each of the same length, or a 1-D dataset if `one_dimensional`) as a dataset of
+/// doubles at `dataset` (groups created as needed) into a new HDF5 file, with HDF5's C API (not
+/// the framework's writer, so that the reader is tested against an independent file).
+void write_hdf5(const std::string& path, const std::string& dataset, const std::vector<std::vector<double>>& rows,
+                bool one_dimensional = false, hid_t type = H5T_IEEE_F64LE) {
+  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  REQUIRE(file >= 0);
+  std::vector<double> flat;
+  for (const auto& row : rows) flat.insert(flat.end(), row.begin(), row.end());
+  const hsize_t dims[2] = {rows.size(), rows.empty() ? 0 : rows.front().size()};
+  const hid_t space = H5Screate_simple(one_dimensional ? 1 : 2, dims, nullptr);
+  const hid_t links = H5Pcreate(H5P_LINK_CREATE);
+  H5Pset_create_intermediate_group(links, 1);
+  const hid_t d = H5Dcreate2(file, dataset.c_str(), type, space, links, H5P_DEFAULT, H5P_DEFAULT);
+  REQUIRE(d >= 0);
+  if (!flat.empty()) REQUIRE(H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, flat.data()) >= 0);
+  H5Dclose(d);
+  H5Pclose(links);
+  H5Sclose(space);
+  H5Fclose(file);
+}
+
 std::string error_of(const std::string& text, const std::string& file) {
   try {
     SceneDocument::parse(text, file).build();
@@ -53,7 +78,7 @@ std::string error_of(const std::string& text, const std::string& file) {
 
 }  // namespace
 
-TEST_CASE("forcing.file: harmonics from a file run bit for bit as written inline", "[scene][drive_file]") {
+TEST_CASE("forcing.file: harmonics from a CSV or an HDF5 file run bit for bit as written inline", "[scene][drive_file]") {
   const vibro::test::TempDir dir;
   const std::string inline_text = kHead + R"(  cosine: [0.5, 0]
   sine: [0, 0.1]
@@ -62,9 +87,15 @@ TEST_CASE("forcing.file: harmonics from a file run bit for bit as written inline
     - {order: 2, cosine: [0.2, 0], sine: [0.03, 0]}
 )";
   write(dir / "drive.csv", "# k, cosine x0, cosine x1, sine x0, sine x1\n1, 0.5, 0, 0, 0.1\n\n3, 0.1, 0.02, 0, 0.05\n2,0.2,0,0.03,0\n");
+  const std::vector<std::vector<double>> table{{1, 0.5, 0, 0, 0.1}, {3, 0.1, 0.02, 0, 0.05}, {2, 0.2, 0, 0.03, 0}};
+  write_hdf5(dir / "drive.h5", "/harmonics", table);
+  write_hdf5(dir / "shaker.data", "/rig/drive", table);  // named dataset, container given by `type`
   const std::string file_text = kHead + "  file: {path: drive.csv, format: harmonics}\n";
+  const std::string hdf5_text = kHead + "  file: {path: drive.h5, format: harmonics}\n";
+  const std::string named_text = kHead + "  file: {path: shaker.data, type: hdf5, dataset: rig/drive, format: harmonics}\n";
   std::vector<ResultReader> results;
-  for (const auto& [text, name] : {std::pair{inline_text, std::string("inline")}, std::pair{file_text, std::string("file")}}) {
+  for (const auto& [text, name] : {std::pair{inline_text, std::string("inline")}, std::pair{file_text, std::string("file")},
+                                   std::pair{hdf5_text, std::string("hdf5")}, std::pair{named_text, std::string("named")}}) {
     const SceneDocument doc = SceneDocument::parse(text, dir / (name + ".yaml"));  // the CSV is beside it
     const Scene s = doc.build();
     REQUIRE(run_scene(doc, s, {dir / (name + ".h5"), 1, false, false, 0}).exit_code == 0);
@@ -73,10 +104,13 @@ TEST_CASE("forcing.file: harmonics from a file run bit for bit as written inline
   REQUIRE(results[0].read("/events/t").size() >= 5);
   for (const char* d : {"/scene/forcing_cosine", "/scene/forcing_sine", "/scene/harmonic_cosine", "/scene/harmonic_sine",
                         "/events/t", "/events/v_before", "/samples/x", "/samples/v"}) {
-    INFO(d);
-    CHECK(results[0].read(d) == results[1].read(d));  // bit for bit
+    for (std::size_t k = 1; k < results.size(); ++k) {
+      INFO(d << ", file " << k);
+      CHECK(results[0].read(d) == results[k].read(d));  // bit for bit
+    }
   }
-  CHECK(results[0].read("/scene/harmonic_order") == results[1].read("/scene/harmonic_order"));
+  for (std::size_t k = 1; k < results.size(); ++k)
+    CHECK(results[0].read("/scene/harmonic_order") == results[k].read("/scene/harmonic_order"));
 }
 
 TEST_CASE("forcing.file: a sampled period of H harmonics is reduced to them", "[scene][drive_file]") {
@@ -102,9 +136,33 @@ TEST_CASE("forcing.file: a sampled period of H harmonics is reduced to them", "[
     csv += "\n";
   }
   write(dir / "period.csv", csv);
+  // The same samples (the doubles the CSV's 17 digits give back) as a 50 × 2 HDF5 dataset.
+  std::vector<std::vector<double>> samples;
+  for (std::size_t at = 0; at < csv.size();) {
+    const std::size_t end = csv.find('\n', at);
+    const std::string line = csv.substr(at, end - at);
+    at = end + 1;
+    if (line.empty() || line.front() == '#') continue;
+    const std::size_t comma = line.find(',');
+    samples.push_back({std::stod(line.substr(0, comma)), std::stod(line.substr(comma + 1))});
+  }
+  REQUIRE(samples.size() == static_cast<std::size_t>(N));
+  write_hdf5(dir / "period.hdf5", "/samples", samples);
   const Scene sc = SceneDocument::parse(kHead + "  file: {path: period.csv, format: samples, harmonics: 4}\n",
                                         dir / "s.yaml").build();
+  const Scene from_hdf5 = SceneDocument::parse(kHead + "  file: {path: period.hdf5, format: samples, harmonics: 4}\n",
+                                               dir / "s.yaml").build();
   const HarmonicForcing& f = sc.forcing();
+  const HarmonicForcing& g = from_hdf5.forcing();
+  CHECK(g.constant == f.constant);  // bit for bit: the same numbers, the same transform
+  CHECK(g.cosine == f.cosine);
+  CHECK(g.sine == f.sine);
+  REQUIRE(g.harmonics.size() == f.harmonics.size());
+  for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+    CHECK(g.harmonics[h].order == f.harmonics[h].order);
+    CHECK(g.harmonics[h].cosine == f.harmonics[h].cosine);
+    CHECK(g.harmonics[h].sine == f.harmonics[h].sine);
+  }
   REQUIRE(f.harmonics.size() == 3);
   double worst = 0.0;
   for (int q = 0; q < 2; ++q) {
@@ -153,4 +211,38 @@ TEST_CASE("forcing.file: bad files and conflicts are refused at file:line:col", 
   CHECK_NOTHROW(SceneDocument::parse(samples, scene).build());
   CHECK_THAT(error_of(kHead + "  constant: [1, 0]\n  file: {path: p.csv, format: samples, harmonics: 2}\n", scene),
              Contains("forcing.constant") && Contains("mean"));
+}
+
+TEST_CASE("forcing.file: bad HDF5 files and datasets are refused naming the file and the dataset", "[scene][drive_file]") {
+  const vibro::test::TempDir dir;
+  const std::string scene = dir / "s.yaml";
+  const std::string harmonics = kHead + "  file: {path: d.h5, format: harmonics}\n";
+  CHECK_THAT(error_of(harmonics, scene), Contains("s.yaml:16:16: forcing.file.path") && Contains("d.h5: no such file"));
+  write(dir / "d.h5", "1, 0.5, 0, 0, 0.1\n");  // a CSV named .h5
+  CHECK_THAT(error_of(harmonics, scene), Contains("d.h5: cannot be read as HDF5"));
+  write_hdf5(dir / "d.h5", "/other", {{1, 0.5, 0, 0, 0.1}});
+  CHECK_THAT(error_of(harmonics, scene), Contains("d.h5:/harmonics: no such dataset") && Contains("/other"));
+  CHECK_NOTHROW(SceneDocument::parse(kHead + "  file: {path: d.h5, format: harmonics, dataset: /other}\n", scene).build());
+  write_hdf5(dir / "d.h5", "/harmonics", {{1, 0.5, 0, 0}});
+  CHECK_THAT(error_of(harmonics, scene), Contains("d.h5:/harmonics[0]: expected 5 numbers") && Contains("found 4"));
+  write_hdf5(dir / "d.h5", "/harmonics", {{1, 0.5, 0, 0, 0.1}, {2.5, 0, 0, 0, 0}});
+  CHECK_THAT(error_of(harmonics, scene), Contains("d.h5:/harmonics[1]: the order k must be a whole number"));
+  write_hdf5(dir / "d.h5", "/harmonics", {{1, 0.5, std::nan(""), 0, 0.1}});
+  CHECK_THAT(error_of(harmonics, scene), Contains("d.h5:/harmonics[0, 2]: is nan: expected a finite number"));
+  write_hdf5(dir / "d.h5", "/harmonics", {{1, 0.5, 0, 0, 0.1}, {1, 0.5, 0, 0, 0.1}});
+  CHECK_THAT(error_of(harmonics, scene), Contains("d.h5:/harmonics[1]: order 1 is given twice"));
+  write_hdf5(dir / "d.h5", "/harmonics", {});
+  CHECK_THAT(error_of(harmonics, scene), Contains("d.h5:/harmonics: no rows"));
+  // Sampled: the row length, and H below N/2.
+  const std::string samples = kHead + "  file: {path: p.h5, format: samples, harmonics: 2}\n";
+  write_hdf5(dir / "p.h5", "/samples", {{1, 0}, {0, 1}, {-1, 0}, {0, -1}});
+  CHECK_THAT(error_of(samples, scene), Contains("p.h5:/samples: 4 samples resolve harmonics below N/2 = 2 only"));
+  write_hdf5(dir / "p.h5", "/samples", {{1}, {0}, {-1}, {0}, {0}, {1}}, true);
+  CHECK_THAT(error_of(samples, scene), Contains("p.h5:/samples[0]: expected 2 numbers"));
+  // A dataset for a CSV file, an unknown type.
+  write(dir / "d.csv", "1, 0.5, 0, 0, 0.1\n");
+  CHECK_THAT(error_of(kHead + "  file: {path: d.csv, format: harmonics, dataset: /x}\n", scene),
+             Contains("forcing.file.dataset") && Contains("a CSV file has no datasets"));
+  CHECK_THAT(error_of(kHead + "  file: {path: d.csv, format: harmonics, type: json}\n", scene),
+             Contains("forcing.file.type"));
 }

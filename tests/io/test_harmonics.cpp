@@ -1,6 +1,6 @@
 // forcing.harmonics in scene files (docs/scenes.md): the first harmonic given there is the scene
-// with forcing.cosine/sine bit for bit; higher orders reach the system, /scene and the engine
-// choice; continuation in a harmonic's amplitude against brute-force simulation.
+// with forcing.cosine/sine bit for bit; higher orders reach the system, /scene and both engines
+// (the same events on each); continuation in a harmonic's amplitude against brute-force simulation.
 #include "vibro/io/kinds/continue.hpp"
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/runner.hpp"
@@ -110,7 +110,7 @@ TEST_CASE("forcing.harmonics: order 1 given there is the scene with forcing.cosi
   CHECK(!rb.exists("/scene/harmonic_order"));
 }
 
-TEST_CASE("forcing.harmonics: higher orders reach the system, /scene, and choose the dense engine",
+TEST_CASE("forcing.harmonics: higher orders reach the system, /scene, and the engine auto chooses as without them",
           "[scene][harmonics]") {
   const std::string forcing = R"(forcing:
   frequency: 0.2559
@@ -128,8 +128,8 @@ solver: {engine: auto}
   CHECK(s.forcing().harmonics[1].order == 2);
   CHECK(s.forcing().harmonics[1].sine(0) == 0.05);
   CHECK(s.system().forcing().harmonics.size() == 2);  // the chain's dense system carries them
-  CHECK(s.engine == EngineKind::dense);
-  CHECK(s.engine_reason.find("forcing.harmonics") != std::string::npos);
+  CHECK(s.engine == EngineKind::dense);  // two masses: below the modal engine's threshold
+  CHECK(s.engine_reason.find("2 masses") != std::string::npos);
   // --set reaches a harmonic's amplitude by its place in the list.
   SceneDocument edited(doc);
   edited.set("forcing.harmonics[1].cosine[0]", 0.25);
@@ -145,6 +145,37 @@ solver: {engine: auto}
   REQUIRE(section.size() == 2);
   CHECK(section[0] >= 5);
   CHECK(section[1] == 2);
+}
+
+TEST_CASE("forcing.harmonics: solver.engine: modal runs them, with the dense engine's events", "[scene][harmonics]") {
+  // The two engines agree to rounding on a drive with harmonics (tests/framework/
+  // test_modal_harmonics.cpp gives the bound 1e-10 of T and V and its reasons).
+  const std::string forcing = R"(forcing:
+  frequency: 0.2559
+  cosine: [0.5, 0]
+  harmonics:
+    - {order: 3, sine: [0, 0.02]}
+    - {order: 2, cosine: [0.1, 0], sine: [0.05, 0]}
+)";
+  const std::string run = "record: {events: true}\nrun: {kind: simulate, periods: 20}\n";
+  const vibro::test::TempDir dir;
+  std::vector<ResultReader> results;
+  for (const char* engine : {"dense", "modal"}) {
+    const SceneDocument doc =
+        SceneDocument::parse(with_forcing(forcing, run) + "solver: {engine: " + engine + "}\n", std::string(engine) + ".yaml");
+    const Scene s = doc.build();
+    CHECK(s.engine == (std::string(engine) == "modal" ? EngineKind::modal : EngineKind::dense));
+    REQUIRE(run_scene(doc, s, {dir / (std::string(engine) + ".h5"), 1, false, false, 0}).exit_code == 0);
+    results.emplace_back(dir / (std::string(engine) + ".h5"));
+  }
+  const std::vector<double> td = results[0].read("/events/t"), tm = results[1].read("/events/t");
+  REQUIRE(td.size() >= 10);
+  REQUIRE(tm.size() == td.size());
+  CHECK(results[0].read_integers("/events/stop") == results[1].read_integers("/events/stop"));
+  const double T = 2.0 * std::numbers::pi / 0.2559;
+  double dt = 0.0;
+  for (std::size_t e = 0; e < td.size(); ++e) dt = std::max(dt, std::abs(td[e] - tm[e]));
+  CHECK(dt <= 1e-10 * T);
 }
 
 TEST_CASE("forcing.harmonics: the parameter derivative of a harmonic's amplitude", "[scene][harmonics][continue]") {

@@ -148,6 +148,12 @@ class Mechanics {
     Fc_ = seed(chain.forcing.cosine, d.cosine);
     Fs_ = seed(chain.forcing.sine, d.sine);
     omega_ = make(chain.forcing.frequency, d.frequency);
+    for (std::size_t h = 0; h < chain.forcing.harmonics.size(); ++h) {
+      const ForcingHarmonic& fh = chain.forcing.harmonics[h];
+      orders_.push_back(fh.order);
+      Hc_.push_back(seed(fh.cosine, h < d.harmonic_cosine.size() ? d.harmonic_cosine[h] : Eigen::VectorXd()));
+      Hs_.push_back(seed(fh.sine, h < d.harmonic_sine.size() ? d.harmonic_sine[h] : Eigen::VectorXd()));
+    }
     add_stops(stops, d);
   }
 
@@ -201,6 +207,8 @@ class Mechanics {
   std::size_t harmonics() const { return orders_.size(); }
   T harmonic_rate(std::size_t h) const { return static_cast<double>(orders_[h]) * omega_; }
   int harmonic_order(std::size_t h) const { return orders_[h]; }
+  /// Extra harmonic h's amplitudes: its cosine (part 0) or sine (part 1) vector.
+  const VecT<T>& harmonic_amplitude(std::size_t h, int part) const { return part == 0 ? Hc_[h] : Hs_[h]; }
   /// The augmented size 2n + 3 + 2H.
   Eigen::Index augmented() const { return augmented_size(n_, orders_.size()); }
 
@@ -543,7 +551,7 @@ class Mechanics {
   T alpha_ = T(0.0), beta_ = T(0.0);
   VecT<T> F0_, Fc_, Fs_;
   T omega_;
-  std::vector<int> orders_;           // extra harmonics (dense form only)
+  std::vector<int> orders_;           // extra harmonics (both forms)
   std::vector<VecT<T>> Hc_, Hs_;
   Eigen::LLT<MatT<T>> llt_;
   std::vector<SparseNormal> normals_;

@@ -95,10 +95,13 @@ using Op = std::variant<Flight, Jump, FreeImpact>;
 
 /// The periodic particular solution of one contact set's motion (the held stops' motion plus the
 /// reduced chain's periodic response, modal.hpp) as harmonic amplitudes, p(t) = a0 + ac cos Ωt +
-/// as sin Ωt, in dual numbers (value, derivative along dD): in the free chain's modal coordinates
-/// for the free set (where the record's columns are modal), in physical ones otherwise.
+/// as sin Ωt + Σ_h (hc_h cos r_h t + hs_h sin r_h t) (the drive's extra harmonics, r_h = k_h Ω),
+/// in dual numbers (value, derivative along dD): in the free chain's modal coordinates for the
+/// free set (where the record's columns are modal), in physical ones otherwise.
 struct Particular {
   VecD a0, ac, as;
+  std::vector<VecD> hc, hs;
+  std::vector<Dual> rates;
 };
 
 }  // namespace
@@ -246,43 +249,65 @@ struct ModalTangent::Record {
       }
     }
     const VecD zero = VecD::Zero(n);
-    const std::array<VecD, 3> a{m.acceleration_under(m.forcing_amplitude(0), o[0], zero),
-                                VecD(m.acceleration_under(m.forcing_amplitude(1), o[1], VecD(W * o[2])) + W * W * o[1]),
-                                VecD(m.acceleration_under(m.forcing_amplitude(2), o[2], VecD(-W * o[1])) + W * W * o[2])};
+    // Amplitudes: constant, cosine, sine, then each extra harmonic's cosine and sine, which only
+    // the drive carries (the held stops move with the first harmonic): M⁻¹ F_h.
+    const auto H = static_cast<Index>(m.harmonics());
+    const Index K = 3 + 2 * H;
+    std::vector<VecD> a{m.acceleration_under(m.forcing_amplitude(0), o[0], zero),
+                        VecD(m.acceleration_under(m.forcing_amplitude(1), o[1], VecD(W * o[2])) + W * W * o[1]),
+                        VecD(m.acceleration_under(m.forcing_amplitude(2), o[2], VecD(-W * o[1])) + W * W * o[2])};
+    for (int part = 0; part < 2; ++part)
+      for (Index h = 0; h < H; ++h)
+        a.push_back(m.acceleration_under(m.harmonic_amplitude(static_cast<std::size_t>(h), part), zero, zero));
     Particular out;
-    VecD* amplitude[3] = {&out.a0, &out.ac, &out.as};
-    MatrixXd A(n, 6);  // values, then derivatives
-    for (int h = 0; h < 3; ++h) {
+    out.hc.assign(static_cast<std::size_t>(H), zero);
+    out.hs.assign(static_cast<std::size_t>(H), zero);
+    for (Index h = 0; h < H; ++h) out.rates.push_back(m.harmonic_rate(static_cast<std::size_t>(h)));
+    std::vector<VecD*> amplitude{&out.a0, &out.ac, &out.as};
+    for (auto* list : {&out.hc, &out.hs})
+      for (VecD& v : *list) amplitude.push_back(&v);
+    MatrixXd A(n, 2 * K);  // values, then derivatives
+    for (Index h = 0; h < K; ++h) {
       for (Index i = 0; i < n; ++i) {
-        A(i, h) = a[h](i).v;
-        A(i, 3 + h) = a[h](i).d;
+        A(i, h) = a[static_cast<std::size_t>(h)](i).v;
+        A(i, K + h) = a[static_cast<std::size_t>(h)](i).d;
       }
-      *amplitude[h] = o[h];
+      if (h < 3) *amplitude[static_cast<std::size_t>(h)] = o[static_cast<std::size_t>(h)];
     }
     if (nr > 0) {
       const ChainModes& modes = *md.modes;
-      MatrixXd U(nr, 6), C(nr, 6);
+      MatrixXd U(nr, 2 * K), C(nr, 2 * K);
       const MatrixXd Y = md.stuck.empty() ? A : project(md, A);
       modes.tangent_to_modal(Y, U, work);
+      auto put = [&](Index i, Index col, const Dual& c) {
+        C(i, col) = c.v;
+        C(i, K + col) = c.d;
+      };
       for (Index i = 0; i < nr; ++i) {
         const HarmonicResponse<Dual> r =
-            harmonic_response(modes.omega_squared()(i), modes.decay()(i), W, Dual(U(i, 0), U(i, 3)),
-                              Dual(U(i, 1), U(i, 4)), Dual(U(i, 2), U(i, 5)));
-        const Dual c[3] = {r.c0, r.cc, r.cs};
-        for (int h = 0; h < 3; ++h) {
-          C(i, h) = c[h].v;
-          C(i, 3 + h) = c[h].d;
+            harmonic_response(modes.omega_squared()(i), modes.decay()(i), W, Dual(U(i, 0), U(i, K)),
+                              Dual(U(i, 1), U(i, K + 1)), Dual(U(i, 2), U(i, K + 2)));
+        put(i, 0, r.c0);
+        put(i, 1, r.cc);
+        put(i, 2, r.cs);
+        for (Index h = 0; h < H; ++h) {
+          const Index cc = 3 + h, cs = 3 + H + h;
+          const HarmonicResponse<Dual> rh =
+              harmonic_response(modes.omega_squared()(i), modes.decay()(i), out.rates[static_cast<std::size_t>(h)],
+                                Dual(0.0), Dual(U(i, cc), U(i, K + cc)), Dual(U(i, cs), U(i, K + cs)));
+          put(i, cc, rh.cc);
+          put(i, cs, rh.cs);
         }
       }
       MatrixXd X = C;  // the free set stays in modal coordinates (o = 0 there)
       if (!md.stuck.empty()) {
-        MatrixXd Yp(nr, 6);
+        MatrixXd Yp(nr, 2 * K);
         modes.tangent_to_physical(C, Yp, work);
-        X.resize(n, 6);
+        X.resize(n, 2 * K);
         lift(md, Yp, X);
       }
-      for (int h = 0; h < 3; ++h)
-        for (Index i = 0; i < X.rows(); ++i) (*amplitude[h])(i) += Dual(X(i, h), X(i, 3 + h));
+      for (Index h = 0; h < K; ++h)
+        for (Index i = 0; i < X.rows(); ++i) (*amplitude[static_cast<std::size_t>(h)])(i) += Dual(X(i, h), X(i, K + h));
     }
     return p.particular.emplace(&md, std::move(out)).first->second;
   }
@@ -293,6 +318,12 @@ struct ModalTangent::Record {
     const Dual c = cos(W * Dual(t)), s = sin(W * Dual(t));
     zeta.head(n) += sign * derivative(VecD(pt.a0 + pt.ac * c + pt.as * s));
     zeta.tail(n) += sign * derivative(VecD(W * (pt.as * c - pt.ac * s)));
+    for (std::size_t h = 0; h < pt.rates.size(); ++h) {
+      const Dual& r = pt.rates[h];
+      const Dual ch = cos(r * Dual(t)), sh = sin(r * Dual(t));
+      zeta.head(n) += sign * derivative(VecD(pt.hc[h] * ch + pt.hs[h] * sh));
+      zeta.tail(n) += sign * derivative(VecD(r * (pt.hs[h] * ch - pt.hc[h] * sh)));
+    }
   }
 
   /// Columns between physical (δx; δv) and the free chain's modal coordinates (δu; δu').
@@ -566,7 +597,11 @@ class Recorder final : public Observer {
       return out;
     };
     auto acceleration = [&](Index l) {  // M⁻¹ (f − C v − K x), C = αM + βK
-      const double f = ch.forcing.constant(l) + ch.forcing.cosine(l) * c + ch.forcing.sine(l) * s;
+      double f = ch.forcing.constant(l) + ch.forcing.cosine(l) * c + ch.forcing.sine(l) * s;
+      for (const ForcingHarmonic& h : ch.forcing.harmonics) {
+        const double r = h.rate(W);
+        f += h.cosine(l) * std::cos(r * t) + h.sine(l) * std::sin(r * t);
+      }
       return (f - ch.rayleigh_mass * ch.mass(l) * at(v, l) - ch.rayleigh_stiffness * stiffness(v, l) - stiffness(x, l)) /
              ch.mass(l);
     };

@@ -19,8 +19,13 @@
 ///     q_k'' + 2σ_k q_k' + ω_k² q_k = φ_kᵀ f(t),   2σ_k = α + β ω_k².
 ///
 /// **Exact flow of one mode, every damping regime.** Split q_k = p_k(t) + u_k with the periodic
-/// particular solution p_k = c0_k + cc_k cos Ωt + cs_k sin Ωt (needs ω_k > 0 and no undamped
-/// resonance ω_k = Ω with σ_k = 0: both are refused with InvalidInput). The homogeneous part is
+/// particular solution p_k = c0_k + cc_k cos Ωt + cs_k sin Ωt + Σ_h (ch_hk cos k_hΩt + sh_hk sin k_hΩt),
+/// one term per harmonic of the drive (system.hpp: orders k_h ≥ 2 besides the first), each
+/// mode's response to φ_kᵀ f_h at k_hΩ by harmonic_response (needs ω_k > 0 and no undamped
+/// resonance ω_k = k_hΩ with σ_k = 0 of a forced mode: both are refused with InvalidInput). The
+/// homogeneous flow below does not depend on the drive, so each extra harmonic costs one cosine
+/// and sine per time (and two numbers per guard row) in every state or guard evaluation, and
+/// nothing per mode. The homogeneous part is
 ///     u(τ) = e^{-στ} [(C + σS) u0 + S u0'],   u'(τ) = e^{-στ} [-ω² S u0 + (C - σS) u0'],
 /// with D = ω² - σ², C = cos(√D τ), S = sin(√D τ)/√D (D > 0), C = 1, S = τ (D = 0),
 /// C = cosh(√-D τ), S = sinh(√-D τ)/√-D (D < 0, written with the two real rates and expm1 so
@@ -219,10 +224,18 @@ class ChainModes {
   /// Bytes held by these modes (for a secular route, not counting the free modes it refers to).
   std::size_t bytes() const;
 
-  /// Particular solution amplitudes: p(t) = c0 + cc cos Ωt + cs sin Ωt (per mode).
+  /// Particular solution amplitudes: p(t) = c0 + cc cos Ωt + cs sin Ωt (per mode), plus
+  /// Σ_h (column h of particular_harmonic_cosine) cos r_h t + (… sine) sin r_h t for the extra
+  /// harmonics of the chain's forcing, in its order, r_h = harmonic_rates()(h) = k_h Ω
+  /// (ForcingHarmonic::rate). No columns without extra harmonics.
   const Eigen::VectorXd& particular_constant() const { return c0_; }
   const Eigen::VectorXd& particular_cosine() const { return cc_; }
   const Eigen::VectorXd& particular_sine() const { return cs_; }
+  const Eigen::MatrixXd& particular_harmonic_cosine() const { return hc_; }
+  const Eigen::MatrixXd& particular_harmonic_sine() const { return hs_; }
+  const Eigen::VectorXd& harmonic_rates() const { return rates_; }
+  /// The extra harmonics' part of p(t), p'(t) added to (sign +1) or taken from (−1) q, q'. O(n H).
+  void add_particular(double t, double sign, Eigen::Ref<Eigen::VectorXd> q, Eigen::Ref<Eigen::VectorXd> qd) const;
 
   /// Scratch for the basis changes below: storage that grows to the largest size asked for,
   /// then is reused, so that an event loop changing basis allocates nothing once warm. One per
@@ -275,7 +288,9 @@ class ChainModes {
   /// e^{-στ} C(τ) and e^{-στ} S(τ) of mode k (see the header).
   void propagator(Eigen::Index k, double tau, double* ec, double* es) const;
   /// Regimes, rates and the particular solution from ω² and the modal forcing (both routes).
-  void finish(const Eigen::VectorXd& p0, const Eigen::VectorXd& pc, const Eigen::VectorXd& ps);
+  /// Pc, Ps: the modal forcing of the extra harmonics, one column each (n × H).
+  void finish(const Eigen::VectorXd& p0, const Eigen::VectorXd& pc, const Eigen::VectorXd& ps,
+              const Eigen::MatrixXd& Pc, const Eigen::MatrixXd& Ps);
 
   BandedChain chain_;
   TridiagonalSolver solver_;
@@ -285,6 +300,8 @@ class ChainModes {
   Eigen::VectorXi regime_;  // +1 under-, 0 critically, -1 over-damped
   Eigen::MatrixXd q_;
   Eigen::VectorXd c0_, cc_, cs_;
+  Eigen::MatrixXd hc_, hs_;  // extra harmonics' particular amplitudes (n × H)
+  Eigen::VectorXd rates_;    // k_h Ω
 };
 
 /// The dense engine's settings (simulator.hpp: trigger, simultaneity, chatter thresholds and
@@ -316,16 +333,31 @@ struct ModalRunSummary : RunSummary {
 };
 
 /// Guard functions of the homogeneous modal state (u, u') of one set of modes:
-///     value_i(t) = P_i·u + D_i·u' + h0_i + hc_i cos Ωt + hs_i sin Ωt,
-/// where D has rows only for the last D.rows() guards (the contact forces; gaps have D = 0). An
-/// event is a guard rising above its trigger ε.
+///     value_i(t) = P_i·u + D_i·u' + h0_i + hc_i cos Ωt + hs_i sin Ωt
+///                  + Σ_h (xc_ih cos r_h t + xs_ih sin r_h t),
+/// where D has rows only for the last D.rows() guards (the contact forces; gaps have D = 0) and
+/// the sum runs over the drive's extra harmonics (rates r_h = k_h Ω; none: no columns). An event
+/// is a guard rising above its trigger ε.
 struct ModalGuards {
   Eigen::MatrixXd P, D, abs_P, abs_D;
   Eigen::VectorXd h0, hc, hs;
-  Eigen::VectorXd curvature;  ///< Ω² √(hc² + hs²), the harmonic part's bound on |value''|
+  Eigen::MatrixXd xc, xs;     ///< the extra harmonics' amplitudes (rows × H; H = 0: empty)
+  Eigen::VectorXd rates;      ///< r_h (H)
+  /// Ω² A_i + Σ_h r_h² A_ih (A the amplitudes √(c² + s²)), the harmonic part's bound on |value''|
+  Eigen::VectorXd curvature;
+  /// Ω³ A_i + Σ_h r_h³ A_ih, its bound on |value'''|
+  Eigen::VectorXd jerk;
   Eigen::Index rows() const { return P.rows(); }
-  /// Fills abs_P, abs_D and curvature from the rest.
+  Eigen::Index harmonics() const { return rates.size(); }
+  /// Fills abs_P, abs_D, curvature and jerk from the rest (xc, xs and rates may be left empty
+  /// for a drive without extra harmonics).
   void finish(double frequency);
+  /// The extra harmonics' part of row i at absolute time t added to value, slope and curvature
+  /// (if not null). O(H).
+  void add_extra_row(Eigen::Index i, double t, double* value, double* slope, double* curvature) const;
+  /// The same for every row. O(rows H).
+  void add_extra(double t, Eigen::Ref<Eigen::VectorXd> value, Eigen::Ref<Eigen::VectorXd> slope,
+                 Eigen::Ref<Eigen::VectorXd> curvature) const;
 };
 
 /// The guards of one set of modes along a segment of their motion, as the certified crossing
@@ -343,9 +375,10 @@ struct ModalGuards {
 ///     |u'''|  ≤ 2σ|u''| + ω²|u'|   ≤ (2σβ₂ + ω²) a           =: β₃ a,
 ///     |u''''| ≤ 2σ|u'''| + ω²|u''| ≤ (2σβ₃ + ω²β₂) a         =: β₄ a,
 /// all with a = a(τ_a), on [τ_a, ∞). The harmonic part of amplitude A_i = √(hc_i² + hs_i²) (the
-/// forced response and the stops' motion) has |dᵏ/dτᵏ| ≤ Ωᵏ A_i. Hence on every [τ_a, τ_b]
-///     |h_i''|  ≤ B₂ᵢ = Σ_k (|P_ik| β₂ₖ + |D_ik| β₃ₖ) a_k + Ω² A_i,
-///     |h_i'''| ≤ B₃ᵢ = Σ_k (|P_ik| β₃ₖ + |D_ik| β₄ₖ) a_k + Ω³ A_i,
+/// forced response and the stops' motion) has |dᵏ/dτᵏ| ≤ Ωᵏ A_i, and each extra harmonic of
+/// amplitude A_ih at rate r_h adds r_hᵏ A_ih (ModalGuards::curvature, jerk). Hence on every [τ_a, τ_b]
+///     |h_i''|  ≤ B₂ᵢ = Σ_k (|P_ik| β₂ₖ + |D_ik| β₃ₖ) a_k + Ω² A_i (+ Σ_h r_h² A_ih),
+///     |h_i'''| ≤ B₃ᵢ = Σ_k (|P_ik| β₃ₖ + |D_ik| β₄ₖ) a_k + Ω³ A_i (+ Σ_h r_h³ A_ih),
 /// from the state at τ_a alone; both are enlarged by 1 + 1e-12 + 2(n_r + 8)ε to cover the
 /// rounding of their own sums. A sample (sample()) holds B₂ then B₃ per row in
 /// SegmentSample::growth; derivative_bound reads those of the interval's left end.

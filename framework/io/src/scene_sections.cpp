@@ -158,14 +158,8 @@ void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p) {
       not_banded = e.what();
     }
     if (!f.harmonics.empty()) {
-      // The modal engine takes the first harmonic only (BandedChain::validate); the dense
-      // system carries the extra ones.
-      banded.reset();
-      const YAML::Node fn = root["forcing"];
-      not_banded = fn && fn["harmonics"]
-                       ? "forcing.harmonics: a drive with extra harmonics (order ≥ 2) runs on the dense engine"
-                       : "base.displacement.harmonics: a base motion with harmonics of order ≥ 2 drives the masses with "
-                         "them, and such a drive runs on the dense engine";
+      // The chain's links carry the first harmonic only: the dense system gets the extra ones
+      // (the banded chain has them from f).
       dense = LazySystem(n, f, [c, extra = f.harmonics] {
         const LinearSystem s = models::build_chain(c);
         HarmonicForcing g = s.forcing();
@@ -560,10 +554,6 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     reason = "auto: stops[" + std::to_string(general_stop) + "] has a general normal (" + kModalStopsOnly + ")";
   } else if (!chain_links) {
     reason = "auto: model.matrices (the modal engine needs model.chain)";
-  } else if (!p.f.harmonics.empty()) {
-    reason = root["forcing"] && root["forcing"]["harmonics"]
-                 ? "auto: forcing.harmonics (extra harmonics run on the dense engine)"
-                 : "auto: base.displacement.harmonics (extra harmonics run on the dense engine)";
   } else if (!banded) {
     reason = "auto: the chain's damping is not proportional (" + not_banded + ")";
   } else if (!floating.empty()) {

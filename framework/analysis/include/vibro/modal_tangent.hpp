@@ -22,7 +22,7 @@
 /// order); their order's effect is measured on fixed test vectors (TangentMap::non_smooth).
 ///
 /// **Parameter derivatives** (parameter(): ζ = ∂z/∂p at fixed t0, t1 along a SystemDerivative dD
-/// that moves Ω, the forcing or the stops' data). None of these moves the homogeneous flow J_h of a
+/// that moves Ω, the forcing (any of its harmonics) or the stops' data). None of these moves the homogeneous flow J_h of a
 /// contact set (its modes depend on M, K, α, β only), so a flight from t_b to t_e, which maps z to
 /// z_p(t_e) + J_h (z − z_p(t_b)) with z_p the set's periodic particular solution (the held stops'
 /// motion plus the reduced chain's periodic response), gives
