@@ -363,8 +363,8 @@ void add_peers(std::vector<Config>& configs, int index, const Problem& pb, doubl
     const char* name;
     SundialsMethod method;
     std::vector<double> tolerances;
-  } sundials[] = {{"ARKODE DP5", SundialsMethod::arkode_dp5, {1e-6, 1e-8, 1e-10, 1e-11, 1e-12, 1e-13}},
-                  {"ARKODE F78", SundialsMethod::arkode_f78, {1e-6, 1e-8, 1e-10, 1e-12, 1e-13, 1e-14}},
+  } sundials[] = {{"ARKODE DP5", SundialsMethod::arkode_dp5, {1e-6, 1e-8, 1e-10, 1e-11, 1e-12}},
+                  {"ARKODE F78", SundialsMethod::arkode_f78, {1e-6, 1e-8, 1e-10, 1e-12, 1e-13}},
                   {"CVODE Adams", SundialsMethod::cvode_adams, {1e-6, 1e-8, 1e-10, 1e-11, 1e-12, 1e-13}}};
   for (const auto& s : sundials)
     for (double tol : s.tolerances)
