@@ -60,6 +60,8 @@ TaylorStep::TaylorStep(const TaylorSystem& system, TaylorSettings settings)
   settings_.validate();
   p_ = static_cast<int>(std::ceil(-0.5 * std::log(settings_.tolerance) + 1.0));
   safety_ = std::exp(-0.7 / (p_ - 1));
+  inverse_root_[0] = std::pow(settings_.tolerance, -1.0 / (p_ - 1));
+  inverse_root_[1] = std::pow(settings_.tolerance, -1.0 / p_);
   dim_ = system.state_size();
   parameters_ = system.parameter_values();
   const std::size_t nodes = static_cast<std::size_t>(system.dag().size());
@@ -350,9 +352,10 @@ StepStatus TaylorStep::expand(double t0, const Eigen::Ref<const Eigen::VectorXd>
       trouble_ = "a Taylor coefficient of order " + std::to_string(k) + " overflows at t = " + number(t0);
       return StepStatus::not_finite;
     }
-    if (m > 0.0) {
-      h = std::min(h, std::pow(tolerance / m, 1.0 / k));
-      rho = std::min(rho, std::pow(scale / m, 1.0 / k));
+    if (m > 0.0) {  // (S/m)^{1/k} = (εS/m)^{1/k} · ε^{−1/k}: one power per order
+      const double h_k = std::pow(tolerance / m, 1.0 / k);
+      h = std::min(h, h_k);
+      rho = std::min(rho, h_k * inverse_root_[k == p_ ? 1 : 0]);
     }
   }
   h_ = h * safety_;

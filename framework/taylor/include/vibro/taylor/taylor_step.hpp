@@ -188,6 +188,7 @@ class TaylorStep {
   int dim_;  // 2n
   double t0_ = 0.0, h_ = 0.0, rho_ = 0.0;
   double safety_ = 1.0;                  // exp(−0.7 / (p − 1))
+  double inverse_root_[2] = {1.0, 1.0};  // ε^{−1/(p−1)}, ε^{−1/p}
   Eigen::VectorXd parameters_;
   std::vector<double> c_, aux_, dc_, z_, y_;
   Eigen::VectorXd force_k_;   // M⁻¹ F_[k] scratch
