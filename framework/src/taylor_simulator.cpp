@@ -108,7 +108,18 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
         roots_(step_.order()), p_(step_.order()), n_(sys_.dof()), tab_(scene_) {
     const auto m = static_cast<Eigen::Index>(scene_.stop_count());
     forcing_.setZero(n_, p_ + 1);
-    force_series_.setZero(n_, p_ + 1);
+    {  // M⁻¹ times the drive's parts (time_series)
+      const HarmonicForcing& f = sys_.forcing();
+      const Eigen::MatrixXd& minv = sim.system_->inverse_mass();
+      drive_.resize(n_, 3 + 2 * static_cast<Eigen::Index>(f.harmonics.size()));
+      drive_.col(0) = minv * f.constant;
+      drive_.col(1) = minv * f.cosine;
+      drive_.col(2) = minv * f.sine;
+      for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+        drive_.col(3 + 2 * static_cast<Eigen::Index>(h)) = minv * f.harmonics[h].cosine;
+        drive_.col(4 + 2 * static_cast<Eigen::Index>(h)) = minv * f.harmonics[h].sine;
+      }
+    }
     probe_forcing_.setZero(n_, p_ + 1);
     cos_.resize(static_cast<std::size_t>(p_) + 3);
     sin_.resize(static_cast<std::size_t>(p_) + 3);
@@ -196,6 +207,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
                                               &held_->delassus_inverse, &held_->stop_acceleration}
                           : taylor::StepTerms{&forcing_});
     const double reach = t_end - st.t;
+    reach_ = reach;
     return {std::max(scale_T_, 1e-300), reach};
   }
 
@@ -208,7 +220,9 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
       const taylor::StepStatus status = step_.expand(r.t, z_);
       if (status != taylor::StepStatus::ok) throw std::runtime_error("Taylor step: " + step_.trouble());
       ++sim_.steps_;
-      double length = std::min(step_.step_size(), b - cursor_);
+      // The step runs its full length past the search window's end b (the windows only pace the
+      // loop's progress report and interruption), cut at the segment's reach alone.
+      double length = std::min(step_.step_size(), reach_ - cursor_);
       const std::size_t width = static_cast<std::size_t>(p_) + 1;
       r.z.resize(static_cast<std::size_t>(2 * n_) * width);
       for (Eigen::Index i = 0; i < 2 * n_; ++i)
@@ -223,8 +237,9 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
       Eigen::Index first_row = -1;
       for (Eigen::Index i = 0; i < triggers_.size(); ++i) {
         guard_coefficients(r, i, guard_.data());
-        const double delta = step_.remainder(guard_.data(), length);
-        const taylor::GuardCrossing c = roots_.first_crossing(guard_.data(), p_, length, triggers_(i), delta);
+        double rounding = 0.0, truncation = 0.0;
+        step_.remainder_parts(guard_.data(), length, &rounding, &truncation);
+        const taylor::GuardCrossing c = roots_.first_crossing(guard_.data(), p_, length, triggers_(i), rounding, truncation);
         if (c.kind == taylor::CrossingKind::crossing || c.kind == taylor::CrossingKind::at_start) {
           if (c.tau < first) {
             first = c.tau;
@@ -433,16 +448,27 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
   }
   /// The drive's acceleration series M⁻¹ f(t0 + τ) and, for a held set, its stops' p̈ series.
   void time_series(double t0, Eigen::MatrixXd& acceleration, Eigen::MatrixXd* stop_acc, const HeldSet* held) {
+    // Columns of drive_: M⁻¹ times the constant, cosine and sine parts, then each harmonic's two.
     const HarmonicForcing& f = sys_.forcing();
-    force_series_.setZero();
-    force_series_.col(0) = f.constant;
-    harmonic_series(f.frequency, t0, p_, cos_.data(), sin_.data());
-    for (int k = 0; k <= p_; ++k) force_series_.col(k) += f.cosine * cos_[static_cast<std::size_t>(k)] + f.sine * sin_[static_cast<std::size_t>(k)];
-    for (const ForcingHarmonic& h : f.harmonics) {
-      harmonic_series(h.rate(f.frequency), t0, p_, cos_.data(), sin_.data());
-      for (int k = 0; k <= p_; ++k) force_series_.col(k) += h.cosine * cos_[static_cast<std::size_t>(k)] + h.sine * sin_[static_cast<std::size_t>(k)];
-    }
-    acceleration.noalias() = sim_.system_->inverse_mass() * force_series_;
+    const Eigen::Index n = n_;
+    double* out = acceleration.data();  // n × (p + 1), column-major
+    const double* constant = drive_.col(0).data();
+    auto add_harmonic = [&](double rate, Eigen::Index column, bool first) {
+      harmonic_series(rate, t0, p_, cos_.data(), sin_.data());
+      const double* cosine = drive_.col(column).data();
+      const double* sine = drive_.col(column + 1).data();
+      for (int k = 0; k <= p_; ++k) {
+        const double c = cos_[static_cast<std::size_t>(k)], s = sin_[static_cast<std::size_t>(k)];
+        double* col = out + static_cast<Eigen::Index>(k) * n;
+        for (Eigen::Index i = 0; i < n; ++i) {
+          const double term = cosine[i] * c + sine[i] * s;
+          col[i] = first ? (k == 0 ? constant[i] + term : term) : col[i] + term;
+        }
+      }
+    };
+    add_harmonic(f.frequency, 1, true);
+    for (std::size_t h = 0; h < f.harmonics.size(); ++h)
+      add_harmonic(f.harmonics[h].rate(f.frequency), 3 + 2 * static_cast<Eigen::Index>(h), false);
     if (!held || !stop_acc) return;
     harmonic_series(f.frequency, t0, p_ + 2, cos_.data(), sin_.data());
     for (std::size_t a = 0; a < held->key.size(); ++a) {
@@ -491,7 +517,8 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
       for (int k = 0; k <= p_; ++k) g[k] = -r.lambda[a * (static_cast<std::size_t>(p_) + 1) + static_cast<std::size_t>(k)];
       return;
     }
-    harmonic_series(frequency(), r.t, p_, stop_pos_.data(), sin_.data());
+    const bool moving = tab_.sc(j) != 0.0 || tab_.ss(j) != 0.0;  // a fixed stop's position is s0 alone
+    if (moving) harmonic_series(frequency(), r.t, p_, stop_pos_.data(), sin_.data());
     for (int k = 0; k <= p_; ++k) {
       double s = 0.0;
       for (Eigen::Index l = 0; l < n_; ++l) {
@@ -499,7 +526,8 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
         if (w != 0.0) s += w * coefficients(r, l)[k];
       }
       const auto kk = static_cast<std::size_t>(k);
-      g[k] = s - ((k == 0 ? tab_.s0(j) : 0.0) + tab_.sc(j) * stop_pos_[kk] + tab_.ss(j) * sin_[kk]);
+      const double s0 = k == 0 ? tab_.s0(j) : 0.0;
+      g[k] = s - (moving ? s0 + tab_.sc(j) * stop_pos_[kk] + tab_.ss(j) * sin_[kk] : s0);
     }
   }
   /// At the segment's first step: a row starting inside its band (0 < h ≤ ε) and moving away is
@@ -556,7 +584,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
   std::vector<std::unique_ptr<HeldSet>> sets_;
   HeldSet* held_ = nullptr;
   ContactSet empty_;
-  Eigen::MatrixXd forcing_, force_series_, probe_forcing_;
+  Eigen::MatrixXd forcing_, probe_forcing_, drive_;
   std::vector<double> cos_, sin_, stop_pos_, guard_;
   Eigen::VectorXd z_, z_probe_, rate_, residual_, q_, h_, d_, triggers_;
   Eigen::MatrixXd G_;
@@ -564,7 +592,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
   std::vector<int> row_stop_;
   Eigen::Index opening_rows_ = 0;
   bool armed_ = false;
-  double seg_t_ = 0.0, cursor_ = 0.0, hit_tau_ = 0.0, at_tau_ = 0.0;
+  double seg_t_ = 0.0, cursor_ = 0.0, reach_ = 0.0, hit_tau_ = 0.0, at_tau_ = 0.0;
   std::vector<StepRecord> records_;
   std::size_t used_ = 0, hit_record_ = 0, at_record_ = 0;
 };

@@ -2,14 +2,15 @@
 /// \file reference_duffing_impact.hpp
 /// An independent reference for a forced Duffing impact oscillator (header-only, tests only):
 ///
-///     m x'' + c x' + k x + β x³ = A cos Ωt,      x ≤ s (one rigid stop above), restitution r,
+///     m x'' + c x' + k x + β x³ + γ sin x = A cos Ωt,      x ≤ s (one rigid stop above), restitution r,
 ///
+/// (γ = `gravity`, 0 by default: with k = β = 0 and γ > 0 an impacting pendulum),
 /// integrated by the fixed-step Cooper–Verner RK8 tableau of reference_integrator.hpp in long
 /// double. It shares nothing with the Taylor engine but the numbers: no series, no guard
 /// polynomials, no event loop, no LCP.
 ///
 ///  * Free flight: steps of h = T_step / steps_per_unit with ρh ≤ 0.02 (ρ the largest local
-///    frequency √((k + 3β x_max²)/m) and Ω): the RK8 local error ~ (ρh)⁹/9! ≈ 1.4e-21 per step,
+///    frequency √((k + 3β x_max² + γ)/m) and Ω): the RK8 local error ~ (ρh)⁹/9! ≈ 1.4e-21 per step,
 ///    far below long double's rounding (1.1e-19), so the reference is accurate to ~1e-16 of the
 ///    state over the 10⁵ steps a test takes.
 ///  * Events: the gap g = x − s becoming > 0 at a step's end; the crossing is located by
@@ -31,6 +32,7 @@ namespace vibro::test {
 
 struct ReferenceDuffingImpact {
   long double m = 1, c = 0, k = 1, beta = 0, amplitude = 0, omega = 1, stop = 1, restitution = 1;
+  long double gravity = 0;  ///< γ of the pendulum term γ sin x
   long double step_rate = 0.02L;
   long double stick_velocity = 1e-7L;
 
@@ -41,7 +43,9 @@ struct ReferenceDuffingImpact {
   long double t = 0, x = 0, v = 0;
 
   long double acceleration(long double time, long double position, long double velocity) const {
-    return (amplitude * std::cos(omega * time) - c * velocity - k * position - beta * position * position * position) / m;
+    long double a = amplitude * std::cos(omega * time) - c * velocity - k * position - beta * position * position * position;
+    if (gravity != 0.0L) a -= gravity * std::sin(position);
+    return a / m;
   }
 
   /// One RK8 step of length h from (time, x0, v0).
@@ -68,7 +72,8 @@ struct ReferenceDuffingImpact {
     v = v0;
     impacts.clear();
     const long double x_max = std::max(std::fabs(stop), std::fabs(x0)) + 2.0L;  // bounds |x| for ρ
-    const long double rho = std::max(std::sqrt((k + 3.0L * std::fabs(beta) * x_max * x_max) / m), omega);
+    const long double rho =
+        std::max(std::sqrt((std::fabs(k) + 3.0L * std::fabs(beta) * x_max * x_max + std::fabs(gravity)) / m), omega);
     const long double h = step_rate / rho;
     while (t < t_end) {
       const long double hs = std::min(h, t_end - t);

@@ -18,8 +18,10 @@
 #     5. bench_laws: CPU per event of a rigid stop, a compliant stop and dry friction on one
 #        2-DOF scene (alternated runs, medians);
 #     6. bench_taylor_odeint: the Taylor engine against Boost.Odeint (Dormand–Prince 5(4) and
-#        Bulirsch–Stoer with dense output) on the Duffing impact oscillator, error against CPU
-#        time (where Boost was found; ~5 s). Alone: build/release/tools/bench/bench_taylor_odeint
+#        Bulirsch–Stoer with dense output, events by bisection on it) and SUNDIALS (ARKODE
+#        Dormand–Prince 5(4) and Fehlberg 7(8), CVODE Adams, events by their root finding; where
+#        found) on a Duffing impact oscillator and an impacting pendulum, error against CPU time
+#        (where Boost was found; ~10 s). Alone: build/release/tools/bench/bench_taylor_odeint
 #        --periods 200 --repeat 5;
 #     7. bench_harmonics: the paper's system driven by its plain forcing keys and by 1, 2, 4, 8
 #        harmonics (µs per period and per event, alternated runs, medians).
@@ -43,7 +45,8 @@ if [[ "$build" == "$root/build/release" ]]; then
   cmake --preset dev -DCMAKE_CXX_COMPILER_LAUNCHER="$(command -v ccache || true)" > /dev/null
 fi
 targets=(bench_engine work_precision bench_chain bench_laws bench_harmonics vibro_tests_allocations vibro)
-# The Taylor engine against Boost.Odeint: built where Boost's headers were found at configure time.
+# The Taylor engine against Boost.Odeint (and SUNDIALS where found): built where Boost's headers
+# were found at configure time.
 grep -q '^VIBRO_BOOST_ODEINT_INCLUDE:PATH=/' "$build/CMakeCache.txt" && targets+=(bench_taylor_odeint)
 cmake --build "$build" -j2 --target "${targets[@]}"
 
@@ -80,7 +83,7 @@ echo "report.sh: 5/8 bench_laws" >&2
 "$build/tools/bench/bench_laws" --periods 4000 --repeat 7 > "$raw/laws.md"
 rm -f "$raw/taylor_odeint.md"
 if [[ -x "$build/tools/bench/bench_taylor_odeint" ]]; then
-  echo "report.sh: 6/8 Taylor engine against Boost.Odeint" >&2
+  echo "report.sh: 6/8 Taylor engine against Boost.Odeint and SUNDIALS" >&2
   "$build/tools/bench/bench_taylor_odeint" --periods 200 --repeat 5 > "$raw/taylor_odeint.md"
 fi
 echo "report.sh: 7/8 drives with several harmonics" >&2

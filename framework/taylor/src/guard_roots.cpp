@@ -33,6 +33,7 @@ GuardRootFinder::GuardRootFinder(int max_degree) : max_degree_(max_degree) {
   hi_.resize(entries);
   depth_.resize(entries);
   work_.resize(max_degree + 1);
+  ratios_.resize(static_cast<std::size_t>(max_degree + 1) * (max_degree + 1));
 }
 
 double GuardRootFinder::refine(const double* c, int degree, double trigger, double a, double b) {
@@ -60,6 +61,12 @@ double GuardRootFinder::refine(const double* c, int degree, double trigger, doub
       break;
     const double newton = x - f / slope;
     const bool inside = std::isfinite(newton) && newton > a && newton < b;
+    // Converged: a Newton correction within a unit of x's last place (quadratic convergence
+    // from one side shrinks the bracket only by its bisections, ~50 of them from a whole step).
+    if (inside && std::abs(newton - x) <= std::numeric_limits<double>::epsilon() * std::abs(x)) {
+      evaluate(c, degree, trigger, newton, f, slope);
+      return std::abs(f) < best_value ? newton : best;
+    }
     // Newton while it stays in the bracket and the bracket at least halves every two steps.
     if (inside && width <= 0.5 * width_before) {
       x = newton;
@@ -76,7 +83,7 @@ double GuardRootFinder::refine(const double* c, int degree, double trigger, doub
 }
 
 GuardCrossing GuardRootFinder::first_crossing(const double* c, int degree, double h, double trigger,
-                                              double remainder) {
+                                              double remainder, double truncation) {
   if (degree < 0 || degree > max_degree_)
     throw std::invalid_argument("GuardRootFinder: degree " + std::to_string(degree) + " beyond the scratch's " +
                                 std::to_string(max_degree_));
@@ -89,22 +96,47 @@ GuardCrossing GuardRootFinder::first_crossing(const double* c, int degree, doubl
     root[k] = (c[k] - (k == 0 ? trigger : 0.0)) * power;
     scale += std::abs(root[k]);
   }
-  if (!std::isfinite(scale) || !(remainder >= 0.0))
+  if (!std::isfinite(scale) || !(remainder >= 0.0) || !(truncation >= 0.0))
     throw std::invalid_argument("GuardRootFinder: coefficients, step or remainder not finite");
   const double q0 = root[0];
-  // b_i = Σ_{k≤i} C(i,k)/C(p,k) a_k, from the top down so that root[] can be overwritten.
-  for (int i = degree; i >= 1; --i) {
-    double s = 0.0, ratio = 1.0;  // ratio = C(i,k)/C(p,k), k = 0 first
-    for (int k = 0; k <= i; ++k) {
-      s += ratio * root[k];
-      ratio *= static_cast<double>(i - k) / static_cast<double>(degree - k);
-    }
-    root[i] = s;
-  }
+  const double rounding = remainder;
+  remainder += truncation;  // over the whole step
   const auto band = [&](int depth) { return remainder + 2.0 * (2 * degree + depth + 4) * kUnit * scale; };
+  // Over [lo, hi] ⊂ [0, 1] (in s = τ/h): the tail's bound at s = hi, (hi)^{degree+1} of the whole.
+  const auto interval_band = [&](int depth, double hi) {
+    if (truncation == 0.0 || hi >= 1.0) return band(depth);
+    double scaled = truncation;
+    for (int k = 0; k <= degree && scaled > 0.0; ++k) scaled *= hi;
+    return rounding + scaled + 2.0 * (2 * degree + depth + 4) * kUnit * scale;
+  };
   if (q0 > band(0)) {
     result.kind = CrossingKind::at_start;
     return result;
+  }
+  // Every Bernstein coefficient is at most a_0 + Σ_{k≥1} |a_k| (the ratios below lie in [0, 1]):
+  // with that (and the rounding of both sums) below −band, the root interval alone would be
+  // examined and discarded, so the answer is `none` without the conversion.
+  if (q0 + (scale - std::abs(q0)) + 2.0 * (3 * degree + 4) * kUnit * scale < -band(0)) {
+    result.splits = 1;
+    return result;
+  }
+  // b_i = Σ_{k≤i} C(i,k)/C(p,k) a_k, from the top down so that root[] can be overwritten; the
+  // ratios C(i,k)/C(p,k) tabulated once per degree.
+  if (ratio_degree_ != degree) {
+    for (int i = 1; i <= degree; ++i) {
+      double ratio = 1.0;  // k = 0 first
+      for (int k = 0; k <= i; ++k) {
+        ratios_[static_cast<std::size_t>(i) * width + k] = ratio;
+        ratio *= static_cast<double>(i - k) / static_cast<double>(degree - k);
+      }
+    }
+    ratio_degree_ = degree;
+  }
+  for (int i = degree; i >= 1; --i) {
+    const double* ratio = &ratios_[static_cast<std::size_t>(i) * width];
+    double s = 0.0;
+    for (int k = 0; k <= i; ++k) s += ratio[k] * root[k];
+    root[i] = s;
   }
   int top = 0;
   lo_[0] = 0.0;
@@ -116,7 +148,7 @@ GuardCrossing GuardRootFinder::first_crossing(const double* c, int degree, doubl
     const int depth = depth_[top];
     --top;
     ++result.splits;
-    const double tol = band(depth);
+    const double tol = interval_band(depth, hi);
     double largest = b[0];
     int changes = 0, last_sign = 0;
     for (int i = 0; i <= degree; ++i) {

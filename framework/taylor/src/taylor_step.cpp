@@ -16,17 +16,35 @@ void TaylorSettings::validate() const {
 
 namespace {
 
+// The sums below run in four interleaved partial sums: four independent chains of additions,
+// so a long sum runs at the multiplier's throughput rather than at the adder's latency (the
+// result differs from the left-to-right sum by rounding only).
+
 /// Σ_{j=lo}^{hi} x_j y_{k−j}
 inline double convolution(const double* x, const double* y, int k, int lo, int hi) {
-  double s = 0.0;
-  for (int j = lo; j <= hi; ++j) s += x[j] * y[k - j];
-  return s;
+  double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+  int j = lo;
+  for (; j + 3 <= hi; j += 4) {
+    s0 += x[j] * y[k - j];
+    s1 += x[j + 1] * y[k - j - 1];
+    s2 += x[j + 2] * y[k - j - 2];
+    s3 += x[j + 3] * y[k - j - 3];
+  }
+  for (; j <= hi; ++j) s0 += x[j] * y[k - j];
+  return (s0 + s1) + (s2 + s3);
 }
 /// Σ_{j=1}^{k} j a_j y_{k−j} / k
 inline double weighted(const double* a, const double* y, int k) {
-  double s = 0.0;
-  for (int j = 1; j <= k; ++j) s += j * a[j] * y[k - j];
-  return s / k;
+  double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, w = 1.0;  // w = j as a double
+  int j = 1;
+  for (; j + 3 <= k; j += 4, w += 4.0) {
+    s0 += w * a[j] * y[k - j];
+    s1 += (w + 1.0) * a[j + 1] * y[k - j - 1];
+    s2 += (w + 2.0) * a[j + 2] * y[k - j - 2];
+    s3 += (w + 3.0) * a[j + 3] * y[k - j - 3];
+  }
+  for (; j <= k; ++j, w += 1.0) s0 += w * a[j] * y[k - j];
+  return ((s0 + s1) + (s2 + s3)) / k;
 }
 
 std::string number(double v) {
@@ -41,6 +59,9 @@ TaylorStep::TaylorStep(const TaylorSystem& system, TaylorSettings settings)
     : system_(&system), settings_(settings) {
   settings_.validate();
   p_ = static_cast<int>(std::ceil(-0.5 * std::log(settings_.tolerance) + 1.0));
+  safety_ = std::exp(-0.7 / (p_ - 1));
+  inverse_root_[0] = std::pow(settings_.tolerance, -1.0 / (p_ - 1));
+  inverse_root_[1] = std::pow(settings_.tolerance, -1.0 / p_);
   dim_ = system.state_size();
   parameters_ = system.parameter_values();
   const std::size_t nodes = static_cast<std::size_t>(system.dag().size());
@@ -103,11 +124,7 @@ bool TaylorStep::compute_order(int k) {
   for (int id = 0; id < count; ++id) {
     const DagNode& n = nodes[id];
     double* C = c(id);
-    if (n.time_constant && k > 0) {
-      C[k] = 0.0;
-      aux(id)[k] = 0.0;
-      continue;
-    }
+    if (n.time_constant && k > 0) continue;  // its orders ≥ 1 are 0 (zeroed by the constructor, never written)
     const double* A = n.a >= 0 ? c(n.a) : nullptr;
     const double* B = n.b >= 0 ? c(n.b) : nullptr;
     double* U = aux(id);
@@ -128,12 +145,9 @@ bool TaylorStep::compute_order(int k) {
         else if (nodes[n.b].time_constant) C[k] = A[k] * B[0];
         else C[k] = convolution(A, B, k, 0, k);
         break;
-      case Op::Square: {
-        double s = 0.0;
-        for (int j = 0; j < (k + 1) / 2; ++j) s += A[j] * A[k - j];
-        C[k] = 2.0 * s + (k % 2 == 0 ? A[k / 2] * A[k / 2] : 0.0);
+      case Op::Square:
+        C[k] = 2.0 * convolution(A, A, k, 0, (k + 1) / 2 - 1) + (k % 2 == 0 ? A[k / 2] * A[k / 2] : 0.0);
         break;
-      }
       case Op::Divide:
         if (k == 0 && B[0] == 0.0) return domain("division by zero");
         C[k] = nodes[n.b].time_constant ? A[k] / B[0] : (A[k] - convolution(B, C, k, 1, k)) / B[0];
@@ -338,12 +352,13 @@ StepStatus TaylorStep::expand(double t0, const Eigen::Ref<const Eigen::VectorXd>
       trouble_ = "a Taylor coefficient of order " + std::to_string(k) + " overflows at t = " + number(t0);
       return StepStatus::not_finite;
     }
-    if (m > 0.0) {
-      h = std::min(h, std::pow(tolerance / m, 1.0 / k));
-      rho = std::min(rho, std::pow(scale / m, 1.0 / k));
+    if (m > 0.0) {  // (S/m)^{1/k} = (εS/m)^{1/k} · ε^{−1/k}: one power per order
+      const double h_k = std::pow(tolerance / m, 1.0 / k);
+      h = std::min(h, h_k);
+      rho = std::min(rho, h_k * inverse_root_[k == p_ ? 1 : 0]);
     }
   }
-  h_ = h * std::exp(-0.7 / (p_ - 1));
+  h_ = h * safety_;
   rho_ = rho;
   if (h_ == 0.0 || std::isnan(h_)) {
     trouble_ = "step size " + number(h_) + " at t = " + number(t0);
@@ -381,18 +396,29 @@ void TaylorStep::transition(double tau, Eigen::Ref<Eigen::MatrixXd> out) const {
 double TaylorStep::guard_remainder(int g, double tau_max) const { return remainder(guard_coefficients(g), tau_max); }
 
 double TaylorStep::remainder(const double* a, double tau_max) const {
+  double rounding = 0.0, truncation = 0.0;
+  remainder_parts(a, tau_max, &rounding, &truncation);
+  return rounding + truncation;
+}
+
+void TaylorStep::remainder_parts(const double* a, double tau_max, double* rounding, double* truncation) const {
   const double h = std::min(h_, tau_max);
   // Rounding of the polynomial's evaluation: 4(p + 1) u Σ |g_k| h^k.
   double absolute_sum = 0.0, power = 1.0;
   for (int k = 0; k <= p_; ++k, power *= h) absolute_sum += std::abs(a[k]) * power;
-  const double rounding = 4.0 * (p_ + 1) * std::numeric_limits<double>::epsilon() * 0.5 * absolute_sum;
-  if (!std::isfinite(rho_)) return rounding;  // polynomial solution: no tail
+  *rounding = 4.0 * (p_ + 1) * std::numeric_limits<double>::epsilon() * 0.5 * absolute_sum;
+  *truncation = 0.0;
+  if (!std::isfinite(rho_)) return;  // polynomial solution: no tail
   // Truncation: Cauchy estimate B r^{p+1} / (1 − r), r = h/ρ, with B = 2 max_{k ∈ {p−1, p}}
   // |g_k| ρ^k fitted to the last two orders (those that set the step).
   const double r = h / rho_;
-  if (!(r < 1.0)) return std::numeric_limits<double>::infinity();
-  const double bound = std::max(std::abs(a[p_ - 1]) * std::pow(rho_, p_ - 1), std::abs(a[p_]) * std::pow(rho_, p_));
-  return 2.0 * bound * std::pow(r, p_ + 1) / (1.0 - r) + rounding;
+  if (!(r < 1.0)) {
+    *truncation = std::numeric_limits<double>::infinity();
+    return;
+  }
+  // B r^{p+1} = 2 max(|g_{p−1}| / ρ², |g_p| / ρ) h^{p+1}, h^{p+1} left in `power` by the sum above.
+  const double bound = std::max(std::abs(a[p_ - 1]) / (rho_ * rho_), std::abs(a[p_]) / rho_);
+  *truncation = 2.0 * bound * power / (1.0 - r);
 }
 
 StepStatus advance(TaylorStep& step, double t0, const Eigen::Ref<const Eigen::VectorXd>& z0, double t1,

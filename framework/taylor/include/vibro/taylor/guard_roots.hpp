@@ -33,6 +33,8 @@
 /// A guard that peaks 1e-10 below ε is discarded once the intervals near its peak are short
 /// enough for the control polygon to lie within 1e-10 of q (width ~ √(1e-10) relative, ~17
 /// splits); one that peaks 1e-10 above ε has two roots ~1e-5 apart, separated after as many.
+/// A guard far below its trigger over the whole step (q(0) + Σ_{k≥1} |q_k| h^k < −δ, which
+/// bounds every Bernstein coefficient) is answered `none` before the conversion.
 ///
 /// Usage:
 ///     vibro::taylor::GuardRootFinder finder(step.order());
@@ -61,8 +63,12 @@ class GuardRootFinder {
 
   /// First crossing of Σ_{k≤degree} coefficients[k] τ^k − trigger over [0, h] with remainder
   /// bound `remainder` (see the file comment).
+  /// With `truncation` > 0, the bound over [0, τ] is remainder + truncation · (τ/h)^{degree+1}
+  /// (a Taylor step's tail, TaylorStep::remainder_parts): the band an interval is tested against
+  /// narrows towards τ = 0, so a guard that starts just below its trigger and moves away is
+  /// cleared in a few splits.
   GuardCrossing first_crossing(const double* coefficients, int degree, double h, double trigger,
-                               double remainder);
+                               double remainder, double truncation = 0.0);
 
   /// Root of q(τ) = Σ c_k τ^k − trigger bracketed by q(a) < 0 < q(b) (or the reverse), to rounding:
   /// Newton steps, replaced by bisection when they leave the bracket or do not halve it.
@@ -74,6 +80,8 @@ class GuardRootFinder {
   std::vector<double> lo_, hi_;
   std::vector<int> depth_;
   std::vector<double> work_;
+  std::vector<double> ratios_;  // C(i, k) / C(degree, k), row i (the Bernstein conversion)
+  int ratio_degree_ = -1;       // the degree ratios_ is for
 };
 
 }  // namespace vibro::taylor

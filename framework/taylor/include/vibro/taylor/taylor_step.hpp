@@ -143,6 +143,10 @@ class TaylorStep {
   /// Bound on the remainder of any series of the step (its coefficients, p + 1 of them) over
   /// [0, min(h, tau_max)], as guard_remainder.
   double remainder(const double* coefficients, double tau_max = std::numeric_limits<double>::infinity()) const;
+  /// The same bound in its two parts over [0, T], T = min(h, tau_max): the evaluation's rounding
+  /// (`rounding`) and the truncated tail (`truncation`), which over [0, τ] ⊂ [0, T] is at most
+  /// truncation · (τ/T)^{p+1} (each term of the tail Σ_{k>p} g_k τ^k, and 1/(1 − τ/ρ), grow with τ).
+  void remainder_parts(const double* coefficients, double tau_max, double* rounding, double* truncation) const;
   /// Why the last expand() failed ("log(x0): argument 0 at t = 1.5").
   const std::string& trouble() const { return trouble_; }
 
@@ -183,6 +187,8 @@ class TaylorStep {
   int p_;
   int dim_;  // 2n
   double t0_ = 0.0, h_ = 0.0, rho_ = 0.0;
+  double safety_ = 1.0;                  // exp(−0.7 / (p − 1))
+  double inverse_root_[2] = {1.0, 1.0};  // ε^{−1/(p−1)}, ε^{−1/p}
   Eigen::VectorXd parameters_;
   std::vector<double> c_, aux_, dc_, z_, y_;
   Eigen::VectorXd force_k_;   // M⁻¹ F_[k] scratch
