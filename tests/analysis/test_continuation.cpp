@@ -467,3 +467,94 @@ TEST_CASE("continuation: through a grazing that adds an impact, onto the unstabl
   CHECK(held);
   CHECK(b.points.back().p == Approx(o.p_min).margin(1e-12));
 }
+
+namespace {
+
+/// One direction of a brute-force bifurcation diagram of the paper's system (run.kind: diagram,
+/// done here with the simulator): at every Ω of `grid`, in order, `periods` forcing periods from
+/// the previous value's final state (the time restarting at 0, so every state is at forcing
+/// phase 0); the state reached at each value, and the last one in *end.
+std::vector<VectorXd> diagram_sweep(const std::vector<double>& grid, VectorXd x, VectorXd v, int periods,
+                                    VectorXd* end) {
+  std::vector<VectorXd> out;
+  for (const double omega : grid) {
+    const vibro::ImpactSystem sys = paper_at(omega).system;
+    vibro::Simulator sim(sys);
+    const vibro::RunSummary s = sim.run(0.0, x, v, periods * 2.0 * std::numbers::pi / omega);
+    REQUIRE(s.status == vibro::RunStatus::completed);
+    x = s.x;
+    v = s.v;
+    out.push_back(vibro::test::stack(x, v));
+  }
+  *end = vibro::test::stack(x, v);
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("continuation: on the paper's system past the vanishing of mass 1's split sticking phase, "
+          "every Ω interval where the up and down diagrams differ (two stable orbits coexist) is "
+          "bounded by a fold or grazing continuation locates",
+          "[.][continuation][wagg2004][hysteresis]") {
+  // Hidden (run it by its tag): it fails today on three of the diagram's seven windows in this
+  // interval (0.257470, 0.257485, 0.257498), where the cascade's steps still pass a fold or the
+  // grazing beside it; the windows at 0.257517, 0.257545 (and 0.257586, 0.257651 further up)
+  // are bounded. About 15 s.
+  // The diagram: up from the orbit reached from rest at lo, then down from where the up sweep
+  // ends, on a grid of `count` values; where the two states differ at a grid value the two
+  // sweeps sit on different attractors there.
+  const double lo = 0.25744, hi = 0.25756;
+  const int count = 121;
+  std::vector<double> grid;
+  for (int i = 0; i < count; ++i) grid.push_back(lo + (hi - lo) * i / (count - 1));
+  const double T = 2.0 * std::numbers::pi / lo;
+  const vibro::ImpactSystem start_sys = paper_at(lo).system;
+  vibro::Simulator sim(start_sys);
+  const vibro::RunSummary warm = sim.run(0.0, VectorXd::Zero(2), VectorXd::Zero(2), 200.0 * T);
+  REQUIRE(warm.status == vibro::RunStatus::completed);
+  VectorXd end;
+  const std::vector<VectorXd> up = diagram_sweep(grid, warm.x, warm.v, 100, &end);
+  std::vector<double> reversed(grid.rbegin(), grid.rend());
+  std::vector<VectorXd> down = diagram_sweep(reversed, end.head(2), end.tail(2), 100, &end);
+  std::reverse(down.begin(), down.end());
+  // The windows: maximal runs of grid values where the sweeps differ. (Runs that converge to one
+  // orbit agree to far below 1e-6; the two orbits of a window differ by ≥ 1e-5.)
+  std::vector<std::pair<int, int>> windows;
+  for (int i = 0; i < count; ++i) {
+    const bool differ = (up[i] - down[i]).cwiseAbs().maxCoeff() > 1e-6;
+    if (!differ) continue;
+    if (!windows.empty() && windows.back().second == i - 1) windows.back().second = i;
+    else windows.push_back({i, i});
+  }
+  // The issue's two windows, at 0.257470 and 0.257545, lie in [lo, hi].
+  CHECK(windows.size() >= 2);
+  // Continuation from the orbit the up sweep starts on.
+  vibro::ContinuationOptions o;
+  o.p_min = lo;
+  o.p_max = hi;
+  o.step = 0.01;
+  o.max_step = 0.02;
+  o.parameter_scale = 0.04;  // as on the scene's range [0.24, 0.28]
+  o.max_points = 800;
+  const vibro::ContinuationResult r = vibro::continue_orbits(paper_at, lo, 200.0 * T, warm.x, warm.v, o);
+  REQUIRE_FALSE(r.branches.empty());
+  INFO("branch: " << r.branches[0].end << ", " << r.branches[0].points.size() << " points");
+  CHECK(r.branches[0].end.find("reached p_max") != std::string::npos);
+  // Each end of a window lies between its last agreeing grid value and the first differing one:
+  // there an attractor ceases (a fold, or a grazing corner where the branch turns back).
+  const auto bounded = [&](double a, double b) {
+    for (const vibro::Bifurcation& f : r.bifurcations)
+      if ((f.kind == vibro::BifurcationKind::fold || f.kind == vibro::BifurcationKind::grazing ||
+           f.kind == vibro::BifurcationKind::period_doubling) &&
+          f.smooth && f.p > std::min(a, b) && f.p < std::max(a, b))
+        return true;
+    return false;
+  };
+  for (const auto& [first, last] : windows) {
+    INFO("window " << grid[static_cast<std::size_t>(first)] << " … " << grid[static_cast<std::size_t>(last)]);
+    REQUIRE(first > 0);
+    REQUIRE(last + 1 < count);
+    CHECK(bounded(grid[static_cast<std::size_t>(first - 1)], grid[static_cast<std::size_t>(first)]));
+    CHECK(bounded(grid[static_cast<std::size_t>(last)], grid[static_cast<std::size_t>(last + 1)]));
+  }
+}

@@ -49,8 +49,12 @@ class BranchRunner {
 
   // Stepping (branch_runner.cpp).
   static bool near_nonsmooth(const Node& n);
+  static bool single_change(const Signature& a, const Signature& b);
+  static int real_above_one(const FloquetMultipliers& m);
+  static std::string unseen_crossing(const BranchPoint& a, const BranchPoint& b);
   std::optional<Node> jump(const Node& cur, double last_dp);
   std::optional<Node> corner(const Node& cur);  // grazing_corner.cpp
+  std::optional<Node> nearest_across(const Node& cur, Node far, double width);
   std::optional<Node> shoot_at(const Node& from, double p, const VectorXd& along);
   void locate_at_end(const Node& cur, double last_dp, int branch_index);
   std::optional<Node> resection(const Node& cur, double margin);
@@ -80,6 +84,7 @@ class BranchRunner {
   ContinuationResult& result_;
   const ContinuationProgress& progress_;
   Node last_located_;
+  Signature behind_;  ///< the events before the last multiple change crossed (no step goes back to them)
   double located_p_ = kNaN;  ///< one-sided location: the extrapolated zero
   double bracket_low_ = 0.0, bracket_high_ = 0.0;
   bool located_smooth_ = true;
