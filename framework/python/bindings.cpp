@@ -316,7 +316,7 @@ py::dict describe_multipliers(const vibro::FloquetMultipliers& f) {
   return d;
 }
 
-/// The tangent map of the dense engine over [t0, t1] from (x, v) (linearisation.hpp), and the
+/// The tangent map of the dense engine (the Taylor engine for a scene with forces) over [t0, t1] from (x, v) (linearisation.hpp), and the
 /// multipliers of that map read as a period-k map when k > 0.
 py::dict tangent_map(const SceneDocument& doc, std::optional<double> t0, double t1, std::optional<Eigen::VectorXd> x,
                      std::optional<Eigen::VectorXd> v, int k) {
@@ -325,8 +325,12 @@ py::dict tangent_map(const SceneDocument& doc, std::optional<double> t0, double 
   {
     py::gil_scoped_release release;
     const vibro::io::Scene scene = doc.build();
-    map = vibro::linearise(scene.impact_system(), scene.solver, t0.value_or(scene.t0), state_or(x, scene.x0),
-                           state_or(v, scene.v0), t1);
+    if (scene.engine == vibro::io::EngineKind::taylor)  // nonlinear forces: the Taylor engine's map
+      map = vibro::linearise(scene.impact_system(), scene.forces, scene.solver, t0.value_or(scene.t0),
+                             state_or(x, scene.x0), state_or(v, scene.v0), t1);
+    else
+      map = vibro::linearise(scene.impact_system(), scene.solver, t0.value_or(scene.t0), state_or(x, scene.x0),
+                             state_or(v, scene.v0), t1);
     if (k > 0 && map->summary.status == vibro::RunStatus::completed) multipliers = vibro::floquet_multipliers(*map, k);
   }
   py::dict d;
@@ -345,7 +349,8 @@ py::dict tangent_map(const SceneDocument& doc, std::optional<double> t0, double 
   return d;
 }
 
-/// Newton shooting on the dense engine from (t, x, v) (shooting.hpp).
+/// Newton shooting on the dense engine (the Taylor engine for a scene with forces) from (t, x, v)
+/// (shooting.hpp).
 py::dict shoot(const SceneDocument& doc, int period, double phase, double tolerance, int max_iterations,
                std::optional<double> t, std::optional<Eigen::VectorXd> x, std::optional<Eigen::VectorXd> v) {
   std::optional<vibro::ShootingResult> r;
@@ -358,7 +363,11 @@ py::dict shoot(const SceneDocument& doc, int period, double phase, double tolera
     o.tolerance = tolerance;
     o.max_iterations = max_iterations;
     o.solver = scene.solver;
-    r = vibro::shoot(scene.impact_system(), o, t.value_or(scene.t0), state_or(x, scene.x0), state_or(v, scene.v0));
+    if (scene.engine == vibro::io::EngineKind::taylor)  // nonlinear forces: the Taylor engine
+      r = vibro::shoot(scene.impact_system(), scene.forces, o, t.value_or(scene.t0), state_or(x, scene.x0),
+                       state_or(v, scene.v0));
+    else
+      r = vibro::shoot(scene.impact_system(), o, t.value_or(scene.t0), state_or(x, scene.x0), state_or(v, scene.v0));
   }
   py::dict d;
   d["status"] = vibro::to_string(r->status);

@@ -74,14 +74,14 @@ double model_root(double h, double d, double c, double lo, double hi) {
 
 }  // namespace
 
-CrossingFinder::CrossingFinder(const Segment& segment,
+CrossingFinder::CrossingFinder(const GuardSource& source,
                                const Eigen::Ref<const Eigen::VectorXd>& triggers, double resolution) {
-  retarget(segment, triggers, resolution);
+  retarget(source, triggers, resolution);
 }
 
-void CrossingFinder::retarget(const Segment& segment, const Eigen::Ref<const Eigen::VectorXd>& triggers,
+void CrossingFinder::retarget(const GuardSource& source, const Eigen::Ref<const Eigen::VectorXd>& triggers,
                               double resolution, bool rearm_leaving) {
-  segment_ = &segment;
+  source_ = &source;
   rearm_ = rearm_leaving;
   triggers_ = triggers;
   resolution_ = resolution;
@@ -94,14 +94,14 @@ void CrossingFinder::retarget(const Segment& segment, const Eigen::Ref<const Eig
 }
 
 std::optional<Crossing> CrossingFinder::first(double a, double b) {
-  if (!segment_) throw std::logic_error("CrossingFinder::first: no segment (call retarget)");
+  if (!source_) throw std::logic_error("CrossingFinder::first: no guard source (call retarget)");
   const Eigen::Index rows = triggers_.size();
   if (rows == 0) return std::nullopt;
   if (!started_) {
     started_ = true;
     search_start_ = a;
     const SegmentSample& A = pool_[0];
-    segment_->sample(a, pool_[0]);
+    source_->sample(a, pool_[0]);
     for (Eigen::Index i = 0; i < rows; ++i) {
       if (rearm_ && A.h(i) > 0.0 && A.d(i) <= 0.0) triggers_(i) += A.h(i);
       // A guard on its surface (within ε) and moving away does not bracket a root from there:
@@ -111,7 +111,7 @@ std::optional<Crossing> CrossingFinder::first(double a, double b) {
   } else if (pool_[1].tau == a && pool_[1].h.size() == rows) {
     std::swap(pool_[0], pool_[1]);
   } else {
-    segment_->sample(a, pool_[0]);
+    source_->sample(a, pool_[0]);
   }
   Crossing hit{};
   if (pool_[0].tau == search_start_) {
@@ -123,12 +123,12 @@ std::optional<Crossing> CrossingFinder::first(double a, double b) {
       if (leaving_[static_cast<std::size_t>(i)] && pool_[0].c(i) > 0.0)
         predicted = std::min(predicted, a - 2.0 * pool_[0].d(i) / pool_[0].c(i) * (1.0 + 1e-3));
     if (predicted > a && predicted < b) {
-      segment_->sample(predicted, pool_[1]);
+      source_->sample(predicted, pool_[1]);
       if (search(0, 1, 2, &hit)) return hit;
       std::swap(pool_[0], pool_[1]);
     }
   }
-  segment_->sample(b, pool_[1]);
+  source_->sample(b, pool_[1]);
   if (search(0, 1, 2, &hit)) return hit;
   return std::nullopt;
 }
@@ -144,10 +144,10 @@ void CrossingFinder::note_below(const SegmentSample& s) {
 
 bool CrossingFinder::certified(Eigen::Index i, const SegmentSample& a, const SegmentSample& b) const {
   const double L = b.tau - a.tau, eps = triggers_(i);
-  const double B2 = segment_->derivative_bound(2, i, a, b);
+  const double B2 = source_->derivative_bound(2, i, a, b);
   if (upper_bound(a.h(i), a.d(i), b.h(i), b.d(i), B2, L) <= eps) return true;
   // The cubic model of each half, with the exact curvature at its end (events.hpp).
-  const double B3 = segment_->derivative_bound(3, i, a, b);
+  const double B3 = source_->derivative_bound(3, i, a, b);
   const double half = 0.5 * L;
   return cubic_max(a.h(i), a.d(i), a.c(i), B3, half) <= eps && cubic_max(b.h(i), -b.d(i), b.c(i), B3, half) <= eps;
 }
@@ -193,7 +193,7 @@ bool CrossingFinder::search(std::size_t ia, std::size_t ib, std::size_t free, Cr
         }
       }
     if (row >= 0) {
-      segment_->sample(best, pool_[free]);
+      source_->sample(best, pool_[free]);
       hit_ = free;
       *out = {best, row};
       return true;
@@ -228,14 +228,14 @@ bool CrossingFinder::search(std::size_t ia, std::size_t ib, std::size_t free, Cr
       note_below(B);
       return false;
     }
-    segment_->sample(best, pool_[free]);
+    source_->sample(best, pool_[free]);
     hit_ = free;
     *out = {best, best_row};
     return true;
   }
   if (best_row >= 0 && bracketed) {
     SegmentSample& R = pool_[free];
-    segment_->sample(best, R);
+    source_->sample(best, R);
     bool ok = best <= A.tau;  // a root before A: [its bracket, A] is already certified
     if (!ok) {
       ok = true;
@@ -249,10 +249,10 @@ bool CrossingFinder::search(std::size_t ia, std::size_t ib, std::size_t free, Cr
   }
   if (++subdivisions_ > 2000000)
     throw std::runtime_error("event search: subdivision budget exhausted near t = " +
-                             std::to_string(segment_->t0() + A.tau) +
+                             std::to_string(source_->t0() + A.tau) +
                              " (a guard stays within rounding of zero over a long interval)");
   const double m = split_point(pool_[ia], pool_[ib]);
-  segment_->sample(m, pool_[free]);
+  source_->sample(m, pool_[free]);
   if (search(ia, free, free + 1, out)) return true;
   return search(free, ib, free + 1, out);
 }
@@ -261,7 +261,7 @@ double CrossingFinder::root(Eigen::Index row, Jet lo, Jet hi) const {
   // Invariant h(lo) ≤ 0 < h(hi). Each step goes to the root of the local quadratic model
   // h + h' s + h'' s²/2 at the end nearer the root (Newton where the model has none), and
   // halves when that leaves the bracket or when two steps have not halved it.
-  const double t0 = segment_->t0();
+  const double t0 = source_->t0();
   double last = kInf;
   bool bisect = false;
   Jet best{kInf, kInf, 0.0, 0.0};
@@ -279,7 +279,7 @@ double CrossingFinder::root(Eigen::Index row, Jet lo, Jet hi) const {
     else if (std::isfinite(s_lo)) x = lo.tau + s_lo;
     if (!(x > lo.tau && x < hi.tau) || bisect) x = 0.5 * (lo.tau + hi.tau);
     Jet j{x, 0.0, 0.0, 0.0};
-    segment_->row_jet(row, x, &j.h, &j.d, &j.c);
+    source_->row_jet(row, x, &j.h, &j.d, &j.c);
     if (j.h == 0.0) return x;
     const bool progress = std::abs(j.h) <= 0.5 * last;
     last = std::abs(j.h);
@@ -298,9 +298,9 @@ double CrossingFinder::root(Eigen::Index row, Jet lo, Jet hi) const {
 
 double CrossingFinder::refine_root(Eigen::Index row, double a, double b) const {
   Jet lo{a, 0.0, 0.0, 0.0}, hi{b, 0.0, 0.0, 0.0};
-  segment_->row_jet(row, a, &lo.h, &lo.d, &lo.c);
+  source_->row_jet(row, a, &lo.h, &lo.d, &lo.c);
   if (lo.h > 0.0) return a;
-  segment_->row_jet(row, b, &hi.h, &hi.d, &hi.c);
+  source_->row_jet(row, b, &hi.h, &hi.d, &hi.c);
   return root(row, lo, hi);
 }
 
@@ -311,20 +311,20 @@ double CrossingFinder::from_last_below(Eigen::Index row, double above) const {
   // is the closest approach, where h' = 0).
   double below = below_[static_cast<std::size_t>(row)].tau;
   if (!(below <= above)) {
-    const Minimum m = minimize_row(*segment_, row, search_start_, above, 1e-3 * triggers_(row));
+    const Minimum m = minimize_row(*source_, row, search_start_, above, 1e-3 * triggers_(row));
     if (m.value > 0.0) return m.tau;
     below = m.tau;
   }
   return refine_root(row, below, above);
 }
 
-Minimum minimize_row(const Segment& segment, Eigen::Index row, double a, double b,
+Minimum minimize_row(const GuardSource& source, Eigen::Index row, double a, double b,
                      double tolerance, double sign) {
   struct Interval {
     double a, b, ha, da, hb, db;
   };
-  auto h = [&](double tau) { return sign * segment.value(row, tau); };
-  auto dh = [&](double tau) { return sign * segment.value(row, tau, 1); };
+  auto h = [&](double tau) { return sign * source.value(row, tau); };
+  auto dh = [&](double tau) { return sign * source.value(row, tau, 1); };
   const double ha0 = h(a), hb0 = h(b);
   Minimum best = ha0 <= hb0 ? Minimum{ha0, a} : Minimum{hb0, b};
   std::vector<Interval> stack{{a, b, ha0, dh(a), hb0, dh(b)}};
@@ -333,14 +333,14 @@ Minimum minimize_row(const Segment& segment, Eigen::Index row, double a, double 
     const Interval iv = stack.back();
     stack.pop_back();
     const double L = iv.b - iv.a;
-    const double B = segment.second_derivative_bound(row, iv.a, iv.b);
+    const double B = source.second_derivative_bound(row, iv.a, iv.b);
     if (lower_bound(iv.ha, iv.da, iv.hb, iv.db, B, L) >= best.value - tolerance) continue;
     if (iv.da < 0.0 && iv.db > 0.0) {
       // A stationary point bracketed by slopes of opposite sign: regula falsi on h'.
       double lo = iv.a, hi = iv.b, dlo = iv.da, dhi = iv.db;
       for (int it = 0; it < 100; ++it) {
         if (hi - lo <= 4.0 * std::numeric_limits<double>::epsilon() *
-                           std::max(1.0, std::abs(segment.t0() + hi)))
+                           std::max(1.0, std::abs(source.t0() + hi)))
           break;
         double x = lo - dlo * (hi - lo) / (dhi - dlo);
         if (!(x > lo && x < hi) || it % 3 == 2) x = 0.5 * (lo + hi);
@@ -357,7 +357,7 @@ Minimum minimize_row(const Segment& segment, Eigen::Index row, double a, double 
       const double hx = h(x);
       if (hx < best.value) best = {hx, x};
     }
-    if (L <= 16.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(segment.t0() + iv.b)))
+    if (L <= 16.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(source.t0() + iv.b)))
       continue;
     const double m = 0.5 * (iv.a + iv.b);
     const double hm = h(m), dm = dh(m);

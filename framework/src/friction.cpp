@@ -100,6 +100,9 @@ struct Tables {
   Eigen::MatrixXd u_rows, s2_rows;     // m × N: u_j = u_rows z, s_j'' = s2_rows z
   Eigen::MatrixXd r_rows;              // n × N: r = f(t) − C v − K x, no friction
   Eigen::VectorXd limit_static, limit_kinetic;  // μ_s N, μ_k N
+  /// Per contact j: Σ_k |(Wᵀ M⁻¹ W)_jk|, the largest relative acceleration u_j' that a force error
+  /// of 1 on every contact can make (resolve_states' tolerance on u').
+  Eigen::VectorXd accel_per_force;
 
   Tables(const LinearSystem& sys, const std::vector<FrictionContact>& contacts) {
     n = sys.dof();
@@ -127,6 +130,7 @@ struct Tables {
     }
     minv = sys.mass().llt().solve(Eigen::MatrixXd::Identity(n, n));
     minv_W = minv * W;
+    accel_per_force = (W.transpose() * minv_W).cwiseAbs().rowwise().sum();
     r_rows = Eigen::MatrixXd::Zero(n, N);
     r_rows.leftCols(n) = -sys.stiffness();
     r_rows.middleCols(n, n) = -sys.damping();
@@ -308,6 +312,16 @@ bool resolve_states(const Tables& tab, const Eigen::VectorXd& z, std::vector<Fri
                     double eps_v, double eps_f, double eps_a) {
   const auto m = static_cast<Eigen::Index>(states.size());
   const Eigen::VectorXd u = tab.u_rows * z;
+  // A stuck contact whose guard fired: its holding force reached μ_s N (the event's definition),
+  // so slipping against that force's direction is consistent whatever rounding left of its u' —
+  // placed where the time resolution allows (late in a long run, |F'| × the spacing of doubles
+  // near t exceeds any fixed tolerance), the force may be just short of the limit.
+  double breakaway = 0.0;  // the fired contact's direction of slip (0: not a stuck contact's guard)
+  if (fired >= 0 && states[static_cast<std::size_t>(fired)] == FrictionState::stuck) {
+    Eigen::MatrixXd F0, A0;
+    tab.mode_rows(states, F0, A0);
+    breakaway = (F0 * z)(fired) >= 0.0 ? -1.0 : 1.0;  // the friction force opposes the slip
+  }
   std::vector<Eigen::Index> cand;
   std::vector<FrictionState> trial(states.size());
   for (Eigen::Index j = 0; j < m; ++j) {
@@ -348,8 +362,15 @@ bool resolve_states(const Tables& tab, const Eigen::VectorXd& z, std::vector<Fri
       for (std::size_t k = 0; k < c && ok; ++k) {
         const Eigen::Index j = cand[k];
         const FrictionState s = trial[static_cast<std::size_t>(j)];
+        // A slip is consistent if it does not decelerate, to the tolerance of what located the
+        // switch: a stuck force guard fires within eps_f of μ_s N, so at a stick → slip switch
+        // with μ_s = μ_k the slip's u' = (F − μ_k N)(WᵀM⁻¹W) may be −eps_f (WᵀM⁻¹W) where the
+        // exact value is 0 (and u'' > 0). A tolerance below that would refuse the slip, keep the
+        // contact stuck (its force is within μ_s N + eps_f) and let the guard fire again at once,
+        // for ever.
         if (s == FrictionState::stuck) ok = std::abs(force(j)) <= tab.limit_static(j) + eps_f;
-        else ok = sign_of(s) * udot(j) >= -eps_a;
+        else if (pass == 0 && j == fired && breakaway != 0.0) ok = static_cast<double>(sign_of(s)) == breakaway;
+        else ok = sign_of(s) * udot(j) >= -(eps_a + eps_f * tab.accel_per_force(j));
       }
       if (ok) {
         best_stuck = stuck_count;
@@ -360,6 +381,31 @@ bool resolve_states(const Tables& tab, const Eigen::VectorXd& z, std::vector<Fri
   if (best_stuck < 0) return false;
   states = best;
   return true;
+}
+
+/// At a switch, the relative velocity u_j of every contact that sticks now or stuck until now is
+/// set to 0 exactly: the smallest change of v in the metric of M (v −= M⁻¹W_S (W_SᵀM⁻¹W_S)⁻¹ u_S
+/// over those contacts S). It is within the tolerance that located the switch (|u_j| ≤ eps_v
+/// where a slip ends; rounding where a stuck contact, held at u = 0 by its mode, breaks away), and
+/// it matters where it breaks away: a slip that starts with u a rounding error on the wrong side
+/// of 0 (u' = 0 there when μ_s = μ_k) would meet its own guard, u back to 0, at once.
+void settle_relative_velocities(const Tables& tab, const std::vector<FrictionState>& before,
+                                const std::vector<FrictionState>& after, Eigen::VectorXd& z) {
+  std::vector<Eigen::Index> S;
+  for (std::size_t j = 0; j < after.size(); ++j)
+    if (after[j] == FrictionState::stuck || before[j] == FrictionState::stuck) S.push_back(static_cast<Eigen::Index>(j));
+  if (S.empty()) return;
+  const Eigen::VectorXd u_all = tab.u_rows * z;
+  const auto k = static_cast<Eigen::Index>(S.size());
+  Eigen::MatrixXd MW(tab.n, k), D(k, k);
+  Eigen::VectorXd u(k);
+  for (Eigen::Index a = 0; a < k; ++a) {
+    MW.col(a) = tab.minv_W.col(S[static_cast<std::size_t>(a)]);
+    u(a) = u_all(S[static_cast<std::size_t>(a)]);
+  }
+  for (Eigen::Index a = 0; a < k; ++a)
+    for (Eigen::Index b = 0; b < k; ++b) D(a, b) = tab.W.col(S[static_cast<std::size_t>(a)]).dot(MW.col(b));
+  z.segment(tab.n, tab.n) -= MW * D.ldlt().solve(u);
 }
 
 }  // namespace
@@ -517,6 +563,8 @@ FrictionSummary FrictionSimulator::run(double t0, const Eigen::VectorXd& x0, con
     if (!resolve_states(tab, zt, states, fired, eps_v, eps_f, eps_a))
       return finish(RunStatus::numerical_failure, "friction: no consistent stick/slip state at t = " + number_text(t) +
                                                       " (friction[" + std::to_string(fired) + "])");
+    settle_relative_velocities(tab, before, states, zt);
+    v = zt.segment(n, n);
     emit_changes(before, zt, false, {});
     recent.push_back(t);
     while (!recent.empty() && recent.front() < t - window) recent.pop_front();

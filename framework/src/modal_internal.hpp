@@ -2,8 +2,8 @@
 // Private to vibro_core: the modal chain engine's pieces shared by its files: the stops' sparse
 // normals and harmonic motions, the chain's banded products, a contact set's modal form
 // (build_mode, modal_modes.cpp), the basis changes between physical and modal states and the
-// guards' values (modal_modes.cpp), and the certified crossing search on modal guards
-// (modal_search.hpp).
+// guards' values (modal_modes.cpp). The guards' crossings are located by events.hpp's
+// CrossingFinder on a ModalGuardSource (modal.hpp, modal_guards.cpp).
 #include "vibro/modal.hpp"
 
 #include <algorithm>

@@ -1,14 +1,14 @@
 // The modal chain engine: its stops, its cache of contact modes, its stops' algebra at events
 // and its side of the event loop shared with the dense engine (event_loop.hpp). A contact set's
-// modes and guards are built in modal_modes.cpp, searched in modal_search.hpp, and shown to
-// observers in modal_views.cpp.
+// modes and guards are built in modal_modes.cpp, searched by events.hpp's CrossingFinder on a
+// ModalGuardSource (modal_guards.cpp), and shown to observers in modal_views.cpp.
 #include "vibro/modal.hpp"
 
 #include "vibro/contact.hpp"  // solve_lcp
 #include "vibro/engine.hpp"   // modal_options
 
 #include "event_loop.hpp"
-#include "modal_search.hpp"
+#include "modal_internal.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -17,6 +17,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <stdexcept>
 
@@ -306,7 +307,8 @@ const ModalContactMode* ModalChainSimulator::mode_for(const ContactSet& set, std
 // The run
 
 /// The modal engine's side of the event loop (event_loop.hpp): a mode's segment is its modal
-/// state (u0_, ud0_ at seg_t0_) searched by ModalChainSimulator::Search; a lone impact in free
+/// state (u0_, ud0_ at seg_t0_), its guards a ModalGuardSource searched by the CrossingFinder of
+/// events.hpp (one finder for every mode: each has one row per stop); a lone impact in free
 /// flight that leaves its stop is a rank-1 update of the modal velocities (modal.hpp), any other
 /// event is resolved in physical coordinates by the rules shared with the dense engine
 /// (event_resolution.hpp, on ChainAlgebra) and the next mode entered from there.
@@ -314,7 +316,7 @@ class ModalChainSimulator::Loop {
  public:
   Loop(ModalChainSimulator& sim, const std::vector<Observer*>& observers, ModalRunSummary& summary, double t_end)
       : sim_(sim), md_(*sim.modes_), ch_(md_.chain()), W_(md_.frequency()), observers_(observers),
-        summary_(summary), t_end_(t_end), buffers_(md_.dof()), search_(W_, &evaluations_, md_.dof()) {}
+        summary_(summary), t_end_(t_end), buffers_(md_.dof()), source_(md_.dof()) {}
 
   Eigen::Index dof() const { return md_.dof(); }
   const std::vector<Stop>& stops() const { return sim_.stops_; }
@@ -375,17 +377,18 @@ class ModalChainSimulator::Loop {
     const Eigen::Index rows = guards.rows();
     base_.resize(rows);
     for (Eigen::Index i = 0; i < rows; ++i) base_(i) = i < mode_->gap_rows ? eps_gap_ : eps_force_;
-    search_.reset(mode_->modes, guards, st.t, u0(), ud0(), resolution_);
-    search_.start(base_);
+    source_.retarget(mode_->modes, guards, W_, st.t, u0(), ud0());
+    // A guard that starts inside its band while moving away (just after an impact or a release)
+    // is re-armed above where it starts, so rounding cannot re-fire it.
+    finder_.retarget(source_, base_, resolution_, true);
     const double top = top_rate(), span = t_end - st.t;
     return {top > 0.0 ? 1.0 / top : std::max(span, 1e-300), span};
   }
-  bool search(double /*a*/, double b, Crossing* hit) {
-    double tau = 0.0;
-    int row = -1;
-    if (!search_.advance_to(b, &tau, &row)) return false;
-    *hit = {tau, row};
-    return true;
+  bool search(double a, double b, Crossing* hit) {
+    if (base_.size() == 0) return false;
+    const std::optional<Crossing> c = finder_.first(a, b);
+    if (c) *hit = *c;
+    return c.has_value();
   }
   void end_search() const {}
   void report(double t, double t_next, const std::vector<Observer*>& observers) const {
@@ -393,16 +396,16 @@ class ModalChainSimulator::Loop {
     for (Observer* o : observers) o->segment(view);
   }
   bool advance(detail::RunState& /*st*/, const Crossing* /*hit*/, double tau, double t_next) {
-    Search::Point& P = search_.point(0);
-    search_.evaluate(tau, P);
-    u0() = search_.u();
-    ud0() = search_.ud();
+    auto u = buffers_.u.head(sim_.nr_), ud = buffers_.ud.head(sim_.nr_);
+    source_.state(tau, u, ud);
+    u0() = u;
+    ud0() = ud;
     sim_.seg_t0_ = t_next;
     return u0().allFinite() && ud0().allFinite();
   }
-  detail::FiredGuards fired() {
-    const Search::Point& P = search_.point(0);
-    return {P.h, P.d, search_.trig(), mode_->gap_rows, mode_->watched};
+  detail::FiredGuards fired() const {
+    const SegmentSample& at = finder_.crossing_sample();
+    return {at.h, at.d, finder_.triggers(), mode_->gap_rows, mode_->watched};
   }
   bool event(detail::RunState& st, const ContactSet& impacting, const ContactSet& releasing, std::string* why) {
     if (st.stuck.empty() && releasing.empty() && impacting.size() == 1 && free_impact(st.t, impacting))
@@ -425,7 +428,7 @@ class ModalChainSimulator::Loop {
     }
   }
   void finish(RunSummary& /*summary*/) {
-    summary_.evaluations = evaluations_;
+    summary_.evaluations = source_.evaluations();
     summary_.contact_sets_built = sets_seen_.size();
     summary_.sticking_flows_built = sim_.cache_->ever_built.size();
   }
@@ -452,7 +455,7 @@ class ModalChainSimulator::Loop {
   bool free_impact(double t, const ContactSet& impacting) {
     const int j = impacting.front();
     const ModalGuards& guards = mode_->guards;
-    const Search::Point& P = search_.point(0);
+    const SegmentSample& P = finder_.crossing_sample();
     const auto row = static_cast<Eigen::Index>(std::find(mode_->watched.begin(), mode_->watched.end(), j) -
                                                mode_->watched.begin());
     const double r = sim_.stops_[static_cast<std::size_t>(j)].restitution;
@@ -489,8 +492,8 @@ class ModalChainSimulator::Loop {
   ModalRunSummary& summary_;
   double t_end_;
   Buffers buffers_;
-  long evaluations_ = 0;
-  Search search_;
+  ModalGuardSource source_;
+  CrossingFinder finder_;
   double eps_gap_ = 0.0, eps_force_ = 0.0, resolution_ = 0.0;
   detail::EventRules rules_;
   std::unique_ptr<ChainAlgebra> algebra_;

@@ -1,8 +1,11 @@
 // The modal chain engine's segments as observers see them (observers.hpp): ModalSegmentView
-// and ModalSegmentState, with the certified search of their guards' extrema.
-#include "modal_search.hpp"
+// and ModalSegmentState, with the certified search (events.hpp) of their guards' extrema.
+#include "modal_internal.hpp"
+
+#include "vibro/events.hpp"
 
 #include <limits>
+#include <optional>
 #include <vector>
 
 namespace vibro {
@@ -114,29 +117,33 @@ std::vector<Minimum> guard_maxima(const ModalChainSimulator& sim, const ModalCon
   slope.hs = Eigen::Vector2d(-h_slope.cs, h_slope.cs);
   slope.finish(W);
 
-  long evaluations = 0;
-  ModalChainSimulator::Search s(W, &evaluations, nr);
+  ModalGuardSource source(nr);
+  source.retarget(mode.modes, slope, W, t0, u0, ud0);
   const double start = from - t0, span = to - t0;
   const double resolution = 8.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(to));
-  s.reset(mode.modes, slope, t0, u0, ud0, resolution);
-  ModalChainSimulator::Search::Point& p0 = s.point(0);
-  s.evaluate(start, p0);
+  const double h_start = source.value(0, start);
   const double top = std::max(W, mode.modes ? mode.modes->omega().maxCoeff() : 0.0);
   // As DenseSegmentView: the trigger scaled to a slope (× 1e-3 × the fastest rate).
-  const double eps = std::max(1e-13 * std::abs(p0.h(0)), tolerance * 1e-3 * std::max(top, 1e-300));
+  const double eps = std::max(1e-13 * std::abs(h_start), tolerance * 1e-3 * std::max(top, 1e-300));
   const double step = top > 0.0 ? 1.0 / top : std::max(span, 1e-300);
   const double inf = std::numeric_limits<double>::infinity();
   std::vector<Minimum> out;
-  bool seek_max = p0.h(0) <= 0.0;
+  bool seek_max = h_start <= 0.0;
   double at = start;
   Buffers buffers(nr);
+  CrossingFinder finder;
   for (int guard = 0; at < span && guard < 10000; ++guard) {
     Eigen::VectorXd trigger(2);
     trigger << (seek_max ? eps : inf), (seek_max ? inf : eps);
-    s.start(trigger, at);
-    double tau = span;
-    int which = -1;
-    if (!s.first(span, step, &tau, &which) || tau >= span) break;
+    finder.retarget(source, trigger, resolution, true);
+    std::optional<Crossing> hit;
+    for (double a = at; a < span && !hit;) {
+      const double b = std::min(a + step, span);
+      hit = finder.first(a, b);
+      a = b;
+    }
+    if (!hit || hit->tau >= span) break;
+    const double tau = hit->tau;
     if (seek_max && tau > start) {
       const double t = t0 + tau;
       double value, rate;

@@ -3,6 +3,7 @@
 #include "event_loop.hpp"
 
 #include "vibro/taylor/guard_roots.hpp"
+#include "vibro/taylor/harmonic_series.hpp"
 #include "vibro/taylor/horner.hpp"
 #include "vibro/taylor/taylor_step.hpp"
 
@@ -16,22 +17,7 @@ namespace vibro {
 namespace {
 
 using taylor::horner_compensated;
-
-/// Coefficients of cos(w (t0 + τ)) and sin(w (t0 + τ)) in τ up to order `order`: the k-th
-/// derivatives cycle through (cos, −sin, −cos, sin) and (sin, cos, −sin, −cos), times w^k/k!.
-void harmonic_series(double w, double t0, int order, double* c, double* s) {
-  const double C = std::cos(w * t0), S = std::sin(w * t0);
-  double f = 1.0;
-  for (int k = 0; k <= order; ++k) {
-    switch (k % 4) {
-      case 0: c[k] = f * C; s[k] = f * S; break;
-      case 1: c[k] = -f * S; s[k] = f * C; break;
-      case 2: c[k] = -f * C; s[k] = -f * S; break;
-      default: c[k] = f * S; s[k] = -f * C; break;
-    }
-    f *= w / (k + 1);
-  }
-}
+using taylor::harmonic_series;
 
 double horner(const double* a, int p, double tau) {
   double s = a[p];
@@ -268,6 +254,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
   void end_search() {}
   void report(double t, double t_next, const std::vector<Observer*>& observers);
   bool advance(detail::RunState& st, const Crossing* hit, double /*tau*/, double t_next) {
+    if (used_ == 0) return true;  // a segment of zero length (t_next = st.t): no step was taken
     const double elapsed = t_next - st.t;
     std::size_t r = hit_record_;
     double tau = hit_tau_;
@@ -368,6 +355,11 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
 
   // ---- for the segment view (LoopAccess) ----
   void state_at(double elapsed, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) const override {
+    if (used_ == 0) {  // a segment of zero length: its start
+      x = z_.head(n_);
+      v = z_.tail(n_);
+      return;
+    }
     std::size_t r = 0;
     double tau = 0.0;
     locate_time(elapsed, &r, &tau);
@@ -377,6 +369,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
     }
   }
   double force_at(Eigen::Index a, double elapsed) const override {
+    if (used_ == 0) return 0.0;  // a segment of zero length has no step (and no force series)
     std::size_t r = 0;
     double tau = 0.0;
     locate_time(elapsed, &r, &tau);

@@ -9,8 +9,8 @@
 ///     without damping and forcing;
 ///  4. a two-stage stop: a compliant spring with a rigid stop behind it (impacts while engaged
 ///     against the closed form; sticking on the rigid stop with the spring engaged, its force);
-///  5. bad input: the C++ API's checks, the modal engine's and the linearisation's refusals.
-#include "vibro/linearisation.hpp"
+///  5. bad input: the C++ API's checks and the modal engine's refusal (the tangent maps of
+///     compliant stops are tested in tests/analysis/test_compliant_analysis.cpp).
 #include "vibro/modal.hpp"
 #include "vibro/observers.hpp"
 #include "vibro/simulator.hpp"
@@ -396,11 +396,9 @@ TEST_CASE("compliant stops: bad parameters and unsupported uses are refused clea
   REQUIRE(!log.events.empty());
   CHECK(log.events[0].kind == EventKind::disengage);  // it starts engaged at g = 0.1
 
-  // The modal chain engine and the tangent map refuse compliant stops, naming the dense engine.
+  // The modal chain engine refuses compliant stops, naming the dense engine.
   const vibro::ChainModes modes(
       vibro::BandedChain::from_links({1, 1, 1}, {1, 1}, {}, 1.0, 0.0, 1.0, 0.0, HarmonicForcing::zero(3, 1.0)));
   CHECK_THROWS_WITH(vibro::ModalChainSimulator(modes, {base.compliant(10.0, 0.0)}),
                     Catch::Contains("dense engine"));
-  CHECK_THROWS_WITH(vibro::linearise(scene, {}, 0.0, vec({0.0}), vec({0.0}), 1.0, {}),
-                    Catch::Contains("compliant"));
 }

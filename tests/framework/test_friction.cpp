@@ -190,6 +190,37 @@ TEST_CASE("a stick-slip orbit on a moving surface against the long-double refere
   CHECK(std::abs(s.v(0) - static_cast<double>(ref.end_v)) < 1e-11);
 }
 
+TEST_CASE("stick-slip with equal static and kinetic coefficients breaks away once per stop", "[friction]") {
+  // Den Hartog's system at a low frequency (Ω = 0.2, F_f/F0 = 0.1 and 0.3): the mass stops twice
+  // a period and breaks away where the force needed to hold it reaches μN. With μ_s = μ_k the
+  // slip starts with u' = 0 exactly (u'' > 0), so three things must hold at a break-away: the
+  // slip is taken although the force guard places the limit only to its tolerance (and, late in
+  // a long run, only to |F'| × the spacing of doubles near t: both once kept the mass stuck and
+  // re-fired the guard at the same instant until the event cap); and the slip starts from u = 0
+  // exactly (a rounding error on the wrong side met the slip's own guard at once).
+  const double W = 0.2, T = 2 * std::numbers::pi / W;
+  const LinearSystem sys = one_mass(1.0, 0.05, 1.0, 1.0, W);
+  for (const double load : {0.1, 0.3}) {
+    CAPTURE(load);
+    FrictionSimulator sim(sys, {FrictionContact::on_surface(0, load, 1.0, 1.0)});
+    FrictionLog log;
+    const FrictionSummary s = sim.run(0.0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), 300 * T, {}, {&log});
+    REQUIRE(s.status == RunStatus::completed);
+    // Past the start: two stops a period (4 events), each followed by its break-away, nothing else.
+    std::vector<FrictionEvent> late;
+    for (const FrictionEvent& e : log.events)
+      if (e.t > 200 * T) late.push_back(e);
+    REQUIRE(late.size() >= 4 * 99);
+    CHECK(late.size() <= 4 * 101);
+    for (std::size_t i = 1; i < late.size(); ++i) {
+      CAPTURE(i, late[i].t);
+      CHECK(late[i].kind != late[i - 1].kind);
+      CHECK(late[i].kind != FrictionEventKind::reversal);
+      if (late[i].kind == FrictionEventKind::slip) CHECK(std::abs(std::abs(late[i].force) - load) <= 1e-12);
+    }
+  }
+}
+
 TEST_CASE("friction never gains energy: two masses, a fixed surface and a rubbing pair, no forcing", "[friction]") {
   Eigen::MatrixXd M(2, 2), K(2, 2);
   M << 1.0, 0.0, 0.0, 2.0;

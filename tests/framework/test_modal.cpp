@@ -154,8 +154,9 @@ TEST_CASE("modal set-up: LAPACK dstemr and Eigen's tridiagonal QL agree", "[moda
 
 namespace {
 
-/// Runs the dense Simulator and the modal engine on the same chain and compares impacts.
-void compare_with_dense(int n, double periods) {
+/// Runs the dense Simulator and the modal engine on the same chain and compares impacts: event
+/// times to `tolerance` of T, impact speeds and the final state to `tolerance` of their scales.
+void compare_with_dense(int n, double periods, double tolerance = 1e-10) {
   const double Omega = 0.8;
   const BandedChain chain = uniform_chain(n, 0.02, 0.6, Omega);
   const std::vector<Stop> stops{Stop::upper(1, 0.35, 0.8), Stop::lower(2, -0.3, 0.7),
@@ -180,10 +181,10 @@ void compare_with_dense(int n, double periods) {
   INFO(ms.message);
   REQUIRE(ms.status == vibro::RunStatus::completed);
   REQUIRE(modal_log.events.size() == dense_log.events.size());
-  // Event times to 1e-10 T, impact speeds and the final state to 1e-10 of their scales: both
-  // engines are exact to rounding (the dense one measured 1.5e-13 against an RK8 reference),
-  // and over these runs the trajectories separate by ≲ 1e-12 (measured), so 1e-10 is the
-  // required agreement with two orders of margin, not a tuned value.
+  // The default 1e-10 (event times of T, impact speeds and the final state of their scales):
+  // both engines are exact to rounding (the dense one measured 1.5e-13 against an RK8
+  // reference), and over these runs the trajectories separate by ≲ 1e-12 (measured), so 1e-10
+  // is the required agreement with two orders of margin, not a tuned value.
   double dt = 0.0, dv = 0.0;
   for (std::size_t e = 0; e < dense_log.events.size(); ++e) {
     const auto& a = dense_log.events[e];
@@ -193,10 +194,12 @@ void compare_with_dense(int n, double periods) {
     dt = std::max(dt, std::abs(a.t - b.t));
     dv = std::max({dv, std::abs(a.v_before - b.v_before), std::abs(a.v_after - b.v_after)});
   }
-  CHECK(dt <= 1e-10 * T);
-  CHECK(dv <= 1e-10 * ms.velocity_scale);
-  CHECK(max_relative(ms.x, ds.x) <= 1e-10);
-  CHECK(max_relative(ms.v, ds.v) <= 1e-10);
+  INFO("event times " << dt / T << " of T, rates " << dv / ms.velocity_scale << " of V, final state "
+                       << std::max(max_relative(ms.x, ds.x), max_relative(ms.v, ds.v)));
+  CHECK(dt <= tolerance * T);
+  CHECK(dv <= tolerance * ms.velocity_scale);
+  CHECK(max_relative(ms.x, ds.x) <= tolerance);
+  CHECK(max_relative(ms.v, ds.v) <= tolerance);
   REQUIRE(samples.x.cols() == 2);
   CHECK(max_relative(samples.x.col(1), ms.x) <= 1e-13);
   CHECK(ms.impacts == ds.impacts);
@@ -208,8 +211,13 @@ TEST_CASE("modal engine reproduces the dense Simulator on a 10-mass chain with f
   compare_with_dense(10, 6.0);
 }
 
-TEST_CASE("modal engine reproduces the dense Simulator on a 50-mass chain", "[modal]") {
-  compare_with_dense(50, 4.0);
+TEST_CASE("modal engine reproduces the dense Simulator on a 50-mass chain, events to 1e-12", "[modal]") {
+  // Both engines locate events with the same search (events.hpp) on their own evaluations of
+  // the same exact flow, so they differ by rounding only: measured 4.5e-15 of T in event times,
+  // 3.9e-14 of V in impact speeds and 2.0e-14 in the final state, so 1e-12 leaves a margin of
+  // 25 (the 10-mass run above, whose impacts amplify rounding more, measured 1.2e-13 of T,
+  // 6.6e-13 of V and 5.3e-13: it keeps 1e-10).
+  compare_with_dense(50, 4.0, 1e-12);
 }
 
 TEST_CASE("modal engine: a peak 1e-10 past a stop is an impact, 1e-10 short of it is not", "[modal]") {

@@ -226,3 +226,70 @@ TEST_CASE("continuation on the modal engine refuses a parameter that moves M, C 
                                                "cannot run this scene"));
   CHECK_THAT(spring.problem(), Catch::Contains("not proportional"));
 }
+
+namespace {
+
+// The 1-DOF impact oscillator of experiments/examples/impact_oscillator_curves.yaml, its branch cut
+// to the fold (Ω ≈ 1.339) and the fold's curve to a few points each way.
+const std::string kFoldCurve = R"(
+name: fold-curve
+model:
+  chain:
+    masses: [1]
+    left_wall: {spring: 1, damper: 0.1}
+forcing:
+  frequency: 1.2
+  cosine: [0.1343234993075181]
+stops:
+  - {mass: 0, side: upper, position: 0.578984899912866, restitution: 0.8, name: s}
+initial:
+  time: 3.272492347489368
+  x: [-0.6999473964052663]
+  v: [-0.075491859219328]
+run:
+  kind: continue
+  transient_periods: 5
+  continue:
+    path: forcing.frequency
+    range: [1.1, 1.45]
+    step: 0.02
+    max_doublings: 0
+    curve:
+      path: "forcing.cosine[0]"
+      range: [0.12, 0.15]
+      step: 0.05
+      max_points: 4
+      kinds: [fold]
+)";
+
+}  // namespace
+
+TEST_CASE("a continue run with curve.kinds: [fold] writes the fold's curves and /codim2, and an unknown kind is "
+          "refused at its place", "[runner][continue][curve]") {
+  const vibro::test::TempDir dir;
+  const ResultReader r = run_into(dir, kFoldCurve, "fold");
+  const std::vector<std::int64_t> kind = r.read_integers("/bifurcations/kind");
+  const std::vector<std::string> names = r.attribute_strings("/bifurcations/kind", "names");
+  int folds = 0;
+  for (std::int64_t k : kind) folds += names[static_cast<std::size_t>(k)] == "fold";
+  REQUIRE(folds == 1);
+  // Two curves (up and down in A), every row a fold, its test function ≈ 0, inside the limits.
+  const std::vector<std::int64_t> curve = r.read_integers("/curve/curve");
+  REQUIRE(curve.size() >= 4);
+  CHECK(curve.front() == 0);
+  CHECK(curve.back() == 1);
+  const std::vector<std::string> curve_names = r.attribute_strings("/curve/kind", "names");
+  for (std::int64_t k : r.read_integers("/curve/kind")) CHECK(curve_names[static_cast<std::size_t>(k)] == "fold");
+  for (double v : r.read("/curve/value")) CHECK(std::abs(v) < 1e-8);
+  for (double a : r.read("/curve/p2")) CHECK((a >= 0.12 && a <= 0.15));
+  CHECK(r.attribute_string("/codim2", "p2") == "forcing.cosine[0]");
+  CHECK(r.attribute_strings("/codim2/kind", "names").front() == "fold_flip");
+  // No fold–flip on a 1-DOF oscillator (its other multiplier is the positive det/1).
+  CHECK(r.read_integers("/codim2/curve").empty());
+
+  std::string cusp = kFoldCurve;
+  cusp.replace(cusp.find("kinds: [fold]"), 13, "kinds: [cusp]");
+  const SceneError e = error_of(cusp);
+  CHECK(e.path() == "run.continue.curve.kinds[0]");
+  CHECK_THAT(e.problem(), Catch::Contains("neimark_sacker"));
+}

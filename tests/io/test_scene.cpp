@@ -398,6 +398,33 @@ TEST_CASE("the expectation lines of the malformed suite parse", "[scene]") {
 
 // --- 4. The examples -------------------------------------------------------------------------
 
+TEST_CASE("a filled list is the list written out", "[scene]") {
+  const Scene written = SceneDocument::parse(R"(
+model:
+  chain: {masses: [2, 2, 2, 2], springs: [1, 1, 1], dampers: [0.1, 0.1, 0.1], left_wall: {spring: 1}}
+forcing: {frequency: 1, cosine: [0.5, 0.5, 0.5, 0.5]}
+initial: {x: [0.01, 0.01, 0.01, 0.01]}
+)").build();
+  const Scene filled = SceneDocument::parse(R"(
+model:
+  chain: {masses: {fill: 2, count: 4}, springs: {fill: 1, count: 3}, dampers: {fill: 0.1, count: 3}, left_wall: {spring: 1}}
+forcing: {frequency: 1, cosine: {fill: 0.5, count: 4}}
+initial: {x: {fill: 0.01, count: 4}}
+)").build();
+  CHECK(filled.system().mass() == written.system().mass());
+  CHECK(filled.system().damping() == written.system().damping());
+  CHECK(filled.system().stiffness() == written.system().stiffness());
+  CHECK(filled.system().forcing().cosine == written.system().forcing().cosine);
+  CHECK(filled.x0 == written.x0);
+  // A chain of a million masses in one line reads without a YAML node per mass.
+  const Scene big = SceneDocument::parse(
+      "model:\n  chain: {masses: {fill: 1, count: 1000000}, springs: {fill: 1, count: 999999}}\n").build();
+  CHECK(big.dof() == 1000000);
+  // An entry of a filled list is not a path: write the list out to vary one entry.
+  SceneDocument doc = SceneDocument::parse("model:\n  chain: {masses: {fill: 1, count: 3}}\n");
+  CHECK_THROWS_AS(doc.set("model.chain.masses[1]", 2.0), SceneError);
+}
+
 TEST_CASE("the three-mass chain example loads as described", "[scene]") {
   const Scene s = SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/examples/three_mass_chain.yaml").build();
   REQUIRE(s.system().dof() == 3);

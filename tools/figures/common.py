@@ -35,6 +35,24 @@ plt.rcParams.update({"font.size": 9, "axes.titlesize": 9, "legend.fontsize": 8,
                      "savefig.dpi": 150, "figure.dpi": 150})
 
 
+def vibro_module():
+    """The `vibro` Python module (its plotting helpers, vibro.plot, draw the standard figures):
+    from PYTHONPATH, else from the build folder VIBRO_BUILD (default build/release) of this
+    checkout."""
+    try:
+        import vibro.plot
+        return vibro
+    except ImportError:
+        pass
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    sys.path.insert(0, os.path.join(root, os.environ.get("VIBRO_BUILD", "build/release"), "python"))
+    try:
+        import vibro.plot
+    except ImportError as e:
+        fail(f"cannot import the vibro module ({e}): build it (cmake --build --preset release) or set PYTHONPATH")
+    return vibro
+
+
 def fail(message):
     """Stop the script loudly: a figure drawn from data that do not check out is worse than none."""
     sys.stderr.write(f"error: {message}\n")

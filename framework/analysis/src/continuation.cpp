@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <string>
 #include <utility>
@@ -161,8 +162,36 @@ ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, 
   up(2 * n) = options.direction;
   const Node s0 = start_node(stacked(start.x, start.v), p0, up);
 
-  // The first branch: one half in `direction`, the other from the start the other way.
+  // Every point also at the fixed phase (the sections move along a branch).
+  auto at_fixed_phase = [&] {
+    result.fixed_phase = options.phase;
+    for (Branch& b : result.branches)
+      for (BranchPoint& q : b.points) carry_to_phase(family, q, options.phase, n);
+    for (Bifurcation& b : result.bifurcations) carry_to_phase(family, b.point, options.phase, n);
+  };
   std::vector<std::pair<Node, int>> doublings;
+  if (options.switch_at_start) {
+    // Only the doubled branch from the start orbit, a period doubling (a restart at one).
+    const FloquetMultipliers& mu = s0.b.multipliers;
+    double nearest = std::numeric_limits<double>::infinity();
+    for (Index j = 0; j < mu.values.size(); ++j) nearest = std::min(nearest, std::abs(mu.values(j) + 1.0));
+    if (!(nearest <= 1e-3))
+      throw InvalidInput("continuation: switch: period_doubling needs a start orbit at a period doubling, but the "
+                         "start's multipliers are " + number_text(nearest) + " or more from −1");
+    Branch start;
+    start.k = c.k;
+    start.points.push_back(s0.b);
+    start.points.back().located = true;
+    start.start = "the start orbit, a period doubling at p = " + number_text(p0);
+    start.end = "not followed (switch: only the doubled branch is followed)";
+    result.branches.push_back(std::move(start));
+    doublings.emplace_back(s0, 0);
+    detail::switch_at_doublings(family, options, c, doublings, result, progress);
+    at_fixed_phase();
+    return result;
+  }
+
+  // The first branch: one half in `direction`, the other from the start the other way.
   Branch forward, backward;
   forward.k = backward.k = c.k;
   const int max_points = options.max_points;
@@ -194,11 +223,7 @@ ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, 
   // Branch switching at period doublings: along the eigenvector of μ = −1, period 2k.
   detail::switch_at_doublings(family, options, c, doublings, result, progress);
 
-  // Every point also at the fixed phase (the sections move along a branch).
-  result.fixed_phase = options.phase;
-  for (Branch& b : result.branches)
-    for (BranchPoint& q : b.points) carry_to_phase(family, q, options.phase, n);
-  for (Bifurcation& b : result.bifurcations) carry_to_phase(family, b.point, options.phase, n);
+  at_fixed_phase();
   return result;
 }
 

@@ -18,17 +18,23 @@ std::vector<StopEvents> per_stop(const TangentMap& m, std::size_t stops) {
     std::size_t impact;  ///< index into m.impacts (impacts only)
   };
   std::vector<std::vector<Item>> items(stops);
+  std::vector<int> engaged(stops, 0);
   std::size_t next_impact = 0;
   for (const Event& e : m.events) {
     const auto j = static_cast<std::size_t>(e.stop);
     const bool impact = e.kind == EventKind::impact;
     const std::size_t index = impact && next_impact < m.impacts.size() ? next_impact++ : m.impacts.size();
     if (j >= stops || (impact && index == m.impacts.size())) continue;
+    if (e.kind == EventKind::engage || e.kind == EventKind::disengage) {  // a compliant stop
+      if (e.kind == EventKind::engage) ++engaged[j];
+      continue;
+    }
     items[j].push_back({e.t, e.kind, index});
   }
   const double span = m.t1 - m.t0;
   std::vector<StopEvents> out(stops);
   for (std::size_t j = 0; j < stops; ++j) {
+    out[j].engagements = engaged[j];
     std::vector<Item>& it = items[j];
     // Rotate so that the events start just after the last closing event, one orbit earlier.
     std::size_t last_close = it.size();
@@ -79,7 +85,7 @@ Signature orbit_signature(const TangentMap& m, int k, std::size_t stops) {
   s.k = k;
   const std::vector<detail::StopEvents> ev = detail::per_stop(m, stops);
   for (const detail::StopEvents& e : ev) {
-    s.impacts.push_back(static_cast<int>(e.free_impacts.size()));
+    s.impacts.push_back(static_cast<int>(e.free_impacts.size()) + e.engagements);
     s.chatters.push_back(e.chatters);
     s.phases.push_back(e.phases);
   }

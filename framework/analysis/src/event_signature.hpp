@@ -23,6 +23,10 @@ namespace vibro::detail {
 struct StopEvents {
   std::vector<ImpactRecord> free_impacts;  ///< impacts outside chatter sequences
   int chatters = 0, phases = 0;
+  /// A compliant stop's engagements (stops.hpp): the signature counts them with the impacts
+  /// (one appearing or vanishing is the compliant stop's grazing); its disengagements and
+  /// engaged phases are not counted apart (one per engagement on a periodic orbit).
+  int engagements = 0;
 };
 
 std::vector<StopEvents> per_stop(const TangentMap& m, std::size_t stops);

@@ -11,9 +11,11 @@ namespace {
 
 using Eigen::VectorXd;
 
-/// w_j and −(1 + r_j) M⁻¹w_j / (w_jᵀM⁻¹w_j) from the engine's own mechanics.
+/// w_j and −(1 + r_j) M⁻¹w_j / (w_jᵀM⁻¹w_j) from the engine's own mechanics; for a compliant
+/// stop (no impulse) w_j and an empty jump.
 std::pair<VectorXd, VectorXd> lone_impact(const detail::Mechanics<double>& mech, int j) {
   const VectorXd w = mech.normals(ContactSet{j}).col(0);
+  if (mech.compliant(j)) return {w, VectorXd()};
   const VectorXd q = mech.mass_inverse(w);
   return {w, -(1.0 + mech.restitution(j)) / w.dot(q) * q};
 }
@@ -76,6 +78,40 @@ class ModalFamilyEngine final : public FamilyEngine {
   ModalEngine engine_;
 };
 
+/// The Taylor engine: `system` with nonlinear forces; maps from linearise(system, forces, …).
+class TaylorFamilyEngine final : public FamilyEngine {
+ public:
+  TaylorFamilyEngine(ImpactSystem system, NonlinearForces forces, SystemDerivative d, const SimulatorOptions& solver)
+      : FamilyEngine(std::move(d)), system_(std::move(system)), forces_(std::move(forces)), solver_(solver) {
+    derivative.validate(dof(), stop_count());
+    if (derivative.mass.size() && !derivative.mass.isZero(0.0))
+      throw InvalidInput("continuation on the Taylor engine: the parameter moves the mass matrix; continue in Ω, "
+                         "the forcing, C, K, the stops' data or a parameter of the forces");
+  }
+  Eigen::Index dof() const override { return system_.dof(); }
+  std::size_t stop_count() const override { return system_.stop_count(); }
+  double frequency() const override { return system_.system().forcing().frequency; }
+  TangentMap linearise(double t0, const VectorXd& x0, const VectorXd& v0, double t1,
+                       const LinearisationOptions& options) override {
+    return vibro::linearise(system_, forces_, solver_, t0, x0, v0, t1, options);
+  }
+  RunSummary run(double t0, const VectorXd& x0, const VectorXd& v0, double t1) override {
+    TaylorSimulator sim(system_, forces_, solver_);
+    return sim.run(t0, x0, v0, t1);
+  }
+  ShootingResult shoot(const ShootingOptions& options, double t_guess, const VectorXd& x, const VectorXd& v) override {
+    return vibro::shoot(system_, forces_, options, t_guess, x, v);
+  }
+  std::pair<VectorXd, VectorXd> impact_direction(int j) const override {
+    return lone_impact(detail::Mechanics<double>(system_), j);
+  }
+
+ private:
+  ImpactSystem system_;
+  NonlinearForces forces_;
+  SimulatorOptions solver_;
+};
+
 }  // namespace
 
 std::unique_ptr<FamilyEngine> dense_family_engine(ImpactSystem system, SystemDerivative derivative,
@@ -86,6 +122,15 @@ std::unique_ptr<FamilyEngine> dense_family_engine(ImpactSystem system, SystemDer
 std::unique_ptr<FamilyEngine> modal_family_engine(BandedChain chain, std::vector<Stop> stops,
                                                   SystemDerivative derivative, const ModalSimulatorOptions& options) {
   return std::make_unique<ModalFamilyEngine>(std::move(chain), std::move(stops), std::move(derivative), options);
+}
+
+}  // namespace vibro
+
+namespace vibro {
+
+std::unique_ptr<FamilyEngine> taylor_family_engine(ImpactSystem system, NonlinearForces forces,
+                                                   SystemDerivative derivative, const SimulatorOptions& solver) {
+  return std::make_unique<TaylorFamilyEngine>(std::move(system), std::move(forces), std::move(derivative), solver);
 }
 
 }  // namespace vibro

@@ -53,6 +53,7 @@ std::optional<Node> BranchRunner::corner(const Node& cur) {
     ++result_.maps;
     if (m2.summary.status != RunStatus::completed) return std::nullopt;
     std::tie(w, dv) = engine.impact_direction(j);
+    if (dv.size() == 0) return std::nullopt;  // a compliant stop: no impact is born at its grazing
     dt0 = -c_.theta / (cur.e.omega * cur.e.omega) * engine.derivative.frequency;
     // ∂s_j/∂p at the grazing time (a moving stop's motion shifted by a change of Ω is left to
     // the corrector: this is a predictor).

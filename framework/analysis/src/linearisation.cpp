@@ -1,6 +1,7 @@
 #include "vibro/linearisation.hpp"
 
 #include "mechanics.hpp"
+#include "nonlinear_part.hpp"
 #include "orthonormal_frame.hpp"
 #include "transition.hpp"
 #include "vibro/contact.hpp"
@@ -17,6 +18,7 @@
 #include <map>
 #include <numbers>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <utility>
 
@@ -145,7 +147,8 @@ MatrixXd tangent_basis(const MatrixXd& W, Index n) {
 
 /// What one contact set's motion needs, built on first use.
 struct Mode {
-  ContactSet set;
+  ContactSet set;           // the key: held rigid stops and engaged compliant ones
+  ContactSet held;          // its held rigid stops (the constraints, the force rows)
   MatrixXd generator;       // Â_S
   MatrixXd force_rows;      // λ_S = L z (|S| × N)
   MatrixXd dgenerator;      // dÂ_S/dp (parameter runs)
@@ -159,8 +162,8 @@ struct Mode {
 class TangentRecorder final : public Observer {
  public:
   TangentRecorder(const ImpactSystem& system, const SimulatorOptions& solver,
-                  const LinearisationOptions& options, TangentMap& out)
-      : system_(system), solver_(solver), options_(options), out_(out), n_(system.dof()),
+                  const LinearisationOptions& options, TangentMap& out, detail::NonlinearPart* nonlinear = nullptr)
+      : system_(system), solver_(solver), options_(options), out_(out), nonlinear_(nonlinear), n_(system.dof()),
         mech_(system), mech0_(system), frame_(options.directions.size() > 0),
         phases_(out.phases, system.stop_count()) {
     if (options.parameter) mechp_ = std::make_unique<Mechanics<Dual>>(system, &*options.parameter);
@@ -184,14 +187,20 @@ class TangentRecorder final : public Observer {
 
   void segment(const SegmentView& view) override {
     const double tb = view.t_begin(), te = view.t_end();
-    const ContactSet& S = view.active();
+    const ContactSet& S = mode_key(view);
+    // (A run that carries nothing — shooting's probe of the events — passes through.)
+    if (nonlinear_ && !S.empty() && (carries() || mechp_ || options_.features))
+      throw InvalidInput("linearisation: stop " + std::to_string(S.front()) + " is held (sticking) from t = " +
+                         number_text(tb) + "; with nonlinear forces the tangent map handles impacts in free "
+                         "flight only (the held flow's variational equations are not derived)");
     VectorXd xb(n_), vb(n_);
     view.state(tb, xb, vb);
     if (first_) {
       first_ = false;
-      out_.starts_held = !S.empty();
       held_ = S;
-      for (int j : S) phases_.open(j, tb);
+      const ContactSet R = mech_.held_part(S);
+      out_.starts_held = !R.empty();
+      for (int j : R) phases_.open(j, tb);
     } else if (pending_) {
       finish_transition(vb, S);
     }
@@ -242,22 +251,36 @@ class TangentRecorder final : public Observer {
   }
 
  private:
+  /// The mode of a segment: its held rigid stops (view.active()) and, in a scene with compliant
+  /// stops, the engaged ones (the dense engine's ContactMode::engaged()), as the engine keys it.
+  const ContactSet& mode_key(const SegmentView& view) {
+    if (!mech_.any_compliant()) return view.active();
+    const auto* dense = dynamic_cast<const DenseSegmentView*>(&view);
+    if (!dense) throw std::logic_error("linearisation: compliant stops need the dense engine's segments");
+    key_.clear();
+    const ContactSet& held = dense->mode().active();
+    const ContactSet& engaged = dense->mode().engaged();
+    std::set_union(held.begin(), held.end(), engaged.begin(), engaged.end(), std::back_inserter(key_));
+    return key_;
+  }
+
   Mode& mode_for(const ContactSet& S) {
     auto it = modes_.find(S);
     if (it != modes_.end()) return *it->second;
     auto m = std::make_unique<Mode>();
     m->set = S;
+    m->held = mech_.held_part(S);
     m->generator = mech_.generator(S);
-    m->force_rows = S.empty() ? MatrixXd(0, mech_.augmented()) : mech_.force_rows(S);
+    m->force_rows = m->held.empty() ? MatrixXd(0, mech_.augmented()) : mech_.force_rows(S);
     if (mechp_) {
       m->dgenerator = derivative(mechp_->generator(S));
-      m->dforce_rows = S.empty() ? MatrixXd(0, mech_.augmented()) : derivative(mechp_->force_rows(S));
+      m->dforce_rows = m->held.empty() ? MatrixXd(0, mech_.augmented()) : derivative(mechp_->force_rows(S));
     }
-    m->basis = tangent_basis(mech_.normals(S), n_);
+    m->basis = tangent_basis(mech_.normals(m->held), n_);
     m->flow = std::make_unique<LinearFlow>(m->generator, n_, value_of_omega(), solver_.flow);
     if (options_.features) {
       const Index N = mech_.augmented(), ms = static_cast<Index>(system_.stop_count());
-      const Index h = static_cast<Index>(S.size());
+      const Index h = static_cast<Index>(m->held.size());
       MatrixXd rows(2 * ms + 2 * h, N);
       for (Index j = 0; j < ms; ++j) {
         const VectorXd g = mech_.gap_row(static_cast<int>(j));
@@ -278,7 +301,9 @@ class TangentRecorder final : public Observer {
   /// f(z, t) = (v, a_S) from the generator.
   VectorXd rate(const Mode& mode, double t, const VectorXd& x, const VectorXd& v) const {
     const VectorXd z = mode.flow->augment(t, x, v);
-    return (mode.generator * z).head(2 * n_);
+    VectorXd f = (mode.generator * z).head(2 * n_);
+    if (nonlinear_) f.tail(n_) += nonlinear_->acceleration(t, x, v);  // free flight only (see segment())
+    return f;
   }
 
   /// The state block of exp(Â_S τ): from the eigen-decomposition for large well-conditioned
@@ -350,7 +375,13 @@ class TangentRecorder final : public Observer {
   void propagate(Mode& mode, double tau, double tb, const VectorXd& zb) {
     const Index N2 = 2 * n_;
     const Index dim = mode.basis.cols();
-    if (tau > 0.0) {
+    if (nonlinear_) {
+      if (tau > 0.0 && (carries() || mechp_)) {
+        const MatrixXd T = nonlinear_->transition(tb, zb.head(n_), zb.segment(n_, n_), tb + tau);
+        if (mechp_) zeta_ = T.leftCols(N2) * zeta_ + T.col(N2);
+        if (carries()) K_ = T.leftCols(N2) * K_;
+      }
+    } else if (tau > 0.0) {
       if (mechp_ && spectral(mode)) {
         propagate_spectral(mode, tau, tb, zb);
       } else if (mechp_) {
@@ -431,7 +462,7 @@ class TangentRecorder final : public Observer {
       hdot = mech_.gap_rate(guard, vm, t);
       if (mechp_) hp = mechp_->gap(guard, seeded(x, VectorXd()), Dual(t)).d;
     } else if (guard >= 0) {
-      const ContactSet& S = rule.held_before;
+      const ContactSet& S = before.held;
       const auto a = static_cast<Index>(std::lower_bound(S.begin(), S.end(), guard) - S.begin());
       const VectorXd z = before.flow->augment(t, x, vm);
       hz = -before.force_rows.row(a).head(N2).transpose();
@@ -458,7 +489,7 @@ class TangentRecorder final : public Observer {
     const ContactSet& released = tr.released;
     SaltationRecord rec = detail::record_of(t, held_, tr, held_after);
     if (options_.features) {
-      phases_.change(t, held_, held_after);
+      phases_.change(t, mech_.held_part(held_), mech_.held_part(held_after));
       Mode& before = mode_for(held_);
       const VectorXd a = rate(before, t, xe_, ve_).tail(n_);
       for (int j : impacting)
@@ -466,6 +497,22 @@ class TangentRecorder final : public Observer {
                                 mech_.normal_dot(j, a) - mech_.stop_position(j, t, 2)});
     }
     past_release(released);
+
+    // Compliant stops' engagements and disengagements come first (the engine resolves them
+    // before the rigid stops' events at the same instant), one at a time in index order: each a
+    // switch of the vector field at the zero of the stop's gap, no reset.
+    Jump switched;
+    if (!tr.switched.empty()) {
+      switched = switches(tr.switched, rec);
+      if (impacting.empty() && released.empty() && mech_.held_part(held_) == mech_.held_part(held_after)) {
+        if (carries()) K_ = switched.S * K_;
+        if (frame_ && log_growth_) orthonormalise();
+        if (mechp_) zeta_ = switched.S * zeta_ + switched.sp;
+        out_.saltations.push_back(rec);
+        held_ = held_after;
+        return;
+      }
+    }
 
     Jump total;
     if (impacting.size() <= 1) {
@@ -491,13 +538,44 @@ class TangentRecorder final : public Observer {
       }
       total = forward;
     }
-    rec.guard_rate = total.rate;
+    if (rec.guard_stop >= 0 || tr.switched.empty()) rec.guard_rate = total.rate;
+    if (rec.guard_stop < 0 && !tr.switched.empty()) rec.guard_stop = tr.switched.front();
     if (rec.impact) least_rate_ = std::min(least_rate_, total.rate);
+    if (!tr.switched.empty()) {  // the rigid stops' part after the switches
+      if (mechp_) total.sp = total.S * switched.sp + total.sp;
+      total.S = total.S * switched.S;
+    }
     if (carries()) K_ = total.S * K_;
     if (frame_ && log_growth_) orthonormalise();
     if (mechp_) zeta_ = total.S * zeta_ + total.sp;
     out_.saltations.push_back(rec);
     held_ = held_after;
+  }
+
+  /// The compliant stops `stops` switching at te_ (engaging if not in held_, disengaging if in
+  /// it), one at a time with the state unchanged: each the saltation of linearisation.hpp with
+  /// the guard g_j, no reset but the held rigid stops' projection. held_ moves along (to the
+  /// key the rigid stops' part of the event starts from); rec.guard_rate gets the least |ġ|.
+  Jump switches(const ContactSet& stops, SaltationRecord& rec) {
+    Jump total;
+    total.S = MatrixXd::Identity(2 * n_, 2 * n_);
+    if (mechp_) total.sp = VectorXd::Zero(2 * n_);
+    total.rate = std::numeric_limits<double>::infinity();
+    for (int j : stops) {
+      ContactSet next = held_;
+      const auto at = std::lower_bound(next.begin(), next.end(), j);
+      if (at != next.end() && *at == j) next.erase(at);
+      else next.insert(at, j);
+      const ResetRule rule{held_, {}, {}, {}, next, solver_.chatter_rule};
+      const Jump step = jump(rule, j, true, xe_, ve_, ve_, te_);
+      total.S = step.S * total.S;
+      if (mechp_) total.sp = step.S * total.sp + step.sp;
+      total.rate = std::min(total.rate, std::abs(step.rate));
+      held_ = std::move(next);
+    }
+    rec.guard_stop = stops.front();
+    rec.guard_rate = total.rate;
+    return total;
   }
 
   /// Simultaneous impacts taken one at a time (index order, or reversed), each with its own
@@ -521,12 +599,29 @@ class TangentRecorder final : public Observer {
   // ---- features ------------------------------------------------------------------------
 
   void features(Mode& mode, double tb, double te, const VectorXd& zb) {
+    if (nonlinear_) {  // free flight only (segment()): the gaps' peaks from the Taylor steps
+      std::vector<int> free;
+      for (int j = 0; j < static_cast<int>(system_.stop_count()); ++j)
+        if (!contains(mode.set, j)) free.push_back(j);
+      const double tau = te - tb;
+      const VectorXd x = zb.head(n_), v = zb.segment(n_, n_);
+      const std::vector<GapPeak> peaks = nonlinear_->gap_peaks(tb, x, v, te, free);
+      for (const GapPeak& pk : peaks) {
+        const double g_start = mech_.gap(pk.stop, x, tb);
+        const double size = std::max(std::abs(g_start), std::abs(pk.value));
+        if (detail::flight_start_artifact(pk.t - tb, tau, pk.value, g_start, size)) continue;
+        out_.gap_peaks.push_back(pk);
+      }
+      return;
+    }
     const Segment seg(*mode.rows, tb, zb);
     const Index ms = static_cast<Index>(system_.stop_count());
     const double resolution = 16.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(te), 1.0);
     const double tau = te - tb;
     for (Index j = 0; j < ms; ++j) {
-      if (contains(mode.set, static_cast<int>(j))) continue;
+      // Held rigid stops have no gap peaks; an engaged compliant stop's are its penetration's
+      // maxima (g > 0), the other side of its grazing test function (test_functions.hpp).
+      if (contains(mode.held, static_cast<int>(j))) continue;
       SignChanges peaks(seg, ms + j, 1.0, resolution);
       // Not a peak: a rounding sign change at the start of a flight from the stop (transition.hpp).
       const double g_start = seg.value(j, 0.0);
@@ -537,11 +632,11 @@ class TangentRecorder final : public Observer {
         out_.gap_peaks.push_back({static_cast<int>(j), tb + s, g});
       }
     }
-    const Index h = static_cast<Index>(mode.set.size());
+    const Index h = static_cast<Index>(mode.held.size());
     for (Index a = 0; a < h; ++a) {
       SignChanges dips(seg, 2 * ms + h + a, -1.0, resolution);
       for (double s : dips.in(0.0, tau))
-        out_.force_dips.push_back({mode.set[static_cast<std::size_t>(a)], tb + s, seg.value(2 * ms + a, s), false});
+        out_.force_dips.push_back({mode.held[static_cast<std::size_t>(a)], tb + s, seg.value(2 * ms + a, s), false});
     }
   }
 
@@ -551,15 +646,15 @@ class TangentRecorder final : public Observer {
     const Mode& mode = *last_mode_;
     const Segment seg(*mode.rows, last_tb_, last_zb_);
     const Index ms = static_cast<Index>(system_.stop_count());
-    const Index h = static_cast<Index>(mode.set.size());
+    const Index h = static_cast<Index>(mode.held.size());
     const double omega = mech_.frequency();
     const double T = omega > 0.0 ? 2.0 * std::numbers::pi / omega : 1.0;
     const double from = te_ - last_tb_, to = from + options_.past_release_window * T;
     const double resolution = 16.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(te_ + to), 1.0);
     for (int j : released) {
-      const auto it = std::lower_bound(mode.set.begin(), mode.set.end(), j);
-      if (it == mode.set.end() || *it != j) continue;
-      const Index a = it - mode.set.begin();
+      const auto it = std::lower_bound(mode.held.begin(), mode.held.end(), j);
+      if (it == mode.held.end() || *it != j) continue;
+      const Index a = it - mode.held.begin();
       SignChanges dips(seg, 2 * ms + h + a, -1.0, resolution);
       const std::vector<double> found = dips.in(from, to);
       if (!found.empty())
@@ -584,6 +679,7 @@ class TangentRecorder final : public Observer {
   SimulatorOptions solver_;
   const LinearisationOptions& options_;
   TangentMap& out_;
+  detail::NonlinearPart* nonlinear_;
   Index n_;
   Mechanics<double> mech_;
   Mechanics<Dual> mech0_;
@@ -593,7 +689,7 @@ class TangentRecorder final : public Observer {
 
   double t0_ = 0.0, te_ = 0.0;
   bool first_ = true, pending_ = false;
-  ContactSet held_;
+  ContactSet held_, key_;
   VectorXd xe_, ve_;
   std::vector<Event> events_;
   MatrixXd K_, Jmid_, basis_;
@@ -607,22 +703,10 @@ class TangentRecorder final : public Observer {
   detail::PhaseBook phases_;
 };
 
-/// The tangent map is derived for rigid stops only: a compliant stop's engaged flow and the
-/// saltation of its switches (I + (f⁺ − f⁻) ∂τ/∂z, non-trivial with a dashpot or a preload) are
-/// not in it, so a scene with one is refused rather than given wrong multipliers.
-void refuse_compliant(const ImpactSystem& system) {
-  for (std::size_t j = 0; j < system.stop_count(); ++j)
-    if (system.stops()[j].is_compliant())
-      throw InvalidInput("linearisation: stops[" + std::to_string(j) + "] (" + system.stops()[j].name +
-                         ") is compliant; the tangent map (shooting's Floquet multipliers, continuation, "
-                         "Lyapunov exponents) handles rigid stops only — simulate such scenes instead");
-}
-
 }  // namespace
 
 TangentMap linearise(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
                      const VectorXd& x0, const VectorXd& v0, double t1, const LinearisationOptions& options) {
-  refuse_compliant(system);
   if (options.parameter) options.parameter->validate(system.dof(), system.stop_count());
   if (options.directions.size() > 0 && options.directions.rows() != 2 * system.dof())
     throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +
@@ -643,7 +727,6 @@ namespace detail {
 CarriedFrame carry_orthonormal_frame(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
                                      const VectorXd& x0, const VectorXd& v0, double t1,
                                      const Eigen::MatrixXd& directions) {
-  refuse_compliant(system);
   if (directions.rows() != 2 * system.dof() || directions.cols() == 0)
     throw InvalidInput("linearisation: directions have " + std::to_string(directions.rows()) +
                        " rows, expected 2n = " + std::to_string(2 * system.dof()));
@@ -661,6 +744,29 @@ CarriedFrame carry_orthonormal_frame(const ImpactSystem& system, const Simulator
   out.summary = sim.run(t0, x0, v0, t1, {&recorder});
   if (out.summary.velocity_scale > 0.0) out.least_guard_rate /= out.summary.velocity_scale;
   return frame;
+}
+
+TangentMap linearise_nonlinear(const ImpactSystem& system, const SimulatorOptions& solver, NonlinearPart& part,
+                               const ObservedRun& run, double t0, const VectorXd& x0, const VectorXd& v0,
+                               const LinearisationOptions& options, VectorXd* log_growth) {
+  // The Taylor engine runs rigid stops only (a scene with forces and a compliant stop is refused
+  // when it is read); the nonlinear part's tangent map is derived for those.
+  for (std::size_t j = 0; j < system.stop_count(); ++j)
+    if (system.stops()[j].is_compliant())
+      throw InvalidInput("linearisation: stop " + std::to_string(j) +
+                         " is compliant; with nonlinear forces the tangent map handles rigid stops only");
+  if (options.directions.size() > 0 && options.directions.rows() != 2 * system.dof())
+    throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +
+                       " rows, expected 2n = " + std::to_string(2 * system.dof()));
+  TangentMap out;
+  out.t0 = t0;
+  out.x0 = x0;
+  out.v0 = v0;
+  TangentRecorder recorder(system, solver, options, out, &part);
+  if (log_growth) recorder.orthonormalise_into(log_growth);
+  out.summary = run({&recorder});
+  if (out.summary.velocity_scale > 0.0) out.least_guard_rate /= out.summary.velocity_scale;
+  return out;
 }
 
 }  // namespace detail

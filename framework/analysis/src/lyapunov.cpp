@@ -137,6 +137,23 @@ LyapunovResult lyapunov_spectrum(const ImpactSystem& system, const SimulatorOpti
   return spectrum(system.dof(), system.system().forcing().frequency, run, step, t0, x0, v0, options);
 }
 
+LyapunovResult lyapunov_spectrum(const ImpactSystem& system, const NonlinearForces& forces,
+                                 const SimulatorOptions& solver, double t0, const Eigen::VectorXd& x0,
+                                 const Eigen::VectorXd& v0, const LyapunovOptions& options) {
+  TaylorSimulator sim(system, forces, solver);
+  const Runner run = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, double t1) {
+    return sim.run(t, x, v, t1);
+  };
+  const Stepper step = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, double t1,
+                           const Eigen::MatrixXd& Q) {
+    detail::CarriedFrame f = detail::carry_orthonormal_frame(system, forces, solver, t, x, v, t1, Q);
+    Period period = period_of(f.map, std::move(f.map.products));
+    period.log_growth = std::move(f.log_growth);
+    return period;
+  };
+  return spectrum(system.dof(), system.system().forcing().frequency, run, step, t0, x0, v0, options);
+}
+
 LyapunovResult lyapunov_spectrum(ModalEngine& engine, double t0, const Eigen::VectorXd& x0,
                                  const Eigen::VectorXd& v0, const LyapunovOptions& options) {
   const Runner run = [&](double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, double t1) -> RunSummary {

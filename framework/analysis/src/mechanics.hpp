@@ -36,6 +36,17 @@
 //        v3 = v2 − Q_N G_NN⁻¹ (W_Nᵀ v2 − s'_N(t)).
 // Otherwise the position is not reset (the engine's placement of the gap exactly at zero
 // corrects rounding only and is zero along the exact map).
+//
+// Compliant stops (stops.hpp). A contact set S is a mode's key, as in the engine (contact.hpp):
+// the held rigid stops R = held_part(S) and the engaged compliant stops E = engaged_part(S).
+// Each engaged stop j adds its Kelvin–Voigt force −w_j N_j, N_j = k_j g_j + c_j g'_j + F_p,j, to
+// the free motion:
+//   a_free,E = M⁻¹ (f − C v − K x − Σ_{j∈E} w_j N_j),
+// linear in z again: k_j w_j w_jᵀ joins K, c_j w_j w_jᵀ joins C, and w_j (k_j s_j + c_j s'_j − F_p,j)
+// joins f (the cos, sin and constant columns of B). Everything above then reads a_free,E for
+// a_free and the rigid stops R for S: the constraint forces, the generator, the resets (an
+// engagement or disengagement has no impulse: R_z is the identity up to the projection of
+// step 3 onto the held rigid stops' manifold).
 #include "dual.hpp"
 #include "vibro/contact.hpp"
 #include "vibro/modal.hpp"
@@ -252,13 +263,58 @@ class Mechanics {
     return llt_.solve(VecT<T>(F - C_ * v - K_ * x));
   }
 
-  /// λ_S = G⁻¹ (Wᵀ a_free − s''_S) at (x, v, t).
-  VecT<T> forces(const ContactSet& S, const VecT<T>& x, const VecT<T>& v, const T& t) const {
-    return held_forces(S, free_acceleration(x, v, t), t);
+  /// Whether stop j is compliant (stops.hpp), and the parts of a mode's key S: the held rigid
+  /// stops and the engaged compliant ones (the whole key and nothing when no stop is compliant).
+  bool compliant(int j) const { return !compliant_.empty() && compliant_[static_cast<std::size_t>(j)]; }
+  bool any_compliant() const { return !compliant_.empty(); }
+  ContactSet held_part(const ContactSet& S) const {
+    if (compliant_.empty()) return S;
+    ContactSet out;
+    for (int j : S)
+      if (!compliant(j)) out.push_back(j);
+    return out;
+  }
+  ContactSet engaged_part(const ContactSet& S) const {
+    ContactSet out;
+    if (compliant_.empty()) return out;
+    for (int j : S)
+      if (compliant(j)) out.push_back(j);
+    return out;
   }
 
-  /// a_S = a_free − Q λ_S.
+  /// a_free,E: the free acceleration with the compliant stops of S engaged (file comment).
+  VecT<T> free_acceleration_in(const ContactSet& S, const VecT<T>& x, const VecT<T>& v, const T& t) const {
+    VecT<T> a = free_acceleration(x, v, t);
+    if (compliant_.empty()) return a;
+    VecT<T> push = VecT<T>::Zero(n_);
+    bool any = false;
+    for (int j : S) {
+      if (!compliant(j)) continue;
+      const auto J = static_cast<std::size_t>(j);
+      const T N = ks_[J] * gap(j, x, t) + cs_[J] * gap_rate(j, v, t) + fp_[J];
+      VecT<T> w = VecT<T>::Zero(n_);
+      normal(j).scatter(w);
+      push += w * N;
+      any = true;
+    }
+    if (any) a -= mass_inverse(push);
+    return a;
+  }
+
+  /// λ_R = G⁻¹ (Wᵀ a_free,E − s''_R) at (x, v, t), for the held rigid stops R of S.
+  VecT<T> forces(const ContactSet& S, const VecT<T>& x, const VecT<T>& v, const T& t) const {
+    if (compliant_.empty()) return held_forces(S, free_acceleration(x, v, t), t);
+    return held_forces(held_part(S), free_acceleration_in(S, x, v, t), t);
+  }
+
+  /// a_S = a_free,E − Q λ_R.
   VecT<T> acceleration(const ContactSet& S, const VecT<T>& x, const VecT<T>& v, const T& t) const {
+    if (!compliant_.empty()) {
+      const ContactSet R = held_part(S);
+      const VecT<T> a = free_acceleration_in(S, x, v, t);
+      if (R.empty()) return a;
+      return a - mass_inverse(normals(R)) * held_forces(R, a, t);
+    }
     const VecT<T> a = free_acceleration(x, v, t);
     if (S.empty()) return a;
     const MatT<T> Q = mass_inverse(normals(S));
@@ -277,8 +333,35 @@ class Mechanics {
     }
     return mass_inverse(X);
   }
-  /// λ_S = L z with L = G⁻¹ (Wᵀ B − Z), Z z = s''_S(t) (|S| × augmented()).
-  MatT<T> force_rows(const ContactSet& S) const {
+  /// a_free,E = B_E z: free_rows() with the compliant stops of S engaged (file comment).
+  MatT<T> free_rows(const ContactSet& S) const {
+    if (compliant_.empty()) return free_rows();
+    require_dense("free_rows");
+    const Eigen::Index n = n_;
+    MatT<T> X(n_, augmented());
+    X.leftCols(2 * n_ + 3) << -K_, -C_, Fc_, Fs_, F0_;
+    for (std::size_t h = 0; h < orders_.size(); ++h) {
+      X.col(augmented_size(n_, h)) = Hc_[h];
+      X.col(augmented_size(n_, h) + 1) = Hs_[h];
+    }
+    for (int j : S) {
+      if (!compliant(j)) continue;
+      const auto J = static_cast<std::size_t>(j);
+      VecT<T> w = VecT<T>::Zero(n);
+      normal(j).scatter(w);
+      const MatT<T> wwT = w * w.transpose();
+      X.leftCols(n) -= ks_[J] * wwT;
+      X.middleCols(n, n) -= cs_[J] * wwT;
+      X.col(2 * n) += w * (ks_[J] * sc_[J] + cs_[J] * omega_ * ss_[J]);
+      X.col(2 * n + 1) += w * (ks_[J] * ss_[J] - cs_[J] * omega_ * sc_[J]);
+      X.col(2 * n + 2) += w * (ks_[J] * s0_[J] - fp_[J]);
+    }
+    return mass_inverse(X);
+  }
+  /// λ_R = L z with L = G⁻¹ (Wᵀ B_E − Z), Z z = s''_R(t) (|R| × augmented()), R the held rigid
+  /// stops of S and E its engaged compliant ones.
+  MatT<T> force_rows(const ContactSet& key) const {
+    const ContactSet S = held_part(key);
     const Eigen::Index n = n_, N = augmented();
     const MatT<T> W = normals(S);
     const MatT<T> G = W.transpose() * mass_inverse(W);
@@ -288,7 +371,7 @@ class Mechanics {
       Z(static_cast<Eigen::Index>(a), 2 * n) = -omega_ * omega_ * sc_[J];
       Z(static_cast<Eigen::Index>(a), 2 * n + 1) = -omega_ * omega_ * ss_[J];
     }
-    return G.partialPivLu().solve(MatT<T>(W.transpose() * free_rows() - Z));
+    return G.partialPivLu().solve(MatT<T>(W.transpose() * free_rows(key) - Z));
   }
   /// g_j = ℓ_j z: w_j on x, −(sc_j, ss_j, s0_j) on (cos, sin, 1).
   VecT<T> gap_row(int j) const {
@@ -303,11 +386,12 @@ class Mechanics {
   }
 
   /// Â_S (augmented()): the motion with S held, in full coordinates (see the file comment).
-  MatT<T> generator(const ContactSet& S) const {
+  MatT<T> generator(const ContactSet& key) const {
     const Eigen::Index n = n_, N = augmented();
+    const ContactSet S = held_part(key);
     MatT<T> g = MatT<T>::Zero(N, N);
-    MatT<T> B = free_rows();
-    if (!S.empty()) B -= mass_inverse(normals(S)) * force_rows(S);
+    MatT<T> B = free_rows(key);
+    if (!S.empty()) B -= mass_inverse(normals(S)) * force_rows(key);
     g.block(0, n, n, n).setIdentity();
     g.middleRows(n, n) = B;
     g(2 * n, 2 * n + 1) = -omega_;
@@ -340,9 +424,9 @@ class Mechanics {
     VecT<T> out(2 * n_);
     out.head(n_) = x;
     VecT<T> v2 = v1;
-    if (rule.rule != ChatterRule::first_order && !rule.caught.empty() && !rule.held_after.empty()) {
-      const ContactSet& N = rule.held_after;
-      const VecT<T> lambda = forces(N, x, v1, t);
+    const ContactSet N = held_part(rule.held_after);
+    if (rule.rule != ChatterRule::first_order && !rule.caught.empty() && !N.empty()) {
+      const VecT<T> lambda = forces(rule.held_after, x, v1, t);
       const MatT<T> WN = normals(N);
       const MatT<T> QN = mass_inverse(WN);
       const auto GN = (WN.transpose() * QN).eval().partialPivLu();
@@ -363,11 +447,10 @@ class Mechanics {
         v2 += (mass_inverse(damping_times(d)) - mass_inverse(stiffness_times(qj))) * (D / Gjj);
       }
     }
-    if (rule.held_after.empty()) {
+    if (N.empty()) {
       out.tail(n_) = v2;
       return out;
     }
-    const ContactSet& N = rule.held_after;
     const MatT<T> W = normals(N);
     const MatT<T> Q = mass_inverse(W);
     const MatT<T> G = W.transpose() * Q;
@@ -442,6 +525,13 @@ class Mechanics {
       sc_.push_back(make(s.s_cos(), ds.cosine));
       ss_.push_back(make(s.s_sin(), ds.sine));
       r_.push_back(make(s.restitution, ds.restitution));
+      ks_.push_back(make(s.stiffness, 0.0));
+      cs_.push_back(make(s.damping, 0.0));
+      fp_.push_back(make(s.preload, 0.0));
+    }
+    if (has_compliant(stops)) {
+      if (banded_) throw std::logic_error("Mechanics: the banded form takes rigid stops only");
+      for (const Stop& s : stops) compliant_.push_back(s.is_compliant());
     }
   }
 
@@ -458,6 +548,8 @@ class Mechanics {
   Eigen::LLT<MatT<T>> llt_;
   std::vector<SparseNormal> normals_;
   std::vector<T> s0_, sc_, ss_, r_;
+  std::vector<T> ks_, cs_, fp_;  // k_s, c_s, F_p of compliant stops (k_s, c_s, F_p: stops.hpp)
+  std::vector<char> compliant_;  // per stop; empty when every stop is rigid
 };
 
 inline ContactSet set_union(const ContactSet& a, const ContactSet& b) {
@@ -470,7 +562,7 @@ inline ContactSet set_union(const ContactSet& a, const ContactSet& b) {
 /// `impulse`): restitution 0 for held and caught stops.
 inline ContactSet impulse_set(const Mechanics<double>& mech, const ContactSet& held, const ContactSet& impacting,
                               const ContactSet& caught, const Eigen::VectorXd& v, double t) {
-  const ContactSet all = set_union(held, impacting);
+  const ContactSet all = set_union(mech.held_part(held), impacting);
   if (impacting.empty() || all.empty()) return {};
   const Eigen::MatrixXd W = mech.normals(all);
   const Eigen::MatrixXd G = W.transpose() * mech.mass_inverse(W);

@@ -26,4 +26,9 @@ CarriedFrame carry_orthonormal_frame(const ImpactSystem& system, const Simulator
                                      const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
                                      const Eigen::MatrixXd& directions);
 
+/// The same on the Taylor engine: `system` with the nonlinear `forces` (taylor_tangent.cpp).
+CarriedFrame carry_orthonormal_frame(const ImpactSystem& system, const NonlinearForces& forces,
+                                     const SimulatorOptions& solver, double t0, const Eigen::VectorXd& x0,
+                                     const Eigen::VectorXd& v0, double t1, const Eigen::MatrixXd& directions);
+
 }  // namespace vibro::detail

@@ -31,7 +31,8 @@ SystemDerivative SystemDerivative::frequency_only() {
 
 bool SystemDerivative::is_zero() const {
   auto zero = [](const auto& m) { return m.size() == 0 || m.isZero(0.0); };
-  if (!zero(mass) || !zero(damping) || !zero(stiffness) || !zero(constant) || !zero(cosine) || !zero(sine))
+  if (!zero(mass) || !zero(damping) || !zero(stiffness) || !zero(constant) || !zero(cosine) || !zero(sine) ||
+      !zero(force_parameters))
     return false;
   if (frequency != 0.0) return false;
   for (const auto* list : {&harmonic_cosine, &harmonic_sine})
@@ -55,6 +56,7 @@ void SystemDerivative::validate(Eigen::Index n, std::size_t m) const {
   check_finite("dF0/dp", constant);
   check_finite("dFc/dp", cosine);
   check_finite("dFs/dp", sine);
+  check_finite("d(forces' parameters)/dp", force_parameters);
   for (const auto* list : {&harmonic_cosine, &harmonic_sine})
     for (const Eigen::VectorXd& v : *list) {
       check_size("dFc_h/dp or dFs_h/dp", v.rows(), v.size() ? 1 : 0, n, 1);
@@ -89,6 +91,7 @@ SystemDerivative SystemDerivative::combined(double a, const SystemDerivative& o,
   out.constant = mix(constant, o.constant);
   out.cosine = mix(cosine, o.cosine);
   out.sine = mix(sine, o.sine);
+  out.force_parameters = mix(force_parameters, o.force_parameters);
   for (auto [mine, theirs, into] : {std::tuple{&harmonic_cosine, &o.harmonic_cosine, &out.harmonic_cosine},
                                     std::tuple{&harmonic_sine, &o.harmonic_sine, &out.harmonic_sine}}) {
     into->resize(std::max(mine->size(), theirs->size()));

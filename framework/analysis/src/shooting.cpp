@@ -161,6 +161,39 @@ class DenseBackend final : public FullJacobianBackend {
   LinearisationOptions options_;
 };
 
+/// The Taylor engine (nonlinear forces): maps from linearise(system, forces, …).
+class TaylorBackend final : public FullJacobianBackend {
+ public:
+  TaylorBackend(const ImpactSystem& system, const NonlinearForces& forces, const SimulatorOptions& solver,
+                const LinearisationOptions& o)
+      : system_(system), forces_(forces), solver_(solver), options_(o) {
+    options_.jacobian = true;
+  }
+  Index dof() const override { return system_.dof(); }
+  double frequency() const override { return system_.system().forcing().frequency; }
+  TangentMap probe(double t0, const VectorXd& z, double t1) override {
+    LinearisationOptions probe;  // the events only (no held phases: the maps refuse them)
+    probe.jacobian = false;
+    return linearise(system_, forces_, solver_, t0, z.head(dof()), z.tail(dof()), t1, probe);
+  }
+  Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
+    return evaluate_with(
+        [&] { return linearise(system_, forces_, solver_, t0, z.head(dof()), z.tail(dof()), t1, options_); });
+  }
+
+ protected:
+  RunSummary run(double from, const VectorXd& z, double to) override {
+    TaylorSimulator sim(system_, forces_, solver_);
+    return sim.run(from, z.head(dof()), z.tail(dof()), to);
+  }
+
+ private:
+  const ImpactSystem& system_;
+  const NonlinearForces& forces_;
+  SimulatorOptions solver_;
+  LinearisationOptions options_;
+};
+
 /// What every backend on the modal engine shares: its size and frequency, plain runs, probes.
 template <class Base>
 class OnModalEngine : public Base {
@@ -342,6 +375,13 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
                      const VectorXd& x, const VectorXd& v, const LinearisationOptions& options_map) {
   options.validate();
   DenseBackend backend(system, options.solver, options_map);
+  return shoot_with(backend, options, t_guess, x, v);
+}
+
+ShootingResult shoot(const ImpactSystem& system, const NonlinearForces& forces, const ShootingOptions& options,
+                     double t_guess, const VectorXd& x, const VectorXd& v, const LinearisationOptions& options_map) {
+  options.validate();
+  TaylorBackend backend(system, forces, options.solver, options_map);
   return shoot_with(backend, options, t_guess, x, v);
 }
 

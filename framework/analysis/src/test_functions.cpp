@@ -36,6 +36,19 @@ bool has_unit_pair(const FloquetMultipliers& f, double tol) {
 
 double grazing_function(const Node& n, std::size_t stops, std::size_t j, int fewer, int more) {
   const int count = n.b.signature.impacts[j];
+  bool compliant = false;  // stop j engages somewhere on this orbit (a compliant stop)
+  for (const Event& e : n.e.map.events)
+    if (e.stop == static_cast<int>(j) && (e.kind == EventKind::engage || e.kind == EventKind::disengage)) compliant = true;
+  if (compliant && (count == fewer || count == more)) {
+    // The gap peaks of the free flights (≤ 0) on the side with fewer engagements, the least
+    // penetration peak (> 0) of an engaged phase on the other: both → 0 at the grazing.
+    const bool free_side = count == fewer;
+    double best = free_side ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
+    for (const GapPeak& g : n.e.map.gap_peaks)
+      if (g.stop == static_cast<int>(j) && (g.value > 0.0) != free_side)
+        best = free_side ? std::max(best, g.value) : std::min(best, g.value);
+    return std::isfinite(best) ? best : kNaN;
+  }
   if (count == fewer) {
     double best = -std::numeric_limits<double>::infinity();
     for (const GapPeak& g : n.e.map.gap_peaks)

@@ -13,6 +13,13 @@
 ///    `more` the least u²/(2|g''|) over the free impacts (> 0: the height the slowest impact's
 ///    free parabola would rise past the stop, u its approach speed, g'' the gap's free
 ///    acceleration at impact);
+///    for a compliant stop (stops.hpp; its engagements counted as impacts) the gap's maxima are
+///    continuous through the grazing on both sides: with `fewer` engagements the largest gap
+///    maximum of the free flights (< 0), with `more` the least penetration maximum of an engaged
+///    phase (> 0). With c_s = 0 and no preload the vector field is continuous across g = 0 and
+///    the grazing's discontinuity map is of order 3/2 in the distance (Nordmark 1991; di
+///    Bernardo, Budd, Champneys & Kowalczyk 2008, ch. 4), not 1/2 as at a rigid stop; with a
+///    dashpot or a preload it is of order 1. Located from the side without the contact either way;
 ///  * rising of stop j (Wagg 2004): with `fewer` contact phases the least interior minimum of
 ///    its contact force (> 0), with more the least force the held flow continued past a
 ///    release would need (< 0).

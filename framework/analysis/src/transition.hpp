@@ -18,6 +18,7 @@ namespace vibro::detail {
 
 struct Transition {
   ContactSet impacting, caught, released;
+  ContactSet switched;  ///< compliant stops engaging or disengaging (stops.hpp)
 };
 
 inline Transition classify(const std::vector<Event>& events) {
@@ -26,8 +27,9 @@ inline Transition classify(const std::vector<Event>& events) {
     if (e.kind == EventKind::impact) out.impacting.push_back(e.stop);
     if (e.kind == EventKind::chatter_limit) out.caught.push_back(e.stop);
     if (e.kind == EventKind::release) out.released.push_back(e.stop);
+    if (e.kind == EventKind::engage || e.kind == EventKind::disengage) out.switched.push_back(e.stop);
   }
-  for (ContactSet* s : {&out.impacting, &out.caught, &out.released}) {
+  for (ContactSet* s : {&out.impacting, &out.caught, &out.released, &out.switched}) {
     std::sort(s->begin(), s->end());
     s->erase(std::unique(s->begin(), s->end()), s->end());
   }

@@ -1,17 +1,20 @@
 #pragma once
 /// \file events.hpp
-/// Certified location of guard crossings along an exact segment.
+/// Certified location of guard crossings: the one event search of the engines whose guards are
+/// a GuardSource (guard_source.hpp), the dense engine's Segment (flow.hpp) and the modal chain
+/// engine's ModalGuardSource (modal.hpp).
 ///
-/// A guard is a row h(τ) = ℓᵀ z(τ) of a Segment (a gap g_j of a free stop, or -λ_j of a stuck
-/// one); an event is h rising above 0. The guarantee, for a trigger level ε ≥ 0:
+/// A guard is a row h(τ) of the source (a gap g_j of a free stop, or -λ_j of a stuck one); an
+/// event is h rising above 0. The guarantee, for a trigger level ε ≥ 0:
 ///
 ///   every τ in the searched interval at which h(τ) > ε is found (the earliest such crossing is
 ///   returned, located at a root of h = 0 to within a few units of rounding in t); intervals in
 ///   which h never exceeds ε are passed over.
 ///
 /// How: on an interval [a, b] with h, h', h'' known at both ends and B₂ ≥ max |h''|,
-/// B₃ ≥ max |h'''| over [a, b] (rigorous bounds from the Segment, built from the exact modal
-/// amplitudes), Taylor's theorem gives upper bounds of h on [a, b]:
+/// B₃ ≥ max |h'''| over [a, b] (rigorous bounds from the source: the Segment's from the exact
+/// spectral amplitudes, the modal source's from each mode's energy), Taylor's theorem gives
+/// upper bounds of h on [a, b]:
 ///     h(τ) ≤ max(h(a), h(b)) + B₂ (b - a)² / 8                                  (chord),
 ///     h(τ) ≤ h(a) + max(0, h'(a) + B₂ (b - a)/2)(b - a)   and the same from b,
 ///     h(a + s) ≤ h(a) + h'(a) s + h''(a) s²/2 + B₃ s³/6 on s ≤ (b - a)/2 and the same from b
@@ -29,6 +32,7 @@
 /// and h'' (~1e-16 of their scales, times s² ≤ 1/ρ² for the curvature) is covered by ε, set by
 /// the simulator to 1e-13 of the problem's length (and force) scale.
 #include "vibro/flow.hpp"
+#include "vibro/guard_source.hpp"
 
 #include <optional>
 #include <vector>
@@ -50,15 +54,16 @@ class CrossingFinder {
  public:
   /// `triggers[i]` is ε for row i; `resolution` the smallest interval length. The triggers are
   /// copied.
-  CrossingFinder(const Segment& segment, const Eigen::Ref<const Eigen::VectorXd>& triggers,
+  CrossingFinder(const GuardSource& source, const Eigen::Ref<const Eigen::VectorXd>& triggers,
                  double resolution);
-  /// A finder to be aimed with retarget() (the event loop keeps one per contact mode, so that
-  /// searching a new segment allocates nothing).
+  /// A finder to be aimed with retarget() (the dense event loop keeps one per contact mode, the
+  /// modal one a single finder, every mode having one row per stop, so that searching a new
+  /// segment allocates nothing). The source must outlive the finder's use.
   CrossingFinder() = default;
   /// With `rearm_leaving`, a row that starts inside its band (0 < h ≤ ε) while moving away (h' ≤ 0)
   /// is re-armed at ε + h(start), so that rounding cannot re-fire a guard just left (the event
   /// loop's use, just after an impact or a release).
-  void retarget(const Segment& segment, const Eigen::Ref<const Eigen::VectorXd>& triggers,
+  void retarget(const GuardSource& source, const Eigen::Ref<const Eigen::VectorXd>& triggers,
                 double resolution, bool rearm_leaving = false);
   /// The trigger levels in use (after re-arming, once the search has started).
   const Eigen::VectorXd& triggers() const { return triggers_; }
@@ -91,7 +96,7 @@ class CrossingFinder {
   double root(Eigen::Index row, Jet lo, Jet hi) const;
   double from_last_below(Eigen::Index row, double above) const;
 
-  const Segment* segment_ = nullptr;
+  const GuardSource* source_ = nullptr;
   Eigen::VectorXd triggers_;
   std::vector<SegmentSample> pool_;  // [0] the left end of the current step, [1] its right end
   std::vector<Jet> below_;           // per row: the latest sample with h ≤ 0 (τ = -∞: none)
@@ -110,7 +115,7 @@ struct Minimum {
   double value;  ///< min of sign·h
   double tau;
 };
-Minimum minimize_row(const Segment& segment, Eigen::Index row, double a, double b,
+Minimum minimize_row(const GuardSource& source, Eigen::Index row, double a, double b,
                      double tolerance, double sign = 1.0);
 
 }  // namespace vibro

@@ -61,6 +61,7 @@
 /// Usage:
 ///     vibro::LinearFlow flow(system);
 ///     auto s = flow.state(t0, x0, v0, t1);      // s.x, s.v, s.a at t1, exact to rounding
+#include "vibro/guard_source.hpp"
 #include "vibro/system.hpp"
 
 #include <Eigen/Dense>
@@ -238,16 +239,9 @@ class Functionals {
   Eigen::MatrixXd row_norms_;  // rows × 4: plain d=2, scaled d=2, plain d=3, scaled d=3
 };
 
-/// Everything the certified event search needs of all rows of a Segment at one τ
-/// (Segment::sample): sized on first use, then filled without allocation.
-struct SegmentSample {
-  double tau = 0.0;
-  Eigen::VectorXd h, d, c;   ///< ℓᵢᵀz(τ) and its first two derivatives in τ, per row
-  Eigen::VectorXcd e;        ///< e^{λᵣτ} per term (exponential-polynomial form)
-  Eigen::VectorXd growth;    ///< |e^{λᵣτ}| per term; Padé path: ‖z(τ)‖₂ and ‖D z(τ)‖₂
-};
-
-class Segment {
+/// The dense engine's guard source (guard_source.hpp): its samples hold e^{λᵣτ} (e) and
+/// |e^{λᵣτ}| (growth) per term, or on the Padé path ‖z(τ)‖₂ and ‖D z(τ)‖₂ (growth).
+class Segment final : public GuardSource {
  public:
   Segment(const Functionals& functionals, double t0, const Eigen::Ref<const Eigen::VectorXd>& z0);
 
@@ -255,16 +249,16 @@ class Segment {
   /// functionals' sizes are those of the last call (the event loop reuses one Segment per mode).
   void reset(double t0, const Eigen::Ref<const Eigen::VectorXd>& z0);
 
-  double t0() const { return t0_; }
+  double t0() const override { return t0_; }
   const Eigen::VectorXd& initial_state() const { return z0_; }
   const Functionals& functionals() const { return *functionals_; }
 
   /// dᵈ/dτᵈ ℓᵢᵀ z(τ), d ∈ {0, 1, 2, 3}.
-  double value(Eigen::Index i, double tau, int derivative = 0) const;
+  double value(Eigen::Index i, double tau, int derivative = 0) const override;
   /// Value and first derivative together (one evaluation of the exponentials).
   std::pair<double, double> value_and_slope(Eigen::Index i, double tau) const;
   /// An upper bound of |d²/dτ² ℓᵢᵀ z(τ)| over τ ∈ [a, b] (0 ≤ a ≤ b).
-  double second_derivative_bound(Eigen::Index i, double a, double b) const;
+  double second_derivative_bound(Eigen::Index i, double a, double b) const override;
   /// An upper bound of |d³/dτ³ ℓᵢᵀ z(τ)| over [a, b] (0 ≤ a ≤ b).
   double third_derivative_bound(Eigen::Index i, double a, double b) const;
   /// Full augmented state at τ.
@@ -278,12 +272,12 @@ class Segment {
   // --- the certified search's interface (events.hpp): all rows at once ---
   /// Values, slopes and curvatures of every row at τ, with what the bounds need. One
   /// evaluation of the exponentials; no allocation once `out` has been sized by a first call.
-  void sample(double tau, SegmentSample& out) const;
+  void sample(double tau, SegmentSample& out) const override;
   /// Value, slope and curvature of row i at τ (one evaluation of the exponentials).
-  void row_jet(Eigen::Index i, double tau, double* h, double* d, double* c) const;
+  void row_jet(Eigen::Index i, double tau, double* h, double* d, double* c) const override;
   /// An upper bound of |dᵈ/dτᵈ ℓᵢᵀz| over [a.tau, b.tau] (d = 2 or 3) from two samples.
   double derivative_bound(int derivative, Eigen::Index i, const SegmentSample& a,
-                          const SegmentSample& b) const;
+                          const SegmentSample& b) const override;
   /// The magnitude of row i's terms at the start, Σ |αᵢᵣₚ| (Padé: ‖ℓᵢ‖ ‖z0‖): its values carry
   /// rounding errors of a few ulps of this, which no root can be located below.
   double magnitude(Eigen::Index i) const;

@@ -29,17 +29,12 @@
 ///
 /// **Guards in O(N).** A stop j is g_j = w_jᵀ x - s_j(t) = Σ_k (Φᵀw_j)_k q_k - s_j(t); the rows
 /// Φᵀw_j (one or two rows of Q scaled by 1/√m) are stored once, so a value costs the N mode
-/// evaluations plus N multiply-adds per stop. The second-derivative bound the certified search
-/// needs (events.hpp) comes from each mode's energy E_k = ½(u_k'² + ω_k² u_k²), which cannot
-/// grow (E_k' = -2σ_k u_k'² ≤ 0):  |u_k''| = |2σ_k u_k' + ω_k² u_k| ≤ (2σ_k + ω_k)√(2E_k(a)) for
-/// all τ ≥ a, so
-///     |g_j''(τ)| ≤ Σ_k |Φᵀw_j|_k (2σ_k + ω_k) √(2 E_k(a)) + Ω² |harmonic amplitude of g_j|
-/// on every [a, b]. The search (ModalChainSimulator::search) is that of events.hpp: an interval is
-/// certified free when the Taylor bounds from its two ends stay ≤ ε, else it is halved. A
-/// shortcut saves most halvings: when one guard is uncertified on [a, b] and exceeds ε at b, its
-/// root r in [last point ≤ 0, b] is found by safeguarded Newton and accepted if the same bounds
-/// certify [a, r]; otherwise halving goes on. Guarantee (same as the dense engine): every
-/// excursion above ε is found; the root is located to a few ulps of t.
+/// evaluations plus N multiply-adds per stop. The bounds on |g_j''| and |g_j'''| the certified
+/// search needs come from each mode's energy, which cannot grow (ModalGuardSource gives the
+/// derivation). The search is events.hpp's CrossingFinder, the one both engines use, on the
+/// guards as a ModalGuardSource: the same certification (quadratic and cubic Taylor bounds),
+/// splitting, root refinement and re-arming, so the same guarantee: every excursion above ε is
+/// found; the root is located to a few ulps of t.
 ///
 /// **Impacts in O(N).** An impulse Λ_j along -w_j changes v by -M⁻¹w_j Λ_j, i.e. the modal
 /// velocities by -Φᵀw_j Λ_j (a rank-1 update). Simultaneous impacts use the generalised Newton
@@ -79,7 +74,7 @@
 /// homogeneous modal state u of the reduced chain, with u'' = -2σ∘u' - ω²∘u,
 ///     ρ_l = P_l·u + D_l·u' + harmonic,  P_l = -m_l φ_l∘ω² + Σ_l' K_ll' φ_l',  D_l = β P_l
 /// (2σ = α + βω²). A release guard -λ_j is therefore a guard like a gap, plus a u' term whose
-/// second derivative is bounded through |u'''| ≤ (2σ(2σ + ω) + ω²)√(2E) (ModalGuards).
+/// derivatives are bounded through those of u' (ModalGuardSource).
 ///
 /// **Events.** A single impact in free flight after which the stop leaves (no chatter, no rest)
 /// is the O(N) rank-1 update above. Every other event (an impact while stops hold, a release,
@@ -93,7 +88,8 @@
 /// `event_cap`, interruption, observers) is the dense engine's, written once for both.
 ///
 /// Output: the observers of observers.hpp, through ModalSegmentView (a full state O(N n_r), one
-/// gap or force O(n_r); force minima by the same certified search as events).
+/// gap or force O(n_r); force minima by the same certified search as events, on the guards'
+/// slopes).
 ///
 /// Usage:
 ///     auto chain = vibro::BandedChain::from_links(masses, springs, dampers, 1.0, 0.01, 0.0, 0.0,
@@ -102,6 +98,7 @@
 ///     vibro::ModalChainSimulator sim(modes, {vibro::Stop::upper(0, 0.5, 0.8)});
 ///     vibro::EventLog log;
 ///     auto summary = sim.run(0.0, x0, v0, 100.0, {&log});
+#include "vibro/guard_source.hpp"
 #include "vibro/observers.hpp"
 #include "vibro/simulator.hpp"  // RunSummary, ChatterRule
 #include "vibro/stops.hpp"
@@ -331,6 +328,67 @@ struct ModalGuards {
   void finish(double frequency);
 };
 
+/// The guards of one set of modes along a segment of their motion, as the certified crossing
+/// search sees them (guard_source.hpp; the search is events.hpp's CrossingFinder). Row i is
+///     h_i(τ) = P_i·u(τ) + D_i·u'(τ) + h0_i + hc_i cos Ωt + hs_i sin Ωt,   t = t0 + τ,
+/// with (u, u')(τ) the homogeneous modal state flowed from (u0, u0') at t0 (ChainModes::advance),
+/// and its derivatives from u⁽ᵏ⁺²⁾ = −2σ∘u⁽ᵏ⁺¹⁾ − ω²∘u⁽ᵏ⁾ (elementwise per mode). O(n_r) per
+/// row and time, n_r the number of modes.
+///
+/// **Bounds.** Each mode obeys u'' + 2σu' + ω²u = 0 with σ ≥ 0, ω > 0, so its energy
+/// E = ½(u'² + ω²u²) has E' = −2σu'² ≤ 0, and a(τ) = √(2E(τ)) = √(u'² + ω²u²) cannot grow: for
+/// every τ ≥ τ_a, |u'(τ)| ≤ a(τ_a) and ω|u(τ)| ≤ a(τ_a). Applying u⁽ᵏ⁺²⁾ = −2σu⁽ᵏ⁺¹⁾ − ω²u⁽ᵏ⁾
+/// repeatedly,
+///     |u''|   ≤ 2σ|u'| + ω²|u|     ≤ (2σ + ω) a              =: β₂ a,
+///     |u'''|  ≤ 2σ|u''| + ω²|u'|   ≤ (2σβ₂ + ω²) a           =: β₃ a,
+///     |u''''| ≤ 2σ|u'''| + ω²|u''| ≤ (2σβ₃ + ω²β₂) a         =: β₄ a,
+/// all with a = a(τ_a), on [τ_a, ∞). The harmonic part of amplitude A_i = √(hc_i² + hs_i²) (the
+/// forced response and the stops' motion) has |dᵏ/dτᵏ| ≤ Ωᵏ A_i. Hence on every [τ_a, τ_b]
+///     |h_i''|  ≤ B₂ᵢ = Σ_k (|P_ik| β₂ₖ + |D_ik| β₃ₖ) a_k + Ω² A_i,
+///     |h_i'''| ≤ B₃ᵢ = Σ_k (|P_ik| β₃ₖ + |D_ik| β₄ₖ) a_k + Ω³ A_i,
+/// from the state at τ_a alone; both are enlarged by 1 + 1e-12 + 2(n_r + 8)ε to cover the
+/// rounding of their own sums. A sample (sample()) holds B₂ then B₃ per row in
+/// SegmentSample::growth; derivative_bound reads those of the interval's left end.
+class ModalGuardSource final : public GuardSource {
+ public:
+  /// `capacity`: the largest mode count it will see (the free chain's N), so that retargeting
+  /// allocates nothing (a larger count grows the buffers).
+  explicit ModalGuardSource(Eigen::Index capacity = 0);
+  /// Aims at guards `guards` of `modes` (null: no mass is free, only the harmonic part) from the
+  /// homogeneous state (u0, ud0) at absolute time t0, Ω = `frequency`. The modes, the guards
+  /// and the state's storage must outlive the source's use.
+  void retarget(const ChainModes* modes, const ModalGuards& guards, double frequency, double t0,
+                const Eigen::Ref<const Eigen::VectorXd>& u0, const Eigen::Ref<const Eigen::VectorXd>& ud0);
+
+  double t0() const override { return t0_; }
+  /// d ∈ {0, 1, 2}; throws std::invalid_argument otherwise.
+  double value(Eigen::Index i, double tau, int derivative = 0) const override;
+  double second_derivative_bound(Eigen::Index i, double a, double b) const override;
+  void sample(double tau, SegmentSample& out) const override;
+  void row_jet(Eigen::Index i, double tau, double* h, double* d, double* c) const override;
+  double derivative_bound(int derivative, Eigen::Index i, const SegmentSample& a,
+                          const SegmentSample& b) const override;
+
+  /// The homogeneous modal state at τ (n_r each). O(n_r).
+  void state(double tau, Eigen::Ref<Eigen::VectorXd> u, Eigen::Ref<Eigen::VectorXd> ud) const;
+  /// Evaluations of all modes at one time since construction (the O(n_r) unit of work).
+  long evaluations() const { return evaluations_; }
+
+ private:
+  /// u, u' (and u'', u''' up to `order`) at τ into the buffers.
+  void flow(double tau, int order) const;
+  /// β₂a, β₃a (and β₄a if `fourth`) per mode from the buffers' state.
+  void mode_bounds(bool fourth) const;
+
+  const ChainModes* modes_ = nullptr;
+  const ModalGuards* guards_ = nullptr;
+  double W_ = 0.0, t0_ = 0.0, inflate_ = 1.0;
+  Eigen::Index nr_ = 0;
+  const double *u0_ = nullptr, *ud0_ = nullptr;
+  mutable Eigen::VectorXd u_, ud_, udd_, uddd_, b2_, b3_, b4_;  // capacity, used through head(nr_)
+  mutable long evaluations_ = 0;
+};
+
 /// One contact set's motion in modal form: the free chain (empty set) or the reduced chain of
 /// the masses left free by the stuck stops, with every guard of that set written in its modes.
 /// Built by ModalChainSimulator on first visit (see the header comment); read-only afterwards.
@@ -458,8 +516,6 @@ class ModalChainSimulator {
   /// The run's force trigger ε_F = trigger·F (for force minima) and gap trigger ε_g = trigger·L.
   double force_tolerance() const { return force_tolerance_; }
   double gap_tolerance() const { return gap_tolerance_; }
-
-  class Search;  // the certified crossing search (modal_search.hpp)
 
  private:
   struct Cache;

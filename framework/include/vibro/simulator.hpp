@@ -24,7 +24,8 @@
 ///         if more than max_events events within one event window: stop (Zeno guard)
 ///
 /// Both engines run this loop (framework/src/event_loop.hpp; the dense engine here, the modal
-/// chain engine of modal.hpp); they differ only in how a mode's segment is built, searched and
+/// chain engine of modal.hpp) and locate crossings with the same certified search (events.hpp,
+/// on their guards as a GuardSource); they differ only in how a mode's segment is built and
 /// evaluated, and in their stops' algebra. What each guard's crossing means, and where a contact
 /// law other than the rigid stop would plug in, is contact_law.hpp.
 ///

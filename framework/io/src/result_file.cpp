@@ -226,6 +226,7 @@ void ResultFile::Impl::write_scene(const Scene& scene) const {
   store.set_text("/scene", "run_kind",
                  to_string(scene.run.kind));
   store.set_real("/scene", "period", scene.period());
+  if (!scene.restart.empty()) store.set_text("/scene", "restart", scene.restart);  // only where used
   if (!scene.forces.forces.empty()) {  // only where present: linear scenes' files stay as they were
     for (std::size_t i = 0; i < scene.forces.forces.size(); ++i)
       if (!scene.forces.forces[i].empty()) store.set_text("/scene", "force_" + std::to_string(i), scene.forces.forces[i]);

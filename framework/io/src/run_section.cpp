@@ -25,7 +25,7 @@ SweepAxis RunSection::axis(const YAML::Node& p, const std::string& path, const s
   } else {
     const bool lg = static_cast<bool>(p["logspace"]);
     const std::string key = lg ? "logspace" : "linspace";
-    const auto spec = r.numbers(p[key], path + "." + key, 3, "start, stop, count");
+    const auto spec = r.numbers(p[key], path + "." + key, 3, "start, stop, count", false);
     axis.values = spaced(spec, lg, r, p[key], path + "." + key);
   }
   return axis;

@@ -1,5 +1,6 @@
 #include "vibro/io/scene.hpp"
 
+#include "restart.hpp"
 #include "scene_reader.hpp"
 #include "scene_sections.hpp"
 
@@ -145,6 +146,7 @@ struct SceneDocument::Impl {
     std::string yaml;
   };
   std::vector<Edit> edits;
+  std::string restart;  // where initial.from took the state from ("" without it)
 };
 
 SceneDocument::SceneDocument() : impl_(std::make_unique<Impl>()) {}
@@ -154,8 +156,10 @@ SceneDocument::~SceneDocument() = default;
 SceneDocument::SceneDocument(const SceneDocument& o) : impl_(std::make_unique<Impl>()) { *this = o; }
 SceneDocument& SceneDocument::operator=(const SceneDocument& o) {
   if (this != &o) {
-    SceneDocument fresh = parse(o.impl_->text, o.impl_->file);
+    // The text alone: the edits replay what the original's restart (initial.from) did.
+    SceneDocument fresh = parse_text(o.impl_->text, o.impl_->file);
     for (const Impl::Edit& e : o.impl_->edits) e.number ? fresh.set(e.path, *e.number) : fresh.replace(e.path, e.yaml);
+    fresh.impl_->restart = o.impl_->restart;
     std::swap(impl_, fresh.impl_);
   }
   return *this;
@@ -163,6 +167,7 @@ SceneDocument& SceneDocument::operator=(const SceneDocument& o) {
 
 const std::string& SceneDocument::file() const { return impl_->file; }
 const std::string& SceneDocument::text() const { return impl_->text; }
+const std::string& SceneDocument::restart() const { return impl_->restart; }
 
 SceneDocument SceneDocument::load(const std::string& path) {
   // Opened without blocking (a FIFO would wait for a writer for ever) and checked on the open
@@ -207,6 +212,18 @@ SceneDocument SceneDocument::load(const std::string& path) {
 }
 
 SceneDocument SceneDocument::parse(const std::string& text, const std::string& file) {
+  SceneDocument doc = parse_text(text, file);
+  // initial.from: the scene put on a saved orbit (restart.hpp), as edits a copy replays.
+  const YAML::Node& root = doc.impl_->root;
+  if (const YAML::Node initial = root["initial"]; initial && initial.IsMap() && initial["from"]) {
+    const detail::RestartPoint point = detail::read_restart(initial["from"], file);
+    detail::apply_restart(doc, root, point);
+    doc.impl_->restart = point.source;
+  }
+  return doc;
+}
+
+SceneDocument SceneDocument::parse_text(const std::string& text, const std::string& file) {
   SceneDocument doc;
   doc.impl_->file = file;
   doc.impl_->text = text;
@@ -389,6 +406,7 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   Scene scene{impl_->file, impl_->text, root["name"] ? r.text(root["name"], "name") : std::string(),
               std::move(p.dense), std::move(p.banded), std::move(p.stops), p.t0, p.x0, p.v0, p.opt, p.rec, p.run,
               p.engine_choice, p.engine, p.reason, std::move(p.base), std::move(p.forces), std::move(p.friction)};
+  scene.restart = impl_->restart;
   return scene;
 }
 

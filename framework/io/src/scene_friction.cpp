@@ -23,7 +23,7 @@ void read_friction(Reader& r, const YAML::Node& root, SceneParts& p) {
       if (c["mass"]) r.fail(c["mass"], path + ".mass", "a contact between masses takes 'between', not 'mass'");
       if (c["surface"])
         r.fail(c["surface"], path + ".surface", "a contact between two masses has no surface: remove 'surface'");
-      const auto pair = r.numbers(c["between"], path + ".between", 2, "the two masses i, k rubbing on each other");
+      const auto pair = r.numbers(c["between"], path + ".between", 2, "the two masses i, k rubbing on each other", false);
       for (int q = 0; q < 2; ++q)
         r.integer(c["between"][static_cast<std::size_t>(q)], path + ".between[" + std::to_string(q) + "]", 0, n - 1);
       if (pair[0] == pair[1])
@@ -72,11 +72,16 @@ void check_friction(Reader& r, const YAML::Node& root, SceneParts& p) {
   const YAML::Node fn = root["friction"];
   if (!p.stops.empty())
     r.fail(fn, "friction", "a scene with friction cannot have stops: the friction engine runs scenes without stops");
-  if (p.run.kind != RunSpec::Kind::simulate) {
+  // The run kinds that only run the scene (simulate, sweep, diagram, basin, locate) take friction;
+  // those built on the tangent map (orbit, continue, lyapunov) need the saltation of a friction
+  // switch, which is not implemented.
+  using K = RunSpec::Kind;
+  if (p.run.kind == K::orbit || p.run.kind == K::continuation || p.run.kind == K::lyapunov) {
     const YAML::Node kind = root["run"] ? root["run"]["kind"] : YAML::Node();
     r.fail(kind ? kind : fn, kind ? "run.kind" : "friction",
-           std::string("a scene with friction runs only with run.kind: simulate (the saltation of a friction switch, "
-                       "which periodic orbits, continuation, Lyapunov exponents and sweeps need, is not implemented), found ") +
+           std::string("a scene with friction runs with run.kind simulate, sweep, diagram, basin or locate (the saltation "
+                       "of a friction switch, which periodic orbits by shooting, continuation and Lyapunov exponents need, "
+                       "is not implemented), found ") +
                to_string(p.run.kind));
   }
   if (p.engine == EngineKind::taylor)

@@ -70,6 +70,9 @@ inline std::string describe(const YAML::Node& n) {
 /// Reads the YAML tree of one scene, with the file name and key paths in every error.
 class Reader {
  public:
+  /// The longest list `{fill, count}` may make (8 × 10⁸ bytes of doubles).
+  static constexpr long kMaxFill = 100000000;
+
   explicit Reader(std::string file, std::vector<std::pair<std::string, double>> overrides = {})
       : file_(std::move(file)), overrides_(std::move(overrides)) {}
 
@@ -185,12 +188,27 @@ class Reader {
     fail(node, path, "expected one of " + list + ", found '" + s + "'");
   }
 
-  /// A list of numbers, of length `size` when size ≥ 0.
+  /// A list of numbers, of length `size` when size ≥ 0: written out, or filled with one value,
+  /// `{fill: value, count: N}` (a long chain in one line; reading it costs O(N), not a YAML node
+  /// per entry).
+  /// `fillable` false: a short list whose entries mean different things (a pair of masses, a
+  /// range), written out.
   std::vector<double> numbers(const YAML::Node& node, const std::string& path, long size,
-                              const std::string& what) {
+                              const std::string& what, bool fillable = true) {
     note(node);
+    if (fillable && node.IsMap()) {
+      expect_map(node, path, {"fill", "count"});
+      if (!node["fill"] || !node["count"])
+        fail(node, path, "a filled list needs `fill` (the value) and `count` (how many; " + what + ")");
+      const double value = number(node["fill"], path + ".fill");
+      const long count = integer(node["count"], path + ".count", 0, kMaxFill);
+      if (size >= 0 && count != size)
+        fail(node["count"], path + ".count", "expected " + std::to_string(size) + " (" + what + "), found " + std::to_string(count));
+      return std::vector<double>(static_cast<std::size_t>(count), value);
+    }
     if (!node.IsSequence())
-      fail(node, path, "expected a list of numbers (" + what + "), found " + describe(node));
+      fail(node, path, "expected a list of numbers (" + what + ")" + (fillable ? " or {fill: value, count: N}" : "") +
+                           ", found " + describe(node));
     if (size >= 0 && static_cast<long>(node.size()) != size)
       fail(node, path, "expected a list of " + std::to_string(size) + " numbers (" + what +
                            "), found " + std::to_string(node.size()));
@@ -199,6 +217,9 @@ class Reader {
       out.push_back(number(node[i], path + "[" + std::to_string(i) + "]"));
     return out;
   }
+
+  /// The node of entry i of a list numbers() read: the entry, or a filled list's `fill`.
+  static YAML::Node entry(const YAML::Node& list, std::size_t i) { return list.IsMap() ? list["fill"] : list[i]; }
 
   Eigen::MatrixXd matrix(const YAML::Node& node, const std::string& path, long n) {
     note(node);

@@ -34,15 +34,15 @@ void read_model(Reader& r, const YAML::Node& root, SceneParts& p) {
     if (n == 0) r.fail(chain["masses"], "model.chain.masses", "expected at least one mass, found an empty list");
     for (long i = 0; i < n; ++i)
       if (!(c.masses[static_cast<std::size_t>(i)] > 0.0))
-        r.fail(chain["masses"][static_cast<std::size_t>(i)], "model.chain.masses[" + std::to_string(i) + "]",
-               "expected a mass > 0, found " + chain["masses"][static_cast<std::size_t>(i)].Scalar());
+        r.fail(Reader::entry(chain["masses"], static_cast<std::size_t>(i)), "model.chain.masses[" + std::to_string(i) + "]",
+               "expected a mass > 0, found " + number_text(c.masses[static_cast<std::size_t>(i)]));
     auto links = [&](const char* key, std::vector<double>& out) {
       const std::string path = std::string("model.chain.") + key;
       if (!chain[key]) return;
       out = r.numbers(chain[key], path, n - 1, "one per link between neighbouring masses");
       for (std::size_t i = 0; i < out.size(); ++i)
         if (out[i] < 0.0)
-          r.fail(chain[key][i], path + "[" + std::to_string(i) + "]", "expected a value ≥ 0, found " + chain[key][i].Scalar());
+          r.fail(Reader::entry(chain[key], i), path + "[" + std::to_string(i) + "]", "expected a value ≥ 0, found " + number_text(out[i]));
     };
     links("springs", c.springs);
     links("dampers", c.dampers);
@@ -231,7 +231,7 @@ void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
       } else if (s["between"]) {
         if (s["mass"] || s["side"] || s["position"])
           r.fail(s, path, "a stop between masses takes 'between' and 'gap', not 'mass', 'side' or 'position'");
-        const auto pair = r.numbers(s["between"], path + ".between", 2, "the two masses i, k of x_i - x_k ≤ gap");
+        const auto pair = r.numbers(s["between"], path + ".between", 2, "the two masses i, k of x_i - x_k ≤ gap", false);
         for (int q = 0; q < 2; ++q)
           r.integer(s["between"][static_cast<std::size_t>(q)], path + ".between[" + std::to_string(q) + "]", 0, n - 1);
         if (pair[0] == pair[1])
@@ -454,8 +454,8 @@ void read_record(Reader& r, const YAML::Node& root, SceneParts& p) {
         rec.sample_times = r.numbers(sm["times"], "record.samples.times", -1, "times from the start of recording");
         for (std::size_t i = 0; i < rec.sample_times.size(); ++i)
           if (rec.sample_times[i] < 0.0)
-            r.fail(sm["times"][i], "record.samples.times[" + std::to_string(i) + "]",
-                   "expected a time ≥ 0 (from the start of recording), found " + sm["times"][i].Scalar());
+            r.fail(Reader::entry(sm["times"], i), "record.samples.times[" + std::to_string(i) + "]",
+                   "expected a time ≥ 0 (from the start of recording), found " + number_text(rec.sample_times[i]));
         if (!std::is_sorted(rec.sample_times.begin(), rec.sample_times.end()))
           r.fail(sm["times"], "record.samples.times", "expected times in increasing order");
       }

@@ -390,10 +390,12 @@ def continuation(scene, path=None, range=None, *, transient_periods=None, output
     path, range: the parameter and its limits [min, max] (None: the scene's run.continue); the
     branch starts at the scene's value of path. options: the other keys of run.continue
     (direction "up"/"down", period, phase, step, min_step, max_step, max_points, tolerance,
-    locate, locate_tolerance, max_doublings, curve: a dict with path and range). The Result holds
+    locate, locate_tolerance, max_doublings, curve: a dict with path, range and optionally kinds,
+    e.g. ["fold", "period_doubling"]). The Result holds
     /branch (``result.branch.p``, ``.stable``, ``.multipliers_real``, …), /branches,
     /bifurcations (``result.bifurcations.p``, ``.kind`` whose names are
-    ``result.bifurcations.labels("kind")["names"]``) and, with a curve, /curve. One thread.
+    ``result.bifurcations.labels("kind")["names"]``) and, with a curve, /curve (and /codim2 with
+    curves of folds, doublings or tori: their codimension-two points). One thread.
     """
     if path is not None:
         if range is None:

@@ -66,11 +66,15 @@
 /// Each is reported with its kind, p, the stop, the branch, the test function's value at the
 /// located point and the orbit there.
 ///
-/// **Curves in two parameters.** A grazing or rising point located in p1 is followed in (p1, p2)
-/// by locating it again on lines across the curve: from each curve point a predictor step along
-/// the curve's secant, then the same location on the line through the predictor along the normal
-/// (a one-parameter family along that line: the system at each point and its derivative
-/// n1 dD/dp1 + n2 dD/dp2), so every curve point is located like a branch point.
+/// **Curves in two parameters.** A grazing, rising, fold, period-doubling or Neimark–Sacker
+/// point located in p1 is followed in (p1, p2) by locating it again on lines across the curve:
+/// from each curve point a predictor step along the curve's secant, then the same location on
+/// the line through the predictor along the normal (a one-parameter family along that line: the
+/// system at each point and its derivative n1 dD/dp1 + n2 dD/dp2), so every curve point is
+/// located like a branch point. A fold line has orbits on one side only: there the line is
+/// reached from the side with orbits (curves.cpp). Codimension-two points met along fold,
+/// period-doubling and Neimark–Sacker curves (fold–flip, grazing, strong resonances, a cusp's
+/// turning) are reported with the curve (CodimTwoPoint).
 ///
 /// **Engines.** Continuation drives a FamilyEngine per parameter value (family_engine.hpp): the
 /// dense engine (any system and parameter; the ParameterFamily overloads below) or the modal chain
@@ -137,6 +141,10 @@ struct ContinuationOptions {
   /// the points budget), and ContinuationResult::budget says which was hit and what was left.
   int max_branches = 64;
   long max_total_points = 40000;
+  /// The start orbit is a period doubling (a restart from a located one): follow only the
+  /// period-2k branch that bifurcates there (branch 1; branch 0 is the start orbit alone), not the
+  /// period-k branch through it. The start must have a multiplier within 1e-3 of −1.
+  bool switch_at_start = false;
   /// The dense engine's settings (the ParameterFamily overloads); an ContinuationFamily's engines carry
   /// their own (family_engine.hpp).
   SimulatorOptions solver;
@@ -242,10 +250,53 @@ struct CurvePoint {
   double value = 0.0;
   BranchPoint point;
 };
+/// A codimension-two point met along a curve of folds, period doublings or Neimark–Sacker points
+/// (curves.cpp says how each is found):
+///  * fold_flip: on a fold curve a multiplier passes −1, on a period-doubling curve one passes +1;
+///  * grazing: the curve's orbits change their events (a stop is grazed: the orbit's nearest
+///    approach to it passes 0), where the smooth curve ends or continues with other events;
+///  * cusp: the fold curve turns back in the plane (only the turning is detected, not the sign
+///    change of the fold's quadratic coefficient; located = false);
+///  * fold_neimark_sacker, flip_neimark_sacker: on a Neimark–Sacker curve a real multiplier
+///    passes +1 or −1;
+///  * resonance_1_3, resonance_1_4: the unit pair e^{±iθ} of a Neimark–Sacker curve passes
+///    θ = 2π/3 or π/2 (strong resonances);
+///  * resonance_1_1, resonance_1_2: a Neimark–Sacker curve ends with its pair near +1 or −1
+///    (θ within 0.05 of 0 or π; not located).
+enum class CodimTwoKind {
+  fold_flip,
+  grazing,
+  cusp,
+  fold_neimark_sacker,
+  flip_neimark_sacker,
+  resonance_1_1,
+  resonance_1_2,
+  resonance_1_3,
+  resonance_1_4
+};
+const char* to_string(CodimTwoKind kind);
+/// All kinds in enum order (for file attributes).
+std::vector<std::string> codim_two_kind_names();
+
+struct CodimTwoPoint {
+  CodimTwoKind kind = CodimTwoKind::fold_flip;
+  int stop = -1;          ///< grazing: the stop whose events changed (the first), else −1
+  int after = 0;          ///< index of the curve point before it
+  double p1 = 0.0, p2 = 0.0;
+  /// Located: a curve point solved at the step along the curve where the codimension-two
+  /// condition holds, to `width` (scaled step units); else bracketed between two curve points.
+  bool located = false;
+  double width = 0.0;     ///< the final bracket along the curve, in scaled (p1/P1, p2/P2)
+  double value = 0.0;     ///< the codimension-two test function there (→ 0 where located)
+  BranchPoint point;      ///< the curve's orbit there (the good side's)
+  std::string note;
+};
+
 struct Curve {
   BifurcationKind kind = BifurcationKind::grazing;
   int stop = -1;
   std::vector<CurvePoint> points;
+  std::vector<CodimTwoPoint> special;  ///< codimension-two points (folds, doublings, tori only)
   std::string end;
 };
 
@@ -274,8 +325,8 @@ struct CurveOptions {
   void validate() const;
 };
 
-/// Follows a located grazing or rising point (`start`, found with p2 = p2_start) in (p1, p2).
-/// Throws InvalidInput if `start` is not a grazing or rising point.
+/// Follows a located grazing, rising, fold, period-doubling or Neimark–Sacker point (`start`,
+/// found with p2 = p2_start) in (p1, p2). Throws InvalidInput for another kind.
 Curve follow_curve(const PlaneFamily& family, const Bifurcation& start, double p2_start,
                    const CurveOptions& options);
 /// The same on any engine (the PlaneFamily form runs the dense engine with options.branch.solver).

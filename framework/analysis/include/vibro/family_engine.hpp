@@ -4,7 +4,7 @@
 /// exact map over [t0, t1] with its Jacobian, its derivative ∂z1/∂p along dD/dp and the features
 /// the test functions need (linearisation.hpp); plain runs; Newton shooting (shooting.hpp).
 ///
-/// Two implementations, one per engine (engine.hpp):
+/// One implementation per engine (engine.hpp): the Taylor engine's is taylor_family_engine below.
 ///  * dense: an ImpactSystem and the SimulatorOptions — linearise(ImpactSystem, …), Simulator,
 ///    shoot(ImpactSystem, …). Any M, C, K and any parameter.
 ///  * modal: a ModalEngine on a proportionally damped chain — linearise(ModalEngine&, …) with the
@@ -63,7 +63,8 @@ class FamilyEngine {
 
   /// Stop j's normal w (its gap is g = wᵀx − s_j(t)) and the velocity jump of a lone impact on it
   /// per unit approach speed, −(1 + r_j) M⁻¹w / (wᵀM⁻¹w): what an impact born at a grazing adds
-  /// to the orbit, to first order in its speed (continuation's grazing corners).
+  /// to the orbit, to first order in its speed (continuation's grazing corners). For a compliant
+  /// stop the jump is empty: its engagement has no impulse (the corner step does not apply).
   virtual std::pair<Eigen::VectorXd, Eigen::VectorXd> impact_direction(int j) const = 0;
   /// dD/dp at this p (parameter.hpp). Continuation along a line in a plane of two parameters
   /// (follow_curve) replaces it by the line's combination.
@@ -75,6 +76,14 @@ using ContinuationFamily = std::function<std::unique_ptr<FamilyEngine>(double p)
 /// The dense engine on `system` with `solver`.
 std::unique_ptr<FamilyEngine> dense_family_engine(ImpactSystem system, SystemDerivative derivative,
                                                   const SimulatorOptions& solver);
+
+/// The Taylor engine (taylor_simulator.hpp) on `system` with the nonlinear `forces`: maps from
+/// linearise(system, forces, …) (linearisation.hpp), whose parameter column follows Ω, the
+/// drive, C, K, the stops' data and the forces' named parameters (SystemDerivative::
+/// force_parameters). Orbits with impacts in free flight only (a held stop fails the map).
+/// Throws InvalidInput for a derivative that moves M (or has the wrong size).
+std::unique_ptr<FamilyEngine> taylor_family_engine(ImpactSystem system, NonlinearForces forces,
+                                                   SystemDerivative derivative, const SimulatorOptions& solver);
 
 /// The modal engine on `chain` and `stops`. Throws InvalidInput for a derivative that moves M, C or
 /// K (or has the wrong size), and as ModalEngine's constructor does.

@@ -39,6 +39,25 @@
 ///  * Release: λ_j = 0 there, so f⁺ = f⁻ and S = I on that tangent space.
 ///  * Grazing: S grows like 1/ḣ⁻ as an impact's speed falls to zero (least_guard_rate says how
 ///    close an orbit is).
+///  * Compliant stop (stops.hpp) engaging or disengaging: no reset (R = I, up to the
+///    projection onto the held rigid stops' manifold), the guard is the stop's gap g = wᵀx − s(t)
+///    both ways, and the vector field switches between the modes without and with the stop's
+///    spring-dashpot, so (di Bernardo, Budd, Champneys & Kowalczyk 2008, § 2.5 and ch. 4 for
+///    the flows with a switching surface)
+///        S = I + (f⁺ − f⁻) wᵀ / (wᵀ v − s'(t)),   f⁺ − f⁻ = (0, ∓M⁻¹ w N),
+///        N = k_s g + c_s g' + F_p,
+///    the sign − on engaging, + on disengaging, all at the switch where g = 0, hence
+///    N = c_s g' + F_p there: with c_s = 0 and F_p = 0 the vector field is continuous across
+///    g = 0 and S = I exactly; with a dashpot or a preload it is not (the dashpot's part
+///    c_s g' M⁻¹ w wᵀ/g' = c_s M⁻¹ w wᵀ does not even vanish as g' → 0, the preload's
+///    F_p M⁻¹ w wᵀ/g' grows like 1/g' at grazing). The engine's
+///    discrete choice is the same (engage when g rises through 0, disengage when it falls
+///    through 0, whatever N), so this is the derivative of its map. The grazing of a compliant
+///    stop (the orbit touching g = 0 without engaging) has a discontinuity map of order 3/2 in
+///    the distance when the vector field is continuous, not the square root of a rigid impact
+///    (Nordmark 1991; di Bernardo et al. 2008, ch. 7): continuation locates it from the side
+///    without contact (test_functions.hpp). Several compliant stops switching at one instant
+///    are taken in index order before any rigid event of that instant, as the engine does.
 ///  * Several guards at one instant (simultaneous impacts): the map is differentiable only if
 ///    the order in which they are perturbed apart does not matter. The impacts are composed one
 ///    at a time in both orders; `order_spread` gives their relative difference and a spread
@@ -52,7 +71,8 @@
 /// eig(J₁J₂) share their non-zero values). The Floquet multipliers of shooting.hpp come from it.
 ///
 /// Features (when asked for, for the test functions of continuation.hpp): every interior local
-/// maximum of a free stop's gap (grazing from below), every interior local minimum of a held
+/// maximum of a free stop's gap (grazing from below; for a compliant stop also while engaged:
+/// its penetration's maxima), every interior local minimum of a held
 /// stop's contact force, and after each release the held flow continued past it to its next
 /// local minimum (negative: how far past rising the orbit is), each impact's speed, each contact
 /// phase.
@@ -65,6 +85,7 @@
 #include "vibro/observers.hpp"
 #include "vibro/parameter.hpp"
 #include "vibro/simulator.hpp"
+#include "vibro/taylor_simulator.hpp"
 
 #include <optional>
 #include <string>
@@ -156,11 +177,30 @@ struct TangentMap {
 
 /// Runs the dense engine (Simulator with `solver`) from (t0, x0, v0) to t1 and returns the
 /// tangent map. Throws InvalidInput as Simulator::run does (bad sizes, an inadmissible start)
-/// and for a parameter derivative of the wrong size. Compliant stops (stops.hpp) are refused
-/// with InvalidInput: their engaged flows and switch saltations are not derived here, so
-/// shooting, continuation and Lyapunov exponents (all built on this map) refuse them too.
+/// and for a parameter derivative of the wrong size. Compliant stops (stops.hpp) are taken
+/// as above: each mode's generator carries the engaged stops' k_s and c_s along their normals
+/// and their preloads, each switch its saltation. A parameter derivative moves the data D of
+/// parameter.hpp (the compliant stops' positions and motion with it, through k_s s(t) + c_s s'(t)
+/// in the engaged forcing); k_s, c_s and F_p are not among D.
 TangentMap linearise(const ImpactSystem& system, const SimulatorOptions& solver, double t0,
                      const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
+                     const LinearisationOptions& options = {});
+
+/// The same map on the Taylor engine (taylor_simulator.hpp): `system` with the nonlinear forces
+/// F(x, v, t) added. Between events the tangent map of a segment comes from the variational
+/// equations Φ' = (∂f/∂z) Φ, integrated by the Taylor core's forward-mode differentiation of the
+/// same series (taylor_step.hpp) from the engine's state at the segment's start to its end, so it
+/// is the derivative of the flow to the series' tolerance (rounding by default). At an impact the
+/// saltation matrix is the one above, S = R_z + (f⁺ − R_z f⁻ − R_t) h_zᵀ / ḣ⁻, with the reset R
+/// of the linear engines (the Newton law depends on M, the normals and the restitutions, not on
+/// the forces) and the vector fields f∓ = (v, a_lin + M⁻¹F) of the nonlinear system.
+///
+/// Supported: impacts in free flight (single and simultaneous). Refused with InvalidInput (not
+/// derived for nonlinear forces): a stop held (sticking, a chatter caught by its rule) anywhere
+/// along the run, a parameter derivative (`options.parameter`), `options.features`, compliant
+/// stops. Throws as TaylorSimulator does for bad forces.
+TangentMap linearise(const ImpactSystem& system, const NonlinearForces& forces, const SimulatorOptions& solver,
+                     double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
                      const LinearisationOptions& options = {});
 
 }  // namespace vibro

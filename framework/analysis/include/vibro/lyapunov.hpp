@@ -71,6 +71,14 @@ LyapunovResult lyapunov_spectrum(const ImpactSystem& system, const SimulatorOpti
                                  const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                                  const LyapunovOptions& options = {});
 
+/// The same on the Taylor engine: `system` with the nonlinear `forces` (taylor_simulator.hpp), the
+/// frame carried by the variational equations and the saltation matrices of linearisation.hpp.
+/// A stop held along the run (sticking, a chatter caught by its rule) is refused with
+/// InvalidInput (its tangent map is not derived for nonlinear forces).
+LyapunovResult lyapunov_spectrum(const ImpactSystem& system, const NonlinearForces& forces,
+                                 const SimulatorOptions& solver, double t0, const Eigen::VectorXd& x0,
+                                 const Eigen::VectorXd& v0, const LyapunovOptions& options = {});
+
 /// The same on the modal engine (long chains): the frame is carried by the matrix-free tangent
 /// map of modal_tangent.hpp in the free chain's modal coordinates (O(N p) per free flight and
 /// free-flight impact instead of O(N² p)). Exponents do not depend on the (fixed) coordinates

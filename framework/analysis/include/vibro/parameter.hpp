@@ -47,6 +47,9 @@ struct SystemDerivative {
   double frequency = 0.0;  ///< dΩ/dp
   /// One per stop, in the system's order; empty means zero for every stop.
   std::vector<StopDerivative> stops;
+  /// d/dp of the named parameters of the nonlinear forces (the Taylor engine's
+  /// NonlinearForces::parameters, in their order); empty means zero. Linear scenes have none.
+  Eigen::VectorXd force_parameters;
 
   /// d/dΩ: only the frequency moves (the forcing period, moving stops' motion, the oscillator).
   static SystemDerivative frequency_only();

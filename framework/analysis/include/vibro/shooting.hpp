@@ -118,6 +118,14 @@ ShootingResult shoot(const ImpactSystem& system, const ShootingOptions& options,
                      const Eigen::VectorXd& x, const Eigen::VectorXd& v,
                      const LinearisationOptions& options_map = {});
 
+/// Newton shooting on the Taylor engine: `system` with the nonlinear forces F(x, v, t), maps and
+/// Jacobians from linearise(system, forces, …) (linearisation.hpp). The same procedure, section
+/// choice, trust region and multipliers as above. Orbits with impacts in free flight only: a
+/// stop held along an iterate's period makes that map fail (InvalidInput, reported as the
+/// iterate's failure). `options_map` may not ask for a parameter derivative or features.
+ShootingResult shoot(const ImpactSystem& system, const NonlinearForces& forces, const ShootingOptions& options,
+                     double t_guess, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
+                     const LinearisationOptions& options_map = {});
 /// Newton–Krylov shooting on the modal engine (long chains; see KrylovOptions): the same
 /// procedure, section choice, trust region and reports as above, with the Newton steps solved by
 /// GMRES (a step whose solve does not reach its tolerance ends the shooting as `singular`, with

@@ -88,8 +88,9 @@ SystemDerivative difference(const Data& plus, const Data& minus, double h) {
 /// How a path enters the system: the frequency, a stop's phase (closed forms), or affinely
 /// with a constant derivative.
 struct Entry {
-  enum class Kind { frequency, phase, affine } kind = Kind::affine;
+  enum class Kind { frequency, phase, affine, force_parameter } kind = Kind::affine;
   int stop = -1;
+  std::string name;  // force_parameter: the name in `parameters`
   SystemDerivative affine;
 };
 
@@ -110,11 +111,27 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
     e.stop = std::stoi(m[1].str());
     return e;
   }
+  // A named parameter of the nonlinear forces: it moves only the forces (the Taylor engine's
+  // variational equations take its derivative, SystemDerivative::force_parameters).
+  static const std::regex named(R"(parameters\.([A-Za-z_][A-Za-z0-9_]*))");
+  if (std::regex_match(path, m, named)) {
+    e.kind = Entry::Kind::force_parameter;
+    e.name = m[1].str();
+    if (doc.build_point().forces.forces.empty())
+      refuse(doc, path, "is a parameter of the nonlinear forces, and this scene has none: it moves nothing");
+    return e;
+  }
   static const std::regex normal(R"(stops\[(\d+)\]\.normal\[(\d+)\])");
   if (std::regex_match(path, m, normal))
     refuse(doc, path,
            "a stop's normal is not a continuation parameter (the derivatives follow a stop's position, "
            "amplitude, phase and restitution); continue in one of those, or sweep the normal (run.kind: sweep)");
+  static const std::regex law(R"(stops\[(\d+)\]\.(stiffness|damping|preload))");
+  if (std::regex_match(path, m, law))
+    refuse(doc, path,
+           "a compliant stop's stiffness, damping and preload are not continuation parameters (the derivatives "
+           "follow the model, the forcing and a stop's position, amplitude, phase and restitution); continue in "
+           "one of those, or sweep it (run.kind: sweep)");
   const double p = doc.get(path);
   const Data d0 = data_of(doc.build_point());
   // The largest step that keeps the scene valid on both sides: affine data make the central
@@ -191,6 +208,14 @@ SystemDerivative derivative_at(const Entry& e, const Scene& s) {
       return d;
     }
     case Entry::Kind::affine: return e.affine;
+    case Entry::Kind::force_parameter: {
+      SystemDerivative d;
+      const auto& params = s.forces.parameters;
+      d.force_parameters = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(params.size()));
+      for (std::size_t j = 0; j < params.size(); ++j)
+        if (params[j].first == e.name) d.force_parameters(static_cast<Eigen::Index>(j)) = 1.0;
+      return d;
+    }
   }
   return {};
 }
@@ -202,6 +227,7 @@ std::unique_ptr<FamilyEngine> engine_at(const Scene& s, EngineKind engine, Syste
     if (!s.chain) throw InvalidInput("the chain's damping is not proportional at this value (modal engine)");
     return modal_family_engine(*s.chain, s.stops, std::move(d), modal_options(solver));
   }
+  if (engine == EngineKind::taylor) return taylor_family_engine(s.impact_system(), s.forces, std::move(d), solver);
   return dense_family_engine(s.impact_system(), std::move(d), solver);
 }
 
@@ -400,6 +426,35 @@ void write_curves(ResultFile& file, const std::vector<Curve>& curves, const std:
                    {{"p1", p1}, {"p2", p2}});
 }
 
+/// /codim2: the codimension-two points of the curves, one row each (docs/results.md).
+void write_codim_two(ResultFile& file, const std::vector<Curve>& curves, const std::string& p1, const std::string& p2) {
+  std::vector<std::int64_t> id, kind, stop, after, located;
+  std::vector<double> a, b, width, value;
+  std::vector<std::string> notes;
+  for (std::size_t c = 0; c < curves.size(); ++c)
+    for (const CodimTwoPoint& q : curves[c].special) {
+      id.push_back(static_cast<std::int64_t>(c));
+      kind.push_back(static_cast<std::int64_t>(q.kind));
+      stop.push_back(q.stop);
+      after.push_back(q.after);
+      located.push_back(q.located ? 1 : 0);
+      a.push_back(q.p1);
+      b.push_back(q.p2);
+      width.push_back(q.width);
+      value.push_back(std::isfinite(q.value) ? q.value : 0.0);
+      notes.push_back(q.note);
+    }
+  const std::size_t rows = id.size();
+  Dataset kinds = integers("kind", kind);
+  kinds.labels.emplace_back("names", codim_two_kind_names());
+  Dataset curve = integers("curve", id);
+  if (rows > 0) curve.labels.emplace_back("notes", notes);
+  file.write_group("codim2", {curve, kinds, integers("stop", stop), integers("after", after), reals("p1", a, {rows}),
+                              reals("p2", b, {rows}), integers("located", located), reals("width", width, {rows}),
+                              reals("value", value, {rows})},
+                   {{"p1", p1}, {"p2", p2}});
+}
+
 }  // namespace
 
 SystemDerivative parameter_derivative(const SceneDocument& doc, const std::string& path) {
@@ -424,6 +479,45 @@ ContinuationFamily continuation_family(const SceneDocument& doc, const std::stri
   };
 }
 
+/// /impact_map of a continuation (record.impact_map; docs/results.md): each branch point's orbit
+/// run once over its period kT from its section state, with the impacts of that run and the
+/// point's row of /branch. An orbit whose run stops early (or an interrupted run) has no rows.
+void write_impact_map(ResultFile& file, const SceneDocument& doc, const Scene& scene, const std::string& path,
+                      const ContinuationResult& result, const RunRequest& request) {
+  std::vector<double> t, phase, velocity;
+  std::vector<std::int64_t> stop, point;
+  std::vector<Eigen::VectorXd> x, v;
+  SceneDocument at(doc);
+  std::int64_t row = 0;
+  for (const Branch& b : result.branches)
+    for (const BranchPoint& q : b.points) {
+      if (request.interrupt && request.interrupt->load()) break;
+      at.set(path, q.p);
+      Scene built = at.build_point();
+      built.solver.interrupt = request.interrupt;
+      ImpactMap map;
+      const RunSummary s = make_engine(built)->run(q.t0, q.x, q.v, q.t0 + q.k * built.period(), {&map});
+      if (s.status == RunStatus::completed) {
+        t.insert(t.end(), map.t.begin(), map.t.end());
+        phase.insert(phase.end(), map.phase.begin(), map.phase.end());
+        velocity.insert(velocity.end(), map.velocity.begin(), map.velocity.end());
+        stop.insert(stop.end(), map.stop.begin(), map.stop.end());
+        x.insert(x.end(), map.x.begin(), map.x.end());
+        v.insert(v.end(), map.v.begin(), map.v.end());
+        point.insert(point.end(), map.t.size(), row);
+      }
+      ++row;
+    }
+  std::vector<std::string> names;
+  for (const Stop& st : scene.stops) names.push_back(st.name);
+  const std::size_t r = t.size(), n = static_cast<std::size_t>(scene.dof());
+  Dataset stops = integers("stop", stop, {r}, Dataset::Type::i32);
+  stops.labels.emplace_back("stops", names);
+  file.write_group("impact_map", {reals("t", t, {r}), std::move(stops), reals("phase", phase, {r}),
+                                  reals("velocity", velocity, {r}), table("x", x, n), table("v", v, n),
+                                  integers("point", point)});
+}
+
 RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const RunRequest& request) {
   const auto wall_start = std::chrono::steady_clock::now();
   const ContinueSpec& spec = scene.run.continuation;
@@ -446,6 +540,7 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   o.max_doublings = spec.max_doublings;
   o.max_branches = spec.max_branches;
   o.max_total_points = spec.max_total_points;
+  o.switch_at_start = spec.switch_at_start;
   o.solver = scene.solver;
   o.solver.interrupt = request.interrupt;
   const ContinuationFamily family = continuation_family(doc, spec.path, scene.engine, o.solver);
@@ -474,13 +569,19 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   std::vector<Curve> curves;
   if (!spec.curve_path.empty()) {
     const Entry e1 = classify(doc, spec.path), e2 = classify(doc, spec.curve_path);
+    // A point the scene rejects (a corrector's step can reach Ω < 0) is no system there, as in
+    // continuation_family: InvalidInput, which the line's continuation takes as no orbit.
     const PlaneContinuationFamily plane = [&doc, &spec, &o, e1, e2, engine = scene.engine](double a, double b) {
-      SceneDocument point(doc);
-      point.set(spec.path, a);
-      point.set(spec.curve_path, b);
-      const Scene s = point.build_point();
-      SystemDerivative d1 = derivative_at(e1, s);
-      return PlaneEngine{engine_at(s, engine, d1, o.solver), d1, derivative_at(e2, s)};
+      try {
+        SceneDocument point(doc);
+        point.set(spec.path, a);
+        point.set(spec.curve_path, b);
+        const Scene s = point.build_point();
+        SystemDerivative d1 = derivative_at(e1, s);
+        return PlaneEngine{engine_at(s, engine, d1, o.solver), d1, derivative_at(e2, s)};
+      } catch (const SceneError& e) {
+        throw InvalidInput(e.what());
+      }
     };
     CurveOptions co;
     co.p1_min = spec.p_min;
@@ -500,13 +601,22 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
         std::fprintf(stderr, "  curve of the %s at %s = %.10f (stop %d), %s: %zu points (%s)\n", kind.c_str(),
                      spec.path.c_str(), b.p, b.stop, dir > 0 ? "up" : "down", curves.back().points.size(),
                      curves.back().end.c_str());
+        for (const CodimTwoPoint& q : curves.back().special)
+          std::fprintf(stderr, "    %s at %s = %.10f, %s = %.10f%s%s%s\n", to_string(q.kind), spec.path.c_str(), q.p1,
+                       spec.curve_path.c_str(), q.p2, q.located ? "" : " (not located)", q.note.empty() ? "" : ": ",
+                       q.note.c_str());
       }
     }
   }
 
   write_branches(file, result, n, m, spec.path);
   write_bifurcations(file, result, n);
+  if (scene.record.impact_map) write_impact_map(file, doc, scene, spec.path, result, request);
   if (!spec.curve_path.empty()) write_curves(file, curves, spec.path, spec.curve_path);
+  // Codimension-two points exist on curves of folds, doublings and tori only.
+  bool multiplier_kinds = false;
+  for (const std::string& kind : spec.curve_kinds) multiplier_kinds |= kind != "grazing" && kind != "rising";
+  if (!spec.curve_path.empty() && multiplier_kinds) write_codim_two(file, curves, spec.path, spec.curve_path);
   const bool interrupted = request.interrupt && request.interrupt->load();
   std::size_t points = 0;
   for (const Branch& b : result.branches) points += b.points.size();
@@ -558,7 +668,7 @@ void parse_continue_section(RunSection& s) {
     ContinueSpec& c = run.continuation;
     r.expect_map(ct, "run.continue", {"path", "range", "direction", "period", "phase", "step", "min_step", "max_step",
                                       "max_points", "tolerance", "locate", "locate_tolerance", "max_doublings", "max_branches",
-                                      "max_total_points", "curve"});
+                                      "max_total_points", "curve", "switch"});
     // A continuation parameter: a number the file sets, outside `run` (and, below, one that
     // moves the system: kinds/continue.cpp checks that through the parameter's derivative).
     auto parameter = [&](const YAML::Node& node, const std::string& path) {
@@ -574,7 +684,7 @@ void parse_continue_section(RunSection& s) {
     };
     auto range = [&](const YAML::Node& node, const std::string& path, double& lo, double& hi, double value) {
       if (!node) r.fail(ct, path, "missing: [min, max], the limits of the parameter");
-      const std::vector<double> v = r.numbers(node, path, 2, "min, max");
+      const std::vector<double> v = r.numbers(node, path, 2, "min, max", false);
       if (!(v[0] < v[1])) r.fail(node, path, "expected min < max, found [" + number_text(v[0]) + ", " + number_text(v[1]) + "]");
       if (!(value >= v[0] && value <= v[1]))
         r.fail(node, path, "the scene's value " + number_text(value) + " lies outside [" + number_text(v[0]) + ", " +
@@ -608,6 +718,8 @@ void parse_continue_section(RunSection& s) {
     if (ct["max_doublings"]) c.max_doublings = static_cast<int>(r.integer(ct["max_doublings"], "run.continue.max_doublings", 0, 8));
     if (ct["max_branches"]) c.max_branches = static_cast<int>(r.integer(ct["max_branches"], "run.continue.max_branches", 1, 100000));
     if (ct["max_total_points"]) c.max_total_points = static_cast<long>(r.integer(ct["max_total_points"], "run.continue.max_total_points", 2, 100000000));
+    if (ct["switch"])  // the only switching a start can ask for (a restart at a located doubling)
+      c.switch_at_start = r.choice(ct["switch"], "run.continue.switch", {"period_doubling", "none"}) == "period_doubling";
     if (const YAML::Node cv = ct["curve"]) {
       r.expect_map(cv, "run.continue.curve", {"path", "range", "step", "max_points", "kinds"});
       c.curve_path = parameter(cv["path"], "run.continue.curve.path");
@@ -617,10 +729,12 @@ void parse_continue_section(RunSection& s) {
       if (cv["step"]) c.curve_step = r.number_in(cv["step"], "run.continue.curve.step", 1e-9, 1.0, "a step in (0, 1] (scaled)");
       if (cv["max_points"]) c.curve_max_points = static_cast<int>(r.integer(cv["max_points"], "run.continue.curve.max_points", 2, 100000));
       if (const YAML::Node k = cv["kinds"]) {
-        if (!k.IsSequence() || k.size() == 0) r.fail(k, "run.continue.curve.kinds", "expected a list of grazing and/or rising");
+        if (!k.IsSequence() || k.size() == 0)
+          r.fail(k, "run.continue.curve.kinds", "expected a list of grazing, rising, fold, period_doubling, neimark_sacker");
         c.curve_kinds.clear();
         for (std::size_t i = 0; i < k.size(); ++i)
-          c.curve_kinds.push_back(r.choice(k[i], "run.continue.curve.kinds[" + std::to_string(i) + "]", {"grazing", "rising"}));
+          c.curve_kinds.push_back(r.choice(k[i], "run.continue.curve.kinds[" + std::to_string(i) + "]",
+                                           {"grazing", "rising", "fold", "period_doubling", "neimark_sacker"}));
       }
     }
   }
@@ -639,6 +753,13 @@ void parse_continue_section(RunSection& s) {
                    "), whose continuation differentiates only along the forcing frequency, the forcing and the stops' "
                    "data (M, C and K fix its modes): set solver.engine: dense, or continue in one of those");
       }
+    if (engine == EngineKind::taylor)  // the lifted variational equation does not move M (taylor_tangent.cpp)
+      for (const ContinuationPath& c : *paths)
+        if (c.derivative.mass.size() > 0 && !c.derivative.mass.isZero(0.0))
+          r.fail(c.at, c.key,
+                 "'" + c.path + "' moves the mass matrix, and this scene runs on the Taylor engine (" + reason +
+                     "), whose continuation differentiates along Ω, the forcing, C, K, the stops' data and the "
+                     "parameters of the forces: continue in one of those");
   });
 }
 
@@ -651,7 +772,7 @@ RunKindInfo continue_kind() {
   k.summary = "branches of periodic orbits by shooting and pseudo-arclength continuation, their stability and bifurcations";
   k.section = "continue";
   k.missing = "missing: run.kind: continue needs run.continue (path and range)";
-  k.groups = {"branch", "branches", "recognised", "bifurcations", "curve"};
+  k.groups = {"branch", "branches", "recognised", "bifurcations", "curve", "codim2", "impact_map"};
   k.every_process = false;
   k.stoppable = true;
   k.parse = parse_continue_section;

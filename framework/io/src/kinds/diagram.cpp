@@ -22,6 +22,7 @@
 #include <exception>
 #include <mutex>
 #include <numeric>
+#include <optional>
 
 namespace vibro::io {
 namespace {
@@ -38,6 +39,10 @@ struct Branch {
   std::vector<std::int64_t> extra;     ///< periods run beyond the transient before the recorded ones
   std::vector<std::int64_t> verdict;   ///< Verdict
   std::string message;                 ///< why a run stopped early (empty: none did)
+  /// record.impact_map: the impacts of the recorded periods, every value in grid order (point:
+  /// the value's index in the sorted grid).
+  ImpactMap map;
+  std::vector<std::int64_t> map_point;
 };
 
 /// What the recorded points of a value are.
@@ -70,6 +75,38 @@ std::pair<std::int64_t, double> least_period(const std::vector<Eigen::VectorXd>&
     best = std::min(best, r);
   }
   return {0, best};
+}
+
+/// /impact_map of a diagram (record.impact_map; docs/results.md): the impacts of every value's
+/// recorded periods, direction after direction, each value's in time order, with the value's
+/// grid index (`point`) and the direction.
+void write_impact_map(ResultFile& file, const Scene& scene,
+                      const std::vector<std::pair<std::string, const std::vector<std::size_t>*>>& directions,
+                      const std::vector<Branch>& branches) {
+  std::vector<double> t, phase, velocity;
+  std::vector<std::int64_t> stop, point, direction;
+  std::vector<Eigen::VectorXd> x, v;
+  std::vector<std::string> names;
+  for (std::size_t d = 0; d < directions.size(); ++d) {
+    const Branch& b = branches[d];
+    t.insert(t.end(), b.map.t.begin(), b.map.t.end());
+    phase.insert(phase.end(), b.map.phase.begin(), b.map.phase.end());
+    velocity.insert(velocity.end(), b.map.velocity.begin(), b.map.velocity.end());
+    stop.insert(stop.end(), b.map.stop.begin(), b.map.stop.end());
+    x.insert(x.end(), b.map.x.begin(), b.map.x.end());
+    v.insert(v.end(), b.map.v.begin(), b.map.v.end());
+    point.insert(point.end(), b.map_point.begin(), b.map_point.end());
+    direction.insert(direction.end(), b.map.t.size(), directions[d].first == "up" ? 0 : 1);
+  }
+  for (const Stop& s : scene.stops) names.push_back(s.name);
+  const std::size_t r = t.size(), n = static_cast<std::size_t>(scene.dof());
+  Dataset stops = integers("stop", stop, {r}, Dataset::Type::i32);
+  stops.labels.emplace_back("stops", names);
+  Dataset dirs = integers("direction", direction);
+  dirs.labels.emplace_back("names", std::vector<std::string>{"up", "down"});
+  file.write_group("impact_map", {reals("t", t, {r}), std::move(stops), reals("phase", phase, {r}),
+                                  reals("velocity", velocity, {r}), detail::table("x", x, n), detail::table("v", v, n),
+                                  integers("point", point), std::move(dirs)});
 }
 
 /// Follows the attractor through the grid values `order` (indices into the sorted grid).
@@ -107,13 +144,20 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
     std::vector<Eigen::VectorXd> z;
     long impacts = 0;
     double L = 1.0, V = 1.0;
+    // The impact map of the recorded periods (record.impact_map), one block's at a time.
+    std::optional<ImpactMap> map;
+    std::vector<Observer*> observers;
     // P stroboscopic points from period `first` after t0 on (each block replaces the last).
     const auto record = [&](long first) {
       z.clear();
       impacts = 0;
+      if (scene.record.impact_map) {
+        map.emplace();
+        observers = {&*map};
+      }
       const double t1 = t0 + static_cast<double>(first) * T;
       for (std::size_t i = 1; i <= P && s.status == RunStatus::completed; ++i) {
-        s = engine->run(t1 + static_cast<double>(i - 1) * T, x, v, t1 + static_cast<double>(i) * T);
+        s = engine->run(t1 + static_cast<double>(i - 1) * T, x, v, t1 + static_cast<double>(i) * T, observers);
         x = s.x;
         v = s.v;
         impacts += s.impacts;
@@ -169,6 +213,16 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
     out.verdict[g] = k > 0 ? Verdict::periodic : converging ? Verdict::not_settled : Verdict::not_periodic;
     out.impacts[g] = static_cast<double>(impacts) / static_cast<double>(P);
     out.reached[g] = 1;
+    if (map) {
+      ImpactMap& to = out.map;
+      to.t.insert(to.t.end(), map->t.begin(), map->t.end());
+      to.phase.insert(to.phase.end(), map->phase.begin(), map->phase.end());
+      to.velocity.insert(to.velocity.end(), map->velocity.begin(), map->velocity.end());
+      to.stop.insert(to.stop.end(), map->stop.begin(), map->stop.end());
+      to.x.insert(to.x.end(), map->x.begin(), map->x.end());
+      to.v.insert(to.v.end(), map->v.begin(), map->v.end());
+      out.map_point.insert(out.map_point.end(), map->t.size(), static_cast<std::int64_t>(g));
+    }
     transient = spec.transient;
     progress.add();
   }
@@ -243,6 +297,7 @@ RunReport run_diagram(const SceneDocument& doc, const Scene& scene, const RunReq
     if (message.empty() && !b.message.empty()) message = dir + ": " + b.message;
   }
   file.write_group("diagram", datasets, {{"parameter", axis.path}, {"directions", names}});
+  if (scene.record.impact_map) write_impact_map(file, scene, directions, branches);
   const bool interrupted = request.interrupt && request.interrupt->load();
   file.set_outcome(interrupted ? "interrupted" : not_reached ? "points_stopped_early" : "completed",
                    interrupted ? "interrupted: the points after it were not reached" : message,
@@ -306,7 +361,7 @@ RunKindInfo diagram_kind() {
   k.summary = "a brute-force bifurcation diagram along one parameter, up and down";
   k.section = "diagram";
   k.missing = "missing: run.kind: diagram needs run.diagram (path and grid)";
-  k.groups = {"diagram"};
+  k.groups = {"diagram", "impact_map"};
   k.every_process = false;
   k.stoppable = true;
   k.parse = parse_diagram_section;

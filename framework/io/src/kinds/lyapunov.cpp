@@ -63,6 +63,8 @@ RunReport run_lyapunov(const SceneDocument& doc, const Scene& scene, const RunRe
     if (built.engine == EngineKind::modal) {  // matrix-free frames on the modal engine
       const std::unique_ptr<Engine> engine = make_engine(built);
       r = lyapunov_spectrum(dynamic_cast<ModalEngine&>(*engine), built.t0, x, v, options);
+    } else if (built.engine == EngineKind::taylor) {  // nonlinear forces
+      r = lyapunov_spectrum(built.impact_system(), built.forces, built.solver, built.t0, x, v, options);
     } else {
       r = lyapunov_spectrum(built.impact_system(), built.solver, built.t0, x, v, options);
     }

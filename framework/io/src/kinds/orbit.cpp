@@ -56,6 +56,8 @@ RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunR
     KrylovOptions k;
     k.multipliers = spec.multipliers;
     r = shoot(*modal, o, guess.t, guess.x, guess.v, k);
+  } else if (scene.engine == EngineKind::taylor) {
+    r = shoot(scene.impact_system(), scene.forces, o, guess.t, guess.x, guess.v);
   } else {
     r = shoot(scene.impact_system(), o, guess.t, guess.x, guess.v);
   }

@@ -100,6 +100,7 @@ struct ContinueSpec {
   int max_doublings = 3;
   int max_branches = 64;           ///< the run's budget: branches
   long max_total_points = 40000;   ///< the run's budget: points over all branches
+  bool switch_at_start = false;    ///< `switch: period_doubling`: only the doubled branch from the start
   /// run.continue.curve: a second parameter for the located grazing and rising points.
   std::string curve_path;             ///< empty: no curves
   double curve_min = 0.0, curve_max = 0.0;
@@ -235,6 +236,8 @@ struct Scene {
   /// The frictional contacts (friction.hpp), validated; empty: none. A scene with friction has no
   /// stops, runs on the dense engine's FrictionSimulator and only as run.kind simulate.
   std::vector<FrictionContact> friction;
+  /// `initial.from`: the saved orbit the scene was put on ("FILE: branch B, point I …"), else "".
+  std::string restart;
 
   /// The dense system: built (O(n²) memory, O(n³) checks) and cached on the first call.
   const LinearSystem& system() const { return dense.get(); }
@@ -259,6 +262,9 @@ inline constexpr Eigen::Index kModalAutomaticMinimumDof = 64;
 class SceneDocument {
  public:
   static SceneDocument load(const std::string& path);
+  /// Parses a scene; a scene with `initial.from` is put on the saved orbit it names (its state, the
+  /// parameter value it was computed at, and the restart's defaults: docs/scenes.md "initial"),
+  /// as edits that set() and replace() would make.
   static SceneDocument parse(const std::string& text, const std::string& file = "<string>");
   SceneDocument(const SceneDocument&);
   SceneDocument& operator=(const SceneDocument&);
@@ -286,10 +292,14 @@ class SceneDocument {
   Scene build_point() const { return build_checked(false); }
   const std::string& file() const;
   const std::string& text() const;
+  /// Where `initial.from` took the initial state from ("FILE: branch B, point I …"), or "".
+  const std::string& restart() const;
 
  private:
   SceneDocument();
   Scene build_checked(bool check_sweep) const;
+  /// The YAML tree of the text, nothing applied (copies replay the edits on it).
+  static SceneDocument parse_text(const std::string& text, const std::string& file);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -1,0 +1,338 @@
+/// The tangent map on the Taylor engine (linearisation.hpp, nonlinear forces): the engine's run
+/// observed by linearisation.cpp's recorder, with nonlinear_part.hpp filled in from the Taylor
+/// core's variational equations.
+#include "nonlinear_part.hpp"
+#include "orthonormal_frame.hpp"
+
+#include "vibro/linearisation.hpp"
+#include "vibro/taylor/guard_roots.hpp"
+#include "vibro/taylor/harmonic_series.hpp"
+#include "vibro/taylor/horner.hpp"
+#include "vibro/taylor/taylor_step.hpp"
+#include "vibro/taylor_simulator.hpp"
+
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <memory>
+#include <string>
+#include <utility>
+
+namespace vibro {
+namespace {
+
+using Eigen::Index;
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+
+/// A real number as expression text that reads back to the same double ("%.17g", parenthesised
+/// so that a sign or an exponent composes).
+std::string exact(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "(%.17g)", v);
+  return buf;
+}
+
+/// `value` moved along the direction: "(value + s*dvalue)" (exactly `value` at s = 0), or the
+/// plain number when it does not move.
+std::string moving(double value, double dvalue, const std::string& s) {
+  return dvalue == 0.0 ? exact(value) : "(" + exact(value) + " + " + s + "*" + exact(dvalue) + ")";
+}
+
+/// `text` with every identifier found in `with` replaced by its (parenthesised) value; numbers
+/// (with their exponents) and the other identifiers are copied as they are.
+std::string substitute(const std::string& text, const std::map<std::string, std::string>& with) {
+  std::string out;
+  std::size_t i = 0;
+  auto alpha = [](char c) { return std::isalpha(static_cast<unsigned char>(c)) || c == '_'; };
+  auto digit = [](char c) { return std::isdigit(static_cast<unsigned char>(c)) != 0; };
+  while (i < text.size()) {
+    const char c = text[i];
+    std::size_t j = i + 1;
+    if (alpha(c)) {
+      while (j < text.size() && (alpha(text[j]) || digit(text[j]))) ++j;
+      const std::string id = text.substr(i, j - i);
+      const auto it = with.find(id);
+      out += it == with.end() ? id : "(" + it->second + ")";
+    } else if (digit(c) || c == '.') {
+      while (j < text.size() && (digit(text[j]) || text[j] == '.')) ++j;
+      if (j < text.size() && (text[j] == 'e' || text[j] == 'E')) {
+        std::size_t k = j + 1;
+        if (k < text.size() && (text[k] == '+' || text[k] == '-')) ++k;
+        if (k < text.size() && digit(text[k])) {
+          j = k;
+          while (j < text.size() && digit(text[j])) ++j;
+        }
+      }
+      out += text.substr(i, j - i);
+    } else {
+      out += c;
+    }
+    i = j;
+  }
+  return out;
+}
+
+using taylor::harmonic_series;
+
+/// The nonlinear part from Taylor systems:
+///  * `forces_`: M and the forces only (no C, K, drive): its rate's velocity part is M⁻¹F;
+///  * `driven_`: M, C, K, the forces and the drive written as expressions of t. Its variational
+///    steps give the free flow's tangent map (the engine supplies its drive as a closed-form
+///    series instead; both are the same function, their coefficients agree to rounding);
+///  * `lifted_` (with a parameter derivative dD/dp): the same system with one more coordinate s,
+///    s' = 0, s(t0) = 0, along which every moving datum is written as D + s dD/dp — Ω, the drive's
+///    amplitudes, the named parameters of the forces, C and K (as the forces −s (dC v + dK x)).
+///    ∂z(t1)/∂s(t0) is then the parameter column of the variational equations,
+///    ζ' = (∂f/∂z) ζ + ∂f/∂p, with no other machinery. A moving M is refused (InvalidInput).
+class TaylorPart final : public detail::NonlinearPart {
+ public:
+  TaylorPart(const ImpactSystem& scene, const NonlinearForces& forces, const SystemDerivative* d)
+      : scene_(scene), n_(scene.dof()) {
+    const LinearSystem& sys = scene.system();
+    const HarmonicForcing& f = sys.forcing();
+    taylor::TaylorSystemSpec spec;
+    spec.mass = sys.mass();
+    spec.frequency = f.frequency;
+    spec.parameters = forces.parameters;
+    spec.forces = forces.forces;
+    forces_ = std::make_unique<taylor::TaylorSystem>(spec);
+    const taylor::TaylorSettings plain{.tolerance = forces.tolerance};
+    const taylor::TaylorSettings variational{.tolerance = forces.tolerance, .variational = true};
+    rate_step_ = std::make_unique<taylor::TaylorStep>(*forces_, plain);
+
+    spec.damping = sys.damping();
+    spec.stiffness = sys.stiffness();
+    spec.forces = with_drive(forces.forces, sys, nullptr, "Omega", "");
+    driven_ = std::make_unique<taylor::TaylorSystem>(spec);
+    flow_step_ = std::make_unique<taylor::TaylorStep>(*driven_, variational);
+    plain_step_ = std::make_unique<taylor::TaylorStep>(*driven_, plain);
+
+    if (d) {
+      if (d->mass.size() && !d->mass.isZero(0.0))
+        throw InvalidInput("linearisation: the parameter moves the mass matrix; with nonlinear forces the "
+                           "derivative follows Ω, the drive, C, K, the stops and the forces' parameters only");
+      if (d->force_parameters.size() != 0 && d->force_parameters.size() != static_cast<Index>(forces.parameters.size()))
+        throw InvalidInput("linearisation: the derivative has " + std::to_string(d->force_parameters.size()) +
+                           " entries for the forces' parameters, the forces have " +
+                           std::to_string(forces.parameters.size()));
+      const std::string s = "x" + std::to_string(n_);
+      std::map<std::string, std::string> with;
+      const std::string omega = d->frequency != 0.0 ? moving(f.frequency, d->frequency, s) : "Omega";
+      if (d->frequency != 0.0) with["Omega"] = omega;
+      for (std::size_t j = 0; j < forces.parameters.size(); ++j) {
+        const double dj = d->force_parameters.size() ? d->force_parameters(static_cast<Index>(j)) : 0.0;
+        if (dj != 0.0) with[forces.parameters[j].first] = moving(forces.parameters[j].second, dj, s);
+      }
+      std::vector<std::string> user(static_cast<std::size_t>(n_));
+      for (std::size_t i = 0; i < forces.forces.size(); ++i) user[i] = substitute(forces.forces[i], with);
+      taylor::TaylorSystemSpec lifted = spec;
+      const Index m = n_ + 1;
+      lifted.mass = MatrixXd::Identity(m, m);
+      lifted.mass.topLeftCorner(n_, n_) = sys.mass();
+      lifted.damping = MatrixXd::Zero(m, m);
+      lifted.damping.topLeftCorner(n_, n_) = sys.damping();
+      lifted.stiffness = MatrixXd::Zero(m, m);
+      lifted.stiffness.topLeftCorner(n_, n_) = sys.stiffness();
+      lifted.forces = with_drive(user, sys, d, omega, s);
+      lifted.forces.emplace_back();
+      lifted_ = std::make_unique<taylor::TaylorSystem>(lifted);
+      lifted_step_ = std::make_unique<taylor::TaylorStep>(*lifted_, variational);
+      lifted_z_.resize(2 * m);
+      lifted_end_.resize(2 * m);
+    }
+    z_.resize(2 * n_);
+    out_.resize(2 * n_);
+    end_.resize(2 * n_);
+  }
+
+  VectorXd acceleration(double t, const VectorXd& x, const VectorXd& v) override {
+    z_ << x, v;
+    const taylor::StepStatus s = rate_step_->rate(t, z_, out_);
+    if (s != taylor::StepStatus::ok)
+      throw InvalidInput("linearisation: the forces at t = " + number_text(t) + ": " + rate_step_->trouble());
+    return out_.tail(n_);
+  }
+
+  MatrixXd transition(double t0, const VectorXd& x, const VectorXd& v, double t1) override {
+    MatrixXd phi;
+    if (!lifted_) {
+      z_ << x, v;
+      check(taylor::advance(*flow_step_, t0, z_, t1, end_, &phi), *flow_step_, t0);
+    } else {
+      const Index m = n_ + 1;
+      lifted_z_.setZero();
+      lifted_z_.head(n_) = x;
+      lifted_z_.segment(m, n_) = v;
+      MatrixXd big;
+      check(taylor::advance(*lifted_step_, t0, lifted_z_, t1, lifted_end_, &big), *lifted_step_, t0);
+      // rows and columns of (x, v) in the lifted state, then the column of s
+      phi.resize(2 * n_, 2 * n_ + 1);
+      for (Index i = 0; i < 2 * n_; ++i) {
+        const Index r = i < n_ ? i : i + 1;
+        for (Index k = 0; k < 2 * n_; ++k) phi(i, k) = big(r, k < n_ ? k : k + 1);
+        phi(i, 2 * n_) = big(r, n_);
+      }
+    }
+    if (!phi.allFinite())
+      throw InvalidInput("linearisation: the tangent map over [" + number_text(t0) + ", " + number_text(t1) +
+                         "] is not finite");
+    return phi;
+  }
+
+  /// Interior local maxima of the gaps of `stops` over (t0, t1) of the free flow from (t0, x, v):
+  /// per Taylor step, the roots where g' = wᵀv − s'(t) falls through zero, isolated by the
+  /// certified root search (guard_roots.hpp; the bound is the polynomial's evaluation rounding
+  /// plus the step's remainder), alternating with the minima so that it moves from extremum to
+  /// extremum, as the engine finds a held stop's force minima.
+  std::vector<GapPeak> gap_peaks(double t0, const VectorXd& x, const VectorXd& v, double t1,
+                                 const std::vector<int>& stops) override {
+    std::vector<GapPeak> out;
+    if (stops.empty() || !(t1 > t0)) return out;
+    taylor::TaylorStep& step = *plain_step_;
+    const int p = step.order();
+    const auto width = static_cast<std::size_t>(p) + 1;
+    std::vector<double> g(width + 1), dg(width), shifted(width), cs(width + 1), sn(width + 1);
+    taylor::GuardRootFinder finder(p);
+    const MatrixXd W = scene_.normals();
+    const double omega = scene_.system().forcing().frequency;
+    z_ << x, v;
+    double t = t0, carry = 0.0;
+    while (true) {
+      const double remaining = (t1 - t) + carry;
+      if (!(remaining > 0.0)) break;
+      check(step.expand(t, z_), step, t);
+      const double h = std::min(step.step_size(), remaining);
+      harmonic_series(omega, t, p, cs.data(), sn.data());
+      for (int j : stops) {
+        const Stop& st = scene_.stops()[static_cast<std::size_t>(j)];
+        for (int k = 0; k <= p; ++k) {
+          double s = 0.0;
+          for (Index l = 0; l < n_; ++l)
+            if (W(l, j) != 0.0) s += W(l, j) * step.state_coefficients(static_cast<int>(l))[k];
+          const auto kk = static_cast<std::size_t>(k);
+          g[kk] = s - ((k == 0 ? st.s0() : 0.0) + st.s_cos() * cs[kk] + st.s_sin() * sn[kk]);
+        }
+        for (int k = 0; k < p; ++k) dg[static_cast<std::size_t>(k)] = (k + 1) * g[static_cast<std::size_t>(k) + 1];
+        dg[static_cast<std::size_t>(p)] = 0.0;
+        const double tail = step.remainder(dg.data(), h);
+        double lo = 0.0;
+        double sign = taylor::horner_compensated(dg.data(), p, 0.0) > 0.0 ? -1.0 : 1.0;  // a maximum first where g' > 0
+        for (int guard = 0; guard < 4 * p && lo < h; ++guard) {
+          for (std::size_t k = 0; k < width; ++k) shifted[k] = sign * dg[k];
+          for (int i = 0; i < p; ++i)
+            for (int k = p - 1; k >= i; --k) shifted[static_cast<std::size_t>(k)] += lo * shifted[static_cast<std::size_t>(k) + 1];
+          double abs_sum = 0.0, power = 1.0;
+          for (std::size_t k = 0; k < width; ++k, power *= h - lo) abs_sum += std::abs(shifted[k]) * power;
+          const double delta = 8.0 * (p + 1) * std::numeric_limits<double>::epsilon() * abs_sum + tail;
+          const taylor::GuardCrossing c = finder.first_crossing(shifted.data(), p, h - lo, 0.0, delta);
+          if (c.kind == taylor::CrossingKind::none) break;
+          const double at = lo + (c.kind == taylor::CrossingKind::crossing ? c.tau : c.upper);
+          if (c.kind == taylor::CrossingKind::crossing && sign < 0.0 && at > 0.0 && at < h)
+            out.push_back({j, t + at, taylor::horner_compensated(g.data(), p, at)});
+          if (c.kind == taylor::CrossingKind::crossing) sign = -sign;
+          lo = std::max(at, lo) + 4.0 * std::numeric_limits<double>::epsilon() * std::max(h, 1.0);
+        }
+      }
+      step.state(h, z_);
+      const double y = h - carry;
+      const double sum = t + y;
+      carry = (sum - t) - y;
+      t = sum;
+    }
+    return out;
+  }
+
+ private:
+  /// The forces of each coordinate with the drive f_i(t) added as expressions; along a
+  /// derivative d (lifted system, coordinate s), every amplitude moves and C, K enter as forces.
+  std::vector<std::string> with_drive(const std::vector<std::string>& user, const LinearSystem& sys,
+                                      const SystemDerivative* d, const std::string& omega, const std::string& s) const {
+    const HarmonicForcing& f = sys.forcing();
+    std::vector<std::string> out(static_cast<std::size_t>(n_));
+    for (Index i = 0; i < n_; ++i) {
+      std::string text = static_cast<std::size_t>(i) < user.size() ? user[static_cast<std::size_t>(i)] : "";
+      if (!text.empty()) text = "(" + text + ")";
+      auto term = [&](double c, double dc, const std::string& factor) {
+        if (c == 0.0 && dc == 0.0) return;
+        if (!text.empty()) text += " + ";
+        text += moving(c, dc, s) + factor;
+      };
+      auto at = [&](const Eigen::VectorXd& a) { return a.size() ? a(i) : 0.0; };
+      auto dat = [&](const Eigen::VectorXd& a) { return d && a.size() ? a(i) : 0.0; };
+      term(at(f.constant), d ? dat(d->constant) : 0.0, "");
+      term(at(f.cosine), d ? dat(d->cosine) : 0.0, "*cos(" + omega + "*t)");
+      term(at(f.sine), d ? dat(d->sine) : 0.0, "*sin(" + omega + "*t)");
+      for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+        const ForcingHarmonic& fh = f.harmonics[h];
+        const std::string arg = "(" + std::to_string(fh.order) + "*" + omega + "*t)";
+        const double dc = d && h < d->harmonic_cosine.size() ? dat(d->harmonic_cosine[h]) : 0.0;
+        const double ds = d && h < d->harmonic_sine.size() ? dat(d->harmonic_sine[h]) : 0.0;
+        term(at(fh.cosine), dc, "*cos" + arg);
+        term(at(fh.sine), ds, "*sin" + arg);
+      }
+      if (d) {  // −s (dC v + dK x)_i
+        std::string lin;
+        for (Index j = 0; j < n_; ++j) {
+          const double dk = d->stiffness.size() ? d->stiffness(i, j) : 0.0;
+          const double dcv = d->damping.size() ? d->damping(i, j) : 0.0;
+          if (dk != 0.0) lin += (lin.empty() ? "" : " + ") + exact(dk) + "*x" + std::to_string(j);
+          if (dcv != 0.0) lin += (lin.empty() ? "" : " + ") + exact(dcv) + "*v" + std::to_string(j);
+        }
+        if (!lin.empty()) text += (text.empty() ? "-" : " - ") + s + "*(" + lin + ")";
+      }
+      out[static_cast<std::size_t>(i)] = text;
+    }
+    return out;
+  }
+
+  static void check(taylor::StepStatus status, const taylor::TaylorStep& step, double t0) {
+    if (status != taylor::StepStatus::ok)
+      throw InvalidInput("linearisation: the Taylor steps from t = " + number_text(t0) + ": " + step.trouble());
+  }
+
+  const ImpactSystem& scene_;
+  Index n_;
+  std::unique_ptr<taylor::TaylorSystem> forces_, driven_, lifted_;
+  std::unique_ptr<taylor::TaylorStep> rate_step_, flow_step_, plain_step_, lifted_step_;
+  VectorXd z_, out_, end_, lifted_z_, lifted_end_;
+};
+
+}  // namespace
+
+TangentMap linearise(const ImpactSystem& system, const NonlinearForces& forces, const SimulatorOptions& solver,
+                     double t0, const VectorXd& x0, const VectorXd& v0, double t1,
+                     const LinearisationOptions& options) {
+  if (options.parameter) options.parameter->validate(system.dof(), system.stop_count());
+  TaylorSimulator sim(system, forces, solver);
+  TaylorPart part(system, forces, options.parameter ? &*options.parameter : nullptr);
+  return detail::linearise_nonlinear(
+      system, solver, part, [&](const std::vector<Observer*>& observers) { return sim.run(t0, x0, v0, t1, observers); },
+      t0, x0, v0, options);
+}
+
+namespace detail {
+
+CarriedFrame carry_orthonormal_frame(const ImpactSystem& system, const NonlinearForces& forces,
+                                     const SimulatorOptions& solver, double t0, const VectorXd& x0,
+                                     const VectorXd& v0, double t1, const MatrixXd& directions) {
+  if (directions.rows() != 2 * system.dof() || directions.cols() == 0)
+    throw InvalidInput("linearisation: directions have " + std::to_string(directions.rows()) +
+                       " rows, expected 2n = " + std::to_string(2 * system.dof()));
+  LinearisationOptions options;
+  options.jacobian = false;
+  options.directions = directions;
+  TaylorSimulator sim(system, forces, solver);
+  TaylorPart part(system, forces, nullptr);
+  CarriedFrame frame;
+  frame.map = linearise_nonlinear(
+      system, solver, part, [&](const std::vector<Observer*>& observers) { return sim.run(t0, x0, v0, t1, observers); },
+      t0, x0, v0, options, &frame.log_growth);
+  return frame;
+}
+
+}  // namespace detail
+
+}  // namespace vibro

@@ -1,0 +1,397 @@
+// The analysis layer on the Taylor engine (nonlinear forces): tangent maps from the variational
+// equations and the saltation matrices of the nonlinear field (vibro/linearisation.hpp), shooting
+// and Floquet multipliers, continuation with its bifurcations.
+#include "vibro/continuation.hpp"
+#include "vibro/family_engine.hpp"
+#include "vibro/io/kinds/continue.hpp"
+#include "vibro/io/scene.hpp"
+#include "vibro/linearisation.hpp"
+#include "vibro/lyapunov.hpp"
+#include "vibro/shooting.hpp"
+#include "vibro/taylor_simulator.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace {
+
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+
+/// x'' + 0.05 x' + x + β x³ = 0.8 cos Ω t, a rigid stop at x = 0.6 with r = 0.8
+/// (experiments/examples/duffing_impact.yaml).
+std::string duffing(double omega, double beta = 0.5, const std::string& extra = "") {
+  return "model:\n  chain:\n    masses: [1]\n    left_wall: {spring: 1, damper: 0.05}\n"
+         "forcing:\n  frequency: " + std::to_string(omega) + "\n  cosine: [0.8]\n"
+         "stops:\n  - {mass: 0, side: upper, position: 0.6, restitution: 0.8, name: stop}\n"
+         "parameters: {beta: " + std::to_string(beta) + "}\n"
+         "forces:\n  - {cubic_spring: {mass: 0, coefficient: beta}}\n"
+         "initial: {x: [0], v: [0]}\n" + extra;
+}
+
+VectorXd stacked(const VectorXd& x, const VectorXd& v) {
+  VectorXd z(x.size() + v.size());
+  z << x, v;
+  return z;
+}
+
+/// A converged period-k orbit from the state after `periods` forcing periods from rest.
+vibro::ShootingResult orbit(const vibro::ImpactSystem& sys, const vibro::NonlinearForces& f,
+                            const vibro::SimulatorOptions& solver, double T, int k = 1, int periods = 60) {
+  vibro::TaylorSimulator sim(sys, f, solver);
+  const vibro::RunSummary warm = sim.run(0.0, VectorXd::Zero(sys.dof()), VectorXd::Zero(sys.dof()), periods * T);
+  REQUIRE(warm.status == vibro::RunStatus::completed);
+  vibro::ShootingOptions o;
+  o.solver = solver;
+  o.period = k;
+  vibro::ShootingResult r = vibro::shoot(sys, f, o, warm.t, warm.x, warm.v);
+  INFO(r.message);
+  REQUIRE(r.converged());
+  return r;
+}
+
+// Where the branch of duffing() has its fold (from the continuation's exploration; the test
+// locates it itself and checks it by runs).
+constexpr double kFoldStart = 1.3;
+constexpr double kFoldRange[2] = {0.8, 1.4};
+constexpr double kFoldDelta = 2e-3;
+constexpr int kFoldPeriods = 400;
+constexpr int kDoublingPeriods = 1500;
+
+}  // namespace
+
+// The map's Jacobian against central differences of the period map itself (plain runs of the
+// Taylor engine from perturbed states), on the period-1 impacting orbit of the Duffing impact
+// oscillator. Every perturbed run keeps the orbit's impacts (checked), so P is smooth there. A
+// central difference with step h errs by h² |P'''|/6 (truncation) plus ε_run/h (the runs' own
+// rounding, ε_run ~ 1e-14 of the scales after a period with an impact): with h = 1e-5 of the
+// scales both are ~1e-9 to 1e-10, so 1e-7 of the Jacobian's size is a safe bound that a wrong
+// saltation matrix (an O(1) error in a term) or a wrong flow Jacobian cannot meet.
+TEST_CASE("Taylor engine: the period map's Jacobian and multipliers against central differences", "[taylor][analysis]") {
+  const vibro::io::Scene scene = vibro::io::SceneDocument::parse(duffing(1.3)).build();
+  const vibro::ImpactSystem sys = scene.impact_system();
+  const double T = scene.period();
+  const vibro::ShootingResult r = orbit(sys, scene.forces, scene.solver, T);
+  const vibro::TangentMap& m = r.map;
+  REQUIRE(m.summary.impacts > 0);
+  const double L = m.summary.length_scale, V = m.summary.velocity_scale;
+  const VectorXd z0 = stacked(r.x, r.v);
+  const double t1 = r.t0 + r.k * T;
+  auto P = [&](const VectorXd& z, long* impacts) {
+    vibro::TaylorSimulator sim(sys, scene.forces, scene.solver);
+    const vibro::RunSummary s = sim.run(r.t0, z.head(1), z.tail(1), t1);
+    REQUIRE(s.status == vibro::RunStatus::completed);
+    *impacts = s.impacts;
+    return stacked(s.x, s.v);
+  };
+  MatrixXd fd(2, 2);
+  for (int i = 0; i < 2; ++i) {
+    const double h = 1e-5 * (i == 0 ? L : V);
+    VectorXd zp = z0, zm = z0;
+    zp(i) += h;
+    zm(i) -= h;
+    long ip = 0, im = 0;
+    fd.col(i) = (P(zp, &ip) - P(zm, &im)) / (2.0 * h);
+    CHECK(ip == m.summary.impacts);
+    CHECK(im == m.summary.impacts);
+  }
+  const double size = std::max(1.0, m.jacobian.cwiseAbs().maxCoeff());
+  const double error = (m.jacobian - fd).cwiseAbs().maxCoeff() / size;
+  INFO("J = " << m.jacobian << "\nFD = " << fd << "\nrelative difference " << error);
+  CHECK(error < 1e-7);
+  const Eigen::VectorXcd mu = fd.eigenvalues();
+  for (int i = 0; i < 2; ++i) {  // each multiplier of the differences has one of the map's beside it
+    double nearest = 1e300;
+    for (int k = 0; k < 2; ++k) nearest = std::min(nearest, std::abs(mu(i) - r.multipliers.values(k)));
+    CHECK(nearest < 1e-7 * size);
+  }
+  WARN("Duffing impact oscillator, Ω = 1.3: |J − J_fd| / max(1, |J|) = " << error << ", multipliers "
+       << r.multipliers.values.transpose());
+}
+
+// The parameter column ∂P/∂p at fixed t0, t1 (the lifted variational equation of
+// taylor_tangent.cpp) against central differences of runs at p ± h, for Ω (the drive moves) and
+// for β (a named parameter of the forces). Same error budget as above.
+TEST_CASE("Taylor engine: the map's derivative in Ω and in a parameter of the forces against central differences",
+          "[taylor][analysis]") {
+  const vibro::io::Scene scene = vibro::io::SceneDocument::parse(duffing(1.3)).build();
+  const double T = scene.period();
+  const vibro::ShootingResult r = orbit(scene.impact_system(), scene.forces, scene.solver, T);
+  const double t1 = r.t0 + T;
+  struct Case {
+    std::string path;
+    double value;
+  };
+  for (const Case& c : {Case{"forcing.frequency", 1.3}, Case{"parameters.beta", 0.5}}) {
+    const vibro::io::SceneDocument doc = vibro::io::SceneDocument::parse(duffing(1.3));
+    vibro::LinearisationOptions o;
+    o.parameter = vibro::io::parameter_derivative(doc, c.path);
+    const vibro::TangentMap m =
+        vibro::linearise(scene.impact_system(), scene.forces, scene.solver, r.t0, r.x, r.v, t1, o);
+    REQUIRE(m.summary.status == vibro::RunStatus::completed);
+    auto run_at = [&](double p) {
+      vibro::io::SceneDocument d(doc);
+      d.set(c.path, p);
+      const vibro::io::Scene s = d.build_point();
+      const vibro::ImpactSystem sys = s.impact_system();
+      vibro::TaylorSimulator sim(sys, s.forces, s.solver);
+      const vibro::RunSummary e = sim.run(r.t0, r.x, r.v, t1);
+      REQUIRE(e.status == vibro::RunStatus::completed);
+      REQUIRE(e.impacts == m.summary.impacts);
+      return stacked(e.x, e.v);
+    };
+    const double h = 1e-5 * c.value;
+    const VectorXd fd = (run_at(c.value + h) - run_at(c.value - h)) / (2.0 * h);
+    const double size = std::max(1.0, m.parameter.cwiseAbs().maxCoeff());
+    const double error = (m.parameter - fd).cwiseAbs().maxCoeff() / size;
+    INFO(c.path << ": analytic " << m.parameter.transpose() << ", central differences " << fd.transpose());
+    CHECK(error < 1e-7);
+    WARN("d/d " << c.path << ": relative difference " << error);
+  }
+}
+
+// A linear scene (no forces) run through the Taylor engine: its tangent map (variational
+// equations of the Taylor core, saltation from the same reset) against the dense engine's exact
+// one (matrix exponentials), on the same orbit. Both are exact to rounding; the orbits agree to
+// ~1e-13 of the scales (tests/taylor/test_taylor_engine.cpp), so J and the multipliers agree to
+// ~1e-12 relative; 1e-10 leaves room without admitting a wrong term.
+TEST_CASE("Taylor engine: multipliers of a linear scene equal the dense engine's", "[taylor][analysis]") {
+  const std::string text =
+      "model:\n  chain:\n    masses: [1]\n    left_wall: {spring: 1, damper: 0.05}\n"
+      "forcing:\n  frequency: 1.3\n  cosine: [0.8]\n"
+      "stops:\n  - {mass: 0, side: upper, position: 0.6, restitution: 0.8, name: stop}\n"
+      "initial: {x: [0], v: [0]}\n";
+  const vibro::io::Scene scene = vibro::io::SceneDocument::parse(text).build();
+  const vibro::ImpactSystem sys = scene.impact_system();
+  const double T = scene.period();
+  const vibro::ShootingResult taylor = orbit(sys, {}, scene.solver, T);
+  vibro::ShootingOptions o;
+  o.solver = scene.solver;
+  o.phase = taylor.phase;  // the same section
+  o.free_section = false;
+  const vibro::ShootingResult dense = vibro::shoot(sys, o, taylor.t0, taylor.x, taylor.v);
+  REQUIRE(dense.converged());
+  REQUIRE(taylor.map.summary.impacts > 0);
+  REQUIRE(std::abs(dense.t0 - taylor.t0) < 1e-12 * T);
+  const double size = std::max(1.0, dense.map.jacobian.cwiseAbs().maxCoeff());
+  const double dj = (dense.map.jacobian - taylor.map.jacobian).cwiseAbs().maxCoeff() / size;
+  const double dmu = (dense.multipliers.values - taylor.multipliers.values).cwiseAbs().maxCoeff();
+  CHECK(dj < 1e-10);
+  CHECK(dmu < 1e-10);
+  WARN("linear scene: |J_taylor − J_dense| / max(1, |J|) = " << dj << ", multipliers differ by " << dmu);
+}
+
+// Lyapunov exponents (the orthonormal frame carried by the variational equations, re-orthonormalised
+// at every impact) of the same linear scene on both engines, over 40 periods after 40 of
+// transient and 10 of alignment on its stable impacting orbit: each period's growth agrees to ~1e-12 relative (the
+// maps' agreement above), so the averaged exponents agree to ~1e-12/T; held to 1e-10.
+TEST_CASE("Taylor engine: Lyapunov exponents of a linear scene equal the dense engine's", "[taylor][analysis]") {
+  const std::string text =
+      "model:\n  chain:\n    masses: [1]\n    left_wall: {spring: 1, damper: 0.05}\n"
+      "forcing:\n  frequency: 1.3\n  cosine: [0.8]\n"
+      "stops:\n  - {mass: 0, side: upper, position: 0.6, restitution: 0.8, name: stop}\n"
+      "initial: {x: [0], v: [0]}\n";
+  const vibro::io::Scene scene = vibro::io::SceneDocument::parse(text).build();
+  const vibro::ImpactSystem sys = scene.impact_system();
+  vibro::LyapunovOptions o;
+  o.transient = 40;
+  o.align = 10;
+  o.periods = 40;
+  const vibro::LyapunovResult dense = vibro::lyapunov_spectrum(sys, scene.solver, 0.0, scene.x0, scene.v0, o);
+  const vibro::LyapunovResult taylor = vibro::lyapunov_spectrum(sys, {}, scene.solver, 0.0, scene.x0, scene.v0, o);
+  REQUIRE(dense.status == vibro::RunStatus::completed);
+  REQUIRE(taylor.status == vibro::RunStatus::completed);
+  const double d = (dense.exponents - taylor.exponents).cwiseAbs().maxCoeff();
+  INFO("dense " << dense.exponents.transpose() << ", Taylor " << taylor.exponents.transpose());
+  CHECK(d < 1e-10);
+  WARN("Lyapunov exponents, linear scene: engines differ by " << d);
+}
+
+// Continuation in Ω of the Duffing impact oscillator's branch (the Taylor engine's maps and their
+// derivative in Ω) locates a fold; two long runs on either side of it, started on the branch's
+// stable orbit next to the fold, bracket it independently: on the branch's side (δ inside) the
+// run stays on the orbit; beyond it (δ outside) there is no orbit to stay on and the run leaves
+// for another attractor, O(1) away. The located Ω is thereby confirmed to within δ.
+TEST_CASE("Taylor engine: a fold of the Duffing impact oscillator's branch, located and bracketed by runs",
+          "[taylor][analysis]") {
+  const double omega0 = kFoldStart;
+  const vibro::io::SceneDocument doc = vibro::io::SceneDocument::parse(duffing(omega0));
+  const vibro::io::Scene scene = doc.build();
+  const vibro::ContinuationFamily family =
+      vibro::io::continuation_family(doc, "forcing.frequency", vibro::io::EngineKind::taylor, scene.solver);
+  vibro::ContinuationOptions o;
+  o.p_min = kFoldRange[0];
+  o.p_max = kFoldRange[1];
+  o.step = 0.01;
+  o.max_step = 0.02;
+  o.max_doublings = 0;
+  o.solver = scene.solver;
+  const vibro::ImpactSystem sys = scene.impact_system();  // outlives the simulator
+  vibro::TaylorSimulator sim(sys, scene.forces, scene.solver);
+  const double T0 = scene.period();
+  const vibro::RunSummary warm = sim.run(0.0, scene.x0, scene.v0, 60.0 * T0);
+  REQUIRE(warm.status == vibro::RunStatus::completed);
+  const vibro::ContinuationResult r = vibro::continue_orbits(family, omega0, warm.t, warm.x, warm.v, o);
+  REQUIRE(!r.branches.empty());
+  // A fold with no other bifurcation within 5δ (a fold right beside a grazing would mix the two
+  // in the runs' bracket).
+  const double delta = kFoldDelta;
+  const vibro::Bifurcation* fold = nullptr;
+  int folds = 0;
+  for (const vibro::Bifurcation& b : r.bifurcations) {
+    if (b.kind != vibro::BifurcationKind::fold || b.branch != 0) continue;
+    ++folds;
+    bool alone = true;
+    for (const vibro::Bifurcation& c : r.bifurcations)
+      if (&c != &b && std::abs(c.p - b.p) < 5.0 * delta) alone = false;
+    if (alone && !fold) fold = &b;
+  }
+  CHECK(folds == 2);  // the hysteresis loop of the resonance (measured: Ω ≈ 0.8423 and 0.9087)
+  REQUIRE(fold != nullptr);
+  const double pf = fold->p;
+  // The stable orbit of the branch next to the fold, and the side the branch lies on.
+  const vibro::BranchPoint* q = nullptr;
+  for (const vibro::BranchPoint& b : r.branches[0].points)
+    if (b.multipliers.stable && (!q || std::abs(b.p - pf) < std::abs(q->p - pf))) q = &b;
+  REQUIRE(q != nullptr);
+  const double side = q->p < pf ? -1.0 : 1.0;
+  REQUIRE(std::abs(q->p - pf) < 0.05);
+  // From q's state, the state at the fold orbit's section after about `periods` forcing periods
+  // at Ω = p, and its distance from the fold orbit's state (in units of the run's L and V).
+  const vibro::BranchPoint& f = fold->point;
+  auto distance_after = [&](double p, int periods) {
+    vibro::io::SceneDocument d(doc);
+    d.set("forcing.frequency", p);
+    const vibro::io::Scene s = d.build_point();
+    const vibro::ImpactSystem at = s.impact_system();
+    vibro::TaylorSimulator run(at, s.forces, s.solver);
+    const double T = s.period();
+    const vibro::RunSummary e = run.run(q->t0, q->x, q->v, f.t0 + periods * T);
+    REQUIRE(e.status == vibro::RunStatus::completed);
+    return std::max((e.x - f.x).cwiseAbs().maxCoeff() / e.length_scale,
+                    (e.v - f.v).cwiseAbs().maxCoeff() / e.velocity_scale);
+  };
+  const double inside = distance_after(pf + side * delta, kFoldPeriods);
+  const double outside = distance_after(pf - side * delta, kFoldPeriods);
+  const double inside4 = distance_after(pf + side * delta / 4.0, kFoldPeriods);
+  const double outside4 = distance_after(pf - side * delta / 4.0, kFoldPeriods);
+  INFO("fold at Ω = " << pf << " (branch on the " << (side < 0 ? "low" : "high") << " side); distance after "
+       << kFoldPeriods << " periods: δ inside " << inside << ", outside " << outside << "; δ/4 inside " << inside4
+       << ", outside " << outside4);
+  // Beyond the fold the run leaves for the other attractor of the hysteresis loop, O(1) away.
+  CHECK(outside > 0.3);
+  CHECK(outside4 > 0.3);
+  // Inside, it settles on the stable orbit, which at a saddle-node lies ~ c √δ from the fold's
+  // orbit: a quarter of δ halves the distance (0.5, within the O(√δ) correction of the normal form).
+  CHECK(inside < outside / 4.0);
+  CHECK(inside4 / inside > 0.4);
+  CHECK(inside4 / inside < 0.6);
+  WARN("fold located at Ω = " << pf << "; runs at δ = " << delta << " either side: inside " << inside
+       << " from the fold orbit, outside " << outside << "; at δ/4: " << inside4 << ", " << outside4);
+}
+
+// With lighter damping (c = 0.02) the period-1 branch has a period-doubling bubble: continuation
+// locates its two period doublings, and long runs check them. Between them the period-1 orbit is
+// unstable (μ < −1) and a run started on it settles on a period-2 orbit (its stroboscopic state
+// returns after two periods, not after one); just above the upper doubling the run settles on the
+// period-1 orbit again.
+TEST_CASE("Taylor engine: the period doublings of a Duffing impact oscillator's branch, checked by runs",
+          "[taylor][analysis]") {
+  const double omega0 = 0.78;
+  std::string text = duffing(omega0);
+  text.replace(text.find("damper: 0.05"), 12, "damper: 0.02");
+  const vibro::io::SceneDocument doc = vibro::io::SceneDocument::parse(text);
+  const vibro::io::Scene scene = doc.build();
+  const vibro::ContinuationFamily family =
+      vibro::io::continuation_family(doc, "forcing.frequency", vibro::io::EngineKind::taylor, scene.solver);
+  vibro::ContinuationOptions o;
+  o.p_min = 0.69;
+  o.p_max = 0.80;
+  o.step = 0.01;
+  o.max_step = 0.02;
+  o.max_doublings = 0;
+  o.solver = scene.solver;
+  const vibro::ImpactSystem sys = scene.impact_system();
+  vibro::TaylorSimulator sim(sys, scene.forces, scene.solver);
+  const vibro::RunSummary warm = sim.run(0.0, scene.x0, scene.v0, 60.0 * scene.period());
+  REQUIRE(warm.status == vibro::RunStatus::completed);
+  const vibro::ContinuationResult r = vibro::continue_orbits(family, omega0, warm.t, warm.x, warm.v, o);
+  std::vector<const vibro::Bifurcation*> pd;
+  for (const vibro::Bifurcation& b : r.bifurcations)
+    if (b.kind == vibro::BifurcationKind::period_doubling && b.branch == 0) pd.push_back(&b);
+  REQUIRE(pd.size() == 2);
+  if (pd[0]->p > pd[1]->p) std::swap(pd[0], pd[1]);
+  // Stroboscopic distances |z(N+1) − z(N)| and |z(N+2) − z(N)| (in units of L and V) of a run at
+  // Ω = p from the upper doubling's orbit.
+  const vibro::BranchPoint& start = pd[1]->point;
+  auto returns = [&](double p, int periods) {
+    vibro::io::SceneDocument d(doc);
+    d.set("forcing.frequency", p);
+    const vibro::io::Scene s = d.build_point();
+    const vibro::ImpactSystem at = s.impact_system();
+    vibro::TaylorSimulator run(at, s.forces, s.solver);
+    const double T = s.period();
+    std::vector<VectorXd> z;
+    double L = 1.0, V = 1.0;
+    vibro::RunSummary e = run.run(start.t0, start.x, start.v, start.t0 + periods * T);
+    for (int k = 0; k < 3; ++k) {
+      REQUIRE(e.status == vibro::RunStatus::completed);
+      z.push_back(stacked(e.x, e.v));
+      L = e.length_scale;
+      V = e.velocity_scale;
+      e = run.run(e.t, e.x, e.v, e.t + T);
+    }
+    auto dist = [&](const VectorXd& a, const VectorXd& b) {
+      return std::max(std::abs(a(0) - b(0)) / L, std::abs(a(1) - b(1)) / V);
+    };
+    return std::pair{dist(z[1], z[0]), dist(z[2], z[0])};
+  };
+  const double mid = 0.5 * (pd[0]->p + pd[1]->p);
+  const auto [one_mid, two_mid] = returns(mid, kDoublingPeriods);
+  const auto [one_above, two_above] = returns(pd[1]->p + 0.01, kDoublingPeriods);
+  INFO("doublings at Ω = " << pd[0]->p << ", " << pd[1]->p << "; between: |P z − z| = " << one_mid
+       << ", |P² z − z| = " << two_mid << "; above: " << one_above << ", " << two_above);
+  CHECK(one_mid > 1e-3);
+  CHECK(two_mid < 1e-3 * one_mid);
+  CHECK(one_above < 1e-6);
+  WARN("period doublings located at Ω = " << pd[0]->p << " and " << pd[1]->p << "; runs between: |Pz − z| = "
+       << one_mid << ", |P²z − z| = " << two_mid << "; above: |Pz − z| = " << one_above);
+}
+
+// Held stops are not derived on the Taylor engine: a map through a sticking phase is refused.
+TEST_CASE("Taylor engine: a tangent map through sticking is refused", "[taylor][analysis]") {
+  const std::string text =
+      "model:\n  chain:\n    masses: [1]\n    left_wall: {spring: 1, damper: 0.05}\n"
+      "forcing:\n  frequency: 1.3\n  cosine: [0.8]\n"
+      "stops:\n  - {mass: 0, side: upper, position: 0.6, restitution: 0, name: stop}\n"
+      "parameters: {beta: 0.5}\n"
+      "forces:\n  - {cubic_spring: {mass: 0, coefficient: beta}}\n"
+      "initial: {x: [0], v: [0]}\n";
+  const vibro::io::Scene scene = vibro::io::SceneDocument::parse(text).build();
+  const double T = scene.period();
+  try {
+    (void)vibro::linearise(scene.impact_system(), scene.forces, scene.solver, 0.0, scene.x0, scene.v0, 20.0 * T);
+    FAIL("no refusal");
+  } catch (const vibro::InvalidInput& e) {
+    CHECK(std::string(e.what()).find("held (sticking)") != std::string::npos);
+  }
+}
+
+// Shooting asks for runs of zero length (the section at the guess's own time): the Taylor engine
+// takes no step and returns the state it was given.
+TEST_CASE("Taylor engine: a run of zero length returns its start", "[taylor][analysis]") {
+  const vibro::io::Scene scene = vibro::io::SceneDocument::parse(duffing(0.78)).build();
+  const vibro::ImpactSystem sys = scene.impact_system();
+  vibro::TaylorSimulator sim(sys, scene.forces, scene.solver);
+  const VectorXd x = VectorXd::Constant(1, 0.3), v = VectorXd::Constant(1, -0.2);
+  const vibro::RunSummary s = sim.run(7.5, x, v, 7.5);
+  REQUIRE(s.status == vibro::RunStatus::completed);
+  CHECK(s.t == 7.5);
+  CHECK(s.x == x);
+  CHECK(s.v == v);
+}
