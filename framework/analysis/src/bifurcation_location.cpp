@@ -150,7 +150,13 @@ std::optional<Node> BranchRunner::one_sided(const Node& good, const Node& bad, c
       std::optional<Node> m = at_p(last.node, p, along);
       if (count) ++*count;
       const double fm = m ? f(*m) : kNaN;
-      if (m && on_good(*m) && std::isfinite(fm) && !(doubled && c_.closes_after(m->e, c_.k / 2))) {
+      // f is a least distance over the orbit's features (its highest gap peak, …): a value far
+      // beyond every one met so far means the feature going to zero is no longer seen there (a
+      // gap peak between two slow bounces merged away): not a point on f's smooth graph.
+      double seen = 0.0;
+      for (const Good& q : g) seen = std::max(seen, std::abs(q.f));
+      const bool jumped = std::abs(fm) > 100.0 * seen;
+      if (m && on_good(*m) && std::isfinite(fm) && !jumped && !(doubled && c_.closes_after(m->e, c_.k / 2))) {
         g.push_back({p, fm, *m});
         stepped = true;
       } else {

@@ -32,7 +32,8 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
   // A step that may pass a change of the orbit's events unseen (unseen_crossing) is accepted
   // only once it is this short.
   const double crossing_step = std::max(o_.min_step, 1e-4 * o_.max_step);
-  behind_ = Signature{};
+  behind_ = undo_ = Signature{};
+  behind_at_ = 0;
   std::vector<VectorXd> trail{c_.scaled(cur.e)};  // the points of this half, scaled
   while (static_cast<int>(branch.points.size()) < o_.max_points) {
     int iterations = 0;
@@ -47,9 +48,17 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
     }
     // A step back onto the events before the last multiple change crossed is the way the branch
     // came (past a contact phase that vanishes, a step may turn back across it): not taken.
-    if (next.e.ok && !(behind_ == cur.b.signature) && orbit_signature(next.e.map, c_.k, c_.stops_) == behind_) {
+    if (next.e.ok && !(behind_ == cur.b.signature) && orbit_signature(next.e.map, c_.k, c_.stops_) == behind_ &&
+        back_to_change(trail, c_.scaled(next.e))) {
       next.e.ok = false;
       next.e.why = "the step lands back on the events before the change just crossed";
+    }
+    // Likewise the first step past a single change: straight back onto the events before it is
+    // back across the same grazing or rising (at a corner the part already followed lies on the
+    // same side in p, beside the new one, and a corrector drawn by its steep map lands there).
+    if (next.e.ok && !(undo_ == cur.b.signature) && orbit_signature(next.e.map, c_.k, c_.stops_) == undo_) {
+      next.e.ok = false;
+      next.e.why = "the step lands back across the change just crossed";
     }
     if (!next.e.ok) {
       h *= 0.5;
@@ -72,6 +81,7 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
         if (std::optional<Node> moved = resection(cur, kSectionMargin)) {
           cur = std::move(*moved);
           carry(trail, old_theta);
+          behind_at_ = std::min(behind_at_, trail.size() - 1);
           trail.push_back(c_.scaled(cur.e));
           continue;
         }
@@ -79,7 +89,7 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
       std::optional<Node> jumped;
       if (h < 1e-3 * o_.max_step && !jump_tried && near_nonsmooth(cur)) {
         jump_tried = true;
-        jumped = jump(cur, last_dp);
+        jumped = jump(cur, last_dp, trail);
         // Against a grazing with no orbit found at fixed p: along the branch of orbits with the
         // new impact, from the corner (grazing_corner.cpp).
         if (!jumped) jumped = corner(cur);
@@ -136,19 +146,13 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
     // that lands back on a part already followed is not the continuation. Refused if the new
     // point is nearer to an earlier point than to the last one.
     // (The last few points are left out: at a sharp corner the new part starts beside them.)
-    if (trail.size() >= 5) {
-      const VectorXd y = c_.scaled(next.e);
-      const double from_cur = (y - trail.back()).norm();
-      bool back = false;
-      for (std::size_t i = 0; i + 4 < trail.size(); ++i) back |= (y - trail[i]).norm() < 0.25 * from_cur;
-      if (back) {
-        h *= 0.5;
-        if (h < o_.min_step) {
-          branch.end = "step below min_step at p = " + number_text(cur.e.p) + " (steps land on the branch already followed)";
-          return;
-        }
-        continue;
+    if (lands_back(trail, c_.scaled(next.e))) {
+      h *= 0.5;
+      if (h < o_.min_step) {
+        branch.end = "step below min_step at p = " + number_text(cur.e.p) + " (steps land on the branch already followed)";
+        return;
       }
+      continue;
     }
     // A doubled branch that closes after half its period has merged back into its parent
     // (at a period doubling of the parent: doubled branches often join two of them).
@@ -186,7 +190,11 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
     // Past a multiple change (a contact phase vanishing, its bounces turned free), no step or
     // jump goes back to the events before it. (A single change may be undone further on: an
     // impact lost at one grazing and regained at the next.)
-    if (!single_change(cur.b.signature, next.b.signature)) behind_ = cur.b.signature;
+    if (!single_change(cur.b.signature, next.b.signature)) {
+      behind_ = cur.b.signature;
+      behind_at_ = trail.size() - 2;  // cur's place in the trail
+    }
+    undo_ = next.b.signature == cur.b.signature ? Signature{} : cur.b.signature;
     cur = std::move(next);
     jump_tried = resection_tried = false;
     if (iterations <= 3) h = std::min(1.5 * h, o_.max_step);
@@ -258,12 +266,35 @@ bool BranchRunner::near_nonsmooth(const Node& n) {
   return false;
 }
 
+/// Whether y (scaled), an orbit with the events before the last multiple change, lies at that
+/// change: nearer to the last point before it than to every point followed since. (Further on
+/// the branch may meet the same events again, at another change: a cascade of bounces lost one
+/// by one after a contact phase vanished, gained back one by one until chatter holds again.)
+bool BranchRunner::back_to_change(const std::vector<VectorXd>& trail, const VectorXd& y) const {
+  if (behind_at_ >= trail.size()) return true;
+  const double to_change = (y - trail[behind_at_]).norm();
+  for (std::size_t i = behind_at_ + 1; i < trail.size(); ++i)
+    if ((y - trail[i]).norm() <= to_change) return false;
+  return true;
+}
+
+/// Whether y (scaled) is nearer to an earlier point of the trail than a quarter of its distance
+/// from the last one (the last four points left out: at a sharp corner the new part of the
+/// branch starts beside them): a point on the part of the branch already followed.
+bool BranchRunner::lands_back(const std::vector<VectorXd>& trail, const VectorXd& y) {
+  if (trail.size() < 5) return false;
+  const double from_cur = (y - trail.back()).norm();
+  for (std::size_t i = 0; i + 4 < trail.size(); ++i)
+    if ((y - trail[i]).norm() < 0.25 * from_cur) return true;
+  return false;
+}
+
 /// The orbit a little further in p, by Newton at fixed p from cur's state: steps of 4, 8, 16 …
 /// times the last step in p, up to 2 % of the parameter scale, first onwards; then backwards,
 /// where only an orbit with other events counts (at a grazing corner the branch beyond the
 /// non-smooth point turns back in p; an orbit with cur's events there is the way we came).
 /// A doubled branch accepts no orbit that closes after half its period (its parent's).
-std::optional<Node> BranchRunner::jump(const Node& cur, double last_dp) {
+std::optional<Node> BranchRunner::jump(const Node& cur, double last_dp, const std::vector<VectorXd>& trail) {
   const double dir = cur.t(cur.t.size() - 1);
   if (std::abs(dir) < 1e-6) return std::nullopt;  // at a fold p cannot be stepped
   for (const double sign : {1.0, -1.0}) {
@@ -280,8 +311,11 @@ std::optional<Node> BranchRunner::jump(const Node& cur, double last_dp) {
       // branch goes on backwards, with other events (past the fold, to a grazing corner).
       if (m->b.signature == cur.b.signature && real_above_one(m->b.multipliers) % 2 != real_above_one(cur.b.multipliers) % 2)
         break;
-      if (m->b.signature == behind_ && !(behind_ == cur.b.signature)) continue;
+      if (m->b.signature == behind_ && !(behind_ == cur.b.signature) && back_to_change(trail, c_.scaled(m->e))) continue;
+      if (m->b.signature == undo_ && !(undo_ == cur.b.signature)) continue;
       if (c_.k > o_.period && c_.closes_after(m->e, c_.k / 2)) continue;
+      // An orbit on the part of the branch already followed is not the way on: look further.
+      if (lands_back(trail, c_.scaled(m->e))) continue;
       return m;
     }
   }

@@ -52,7 +52,9 @@ class BranchRunner {
   static bool single_change(const Signature& a, const Signature& b);
   static int real_above_one(const FloquetMultipliers& m);
   static std::string unseen_crossing(const BranchPoint& a, const BranchPoint& b);
-  std::optional<Node> jump(const Node& cur, double last_dp);
+  std::optional<Node> jump(const Node& cur, double last_dp, const std::vector<VectorXd>& trail);
+  static bool lands_back(const std::vector<VectorXd>& trail, const VectorXd& y);
+  bool back_to_change(const std::vector<VectorXd>& trail, const VectorXd& y) const;
   std::optional<Node> corner(const Node& cur);  // grazing_corner.cpp
   std::optional<Node> nearest_across(const Node& cur, Node far, double width);
   std::optional<Node> shoot_at(const Node& from, double p, const VectorXd& along);
@@ -84,7 +86,9 @@ class BranchRunner {
   ContinuationResult& result_;
   const ContinuationProgress& progress_;
   Node last_located_;
-  Signature behind_;  ///< the events before the last multiple change crossed (no step goes back to them)
+  Signature behind_;  ///< the events before the last multiple change crossed (no step goes back to them there)
+  std::size_t behind_at_ = 0;  ///< the trail's index of the last point before that change
+  Signature undo_;    ///< the events before the change the last step crossed (the next step does not go back to them)
   double located_p_ = kNaN;  ///< one-sided location: the extrapolated zero
   double bracket_low_ = 0.0, bracket_high_ = 0.0;
   bool located_smooth_ = true;

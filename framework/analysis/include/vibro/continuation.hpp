@@ -32,6 +32,12 @@
 ///                 multiplier leaves the unit circle, a fold or a doubling, between a stable
 ///                 impacting orbit and the grazing). A jump past several changes is brought back
 ///                 to the first by bisection in p
+///             a step or jump that goes back is refused: the first step past a change of events
+///                 onto the events before it (back across the same grazing or rising: at a corner
+///                 both parts lie on one side in p), a step onto the events before the last
+///                 multiple change while it is nearer to that change than to every point since
+///                 (further on, a cascade may reach the same events again at another change), and
+///                 a jump onto a part of the branch already followed (the search goes on)
 ///             success: h ← 1.5 h if ≤ 3 iterations, 0.6 h if ≥ 6; the point's multipliers,
 ///                 test functions and event signature; a change between neighbours is located
 ///     stop at the scan limits (the last point placed on the limit), after max_points, or when
