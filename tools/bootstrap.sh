@@ -10,6 +10,7 @@ packages=(
   python3-numpy python3-matplotlib python3-h5py
   pybind11-dev python3-dev python3-pytest   # the Python module `vibro` (framework/python) and its tests
   libsundials-dev                     # benchmark peer only: ARKODE and CVODE in tools/bench/work_precision
+  libboost-dev                        # benchmark peer only: Boost.Odeint in tools/bench/bench_taylor_odeint
   openmpi-bin libopenmpi-dev          # optional MPI sweeps (found at configure time) and their test
   liblapack-dev                       # LAPACK dstemr: O(N²) modal set-up of long chains (framework/src/modal.cpp)
   clang libclang-rt-14-dev libomp-dev # the sanitize preset (ASan + UBSan) and the libFuzzer targets (docs/fuzzing.md)

@@ -12,16 +12,7 @@
 #
 # BUILD_DIR defaults to build/release, OUT_DIR to docs/figures/chaos (PNG and PDF; result files in
 # OUT_DIR/data, which git ignores). About a minute on 2 cores, 1.5 with `bench`.
-set -euo pipefail
-cd "$(dirname "$0")/../.."
-build=${1:-build/release}
-out=${2:-docs/figures/chaos}
-vibro="$build/tools/vibro/vibro"
-py=/usr/bin/python3
-[ -x "$vibro" ] || { echo "run_chaos: $vibro not found: build first (cmake --preset release && cmake --build --preset release)" >&2; exit 2; }
-mkdir -p "$out/data"
-d="$out/data"
-echo "load average: $(cut -d' ' -f1-3 /proc/loadavg), nproc $(nproc)"
+source "$(dirname "$0")/../../tools/experiments/preamble.sh" run_chaos docs/figures/chaos "$@"
 
 run() {  # scene file, result name, extra arguments: prints the command's summary and its wall time
   local s e

@@ -16,15 +16,7 @@
 #
 # BUILD_DIR defaults to build/release, OUT_DIR to docs/figures/continuation (PNG and PDF; result
 # files in OUT_DIR/data). About 80 s on 2 cores; the time of each run is printed.
-set -euo pipefail
-cd "$(dirname "$0")/../.."
-build=${1:-build/release}
-out=${2:-docs/figures/continuation}
-vibro="$build/tools/vibro/vibro"
-py=/usr/bin/python3
-[ -x "$vibro" ] || { echo "run_continuation_examples: $vibro not found: build first" >&2; exit 2; }
-d="$out/data"
-mkdir -p "$d"
+source "$(dirname "$0")/../../tools/experiments/preamble.sh" run_continuation_examples docs/figures/continuation "$@"
 
 run() {  # result name, scene file, --set arguments…
   local name=$1 scene=$2

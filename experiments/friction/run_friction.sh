@@ -9,12 +9,6 @@
 #
 # BUILD_DIR defaults to build/release, OUT_DIR to docs/figures/friction (result file in
 # OUT_DIR/data, which git ignores).
-set -euo pipefail
-cd "$(dirname "$0")/../.."
-build=${1:-build/release}
-out=${2:-docs/figures/friction}
-vibro="$build/tools/vibro/vibro"
-[ -x "$vibro" ] || { echo "run_friction: $vibro not found: build first (cmake --preset release && cmake --build --preset release)" >&2; exit 2; }
-mkdir -p "$out/data"
-"$vibro" run experiments/friction/den_hartog.yaml -o "$out/data/den_hartog.h5" --force --threads 2 2>&1 | grep -v '^vibro: '
-/usr/bin/python3 experiments/friction/figures.py "$out/data/den_hartog.h5" "$out"
+source "$(dirname "$0")/../../tools/experiments/preamble.sh" run_friction docs/figures/friction "$@"
+"$vibro" run experiments/friction/den_hartog.yaml -o "$d/den_hartog.h5" --force --threads 2 2>&1 | quiet
+$py experiments/friction/figures.py "$d/den_hartog.h5" "$out"

@@ -19,18 +19,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "tools", "figures"))
+from common import vibro_module  # noqa: E402
+
 NAMES = ("continuation", "plane", "diagram", "basin", "impact_map")
-
-
-def import_vibro():
-    try:
-        import vibro.plot  # noqa: F401
-    except ImportError:
-        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-        sys.path.insert(0, os.path.join(root, os.environ.get("VIBRO_BUILD", "build/release"), "python"))
-        import vibro.plot  # noqa: F401
-    import vibro
-    return vibro
 
 
 def summary(r):
@@ -68,7 +60,7 @@ def summary(r):
 
 def draw(r, outdir):
     """The figure from the results (a dict of vibro.Result by NAMES; 'plane' may be None)."""
-    vibro = import_vibro()
+    vibro = vibro_module()
     os.makedirs(outdir, exist_ok=True)
     plt.rcParams.update({"font.size": 8, "axes.titlesize": 8, "legend.fontsize": 6})
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5))
@@ -98,7 +90,7 @@ def draw(r, outdir):
 def main():
     if len(sys.argv) != 3:
         sys.exit("usage: figures.py DATA_DIR OUT_DIR")
-    vibro = import_vibro()
+    vibro = vibro_module()
     data, out = sys.argv[1], sys.argv[2]
     r = {}
     for name in NAMES:

@@ -14,20 +14,11 @@
 #
 # BUILD_DIR defaults to build/release, OUT_DIR to docs/figures/three_mass_study (result files in
 # OUT_DIR/data, which git ignores).
-set -euo pipefail
-cd "$(dirname "$0")/../.."
-build=${1:-build/release}
-out=${2:-docs/figures/three_mass_study}
-vibro="$build/tools/vibro/vibro"
-[ -x "$vibro" ] || { echo "run_study: $vibro not found: build first (cmake --preset release && cmake --build --preset release)" >&2; exit 2; }
-mkdir -p "$out/data"
-d="$out/data"
-echo "load average: $(cut -d' ' -f1-3 /proc/loadavg), nproc $(nproc)"
-quiet() { grep -v -e '^  branch k=' -e '^vibro: ' || true; }
+source "$(dirname "$0")/../../tools/experiments/preamble.sh" run_study docs/figures/three_mass_study "$@"
 "$vibro" run experiments/examples/three_mass_switching.yaml -o "$d/continuation.h5" --force 2>&1 | quiet
 [ -f experiments/three_mass_study/plane.yaml ] &&
   "$vibro" run experiments/three_mass_study/plane.yaml -o "$d/plane.h5" --force 2>&1 | quiet
 "$vibro" run experiments/three_mass_study/diagram.yaml -o "$d/diagram.h5" --force --threads 2 2>&1 | quiet
 "$vibro" run experiments/three_mass_study/basin.yaml -o "$d/basin.h5" --force --threads 2 2>&1 | quiet
 "$vibro" run experiments/three_mass_study/impact_map.yaml -o "$d/impact_map.h5" --force 2>&1 | quiet
-PYTHONPATH="$build/python${PYTHONPATH:+:$PYTHONPATH}" /usr/bin/python3 experiments/three_mass_study/figures.py "$d" "$out"
+PYTHONPATH="$build/python${PYTHONPATH:+:$PYTHONPATH}" $py experiments/three_mass_study/figures.py "$d" "$out"

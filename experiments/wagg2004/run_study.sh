@@ -9,18 +9,11 @@
 # BUILD_DIR defaults to build/release (cmake --preset release), OUT_DIR to docs/figures/wagg2004:
 # figures go there as PNG and PDF (the README shows the PNGs), result files to OUT_DIR/data.
 # Takes about 30 s on 2 cores once built.
-set -euo pipefail
-cd "$(dirname "$0")/../.."
-build=${1:-build/release}
-out=${2:-docs/figures/wagg2004}
-vibro="$build/tools/vibro/vibro"
-py=/usr/bin/python3
-[ -x "$vibro" ] || { echo "run_study: $vibro not found: build first (cmake --preset release && cmake --build --preset release)" >&2; exit 2; }
-mkdir -p "$out/data"
+source "$(dirname "$0")/../../tools/experiments/preamble.sh" run_study docs/figures/wagg2004 "$@"
 
 run() {  # scene file, result name
   echo "== vibro run $1" >&2
-  "$vibro" run "$1" -o "$out/data/$2.h5" --force  # a new study replaces the last one's results
+  "$vibro" run "$1" -o "$d/$2.h5" --force  # a new study replaces the last one's results
 }
 run experiments/wagg2004/fig2_sticking_orbit.yaml fig2_sticking_orbit
 run experiments/wagg2004/fig4_rising_sequence.yaml fig4_rising_sequence
@@ -30,7 +23,6 @@ run experiments/wagg2004/fig5_zoom.yaml fig5_zoom
 run experiments/examples/three_mass_rising.yaml three_mass_rising
 run experiments/wagg2004/continuation.yaml continuation
 
-d="$out/data"
 $py tools/figures/fig2_time_series.py "$d/fig2_sticking_orbit.h5" "$out"
 $py tools/figures/fig3_phase_portraits.py "$d/fig2_sticking_orbit.h5" "$out"
 $py tools/figures/fig4_rising_sequence.py "$d/fig4_rising_sequence.h5" "$out"

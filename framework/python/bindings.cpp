@@ -92,6 +92,8 @@ py::dict describe(const vibro::io::Scene& s) {
   d["stops"] = stops;
   d["engine"] = vibro::io::to_string(s.engine);
   d["engine_reason"] = s.engine_reason;
+  if (s.base) d["frame"] = s.record.frame == vibro::BaseFrame::relative ? "relative" : "absolute";
+  else d["frame"] = py::none();
   d["run_kind"] = vibro::io::to_string(s.run.kind);
   d["transient_periods"] = s.run.transient_periods;
   d["periods"] = s.run.periods;
@@ -104,6 +106,16 @@ py::dict describe(const vibro::io::Scene& s) {
   record["statistics"] = s.record.statistics;
   record["poincare"] = s.record.poincare;
   record["impact_map"] = s.record.impact_map;
+  if (s.record.section) {
+    const vibro::Hyperplane& plane = s.record.section->plane;
+    py::dict section;
+    section["normal"] = std::vector<double>(plane.normal.data(), plane.normal.data() + plane.normal.size());
+    section["value"] = plane.value;
+    section["direction"] = std::string(vibro::to_string(s.record.section->direction));
+    record["section"] = section;
+  } else {
+    record["section"] = py::none();
+  }
   record["samples_per_period"] = s.record.samples_per_period;
   record["sample_times"] = s.record.sample_times;
   d["record"] = record;

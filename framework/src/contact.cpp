@@ -2,11 +2,18 @@
 
 #include "event_resolution.hpp"
 
+#include "vibro/bounded_wait.hpp"
+
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
 namespace vibro {
+namespace {
+/// Subsystems of at least this many free coordinates build their flow under run_bounded.
+constexpr Eigen::Index kBoundedFromCoordinates = 64;
+}  // namespace
+
 namespace {
 
 std::string set_name(const ContactSet& s) {
@@ -124,8 +131,9 @@ bool spd_solve(const Eigen::Ref<const Eigen::MatrixXd>& G, const Eigen::Ref<cons
 
 }  // namespace detail
 
-ContactMode::ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptions flow_options)
-    : scene_(&scene), active_(std::move(active)), flow_options_(flow_options) {
+ContactMode::ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptions flow_options,
+                         const std::atomic<bool>* interrupt)
+    : scene_(&scene), active_(std::move(active)), flow_options_(flow_options), interrupt_(interrupt) {
   if (has_compliant(scene.stops())) {  // split the key: held rigid stops, engaged compliant ones
     ContactSet key = std::move(active_);
     active_.clear();
@@ -256,9 +264,13 @@ void ContactMode::build_reduced() const {
   T.block(2 * n, 2 * nf, 3 + extra, 3 + extra).setIdentity();
   red->to_full = T;
 
-  red->flow = std::make_unique<LinearFlow>(
-      augmented_generator(red->mass, red->damping, red->stiffness, red->forcing), nf, omega,
-      flow_options_);
+  // The flow's set-up (eigenvectors, Schur form, exponential of the 2n_f + 3 generator) cannot
+  // be polled and takes seconds for a few hundred coordinates: from 64 on it runs under
+  // run_bounded, which answers the interrupt flag within 10 ms (below, it takes milliseconds).
+  const bool large = nf >= kBoundedFromCoordinates;
+  red->flow = run_bounded(large ? interrupt_ : nullptr,
+                          [g = augmented_generator(red->mass, red->damping, red->stiffness, red->forcing), nf, omega,
+                           o = flow_options_]() mutable { return std::make_unique<LinearFlow>(std::move(g), nf, omega, o); });
 
   // Contact forces as rows in the full augmented space.
   const Eigen::Index total = static_cast<Eigen::Index>(scene.stop_count());
@@ -362,7 +374,7 @@ const Functionals& ContactMode::state_rows() const {
 const ContactMode& ContactModes::get(const ContactSet& set) {
   auto it = modes_.find(set);
   if (it == modes_.end())
-    it = modes_.emplace(set, std::make_unique<ContactMode>(*scene_, set, flow_options_)).first;
+    it = modes_.emplace(set, std::make_unique<ContactMode>(*scene_, set, flow_options_, interrupt_)).first;
   return *it->second;
 }
 

@@ -30,6 +30,7 @@
 #include "event_rate.hpp"
 #include "event_resolution.hpp"
 
+#include "vibro/bounded_wait.hpp"
 #include "vibro/contact_law.hpp"
 #include "vibro/events.hpp"
 
@@ -114,7 +115,7 @@ void run_event_loop(Engine& engine, const SimulatorOptions& options, double t0, 
   st.v = v0;
   st.stuck.reserve(static_cast<std::size_t>(m));
   engine.start(sc, st);
-  const RunContext context{n, stops.size(), engine.frequency()};
+  const RunContext context{n, stops.size(), engine.frequency(), eps_gap};
   for (Observer* o : observers) o->begin(context, t0);
 
   ContactSet impacting, releasing, resting;
@@ -220,6 +221,8 @@ void run_event_loop(Engine& engine, const SimulatorOptions& options, double t0, 
         return;
       }
     }
+  } catch (const Interrupted&) {  // a set-up under run_bounded (bounded_wait.hpp)
+    return finish(RunStatus::interrupted, interruption(st.t));
   } catch (const std::runtime_error& e) {
     return finish(RunStatus::numerical_failure, std::string(e.what()) + " (at t = " + number_text(st.t) + ")");
   }

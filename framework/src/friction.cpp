@@ -7,6 +7,7 @@
 #include <cmath>
 #include <deque>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <optional>
 #include <stdexcept>
@@ -144,6 +145,28 @@ struct Tables {
     }
   }
 
+  /// mode_rows of `states`, computed on first use and kept for the run: the resolution at every
+  /// event tries several assignments, mostly the same few, and each costs a factorisation. The
+  /// cache stops growing at kMaxCached assignments (3^m of them exist); later ones are computed
+  /// into a scratch pair each time.
+  struct Rows {
+    Eigen::MatrixXd force, accel;
+  };
+  const Rows& cached_rows(const std::vector<FrictionState>& states) const {
+    const auto it = cache_.find(states);
+    if (it != cache_.end()) return it->second;
+    if (cache_.size() >= kMaxCached) {
+      mode_rows(states, scratch_.force, scratch_.accel);
+      return scratch_;
+    }
+    Rows& r = cache_[states];
+    mode_rows(states, r.force, r.accel);
+    return r;
+  }
+  static constexpr std::size_t kMaxCached = 4096;
+  mutable std::map<std::vector<FrictionState>, Rows> cache_;
+  mutable Rows scratch_;
+
   /// In the given states: rows (m × N) of every contact's force F_j, and rows (n × N) of the
   /// acceleration x'' (both linear in z).
   void mode_rows(const std::vector<FrictionState>& states, Eigen::MatrixXd& force_rows,
@@ -214,6 +237,22 @@ class FrictionSimulator::Mode {
 
   const LinearFlow& flow() const { return *flow_; }
   const Functionals& guards() const { return *guards_; }
+  /// The mode's segment, re-targeted to (t0, z0): one per mode, reused (no allocation per event).
+  Segment& segment(double t0, const Eigen::VectorXd& z0) const {
+    if (segment_) segment_->reset(t0, z0);
+    else segment_.emplace(*guards_, t0, z0);
+    return *segment_;
+  }
+  /// The guards' triggers: eps_f on force guards, eps_v on velocity guards (kept while they hold).
+  const Eigen::VectorXd& triggers(double eps_f, double eps_v) const {
+    if (eps_f != trigger_f_ || eps_v != trigger_v_ || triggers_.size() != guards_->count()) {
+      triggers_.resize(guards_->count());
+      for (Eigen::Index i = 0; i < triggers_.size(); ++i) triggers_(i) = force_guard(i) ? eps_f : eps_v;
+      trigger_f_ = eps_f;
+      trigger_v_ = eps_v;
+    }
+    return triggers_;
+  }
   const Eigen::MatrixXd& force_rows() const { return force_rows_; }
   int contact_of(Eigen::Index row) const { return contact_[static_cast<std::size_t>(row)]; }
   bool force_guard(Eigen::Index row) const { return force_guard_[static_cast<std::size_t>(row)]; }
@@ -225,6 +264,9 @@ class FrictionSimulator::Mode {
   Eigen::MatrixXd force_rows_;
   std::vector<int> contact_;
   std::vector<char> force_guard_;
+  mutable std::optional<Segment> segment_;
+  mutable Eigen::VectorXd triggers_;
+  mutable double trigger_f_ = -1.0, trigger_v_ = -1.0;
 };
 
 namespace {
@@ -317,11 +359,8 @@ bool resolve_states(const Tables& tab, const Eigen::VectorXd& z, std::vector<Fri
   // placed where the time resolution allows (late in a long run, |F'| × the spacing of doubles
   // near t exceeds any fixed tolerance), the force may be just short of the limit.
   double breakaway = 0.0;  // the fired contact's direction of slip (0: not a stuck contact's guard)
-  if (fired >= 0 && states[static_cast<std::size_t>(fired)] == FrictionState::stuck) {
-    Eigen::MatrixXd F0, A0;
-    tab.mode_rows(states, F0, A0);
-    breakaway = (F0 * z)(fired) >= 0.0 ? -1.0 : 1.0;  // the friction force opposes the slip
-  }
+  if (fired >= 0 && states[static_cast<std::size_t>(fired)] == FrictionState::stuck)
+    breakaway = tab.cached_rows(states).force.row(fired).dot(z) >= 0.0 ? -1.0 : 1.0;  // the force opposes the slip
   std::vector<Eigen::Index> cand;
   std::vector<FrictionState> trial(states.size());
   for (Eigen::Index j = 0; j < m; ++j) {
@@ -337,7 +376,6 @@ bool resolve_states(const Tables& tab, const Eigen::VectorXd& z, std::vector<Fri
   // Options per candidate, in order: stuck, +, −; the fired contact may not keep its state.
   int best_stuck = -1;
   std::vector<FrictionState> best;
-  Eigen::MatrixXd F, A;
   for (int pass = 0; pass < 2 && best_stuck < 0; ++pass) {  // pass 1: the fired contact unrestricted
     for (std::size_t code = 0; code < total; ++code) {
       std::size_t rest = code;
@@ -355,9 +393,9 @@ bool resolve_states(const Tables& tab, const Eigen::VectorXd& z, std::vector<Fri
         stuck_count += s == FrictionState::stuck;
       }
       if (!allowed || stuck_count <= best_stuck) continue;
-      tab.mode_rows(trial, F, A);
-      const Eigen::VectorXd force = F * z;
-      const Eigen::VectorXd udot = tab.W.transpose() * (A * z) - tab.s2_rows * z;  // u' = Wᵀx'' − s''
+      const Tables::Rows& rows = tab.cached_rows(trial);
+      const Eigen::VectorXd force = rows.force * z;
+      const Eigen::VectorXd udot = tab.W.transpose() * (rows.accel * z) - tab.s2_rows * z;  // u' = Wᵀx'' − s''
       bool ok = true;
       for (std::size_t k = 0; k < c && ok; ++k) {
         const Eigen::Index j = cand[k];
@@ -514,11 +552,9 @@ FrictionSummary FrictionSimulator::run(double t0, const Eigen::VectorXd& x0, con
     const Mode& md = mode(states);
     const LinearFlow& flow = md.flow();
     z = flow.augment(t, x, v);
-    Segment segment(md.guards(), t, z);
+    Segment& segment = md.segment(t, z);
     const Eigen::Index rows = md.guards().count();
-    Eigen::VectorXd triggers(rows);
-    for (Eigen::Index i = 0; i < rows; ++i) triggers(i) = md.force_guard(i) ? eps_f : eps_v;
-    finder.retarget(segment, triggers, resolution, true);
+    finder.retarget(segment, md.triggers(eps_f, eps_v), resolution, true);
     const double step = 1.0 / std::max(flow.spectral_radius(), 1e-300);
     const double reach = std::min(t_end - t, flow.horizon());
     std::optional<Crossing> hit;

@@ -3,6 +3,7 @@
 #include "modal_internal.hpp"
 
 #include "vibro/events.hpp"
+#include "vibro/section.hpp"
 
 #include <limits>
 #include <optional>
@@ -175,6 +176,48 @@ double ModalSegmentState::guard(Eigen::Index row, double t) const {
   Buffers buffers(mode_->size());
   guard_at(*mode_, sim_->modes().frequency(), t_begin_, u_, ud_, t - t_begin_, row, &value, &rate, buffers);
   return value;
+}
+
+void ModalSegmentView::plane_crossings(const Hyperplane& plane, double trigger, int& side,
+                                       std::vector<PlaneCrossing>& out) const {
+  const ModalContactMode& md = *mode_;
+  const Eigen::Index nr = md.size(), n = static_cast<Eigen::Index>(md.coordinate.size());
+  const double W = sim_->modes().frequency();
+  // x_l = o_l(t) + φ_{r(l)}·(u + p(t)) for a free mass (r ≥ 0), o_l(t) for a held one.
+  Harmonic offset{-plane.value, 0.0, 0.0};
+  std::vector<Eigen::Index> coordinates;
+  std::vector<double> weights;
+  const bool moving = md.o0.size() == n;
+  for (Eigen::Index l = 0; l < n; ++l) {
+    const double w = plane.normal(l);
+    if (w == 0.0) continue;
+    if (moving) offset += w * Harmonic{md.o0(l), md.oc(l), md.os(l)};
+    const Eigen::Index r = md.coordinate[static_cast<std::size_t>(l)];
+    if (r >= 0) {
+      coordinates.push_back(r);
+      weights.push_back(w);
+    }
+  }
+  ModalGuards g;
+  g.P = Eigen::MatrixXd::Zero(2, nr);
+  g.D.resize(0, nr);
+  if (nr > 0 && !coordinates.empty()) {
+    const ChainModes& m = *md.modes;
+    const Eigen::MatrixXd phi = m.phi_rows(coordinates);
+    for (Eigen::Index k = 0; k < phi.rows(); ++k) g.P.row(0) += weights[static_cast<std::size_t>(k)] * phi.row(k);
+    offset += Harmonic{g.P.row(0).dot(m.particular_constant()), g.P.row(0).dot(m.particular_cosine()),
+                       g.P.row(0).dot(m.particular_sine())};
+  }
+  g.P.row(1) = -g.P.row(0);
+  g.h0 = Eigen::Vector2d(offset.c0, -offset.c0);
+  g.hc = Eigen::Vector2d(offset.cc, -offset.cc);
+  g.hs = Eigen::Vector2d(offset.cs, -offset.cs);
+  g.finish(W);
+  ModalGuardSource source(nr);
+  source.retarget(md.modes, g, W, t_begin(), sim_->segment_u(), sim_->segment_ud());
+  const double top = std::max(W, md.modes ? md.modes->omega().maxCoeff() : 0.0);
+  const double span = t_end() - t_begin();
+  locate_plane_crossings(source, t_begin(), span, top > 0.0 ? 1.0 / top : span, trigger, side, out);
 }
 
 Minimum ModalSegmentView::force_minimum(Eigen::Index a) const {

@@ -1,5 +1,7 @@
 #include "vibro/observers.hpp"
 
+#include "vibro/section.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -124,6 +126,24 @@ std::vector<Minimum> DenseSegmentView::force_local_minima(Eigen::Index a) const 
     seek_min = !seek_min;
   }
   return out;
+}
+
+void DenseSegmentView::plane_crossings(const Hyperplane& plane, double trigger, int& side,
+                                       std::vector<PlaneCrossing>& out) const {
+  // h = nᵀx − c as a row of the full augmented state [x; v; cos; sin; 1; …] (the 1 at 2n + 2),
+  // carried to the reduced state by T, and −h beside it.
+  const auto& red = mode_->reduced();
+  const Eigen::Index n = dof();
+  Eigen::RowVectorXd full = Eigen::RowVectorXd::Zero(red.to_full.rows());
+  full.head(n) = plane.normal.transpose();
+  full(2 * n + 2) = -plane.value;
+  Eigen::MatrixXd rows(2, red.to_full.cols());
+  rows.row(0) = full * red.to_full;
+  rows.row(1) = -rows.row(0);
+  const Functionals guards(*red.flow, std::move(rows));
+  const Segment seg(guards, segment_->t0(), segment_->initial_state());
+  const double step = 1.0 / std::max(red.flow->spectral_radius(), 1e-300);
+  locate_plane_crossings(seg, t_begin(), t_end() - t_begin(), step, trigger, side, out);
 }
 
 // --- ContactLog ------------------------------------------------------------------------------

@@ -1,5 +1,6 @@
 #include "vibro/running_locate.hpp"
 
+#include <atomic>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -239,7 +240,9 @@ std::vector<ScanPoint> scan(const EngineFamily& family, const std::vector<double
   std::vector<ScanPoint> points;
   points.push_back(c.at(grid[0], t0, x0, v0, options.first_transient));
   if (options.on_point) options.on_point(1);
+  const std::atomic<bool>* stop = options.orbit.solver.interrupt;
   for (std::size_t i = 1; i < grid.size(); ++i) {
+    if (stop && stop->load(std::memory_order_relaxed)) break;  // interrupted: the points scanned so far
     points.push_back(c.from(points.back(), grid[i]));
     if (options.on_point) options.on_point(i + 1);
   }

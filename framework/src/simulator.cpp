@@ -245,7 +245,7 @@ double run_length_scale(const SimulatorOptions& options, double omega, double km
 }
 
 Simulator::Simulator(const ImpactSystem& scene, SimulatorOptions options)
-    : scene_(&scene), options_(options), modes_(scene, options.flow) {
+    : scene_(&scene), options_(options), modes_(scene, options.flow, options.interrupt) {
   options_.validate();
 }
 

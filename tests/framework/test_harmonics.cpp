@@ -138,6 +138,29 @@ TEST_CASE("harmonics: the augmented state keeps the one-harmonic layout and grow
                0.1 * std::sin(3 * w * 1.3) + 0.4 * std::sin(2 * w * 1.3)).epsilon(1e-15));
 }
 
+TEST_CASE("harmonics: each harmonic adds one exponential term to a state evaluation (a conjugate pair)",
+          "[harmonics]") {
+  // The cost claim of docs/performance.md: a state or guard evaluation computes one complex
+  // exponential e^{λτ} per term of the spectral flow (Segment::fill_exponentials), a complex pair
+  // λ, λ̄ sharing one term; each harmonic kΩ adds the pair ±ikΩ, so one term (one sincos, and an
+  // exp of 0).
+  const double w = 0.7;
+  HarmonicForcing f{VectorXd::Constant(2, 0.1), VectorXd::Constant(2, 0.5), VectorXd::Constant(2, 0.2), w};
+  MatrixXd K(2, 2), C(2, 2);
+  K << 2, -1, -1, 1;
+  C << 0.1, -0.05, -0.05, 0.05;
+  const LinearSystem plain(MatrixXd::Identity(2, 2), C, K, f);
+  const std::size_t base = LinearFlow(plain).terms().size();
+  for (int H = 1; H <= 8; ++H) {
+    HarmonicForcing g = f;
+    for (int k = 2; k <= H + 1; ++k) g.harmonics.push_back({k, VectorXd::Constant(2, 0.1 / k), VectorXd::Constant(2, 0.0)});
+    const LinearFlow flow(LinearSystem(MatrixXd::Identity(2, 2), C, K, g));
+    INFO("extra harmonics " << H);
+    CHECK(flow.method() == vibro::FlowMethod::spectral);
+    CHECK(flow.terms().size() == base + static_cast<std::size_t>(H));
+  }
+}
+
 TEST_CASE("harmonics: the flow of a damped 1-DOF oscillator is its closed-form steady state to 1e-13",
           "[harmonics]") {
   // m = 1.3, c = 0.07, k = 2.1, Ω = 0.45: harmonics 2 and 5 straddle the resonance √(k/m) ≈ 1.27.

@@ -216,6 +216,27 @@ EOF
     rm run.txt
     files_are c.h5 cont.yaml  # the file, written with what was done, status interrupted
     ;;
+  signal_taylor)  # the Taylor engine (nonlinear forces) polls the same flag: SIGTERM ends a diagram's point
+    cat > duffing.yaml <<EOF
+model: {chain: {masses: [1], left_wall: {spring: 1, damper: 0.05}}}
+forcing: {frequency: 0.85, cosine: [0.8]}
+stops: [{mass: 0, side: upper, position: 0.6, restitution: 0.8}]
+parameters: {beta: 0.5}
+forces: [{cubic_spring: {mass: 0, coefficient: beta}}]
+run:
+  kind: diagram
+  transient_periods: 1e8
+  diagram: {path: forcing.frequency, linspace: [0.85, 0.9, 3], points: 8, max_period: 4}
+EOF
+    "$vibro" run duffing.yaml -o d.h5 --threads 1 2> run.txt &
+    pid=$!
+    for _ in $(seq 600); do [ -e d.h5.partial ] && break; sleep 0.1; done
+    sleep 1
+    stop $pid TERM  # a transient of 1e8 periods takes hours: only the event loop's polling ends it
+    [ $code -eq 130 ] || fail "exit code $code after SIGTERM: $(tail -3 run.txt)"
+    rm run.txt
+    files_are d.h5 duffing.yaml  # the file, written with what was done, status interrupted
+    ;;
   full_disk)  # was: the sweep printed the error, then segfaulted in HDF5's exit handler (139)
     small_sweep ", samples: {per_period: 2000}" 8 > sweep.yaml
     cp "$fig2" scene.yaml

@@ -17,7 +17,9 @@ CASE is one of
   basin    a run.kind: basin (Ω = 1.2, two coexisting orbits) on 2 processes × 1 thread against
            one process on 2 threads;
   errors   bad input and a stale OUT.partial under MPI: exit code 2, one message (from rank 0),
-           no file, no hang.
+           no file, no hang;
+  taylor   a scene with nonlinear forces (the Duffing impact oscillator, on the Taylor engine):
+           a sweep recording everything and a basin, 2 processes × 1 thread against one process.
 
 "Same" is exact: every dataset equal in shape, type and every bit (NaN-free by construction of
 the files, so comparing the raw bytes decides), the same objects, and the same attributes,
@@ -170,6 +172,47 @@ def compare(one, many, what, processes, threads_each, run_attributes=RUN_ATTRIBU
         if threads != processes * threads_each:
             fail(f"{what}: /meta threads = {threads}, expected {processes} × {threads_each}")
 
+TAYLOR = """\
+# The Duffing impact oscillator (experiments/examples/duffing_impact.yaml): a cubic spring, so
+# the Taylor engine.
+name: mpi-taylor
+model:
+  chain: {masses: [1], left_wall: {spring: 1, damper: 0.05}}
+forcing: {frequency: 1.3, cosine: [0.8]}
+stops:
+  - {mass: 0, side: upper, position: 0.6, restitution: 0.8, name: stop}
+parameters: {beta: 0.5}
+forces:
+  - {cubic_spring: {mass: 0, coefficient: beta}}
+initial: {x: [0], v: [0]}
+"""
+TAYLOR_RUNS = {
+    "sweep": """\
+record:
+  events: true
+  statistics: true
+  poincare: true
+  samples: {per_period: 16}
+run:
+  kind: sweep
+  transient_periods: 20
+  periods: 3
+  sweep:
+    parameters:
+      - {path: forcing.frequency, linspace: [0.8, 1.0, 5]}
+      - {path: parameters.beta, values: [0, 0.5]}
+""",
+    "basin": """\
+run:
+  kind: basin
+  basin:
+    parameters:
+      - {path: "initial.x[0]", linspace: [-1, 0.5, 5]}
+      - {path: "initial.v[0]", linspace: [-1, 1, 5]}
+    seed_stride: 2
+""",
+}
+
 
 def write_scene(work, key):
     path = os.path.join(work, f"{key}.yaml")
@@ -180,7 +223,7 @@ def write_scene(work, key):
 
 def main():
     parser = argparse.ArgumentParser()
-    parser.add_argument("case", choices=["plain", "follow", "resume", "basin", "errors"])
+    parser.add_argument("case", choices=["plain", "follow", "resume", "basin", "errors", "taylor"])
     parser.add_argument("--vibro", required=True)
     parser.add_argument("--driver", required=True)
     parser.add_argument("--mpirun", required=True)
@@ -251,6 +294,20 @@ def main():
         with h5py.File(one, "r") as f:
             if f["attractors/period"].shape[0] != 2:
                 fail(f"basin: {f['attractors/period'].shape[0]} attractors, expected 2")
+    elif o.case == "taylor":
+        for key, text in TAYLOR_RUNS.items():
+            scene = os.path.join(work, f"taylor-{key}.yaml")
+            with open(scene, "w") as f:
+                f.write(TAYLOR + text)
+            one, many = os.path.join(work, f"taylor-{key}-one.h5"), os.path.join(work, f"taylor-{key}-many.h5")
+            reference(scene, one)
+            expect(mpirun + [o.vibro, "run", scene, "-o", many, "--threads", "1"], f"mpirun taylor {key}", 0)
+            compare(one, many, f"Taylor engine {key}, 2 processes × 1 thread", 2, 1)
+            with h5py.File(one, "r") as f:
+                if f["/meta"].attrs["engine"] != "taylor":
+                    fail(f"taylor {key}: engine {f['/meta'].attrs['engine']}, expected taylor")
+                if key == "sweep" and f["events/t"].shape[0] == 0:
+                    fail("taylor sweep: no events")
     elif o.case == "errors":
         scene = write_scene(work, "plain")
         out = os.path.join(work, "out.h5")

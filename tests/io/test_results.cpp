@@ -56,7 +56,8 @@ Scene make_scene(double frequency, RecordSpec record, RunSpec run) {
                .engine_reason = "a test scene made in code",
                .base = {},
                .forces = {},
-               .friction = {}};
+               .friction = {},
+               .restart = {}};
 }
 
 RecordSpec record_everything() {

@@ -42,6 +42,12 @@ def test_branch_marks_every_located_bifurcation_on_its_branch(tmp_path):
         styles = {l.get_linestyle() for l in ax.get_lines() if l.get_linestyle() != "None"}
         assert styles <= {"-", "--"} and "-" in styles
         plt.close(ax.figure)
+    # A palette colours the periods in turn (period 1 its first colour, period 2 its second).
+    ax = vibro.plot.branch(r, palette=["black", "tab:green"], markers=False)
+    colours = {l.get_label().split(",")[0]: matplotlib.colors.to_hex(l.get_color()) for l in ax.get_lines()
+               if l.get_label().startswith("period")}
+    assert colours == {"period 1T": matplotlib.colors.to_hex("black"), "period 2T": matplotlib.colors.to_hex("tab:green")}
+    plt.close(ax.figure)
 
 
 def test_diagram_lines_are_the_recorded_points():

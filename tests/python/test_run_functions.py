@@ -173,3 +173,27 @@ def test_tangent_map_of_a_free_oscillator_is_its_matrix_exponential():
     whole = vibro.tangent_map(scene, periods=2)
     assert np.allclose(np.sort_complex(whole.multipliers.values),
                        np.sort_complex(np.linalg.eigvals(whole.jacobian)), rtol=0, atol=1e-12)
+
+
+# The Duffing impact oscillator (experiments/examples/duffing_impact.yaml): a cubic spring, so the
+# Taylor engine runs every kind.
+DUFFING = """\
+model: {chain: {masses: [1], left_wall: {spring: 1, damper: 0.05}}}
+forcing: {frequency: 0.255, cosine: [0.8]}
+stops: [{mass: 0, side: upper, position: 0.6, restitution: 0.8, name: stop}]
+parameters: {beta: 0.5}
+forces: [{cubic_spring: {mass: 0, coefficient: beta}}]
+initial: {x: [0], v: [0]}
+"""
+
+
+@pytest.mark.parametrize("kind", ["sweep", "locate", "basin", "diagram"])
+def test_functions_on_a_scene_with_forces_give_what_vibro_run_gives(kind, tmp_path):
+    text, keywords = KINDS[kind]
+    reference = write(tmp_path, "own.yaml", DUFFING + text)
+    vibro.run(str(reference), output=tmp_path / "own.h5")
+    result = function(kind)(vibro.Scene.from_text(DUFFING + KINDS["orbit"][0]), output=tmp_path / "function.h5",
+                            threads=1, **keywords)
+    assert result.scene.attrs["run_kind"] == kind
+    assert result.meta["engine"] == "taylor"
+    assert differences(tmp_path / "function.h5", tmp_path / "own.h5", SCENE_TEXT) == []

@@ -14,7 +14,15 @@
 #        the engine's curves at commit 2de0370 drawn dashed from docs/data/);
 #     3. the allocation test (vibro_tests_allocations: replaced operator new / malloc);
 #     4. bench_chain: the modal engine at N = 10 … 10 000 (contact-set build time, peak memory,
-#        fitted slope of CPU per event).
+#        fitted slope of CPU per event);
+#     5. bench_laws: CPU per event of a rigid stop, a compliant stop and dry friction on one
+#        2-DOF scene (alternated runs, medians);
+#     6. bench_taylor_odeint: the Taylor engine against Boost.Odeint (Dormand–Prince 5(4) and
+#        Bulirsch–Stoer with dense output) on the Duffing impact oscillator, error against CPU
+#        time (where Boost was found; ~5 s). Alone: build/release/tools/bench/bench_taylor_odeint
+#        --periods 200 --repeat 5;
+#     7. bench_harmonics: the paper's system driven by its plain forcing keys and by 1, 2, 4, 8
+#        harmonics (µs per period and per event, alternated runs, medians).
 #   options: --build DIR (default build/release), --out FILE (default docs/performance.md)
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -32,7 +40,10 @@ if [[ "$build" == "$root/build/release" ]]; then
   # the benchmarks are built by the dev preset (the release preset is the user's lean build)
   cmake --preset dev -DCMAKE_CXX_COMPILER_LAUNCHER="$(command -v ccache || true)" > /dev/null
 fi
-cmake --build "$build" -j2 --target bench_engine work_precision bench_chain vibro_tests_allocations
+targets=(bench_engine work_precision bench_chain bench_laws bench_harmonics vibro_tests_allocations)
+# The Taylor engine against Boost.Odeint: built where Boost's headers were found at configure time.
+grep -q '^VIBRO_BOOST_ODEINT_INCLUDE:PATH=/' "$build/CMakeCache.txt" && targets+=(bench_taylor_odeint)
+cmake --build "$build" -j2 --target "${targets[@]}"
 
 raw="$build/performance_raw"
 mkdir -p "$raw"
@@ -45,7 +56,7 @@ load_before=$(uptime | sed 's/.*load average: //')
 started=$(date -u '+%Y-%m-%d %H:%M UTC')
 t0=$(date +%s)
 
-echo "report.sh: 1/4 bench_engine" >&2
+echo "report.sh: 1/7 bench_engine" >&2
 "$build/tools/bench/bench_engine" --problem ab --repeat 7 --reference > "$raw/engine.md"
 "$build/tools/bench/bench_engine" --problem ab --repeat 7 --trigger 1e-9 > "$raw/engine_trigger.md"
 # The chatter rules compared (accuracy only: one timing repeat): the second order against the default third.
@@ -57,12 +68,21 @@ if command -v perf > /dev/null && perf record -q -o "$raw/perf.data" "$build/too
   perf report -i "$raw/perf.data" --no-children --sort symbol -g none 2> /dev/null | grep '%' | grep -v '^#' \
     | head -25 | sed -E 's/^ *([0-9.]+%) +\[.\] +(.*)$/\1 \2/; s/[ -]+$//' > "$raw/profile.txt" || true
 fi
-echo "report.sh: 2/4 work precision" >&2
+echo "report.sh: 2/7 work precision" >&2
 bash tools/bench/work_precision.sh --build "$build" > "$raw/work_precision.log"
-echo "report.sh: 3/4 allocations" >&2
+echo "report.sh: 3/7 allocations" >&2
 "$build/tests/vibro_tests_allocations" --success > "$raw/allocations.txt" 2>&1 && alloc_status=passed || alloc_status=FAILED
-echo "report.sh: 4/4 bench_chain" >&2
+echo "report.sh: 4/7 bench_chain" >&2
 "$build/tools/bench/bench_chain" --max-n 10000 --impacts 400 > "$raw/chain.txt"
+echo "report.sh: 5/7 bench_laws" >&2
+"$build/tools/bench/bench_laws" --periods 4000 --repeat 7 > "$raw/laws.md"
+rm -f "$raw/taylor_odeint.md"
+if [[ -x "$build/tools/bench/bench_taylor_odeint" ]]; then
+  echo "report.sh: 6/7 Taylor engine against Boost.Odeint" >&2
+  "$build/tools/bench/bench_taylor_odeint" --periods 200 --repeat 5 > "$raw/taylor_odeint.md"
+fi
+echo "report.sh: 7/7 drives with several harmonics" >&2
+"$build/tools/bench/bench_harmonics" --periods 400 --rounds 5 > "$raw/harmonics.txt"
 
 wall=$(( $(date +%s) - t0 ))
 load_after=$(uptime | sed 's/.*load average: //')

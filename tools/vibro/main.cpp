@@ -16,6 +16,7 @@
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/runner.hpp"
 #include "vibro/io/scene.hpp"
+#include "vibro/io/signals.hpp"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -26,6 +27,7 @@
 #include <cstdio>
 #include <exception>
 #include <new>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -171,6 +173,16 @@ int run_command(int argc, char** argv) {
     return 2;
   }
   try {
+    // `vibro run` answers SIGINT, SIGTERM and SIGHUP from here on, within a second in every phase
+    // (vibro/io/signals.hpp): before the run kind starts, at once.
+    std::optional<vibro::io::RunSignals> signals;
+    if (run->parsed()) {
+      if (output.empty()) {
+        std::string base = scene_path.substr(scene_path.find_last_of('/') + 1);
+        output = base.substr(0, base.find_last_of('.')) + ".h5";
+      }
+      signals.emplace(speaks ? "Interrupted before the run started: " + output + " was not written." : "");
+    }
     if (!threads_text.empty()) threads_requested = parse_threads(threads_text);
     vibro::io::SceneDocument doc = vibro::io::SceneDocument::load(scene_path);
     for (std::size_t k = 0; k < sets.size(); ++k) doc.set_assignment(sets[k], static_cast<int>(k + 1));
@@ -185,10 +197,6 @@ int run_command(int argc, char** argv) {
                    "time unit over %.3g time units): minutes to hours%s\n",
                    work.steps, work.rate, work.span, run->parsed() ? "; progress lines follow" : "");
     if (run->parsed()) {
-      if (output.empty()) {
-        std::string base = scene_path.substr(scene_path.find_last_of('/') + 1);
-        output = base.substr(0, base.find_last_of('.')) + ".h5";
-      }
       vibro::io::RunRequest request{output, threads, resume, isatty(STDERR_FILENO) == 1};
       request.progress_lines = speaks && !request.progress;  // a log: a line at each tenth of the run
       request.force = force;

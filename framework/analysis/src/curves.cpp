@@ -159,6 +159,10 @@ class CurveFollower {
                                    std::string& failed) const;
   std::optional<CurvePoint> fold_across(const CurvePoint& last, const Eigen::Vector2d& dir, double h, int& side,
                                         std::string& failed) const;
+  /// The options of a short continuation along a line or segment of the plane, in the line's own
+  /// (already scaled) parameter over [lo, hi] from step: the branch's options with the orbit's
+  /// period and phase, at most 60 points, no doubled branch followed.
+  ContinuationOptions line_options(int period, double phase, double lo, double hi, double step) const;
   /// Whether the predictor follows a secant (from the second step on): the first step goes
   /// along p2, which may be far from the curve's tangent, so its point is not held to h/2.
   bool secant = false;
@@ -193,6 +197,19 @@ const Bifurcation* nearest(const ContinuationResult& r, BifurcationKind kind, in
   return best;
 }
 
+ContinuationOptions CurveFollower::line_options(int period, double phase, double lo, double hi, double step) const {
+  ContinuationOptions o = o_.branch;
+  o.period = period;
+  o.phase = phase;
+  o.p_min = lo;
+  o.p_max = hi;
+  o.parameter_scale = 1.0;
+  o.step = step;
+  o.max_points = 60;
+  o.max_doublings = 0;
+  return o;
+}
+
 std::optional<CurvePoint> CurveFollower::next(const CurvePoint& last, const Eigen::Vector2d& dir, double h, int& side,
                                               std::string& failed) const {
   if (start_.kind == BifurcationKind::fold) return fold_across(last, dir, h, side, failed);
@@ -212,15 +229,8 @@ std::optional<CurvePoint> CurveFollower::across(const CurvePoint& last, const Ei
     pe.engine->derivative = pe.d1.combined(normal(0) * P1, pe.d2, normal(1) * P2);
     return std::move(pe.engine);
   };
-  ContinuationOptions lo = o_.branch;
-  lo.period = last.point.k;
-  lo.phase = last.point.phase;
-  lo.p_min = -4.0 * h;
-  lo.p_max = 4.0 * h;
-  lo.parameter_scale = 1.0;
-  lo.step = std::min(h, lo.max_step);
-  lo.max_points = 60;
-  lo.max_doublings = 0;
+  const ContinuationOptions lo =
+      line_options(last.point.k, last.point.phase, -4.0 * h, 4.0 * h, std::min(h, o_.branch.max_step));
   // Continue along the line from the previous curve point's orbit until the kind is found.
   // The last curve point's orbit may touch its stop: shooting from it at the predictor can fall
   // on the side with the impact, where Newton cannot converge from it; a shorter step then.
@@ -259,16 +269,8 @@ std::optional<CurvePoint> CurveFollower::fold_across(const CurvePoint& last, con
       pe.engine->derivative = pe.d1.combined(u1, pe.d2, u2);
       return std::move(pe.engine);
     };
-    ContinuationOptions so = o_.branch;
-    so.period = last.point.k;
-    so.phase = last.point.phase;
-    so.p_min = -1e-3;
-    so.p_max = 1.0;
-    so.parameter_scale = 1.0;
+    ContinuationOptions so = line_options(last.point.k, last.point.phase, -1e-3, 1.0, 0.05);
     so.max_step = std::max(so.max_step, 0.25);
-    so.step = 0.05;
-    so.max_points = 60;
-    so.max_doublings = 0;
     so.locate = false;  // the fold at τ = 0 is the last point's
     // Its start is the located fold orbit, whose residual may lie a little above the tolerance
     // (the corrector's floor, 100 ε ‖J‖), where shooting's Newton would meet J − I singular: a
@@ -295,15 +297,7 @@ std::optional<CurvePoint> CurveFollower::fold_across(const CurvePoint& last, con
       pe.engine->derivative = pe.d1.combined(-s * normal(0) * P1, pe.d2, -s * normal(1) * P2);
       return std::move(pe.engine);
     };
-    ContinuationOptions lo = o_.branch;
-    lo.period = end->k;
-    lo.phase = end->phase;
-    lo.p_min = -2.0 * h;
-    lo.p_max = 4.0 * h;
-    lo.parameter_scale = 1.0;
-    lo.step = std::min(h, lo.max_step);
-    lo.max_points = 60;
-    lo.max_doublings = 0;
+    const ContinuationOptions lo = line_options(end->k, end->phase, -2.0 * h, 4.0 * h, std::min(h, o_.branch.max_step));
     ContinuationResult r2;
     try {
       r2 = continue_orbits(line, 0.0, end->t0, end->x, end->v, lo);

@@ -13,18 +13,25 @@
 ///    residual of a Ritz pair (θ, V y) is h_{m+1,m} |e_mᵀ y| (‖y‖ = 1), and the leading `count`
 ///    values are accepted when all their residuals are ≤ tol·max(1, |θ_1|), or exactly when the
 ///    space becomes invariant (h_{m+1,m} = 0).
+///
+/// Both take an optional stop flag (SimulatorOptions::interrupt), polled before every product:
+/// once it is raised they return at once, not converged (a product of a long chain's tangent map
+/// takes milliseconds, a basis of hundreds of them seconds).
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <atomic>
 #include <functional>
 #include <limits>
 
 namespace vibro::detail {
 
 using Product = std::function<Eigen::VectorXd(const Eigen::VectorXd&)>;
+
+inline bool stop_raised(const std::atomic<bool>* stop) { return stop && stop->load(std::memory_order_relaxed); }
 
 /// Orthogonalises w against the first k columns of V (twice) and stores the coefficients in h.
 inline void orthogonalise(const Eigen::MatrixXd& V, Eigen::Index k, Eigen::VectorXd& w, Eigen::Ref<Eigen::VectorXd> h) {
@@ -44,7 +51,8 @@ struct GmresResult {
   bool converged = false;
 };
 
-inline GmresResult gmres(const Product& A, const Eigen::VectorXd& b, double tol, int restart, int max_products) {
+inline GmresResult gmres(const Product& A, const Eigen::VectorXd& b, double tol, int restart, int max_products,
+                         const std::atomic<bool>* stop = nullptr) {
   const Eigen::Index n = b.size();
   GmresResult out;
   out.x = Eigen::VectorXd::Zero(n);
@@ -56,7 +64,7 @@ inline GmresResult gmres(const Product& A, const Eigen::VectorXd& b, double tol,
   }
   const Eigen::Index m = std::max<Eigen::Index>(1, std::min<Eigen::Index>(restart, n));
   Eigen::VectorXd r = b;
-  while (out.products < max_products) {
+  while (out.products < max_products && !stop_raised(stop)) {
     const double beta = r.norm();
     out.relative_residual = beta / bnorm;
     if (out.relative_residual <= tol) break;
@@ -65,7 +73,7 @@ inline GmresResult gmres(const Product& A, const Eigen::VectorXd& b, double tol,
     V.col(0) = r / beta;
     g(0) = beta;
     Eigen::Index j = 0;
-    for (; j < m && out.products < max_products; ++j) {
+    for (; j < m && out.products < max_products && !stop_raised(stop); ++j) {
       Eigen::VectorXd w = A(V.col(j));
       ++out.products;
       orthogonalise(V, j + 1, w, H.col(j).head(j + 1));
@@ -88,6 +96,7 @@ inline GmresResult gmres(const Product& A, const Eigen::VectorXd& b, double tol,
         break;
       }
     }
+    if (stop_raised(stop)) break;  // not converged: no more products
     const Eigen::VectorXd y = H.topLeftCorner(j, j).triangularView<Eigen::Upper>().solve(g.head(j));
     out.x += V.leftCols(j) * y;
     r = b - A(out.x);  // the true residual (not the recurrence's) decides
@@ -106,7 +115,8 @@ struct ArnoldiResult {
   bool invariant = false;    ///< the space became invariant: the values are exact eigenvalues
 };
 
-inline ArnoldiResult arnoldi(const Product& A, Eigen::Index n, int count, int max_dimension, double tol) {
+inline ArnoldiResult arnoldi(const Product& A, Eigen::Index n, int count, int max_dimension, double tol,
+                             const std::atomic<bool>* stop = nullptr) {
   ArnoldiResult out;
   const Eigen::Index m = std::min<Eigen::Index>(max_dimension, n);
   Eigen::MatrixXd V(n, m + 1), H = Eigen::MatrixXd::Zero(m + 1, m);
@@ -114,6 +124,7 @@ inline ArnoldiResult arnoldi(const Product& A, Eigen::Index n, int count, int ma
   for (Eigen::Index i = 0; i < n; ++i) v0(i) = 1.0 + 0.5 * std::sin(0.37 * static_cast<double>(i) + 0.11);
   V.col(0) = v0.normalized();
   for (Eigen::Index j = 0; j < m; ++j) {
+    if (stop_raised(stop)) return out;  // not converged
     Eigen::VectorXd w = A(V.col(j));
     ++out.products;
     orthogonalise(V, j + 1, w, H.col(j).head(j + 1));

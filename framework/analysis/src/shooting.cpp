@@ -282,7 +282,8 @@ class ModalBackend final : public OnModalEngine<Backend> {
       return VectorXd(e.tangent->apply_modal(D.cwiseProduct(pq))).cwiseQuotient(D) - pq;
     };
     const detail::GmresResult g =
-        detail::gmres(A, -F.cwiseQuotient(D), krylov_.gmres_tolerance, krylov_.max_dimension, krylov_.max_products);
+        detail::gmres(A, -F.cwiseQuotient(D), krylov_.gmres_tolerance, krylov_.max_dimension, krylov_.max_products,
+                      engine_.simulator().options().interrupt);
     products += g.products;
     if (g.converged) {
       s.rcond = 1.0;
@@ -299,7 +300,8 @@ class ModalBackend final : public OnModalEngine<Backend> {
   FloquetMultipliers multipliers(const Evaluation& e, int k) override {
     const Index n2 = 2 * dof();
     const detail::Product J = [&](const VectorXd& q) -> VectorXd { return e.tangent->apply_modal(q); };
-    const detail::ArnoldiResult a = detail::arnoldi(J, n2, krylov_.multipliers, krylov_.max_dimension, krylov_.arnoldi_tolerance);
+    const detail::ArnoldiResult a = detail::arnoldi(J, n2, krylov_.multipliers, krylov_.max_dimension, krylov_.arnoldi_tolerance,
+                                                    engine_.simulator().options().interrupt);
     FloquetMultipliers f;
     f.products = a.products;
     f.leading_only = true;

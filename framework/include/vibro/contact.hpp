@@ -43,6 +43,7 @@
 #include "vibro/flow.hpp"
 #include "vibro/stops.hpp"
 
+#include <atomic>
 #include <map>
 #include <memory>
 #include <vector>
@@ -75,7 +76,10 @@ void solve_lcp(const Eigen::Ref<const Eigen::MatrixXd>& G, const Eigen::Ref<cons
 class ContactMode {
  public:
   /// `active`: the mode's key, held rigid stops and engaged compliant stops (sorted).
-  ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptions flow_options);
+  /// `interrupt` (SimulatorOptions::interrupt, may be null): the flow of a large subsystem is
+  /// built under run_bounded (bounded_wait.hpp), so that raising it interrupts the build.
+  ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptions flow_options,
+              const std::atomic<bool>* interrupt = nullptr);
 
   /// The held rigid stops (the constraints; size(), the restitution data and the contact forces
   /// refer to them).
@@ -135,6 +139,7 @@ class ContactMode {
   ContactSet active_;
   ContactSet engaged_;
   FlowOptions flow_options_;
+  const std::atomic<bool>* interrupt_ = nullptr;
   Eigen::MatrixXd normals_;  // W (n × m)
   Eigen::MatrixXd delassus_, minv_w_, restitution_;
   mutable std::unique_ptr<Reduced> reduced_;
@@ -145,8 +150,8 @@ class ContactMode {
 /// (each sweep point's thread) owns its own cache.
 class ContactModes {
  public:
-  ContactModes(const ImpactSystem& scene, FlowOptions flow_options = {})
-      : scene_(&scene), flow_options_(flow_options) {}
+  ContactModes(const ImpactSystem& scene, FlowOptions flow_options = {}, const std::atomic<bool>* interrupt = nullptr)
+      : scene_(&scene), flow_options_(flow_options), interrupt_(interrupt) {}
   const ContactMode& get(const ContactSet& set);
   std::size_t built() const { return modes_.size(); }
   /// Number of modes whose sticking subsystem has been built.
@@ -156,6 +161,7 @@ class ContactModes {
  private:
   const ImpactSystem* scene_;
   FlowOptions flow_options_;
+  const std::atomic<bool>* interrupt_ = nullptr;
   std::map<ContactSet, std::unique_ptr<ContactMode>> modes_;
 };
 

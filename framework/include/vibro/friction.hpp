@@ -140,6 +140,8 @@ class FrictionSimulator {
   /// The system, its contacts (validated here) and the solver options (trigger, max_events,
   /// event_window and flow are used). Throws InvalidInput on bad contacts.
   FrictionSimulator(const LinearSystem& system, std::vector<FrictionContact> contacts, SimulatorOptions options = {});
+  /// The simulator keeps a reference to its system: a temporary one would dangle.
+  FrictionSimulator(LinearSystem&& system, std::vector<FrictionContact> contacts, SimulatorOptions options = {}) = delete;
   ~FrictionSimulator();
 
   /// Runs from (t0, x0, v0) to t_end. The initial contact states are decided by the resolution

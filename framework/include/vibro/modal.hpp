@@ -461,6 +461,11 @@ class ModalSegmentView final : public SegmentView {
   double force(Eigen::Index a, double t) const override;
   Minimum force_minimum(Eigen::Index a) const override;
   std::vector<Minimum> force_local_minima(Eigen::Index a) const override;
+  /// h = nᵀx − c written in the set's modes (h = P·u + harmonic, P = Σ_l n_l φ_l over the free
+  /// masses' rows, the held masses' prescribed motion and the particular solution in the
+  /// harmonic part) and searched as a ModalGuardSource. O(n_r) per evaluation.
+  void plane_crossings(const Hyperplane& plane, double trigger, int& side,
+                       std::vector<PlaneCrossing>& out) const override;
 
  private:
   const ModalChainSimulator* sim_;
@@ -481,6 +486,8 @@ class ModalChainSimulator {
  public:
   ModalChainSimulator(const ChainModes& modes, std::vector<Stop> stops,
                       ModalSimulatorOptions options = {});
+  /// The simulator keeps a reference to the modes: temporary ones would dangle.
+  ModalChainSimulator(ChainModes&& modes, std::vector<Stop> stops, ModalSimulatorOptions options = {}) = delete;
   ~ModalChainSimulator();
   ModalChainSimulator(const ModalChainSimulator&) = delete;
   ModalChainSimulator& operator=(const ModalChainSimulator&) = delete;

@@ -13,7 +13,8 @@
 /// Provided here: EventLog, ContactLog (contact intervals with the minimum contact force and its
 /// time, the quantity that detects rising), Samples (exact states at requested times), Poincare
 /// (stroboscopic points at the forcing period), ImpactMap (the state before each impact), PeriodStatistics (sticking proportion of each
-/// stop and impacts per forcing period).
+/// stop and impacts per forcing period). Section (crossings of a hyperplane in the positions) is
+/// in section.hpp.
 #include "vibro/contact.hpp"
 #include "vibro/events.hpp"
 
@@ -46,6 +47,24 @@ struct RunContext {
   Eigen::Index dof = 0;      ///< degrees of freedom n
   std::size_t stops = 0;     ///< number of stops
   double frequency = 0.0;    ///< forcing frequency Ω (0: unforced)
+  /// ε_g = trigger·L, the trigger level of the stops' gaps (absolute length; 0 when the engine
+  /// does not say): the level a passive guard on the positions uses too (section.hpp).
+  double gap_trigger = 0.0;
+};
+
+/// A hyperplane in the positions, h(x) = nᵀx − c, watched without acting on the motion (a
+/// passive guard; section.hpp).
+struct Hyperplane {
+  Eigen::VectorXd normal;  ///< n (one entry per coordinate, not all zero)
+  double value = 0.0;      ///< c
+  double at(const Eigen::Ref<const Eigen::VectorXd>& x) const { return normal.dot(x) - value; }
+};
+
+/// A crossing of a hyperplane: the time of the root of h = 0 and the direction, +1 upwards
+/// (h passing from ≤ 0 to > ε) or −1 downwards (from ≥ 0 to < −ε).
+struct PlaneCrossing {
+  double t = 0.0;
+  int direction = 1;
 };
 
 /// Exact motion in one contact mode over [t_begin, t_end], as an engine exposes it to observers.
@@ -77,6 +96,17 @@ class SegmentView {
   /// (events.hpp), so none is missed. These are what detects rising: the orbit becomes tangent to
   /// the boundary ∂S (λ = 0) where the least interior minimum touches zero.
   virtual std::vector<Minimum> force_local_minima(Eigen::Index a) const = 0;
+  /// The crossings of the hyperplane h(t) = nᵀx(t) − c over [t_begin, t_end], appended to `out`
+  /// in time order, found by the certified search of the events (events.hpp) on the rows h and
+  /// −h written in the segment's own exact flow (a guard source apart from the engine's, so
+  /// the motion and the engine's search are untouched). Crossings alternate: `side` is where
+  /// the motion was last certified (−1: h ≤ ε since the last crossing, so the next one is
+  /// upwards; +1: above, downwards) and is updated. An upward crossing is h rising above
+  /// `trigger` (ε > 0), located at the root of h = 0 before it to a few ulps of t, as an event;
+  /// an excursion that stays within ε of the hyperplane (a touch) is not a crossing. The
+  /// default throws InvalidInput: an engine that cannot search its segments says so.
+  virtual void plane_crossings(const Hyperplane& plane, double trigger, int& side,
+                               std::vector<PlaneCrossing>& out) const;
 
  protected:
   SegmentView(double t_begin, double t_end) : t_begin_(t_begin), t_end_(t_end) {}
@@ -113,6 +143,8 @@ class DenseSegmentView final : public SegmentView {
   double force(Eigen::Index a, double t) const override;
   Minimum force_minimum(Eigen::Index a) const override;
   std::vector<Minimum> force_local_minima(Eigen::Index a) const override;
+  void plane_crossings(const Hyperplane& plane, double trigger, int& side,
+                       std::vector<PlaneCrossing>& out) const override;
 
  private:
   const ContactMode* mode_;

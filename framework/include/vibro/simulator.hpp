@@ -167,6 +167,8 @@ class Simulator {
  public:
   /// Validates options. The scene must outlive the simulator.
   explicit Simulator(const ImpactSystem& scene, SimulatorOptions options = {});
+  /// The simulator keeps a reference to its scene: a temporary one would dangle.
+  explicit Simulator(ImpactSystem&& scene, SimulatorOptions options = {}) = delete;
 
   /// Runs from (t0, x0, v0) to t_end, reporting to `observers`. Throws InvalidInput if x0
   /// violates a stop by more than the trigger tolerance or sizes are wrong, and if the run

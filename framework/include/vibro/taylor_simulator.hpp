@@ -68,6 +68,8 @@ class TaylorSimulator {
   /// Compiles the forces (throws taylor::ExpressionError / std::invalid_argument) and validates
   /// the options. The scene must outlive the simulator.
   TaylorSimulator(const ImpactSystem& scene, const NonlinearForces& forces, SimulatorOptions options = {});
+  /// The simulator keeps a reference to its scene: a temporary one would dangle.
+  TaylorSimulator(ImpactSystem&& scene, const NonlinearForces& forces, SimulatorOptions options = {}) = delete;
   ~TaylorSimulator();
   TaylorSimulator(const TaylorSimulator&) = delete;
   TaylorSimulator& operator=(const TaylorSimulator&) = delete;

@@ -179,7 +179,8 @@ std::vector<char> encode(const Recording& rec) {
   Writing w;
   Encoder& e = w.e;
   e.put(static_cast<std::uint8_t>((rec.events ? 1 : 0) | (rec.contacts ? 2 : 0) | (rec.samples ? 4 : 0) |
-                                  (rec.poincare ? 8 : 0) | (rec.statistics ? 16 : 0) | (rec.impact_map ? 32 : 0)));
+                                  (rec.poincare ? 8 : 0) | (rec.statistics ? 16 : 0) | (rec.impact_map ? 32 : 0) |
+                                  (rec.section ? 64 : 0)));
   if (rec.events) e.put(rec.events->events);
   if (rec.contacts) e.put(rec.contacts->intervals);
   if (rec.samples) {
@@ -203,6 +204,13 @@ std::vector<char> encode(const Recording& rec) {
     e.put(rec.impact_map->stop);
     e.put(rec.impact_map->x);
     e.put(rec.impact_map->v);
+  }
+  if (rec.section) {
+    e.put(rec.section->t);
+    e.put(rec.section->phase);
+    e.put(rec.section->crossing);
+    e.put(rec.section->x);
+    e.put(rec.section->v);
   }
   code_summary(w, rec.summary);
   e.put(rec.wall_seconds);
@@ -245,6 +253,15 @@ Recording decode(const std::vector<char>& bytes) {
     d.get(map.stop);
     d.get(map.x);
     d.get(map.v);
+  }
+  if (present & 64) {
+    // The rows only: the hyperplane is the scene's (rank 0 writes /section from them).
+    Section& section = rec.section.emplace(Hyperplane{Eigen::VectorXd::Ones(1), 0.0});
+    d.get(section.t);
+    d.get(section.phase);
+    d.get(section.crossing);
+    d.get(section.x);
+    d.get(section.v);
   }
   code_summary(r, rec.summary);
   d.get(rec.wall_seconds);
@@ -381,7 +398,9 @@ RunReport run_rank0(const SweepPlan& plan, const Scene& scene, const RunRequest&
         MPI_Recv(head, 2, MPI_UNSIGNED_LONG_LONG, source, tag::result, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
         const std::size_t point = static_cast<std::size_t>(head[0]);
         if (point >= plan.total) throw std::logic_error("runner: rank " + std::to_string(source) + " sent point " + std::to_string(point));
-        writer(point, decode(receive_bytes(source, static_cast<std::size_t>(head[1]), tag::result_data)));
+        Recording rec = decode(receive_bytes(source, static_cast<std::size_t>(head[1]), tag::result_data));
+        rec.frame = ResultFrame::of(plan.scenes[point]);  // (mapped the samples on the worker; x_end here)
+        writer(point, std::move(rec));
       } else if (status.MPI_TAG == tag::bye) {
         MPI_Recv(nullptr, 0, MPI_BYTE, source, tag::bye, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
         ++byes;

@@ -1,5 +1,7 @@
 #include "output_lock.hpp"
 
+#include "interrupt.hpp"
+
 #include "vibro/io/result_file.hpp"
 
 #include <fcntl.h>
@@ -58,6 +60,9 @@ OutputLock::OutputLock(const std::string& path, const std::string& scene_file, b
   }
   if (same_file(ResultFile::partial_path(path_), scene_file_) || same_file(lock_path_, scene_file_))
     throw ResultError(path_ + ": its .partial or .lock file would be the scene file being run: choose another -o");
+
+  // From here files exist: `vibro run`'s exit at once on a signal ends (interrupt.hpp).
+  disarm_exit_at_once();
 
   // Rule 1. A path whose lock file was removed (its holder finished) after we opened it is
   // tried again: the lock must be on the file that is at lock_path_.

@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <exception>
@@ -57,6 +58,10 @@ RestartPoint read_restart(const YAML::Node& from, const std::string& scene_file)
     r.fail(from["file"], "initial.from.file", "cannot read the result file " + path + ": " + e.what());
   }
   RestartPoint out;
+  {
+    const std::vector<std::string> meta = file->attributes("/meta");
+    if (std::find(meta.begin(), meta.end(), "frame") != meta.end()) out.frame = file->attribute_string("/meta", "frame");
+  }
   auto need = [&](const char* object, const YAML::Node& at, const std::string& key, const std::string& what) {
     if (!file->exists(object)) r.fail(at, key, path + " has no " + object + " (" + what + ")");
   };
@@ -139,6 +144,16 @@ void apply_restart(SceneDocument& doc, const YAML::Node& root, const RestartPoin
     for (Eigen::Index i = 0; i < z.size(); ++i) s += (i ? ", " : "") + fmt::format("{}", z(i));
     return s + "]";
   };
+  // A base-excited orbit's state is in the frame its file was written in (record.frame): the
+  // scene must compute in that frame (base.frame), as the state is not mapped.
+  if (!point.frame.empty() && root["base"]) {
+    const YAML::Node f = root["base"]["frame"];
+    const std::string frame = f && f.IsScalar() ? f.Scalar() : "absolute";
+    if (frame != point.frame)
+      r.fail(root["initial"]["from"], "initial.from",
+             point.source + ": the saved state is in the " + point.frame + " frame (its file's record.frame) and this "
+                 "scene computes in the " + frame + " frame (base.frame): set base.frame: " + point.frame);
+  }
   // The parameter first: the orbit exists at its value (a --set given afterwards still wins).
   if (!point.path.empty()) {
     try {

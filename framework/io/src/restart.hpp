@@ -29,6 +29,7 @@ struct RestartPoint {
   std::string path;  ///< the parameter the orbit was continued in ("" for an orbit run's orbit)
   double p = 0.0;
   std::string source;  ///< "FILE: branch B, point I (row R of /branch)" and the like
+  std::string frame;   ///< /meta frame of a base-excited scene's file (record.frame), else ""
 };
 
 /// Reads `initial.from` (its node `from`, at `initial.from` of the scene file `scene_file`) from

@@ -254,6 +254,7 @@ void ResultFile::Impl::write_meta(const RunMeta& meta, const Scene& scene) const
   store.set_text("/meta", "flow_method", detail::flow_method_name(scene.solver.flow.method));
   store.set_text("/meta", "chatter_rule", to_string(scene.solver.chatter_rule));
   store.set_text("/meta", "engine", to_string(scene.engine));
+  if (scene.base) store.set_text("/meta", "frame", scene.record.frame == BaseFrame::relative ? "relative" : "absolute");
   store.set_text("/meta", "engine_choice", to_string(scene.engine_choice));
   store.set_text("/meta", "status", "running");
   store.set_text("/meta", "message", "");

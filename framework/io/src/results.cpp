@@ -67,8 +67,24 @@ Recording Recording::for_scene(const Scene& scene, double t_start) {
   if (detail::records_samples(spec)) rec.samples.emplace(sample_times(scene, t_start));
   if (spec.poincare) rec.poincare.emplace(t_start);
   if (spec.impact_map) rec.impact_map.emplace();
+  if (spec.section) rec.section.emplace(spec.section->plane, spec.section->direction);
   if (spec.statistics) rec.statistics.emplace();
+  rec.frame = ResultFrame::of(scene);
   return rec;
+}
+
+void Recording::map_to_result_frame() {
+  if (frame.identity()) return;
+  if (samples)
+    for (Eigen::Index i = 0; i < samples->x.cols(); ++i)
+      frame.to_result(samples->t[static_cast<std::size_t>(i)], samples->x.col(i), samples->v.col(i));
+  if (poincare)
+    for (std::size_t i = 0; i < poincare->t.size(); ++i) frame.to_result(poincare->t[i], poincare->x[i], poincare->v[i]);
+  if (impact_map)
+    for (std::size_t i = 0; i < impact_map->t.size(); ++i)
+      frame.to_result(impact_map->t[i], impact_map->x[i], impact_map->v[i]);
+  if (section)  // crossings of the scene's own coordinates; their states in the result's frame
+    for (std::size_t i = 0; i < section->t.size(); ++i) frame.to_result(section->t[i], section->x[i], section->v[i]);
 }
 
 std::vector<Observer*> Recording::observers() {
@@ -78,6 +94,7 @@ std::vector<Observer*> Recording::observers() {
   if (samples) out.push_back(&*samples);
   if (poincare) out.push_back(&*poincare);
   if (impact_map) out.push_back(&*impact_map);
+  if (section) out.push_back(&*section);
   if (statistics) out.push_back(&*statistics);
   return out;
 }

@@ -17,6 +17,8 @@ RunReport run_scene(const SceneDocument& doc, const Scene& scene, const RunReque
   // Under MPI only the kinds that split their work across the processes run on every one; any
   // other run is rank 0's alone.
   if (!kind.every_process && detail::world().first != 0) return {};
+  // A rank other than 0 makes no lock: from here it polls the flag (interrupt.hpp).
+  if (detail::world().first != 0) detail::disarm_exit_at_once();
   if (request.resume && !kind.resumable)
     throw SceneError(scene.file, 1, 1, "run.kind", "--resume continues an interrupted sweep; this scene is not a sweep");
   if (!kind.stoppable) return kind.run(doc, scene, request);

@@ -399,14 +399,15 @@ Scene SceneDocument::build_checked(bool check_sweep) const {
   check_initial_state(r, root, p);
   read_forces(r, root, p);
   read_record(r, root, p);
+  check_result_frame(r, root, p);  // (before the run section, whose checks may build the scene)
   read_run(r, root, p);
   check_sample_times(r, root, p);  // (with the default run.periods when there is no run section)
   resolve_engine(r, root, p);
   check_friction(r, root, p);
   Scene scene{impl_->file, impl_->text, root["name"] ? r.text(root["name"], "name") : std::string(),
               std::move(p.dense), std::move(p.banded), std::move(p.stops), p.t0, p.x0, p.v0, p.opt, p.rec, p.run,
-              p.engine_choice, p.engine, p.reason, std::move(p.base), std::move(p.forces), std::move(p.friction)};
-  scene.restart = impl_->restart;
+              p.engine_choice, p.engine, p.reason, std::move(p.base), std::move(p.forces), std::move(p.friction),
+              impl_->restart};
   return scene;
 }
 

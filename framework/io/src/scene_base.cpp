@@ -122,3 +122,18 @@ void move_attached_stops(Reader& r, const YAML::Node& root, SceneParts& p, const
 }
 
 }  // namespace vibro::io::detail
+
+namespace vibro::io::detail {
+
+void check_result_frame(Reader& r, const YAML::Node& root, const SceneParts& p) {
+  if (!p.base || p.rec.frame == p.base->frame) return;
+  const YAML::Node run = root["run"];
+  const std::string kind = run && run.IsMap() && run["kind"] && run["kind"].IsScalar() ? run["kind"].Scalar() : "";
+  if (kind != "continue" && kind != "locate" && kind != "basin") return;
+  r.fail(root["record"]["frame"], "record.frame",
+         "run.kind " + kind + " writes its states in the frame the scene computes in (base.frame: " +
+             (p.base->frame == BaseFrame::absolute ? "absolute" : "relative") +
+             "): run the scene with base.frame set to the frame wanted (the two agree to rounding)");
+}
+
+}  // namespace vibro::io::detail

@@ -162,15 +162,9 @@ bool resolve_taylor_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
   if (!forces && p.engine_choice != EngineChoice::taylor) return false;
   if (has_compliant(p.stops))
     r.fail(root["stops"], "stops", "compliant stops are not supported by the Taylor engine (forces, or solver.engine: taylor)");
-  // The analysis layer on the Taylor engine: orbits (shooting, Floquet multipliers),
-  // continuation and Lyapunov exponents, through the variational equations
-  // (vibro/linearisation.hpp, nonlinear forces).
-  if (p.run.kind != RunSpec::Kind::simulate && p.run.kind != RunSpec::Kind::orbit &&
-      p.run.kind != RunSpec::Kind::continuation && p.run.kind != RunSpec::Kind::lyapunov)
-    r.fail(root["run"] ? root["run"]["kind"] : root, "run.kind",
-           std::string("run.kind: ") + to_string(p.run.kind) +
-               " is not available on the Taylor engine (forces, or solver.engine: taylor); it runs simulate, orbit, "
-               "continue and lyapunov");
+  // Every run kind runs on the Taylor engine: the plain runs (simulate, sweep, diagram, basin,
+  // locate) through engine.hpp's interface (make_engine), the analysis (orbit, continue,
+  // lyapunov) through the variational equations (vibro/linearisation.hpp, nonlinear forces).
   p.engine = EngineKind::taylor;
   p.reason = forces ? (p.engine_choice == EngineChoice::taylor ? "solver.engine: taylor (the scene has forces)"
                                                                : "auto: the scene has forces (nonlinear)")

@@ -133,12 +133,13 @@ void read_forcing(Reader& r, const YAML::Node& root, SceneParts& p) {
   // --- forcing ---
   f = HarmonicForcing::zero(n);
   if (const YAML::Node fn = root["forcing"]) {
-    r.expect_map(fn, "forcing", {"frequency", "constant", "cosine", "sine", "harmonics"});
+    r.expect_map(fn, "forcing", {"frequency", "constant", "cosine", "sine", "harmonics", "file"});
     if (fn["frequency"]) f.frequency = r.number_in(fn["frequency"], "forcing.frequency", 0, 1e300, "a frequency ≥ 0 (rad per unit time)");
     if (fn["constant"]) f.constant = to_vector(r.numbers(fn["constant"], "forcing.constant", n, "one force per mass"));
     if (fn["cosine"]) f.cosine = to_vector(r.numbers(fn["cosine"], "forcing.cosine", n, "one amplitude per mass"));
     if (fn["sine"]) f.sine = to_vector(r.numbers(fn["sine"], "forcing.sine", n, "one amplitude per mass"));
     if (fn["harmonics"]) read_harmonics(r, fn, n, f);
+    if (fn["file"]) read_drive_file(r, fn, n, p.doc ? p.doc->file() : std::string(), f);
   }
   read_base(r, root, p);
   if (chain_links) {
@@ -434,18 +435,46 @@ void check_sample_times(Reader& r, const YAML::Node& root, const SceneParts& p) 
                  number_text(p.rec.sample_times[i]));
 }
 
+/// `record.section`: {coordinate: i | normal: [n_0, …], value: c, direction: up | down | both}.
+SectionSpec read_section(Reader& r, const YAML::Node& sn, Eigen::Index n) {
+  const std::string path = "record.section";
+  r.expect_map(sn, path, {"coordinate", "normal", "value", "direction"});
+  if (sn["coordinate"] && sn["normal"])
+    r.fail(sn, path, "give either coordinate (a coordinate's index) or normal (one weight per coordinate), not both");
+  if (!sn["coordinate"] && !sn["normal"])
+    r.fail(sn, path, "needs coordinate (the index of the coordinate crossing the value) or normal (one weight per "
+                     "coordinate: the hyperplane normal·x = value)");
+  SectionSpec spec;
+  if (const YAML::Node c = sn["coordinate"]) {
+    const long i = r.integer(c, path + ".coordinate", 0, static_cast<long>(n) - 1);
+    spec.plane.normal = Eigen::VectorXd::Unit(n, static_cast<Eigen::Index>(i));
+  } else {
+    const std::vector<double> w = r.numbers(sn["normal"], path + ".normal", static_cast<long>(n), "one weight per coordinate");
+    spec.plane.normal = Eigen::Map<const Eigen::VectorXd>(w.data(), static_cast<Eigen::Index>(w.size()));
+    if (spec.plane.normal.norm() == 0.0) r.fail(sn["normal"], path + ".normal", "the normal is zero (no hyperplane)");
+  }
+  if (sn["value"]) spec.plane.value = r.number(sn["value"], path + ".value");
+  if (sn["direction"]) {
+    const std::string d = r.choice(sn["direction"], path + ".direction", {"up", "down", "both"});
+    spec.direction = d == "up" ? Section::Direction::up : d == "down" ? Section::Direction::down : Section::Direction::both;
+  }
+  return spec;
+}
+
 /// `record`: the observers.
 void read_record(Reader& r, const YAML::Node& root, SceneParts& p) {
   auto& f = p.f;
   auto& rec = p.rec;
+  if (p.base) rec.frame = p.base->frame;  // the default: the frame the scene computes in
   // --- record ---
   if (const YAML::Node rn = root["record"]) {
-    r.expect_map(rn, "record", {"events", "contacts", "statistics", "poincare", "impact_map", "samples"});
+    r.expect_map(rn, "record", {"events", "contacts", "statistics", "poincare", "impact_map", "section", "samples", "frame"});
     if (rn["events"]) rec.events = r.boolean(rn["events"], "record.events");
     if (rn["contacts"]) rec.contacts = r.boolean(rn["contacts"], "record.contacts");
     if (rn["statistics"]) rec.statistics = r.boolean(rn["statistics"], "record.statistics");
     if (rn["poincare"]) rec.poincare = r.boolean(rn["poincare"], "record.poincare");
     if (rn["impact_map"]) rec.impact_map = r.boolean(rn["impact_map"], "record.impact_map");
+    if (const YAML::Node sn = rn["section"]) rec.section = read_section(r, sn, p.n);
     if (const YAML::Node sm = rn["samples"]) {
       r.expect_map(sm, "record.samples", {"per_period", "times"});
       if (sm["per_period"] && sm["times"]) r.fail(sm, "record.samples", "give either per_period or times, not both");
@@ -459,6 +488,14 @@ void read_record(Reader& r, const YAML::Node& root, SceneParts& p) {
         if (!std::is_sorted(rec.sample_times.begin(), rec.sample_times.end()))
           r.fail(sm["times"], "record.samples.times", "expected times in increasing order");
       }
+    }
+    if (rn["frame"]) {
+      const std::string frame = r.choice(rn["frame"], "record.frame", {"absolute", "relative"});
+      if (!p.base)
+        r.fail(rn["frame"], "record.frame",
+               "the frame of the results is chosen for a base-excited scene: this scene has no base section "
+               "(its coordinates are the laboratory's)");
+      rec.frame = frame == "relative" ? BaseFrame::relative : BaseFrame::absolute;
     }
     for (const char* key : {"statistics", "poincare"})
       if (rn[key] && r.boolean(rn[key], std::string("record.") + key) && !(f.frequency > 0.0))
@@ -540,6 +577,16 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
              std::to_string(kModalAutomaticMinimumDof) + ")";
   }
 
+  // Sections are searched in the exact flows of the dense and the modal engine (vibro/section.hpp).
+  if (const YAML::Node rn = root["record"]; rn && rn["section"]) {
+    const YAML::Node sn = rn["section"];
+    if (engine == EngineKind::taylor)
+      r.fail(sn, "record.section", "the Taylor engine (nonlinear forces, or solver.engine: taylor) does not locate "
+                                   "crossings of a hyperplane; the dense and the modal engine do");
+    if (!p.friction.empty())
+      r.fail(sn, "record.section", "the friction engine (friction:) does not locate crossings of a hyperplane; the "
+                                   "dense and the modal engine do");
+  }
   // What the run's section asked to check on the engine (e.g. what continuation differentiates).
   for (const auto& check : engine_checks) check(engine, reason);
   for (const PointEngine& point : point_engines)

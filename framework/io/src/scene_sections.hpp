@@ -53,9 +53,14 @@ void read_stops(Reader& r, const YAML::Node& root, SceneParts& p);
 /// `base` (scene_base.cpp): reads the base motion and adds its drive to p.f (called by
 /// read_forcing before the system is built).
 void read_base(Reader& r, const YAML::Node& root, SceneParts& p);
+/// `forcing.file` (scene_drive_file.cpp): the drive's mean and harmonics from a CSV file, into f
+/// after the inline keys (an order given both ways is refused). scene_file: for relative paths.
+void read_drive_file(Reader& r, const YAML::Node& fn, long n, const std::string& scene_file, HarmonicForcing& f);
 /// Moves the stops as p.base's frame requires (`stops[j].attached: base`); refuses an attached
 /// stop without a base section.
 void move_attached_stops(Reader& r, const YAML::Node& root, SceneParts& p, const std::vector<bool>& attached);
+/// record.frame other than base.frame for a run kind that writes states but does not map them: refused.
+void check_result_frame(Reader& r, const YAML::Node& root, const SceneParts& p);
 void read_initial(Reader& r, const YAML::Node& root, SceneParts& p);
 void read_solver(Reader& r, const YAML::Node& root, SceneParts& p);
 void check_initial_state(Reader& r, const YAML::Node& root, SceneParts& p);

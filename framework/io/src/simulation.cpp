@@ -29,7 +29,11 @@ Recording simulate(const Scene& base, const StartState& start, std::atomic<doubl
   transient.x = start.x;
   transient.v = start.v;
   if (scene.run.transient_periods > 0.0) transient = sim.run(start.t, start.x, start.v, t1, {});
-  Recording rec = Recording::for_scene(scene, t1);
+  // An interrupted transient records nothing: no sample times laid out for the recorded periods
+  // (millions of them take seconds to allocate, after the signal).
+  Scene shape = scene;
+  if (transient.status == RunStatus::interrupted) shape.run.periods = 0.0;
+  Recording rec = Recording::for_scene(shape, t1);
   if (transient.status != RunStatus::completed) {
     rec.summary = transient;
     rec.summary.message = "during the transient: " + transient.message;
@@ -38,6 +42,7 @@ Recording simulate(const Scene& base, const StartState& start, std::atomic<doubl
     rec.summary = sim.run(t1, transient.x, transient.v, t1 + scene.run.periods * T, rec.observers());
   }
   check_recorded_gaps(scene, rec);  // no state past a stop is stored as a result
+  rec.map_to_result_frame();        // (the gaps are checked in the frame the engine computed in)
   for (const std::string& w : transient.warnings)
     if (std::find(rec.summary.warnings.begin(), rec.summary.warnings.end(), w) == rec.summary.warnings.end())
       rec.summary.warnings.insert(rec.summary.warnings.begin(), "during the transient: " + w);

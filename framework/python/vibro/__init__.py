@@ -187,6 +187,9 @@ class Scene:
     v0 = property(lambda self: np.array(self._resolved["v0"]), doc="Initial velocities.")
     engine = property(lambda self: self._resolved["engine"], doc="'dense' or 'modal' (solver.engine).")
     run_kind = property(lambda self: self._resolved["run_kind"], doc="'simulate', 'sweep' or 'locate'.")
+    frame = property(lambda self: self._resolved["frame"],
+                     doc="A base-excited scene's frame of its results (record.frame; default base.frame): "
+                         "'absolute' or 'relative'; None without a base.")
     periods = property(lambda self: self._resolved["periods"], doc="Recorded forcing periods.")
     transient_periods = property(lambda self: self._resolved["transient_periods"],
                                  doc="Forcing periods run before recording.")
@@ -316,8 +319,10 @@ def simulate(scene, *, periods=None, transient_periods=None, output=None, force=
     given (only what is recorded is computed):
       events, contacts, statistics, poincare: True or False;
       samples: samples per forcing period (an int ≥ 1, 0 for none), or sample_times: times from
-      the start of the recording; record: a dict, a whole record: section to start from instead
-      of the scene's (what it does not list is off), which the single keywords then change.
+      the start of the recording; section: a hyperplane as record.section (a dict
+      {coordinate | normal, value, direction}; None: none); record: a dict, a whole record:
+      section to start from instead of the scene's (what it does not list is off), which the
+      single keywords then change.
     The Result holds the groups recorded (``result.events.t``, ``result.samples.x``, …) and
     /scene and /meta. ``result.status`` is 'completed', or why the run stopped early
     ('event_cap', 'numerical_failure', 'unsupported'); ValueError for a start the engine refuses.
@@ -536,7 +541,7 @@ def _prepared(scene, periods, transient_periods, record):
 def _record(current, given):
     """The record: section for the keywords `given`: record= (or the scene's `current` choice),
     then each single keyword replacing the choice for its observer (docs/scenes.md, record)."""
-    allowed = set(_OBSERVERS) | {"samples", "sample_times", "record"}
+    allowed = set(_OBSERVERS) | {"samples", "sample_times", "record", "section"}
     unknown = sorted(set(given) - allowed)
     if unknown:
         raise TypeError(f"unknown keyword {unknown[0]!r} (record keywords: {', '.join(sorted(allowed))})")
@@ -551,6 +556,13 @@ def _record(current, given):
             out["samples"] = {"per_period": current["samples_per_period"]}
         elif current["sample_times"]:
             out["samples"] = {"times": current["sample_times"]}
+        if current.get("section"):
+            out["section"] = dict(current["section"])
+    if "section" in given:  # {coordinate: i | normal: [...], value: c, direction: ...}, or None: none
+        if given["section"] is None:
+            out.pop("section", None)
+        else:
+            out["section"] = _plain(given["section"], "section")
     for key in _OBSERVERS:
         if key in given:
             if not isinstance(given[key], (bool, np.bool_)):
@@ -700,6 +712,9 @@ class Result:
         return self._image.attributes("/meta")
 
     status = property(lambda self: self.meta["status"], doc="/meta status ('completed', …).")
+    frame = property(lambda self: self.meta.get("frame"),
+                     doc="A base-excited scene's frame of the states written (/meta frame, record.frame): "
+                         "'absolute' or 'relative'; None without a base.")
     message = property(lambda self: self.meta["message"], doc="/meta message: why it stopped early.")
 
     def __getitem__(self, path):

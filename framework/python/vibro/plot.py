@@ -13,13 +13,14 @@ a function needs is refused with a ValueError naming the group and what the resu
 
 Functions: branch (continuation: stable solid, unstable dashed, bifurcations marked by kind),
 diagram (brute-force diagram: up and down sweeps overlaid), plane (two-parameter curves),
-basin (label image), impact_map (forcing phase against approach speed), lyapunov (the spectrum
-against the parameter, or as bars at one value).
+basin (label image), impact_map (forcing phase against approach speed), section (the crossings of a
+hyperplane: forcing phase, or a coordinate, against a coordinate), lyapunov (the spectrum against
+the parameter, or as bars at one value).
 """
 
 import numpy as np
 
-__all__ = ["branch", "diagram", "plane", "basin", "impact_map", "lyapunov", "KIND_MARKERS"]
+__all__ = ["branch", "diagram", "plane", "basin", "impact_map", "section", "lyapunov", "KIND_MARKERS"]
 
 # One marker per bifurcation kind (docs/results.md, /bifurcations kind names).
 KIND_MARKERS = {
@@ -60,10 +61,12 @@ def _names(group, dataset):
     return [n.decode() if isinstance(n, bytes) else str(n) for n in names]
 
 
-def branch(result, coordinate=0, *, velocity=False, ax=None, markers=True):
+def branch(result, coordinate=0, *, velocity=False, ax=None, markers=True, palette=None):
     """A continuation's branches: x_coordinate (or v with velocity=True) at the fixed phase
     (/branch x_fixed, continuous along a branch) against the parameter; stable stretches solid,
-    unstable dashed, one colour per period; the located bifurcations marked by kind at their
+    unstable dashed, one colour per period (matplotlib's cycle C0, C1, …, or the colours of
+    `palette` in turn, e.g. to keep clear of a diagram drawn on the same axes in C0 and C1);
+    the located bifurcations marked by kind at their
     parameter on their branch (the branch's value there by linear interpolation between its
     neighbouring points: a located point is not always a point of /branch)."""
     r = _result(result)
@@ -79,7 +82,8 @@ def branch(result, coordinate=0, *, velocity=False, ax=None, markers=True):
         if rows.size == 0:
             continue
         k = int(g.k[rows[0]])
-        colour = f"C{periods.index(k) % 10}"  # one colour per period: many branches stay readable
+        i = periods.index(k)  # one colour per period: many branches stay readable
+        colour = palette[i % len(palette)] if palette else f"C{i % 10}"
         # Split at stability changes; each stretch drawn with its style and joined to the next.
         start = 0
         for i in range(1, rows.size + 1):
@@ -260,6 +264,43 @@ def impact_map(result, stop=0, *, ax=None):
     stops = g.labels("stop").get("stops", [])
     name = stops[stop] if stop < len(stops) and stops[stop] else f"stop {stop}"
     ax.set_title(f"{name.decode() if isinstance(name, bytes) else name}: {int(np.count_nonzero(on))} impacts", fontsize=8)
+    return ax
+
+
+def section(result, coordinate=0, quantity="v", *, against="phase", ax=None):
+    """The Poincaré section on a hyperplane (/section, record.section): ``quantity`` ("x" or "v")
+    of ``coordinate`` at each crossing. For a simulation, against the forcing phase Ωt mod 2π
+    (``against="phase"``) or against x or v of another coordinate (``against=("x", j)``); for a
+    sweep or a diagram, against the swept value (a diagram's up and down sweeps overlaid)."""
+    r = _result(result)
+    g = _need(r, "section", "simulation, sweep or diagram (with record.section)")
+    if quantity not in ("x", "v"):
+        raise ValueError(f"vibro.plot.section: quantity is 'x' or 'v', not {quantity!r}")
+    ax = _axes(ax)
+    y = np.asarray(getattr(g, quantity))
+    y = y[:, coordinate] if y.ndim == 2 else y
+    if "diagram" in r:
+        for d, (c, size) in enumerate((("tab:blue", 2.0), ("tab:orange", 0.7))):
+            rows = g.sweep == d
+            if rows.any():
+                ax.plot(g.parameter[rows], y[rows], ".", ms=size, color=c, rasterized=True, label=("up", "down")[d])
+        ax.legend(fontsize=7, markerscale=4, loc="best")
+        ax.set_xlabel(str(r["diagram"].attrs["parameter"]))
+    elif "sweep" in r:
+        values = r["sweep"].values[:, 0]
+        ax.plot(values[g.point], y, ".", ms=1.5, color="C0", rasterized=True)
+        ax.set_xlabel(str(r["sweep"].attrs["parameters"][0]))
+    elif against == "phase":
+        ax.plot(g.phase, y, ".", ms=3, color="C0", rasterized=True)
+        ax.set_xlim(0.0, 2.0 * np.pi)
+        ax.set_xlabel("forcing phase $\\Omega t$ mod $2\\pi$")
+    else:
+        what, j = against
+        other = np.asarray(getattr(g, what))
+        ax.plot(other[:, j] if other.ndim == 2 else other, y, ".", ms=3, color="C0", rasterized=True)
+        ax.set_xlabel(f"${what}_{{{j}}}$ at the crossing")
+    ax.set_ylabel(f"${quantity}_{{{coordinate}}}$ at the crossing")
+    ax.set_title(f"section: {len(g.t)} crossings", fontsize=8)
     return ax
 
 

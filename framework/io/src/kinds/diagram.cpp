@@ -43,6 +43,10 @@ struct Branch {
   /// the value's index in the sorted grid).
   ImpactMap map;
   std::vector<std::int64_t> map_point;
+  /// record.section: the crossings of the recorded periods, likewise (section_point: grid index).
+  std::vector<double> section_t, section_phase;
+  std::vector<std::int64_t> section_direction, section_point;
+  std::vector<Eigen::VectorXd> section_x, section_v;
 };
 
 /// What the recorded points of a value are.
@@ -109,6 +113,34 @@ void write_impact_map(ResultFile& file, const Scene& scene,
                                   integers("point", point), std::move(dirs)});
 }
 
+/// /section of a diagram (record.section; docs/results.md): the crossings of every value's
+/// recorded periods, direction after direction, each value's in time order, with the value's grid
+/// index (`point`), the parameter's value (`parameter`) and the diagram's direction (`sweep`).
+void write_section(ResultFile& file, const Scene& scene, const std::vector<double>& grid,
+                   const std::vector<std::pair<std::string, const std::vector<std::size_t>*>>& directions,
+                   const std::vector<Branch>& branches) {
+  std::vector<double> t, phase, parameter;
+  std::vector<std::int64_t> crossing, point, sweep;
+  std::vector<Eigen::VectorXd> x, v;
+  for (std::size_t d = 0; d < directions.size(); ++d) {
+    const Branch& b = branches[d];
+    t.insert(t.end(), b.section_t.begin(), b.section_t.end());
+    phase.insert(phase.end(), b.section_phase.begin(), b.section_phase.end());
+    crossing.insert(crossing.end(), b.section_direction.begin(), b.section_direction.end());
+    x.insert(x.end(), b.section_x.begin(), b.section_x.end());
+    v.insert(v.end(), b.section_v.begin(), b.section_v.end());
+    point.insert(point.end(), b.section_point.begin(), b.section_point.end());
+    for (const std::int64_t g : b.section_point) parameter.push_back(grid[static_cast<std::size_t>(g)]);
+    sweep.insert(sweep.end(), b.section_t.size(), directions[d].first == "up" ? 0 : 1);
+  }
+  const std::size_t r = t.size(), n = static_cast<std::size_t>(scene.dof());
+  Dataset sweeps = integers("sweep", sweep);
+  sweeps.labels.emplace_back("names", std::vector<std::string>{"up", "down"});
+  file.write_group("section", {reals("t", t, {r}), reals("phase", phase, {r}), integers("direction", crossing),
+                               detail::table("x", x, n), detail::table("v", v, n), integers("point", point),
+                               reals("parameter", parameter, {r}), std::move(sweeps)});
+}
+
 /// Follows the attractor through the grid values `order` (indices into the sorted grid).
 void follow(const SceneDocument& doc, const Scene& scene, const std::vector<double>& grid,
             const std::vector<std::size_t>& order, const RunRequest& request, detail::Progress& progress,
@@ -146,14 +178,20 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
     double L = 1.0, V = 1.0;
     // The impact map of the recorded periods (record.impact_map), one block's at a time.
     std::optional<ImpactMap> map;
+    std::optional<Section> section;  // record.section, likewise
     std::vector<Observer*> observers;
     // P stroboscopic points from period `first` after t0 on (each block replaces the last).
     const auto record = [&](long first) {
       z.clear();
       impacts = 0;
+      observers.clear();
       if (scene.record.impact_map) {
         map.emplace();
-        observers = {&*map};
+        observers.push_back(&*map);
+      }
+      if (scene.record.section) {
+        section.emplace(scene.record.section->plane, scene.record.section->direction);
+        observers.push_back(&*section);
       }
       const double t1 = t0 + static_cast<double>(first) * T;
       for (std::size_t i = 1; i <= P && s.status == RunStatus::completed; ++i) {
@@ -201,12 +239,22 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
       out.message = fmt::format("at {} = {:.12g}: {}", path, grid[g], s.message);
       return;
     }
-    for (std::size_t i = 0; i < P; ++i)
+    // Written in the result's frame (record.frame): z[i] is the state at t0 + (first + i + 1) T,
+    // first = transient + extra the last block's first period (the map's states carry their times).
+    const ResultFrame frame = ResultFrame::of(built);
+    for (std::size_t i = 0; i < P; ++i) {
+      Eigen::VectorXd xi = z[i].head(n), vi = z[i].tail(n);
+      frame.to_result(t0 + static_cast<double>(transient + extra + static_cast<long>(i) + 1) * T, xi, vi);
       for (Eigen::Index j = 0; j < n; ++j) {
         const std::size_t at = (g * P + i) * static_cast<std::size_t>(n) + static_cast<std::size_t>(j);
-        out.x[at] = z[i](j);
-        out.v[at] = z[i](n + j);
+        out.x[at] = xi(j);
+        out.v[at] = vi(j);
       }
+    }
+    if (map)
+      for (std::size_t i = 0; i < map->t.size(); ++i) frame.to_result(map->t[i], map->x[i], map->v[i]);
+    if (section)  // the crossings of the scene's own coordinates, their states written in the result's frame
+      for (std::size_t i = 0; i < section->t.size(); ++i) frame.to_result(section->t[i], section->x[i], section->v[i]);
     out.k[g] = k;
     out.residual[g] = residual;
     out.extra[g] = extra;
@@ -222,6 +270,14 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
       to.x.insert(to.x.end(), map->x.begin(), map->x.end());
       to.v.insert(to.v.end(), map->v.begin(), map->v.end());
       out.map_point.insert(out.map_point.end(), map->t.size(), static_cast<std::int64_t>(g));
+    }
+    if (section) {
+      out.section_t.insert(out.section_t.end(), section->t.begin(), section->t.end());
+      out.section_phase.insert(out.section_phase.end(), section->phase.begin(), section->phase.end());
+      out.section_direction.insert(out.section_direction.end(), section->crossing.begin(), section->crossing.end());
+      out.section_x.insert(out.section_x.end(), section->x.begin(), section->x.end());
+      out.section_v.insert(out.section_v.end(), section->v.begin(), section->v.end());
+      out.section_point.insert(out.section_point.end(), section->t.size(), static_cast<std::int64_t>(g));
     }
     transient = spec.transient;
     progress.add();
@@ -298,6 +354,7 @@ RunReport run_diagram(const SceneDocument& doc, const Scene& scene, const RunReq
   }
   file.write_group("diagram", datasets, {{"parameter", axis.path}, {"directions", names}});
   if (scene.record.impact_map) write_impact_map(file, scene, directions, branches);
+  if (scene.record.section) write_section(file, scene, grid, directions, branches);
   const bool interrupted = request.interrupt && request.interrupt->load();
   file.set_outcome(interrupted ? "interrupted" : not_reached ? "points_stopped_early" : "completed",
                    interrupted ? "interrupted: the points after it were not reached" : message,
@@ -361,7 +418,7 @@ RunKindInfo diagram_kind() {
   k.summary = "a brute-force bifurcation diagram along one parameter, up and down";
   k.section = "diagram";
   k.missing = "missing: run.kind: diagram needs run.diagram (path and grid)";
-  k.groups = {"diagram", "impact_map"};
+  k.groups = {"diagram", "impact_map", "section"};
   k.every_process = false;
   k.stoppable = true;
   k.parse = parse_diagram_section;

@@ -141,10 +141,11 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
   ResultFile file = open_result_file(request, scene, current_meta(request.threads));
   // Progress in steps: the grid's points one after the other, then the brackets between
   // neighbours (each a bisection, however many transitions it holds).
-  const std::size_t steps = axis.values.size() - 1;
-  detail::Progress progress(request, "locate", "steps", static_cast<double>(axis.values.size() + steps));
+  detail::Progress progress(request, "locate", "steps", static_cast<double>(2 * axis.values.size() - 1));
   options.on_point = [&progress](std::size_t) { progress.add(); };
+  // An interrupted scan ends early: only its points are bracketed (none once interrupted).
   const std::vector<ScanPoint> points = scan(family, axis.values, scene.t0, scene.x0, scene.v0, options);
+  const std::size_t steps = points.size() - 1;
 
   // Bisections between neighbouring grid points are independent: in parallel, gathered in order.
   std::vector<std::vector<Transition>> found(steps);
@@ -159,6 +160,7 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
 #endif
   for (std::size_t i = 0; i < steps; ++i) {
     try {
+      if (request.interrupt && request.interrupt->load()) continue;
       found[i] = locate_between(family, points[i], points[i + 1], options, &orbits);
       progress.add();
     } catch (...) {

@@ -52,14 +52,25 @@ RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunR
     r.message = std::string("the guess's run stopped early (") + to_string(guess.status) + "): " + guess.message;
     r.x = guess.x;
     r.v = guess.v;
-  } else if (auto* modal = dynamic_cast<ModalEngine*>(engine.get())) {
-    KrylovOptions k;
-    k.multipliers = spec.multipliers;
-    r = shoot(*modal, o, guess.t, guess.x, guess.v, k);
-  } else if (scene.engine == EngineKind::taylor) {
-    r = shoot(scene.impact_system(), scene.forces, o, guess.t, guess.x, guess.v);
   } else {
-    r = shoot(scene.impact_system(), o, guess.t, guess.x, guess.v);
+    try {
+      if (auto* modal = dynamic_cast<ModalEngine*>(engine.get())) {
+        KrylovOptions k;
+        k.multipliers = spec.multipliers;
+        r = shoot(*modal, o, guess.t, guess.x, guess.v, k);
+      } else if (scene.engine == EngineKind::taylor) {
+        r = shoot(scene.impact_system(), scene.forces, o, guess.t, guess.x, guess.v);
+      } else {
+        r = shoot(scene.impact_system(), o, guess.t, guess.x, guess.v);
+      }
+    } catch (const InvalidInput&) {
+      // Shooting's own runs (the section's) stopped by the interrupt: not bad input.
+      if (!(request.interrupt && request.interrupt->load())) throw;
+      r.status = ShootingStatus::map_failed;
+      r.message = "interrupted";
+      r.x = guess.x;
+      r.v = guess.v;
+    }
   }
   const bool interrupted = interrupted_guess || (request.interrupt && request.interrupt->load());
 
@@ -71,6 +82,8 @@ RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunR
       im.push_back(f.values(i).imag());
     }
   auto values = [](const Eigen::VectorXd& a) { return std::vector<double>(a.data(), a.data() + a.size()); };
+  // The state (at t0, or where the guess's run stopped) in the result's frame (record.frame).
+  ResultFrame::of(scene).to_result(guess.status != RunStatus::completed ? guess.t : r.t0, r.x, r.v);
   std::vector<Dataset> datasets{reals("x", values(r.x), {static_cast<std::size_t>(r.x.size())}),
                                 reals("v", values(r.v), {static_cast<std::size_t>(r.v.size())}),
                                 reals("residuals", r.residuals, {r.residuals.size()}),

@@ -67,7 +67,7 @@ RunKindInfo simulate_kind() {
   k.name = "simulate";
   k.kind = RunSpec::Kind::simulate;
   k.summary = "one run: transient periods, then recorded periods with the observers `record` asks for";
-  k.groups = {"events", "contacts", "samples", "poincare", "impact_map", "stats"};
+  k.groups = {"events", "contacts", "samples", "poincare", "impact_map", "section", "stats"};
   k.run = [](const SceneDocument&, const Scene& scene, const RunRequest& request) { return run_simulation(scene, request); };
   return k;
 }

@@ -15,7 +15,7 @@ namespace detail {
 
 namespace {
 
-constexpr const char* kGroups[] = {"events", "contacts", "samples", "poincare", "impact_map", "stats"};
+constexpr const char* kGroups[] = {"events", "contacts", "samples", "poincare", "impact_map", "section", "stats"};
 
 /// The kinds' names in code order; engage and disengage only for scenes with compliant stops
 /// (a scene without them writes the four rigid kinds); the friction kinds (after those six) only
@@ -46,8 +46,20 @@ Table states_table(std::string group, const std::vector<double>& t, const States
 
 }  // namespace
 
+Table section_table(const Section& section, Eigen::Index dof) {
+  const std::size_t r = section.t.size();
+  Table table{"section", true, r, {}};
+  table.datasets.push_back(reals("t", section.t, {r}));
+  table.datasets.push_back(reals("phase", section.phase, {r}));
+  table.datasets.push_back(
+      integers("direction", std::vector<std::int64_t>(section.crossing.begin(), section.crossing.end()), {r}, Type::i32));
+  table.datasets.push_back(rows_dataset("x", section.x, dof));
+  table.datasets.push_back(rows_dataset("v", section.v, dof));
+  return table;
+}
+
 bool is_ragged(const std::string& group) {
-  return group == "events" || group == "contacts" || group == "impact_map";
+  return group == "events" || group == "contacts" || group == "impact_map" || group == "section";
 }
 
 /// The groups a recording writes. /stats gets one row per period begun in the recorded span
@@ -119,6 +131,7 @@ std::vector<Table> recorded_tables(const Recording& rec, Eigen::Index dof,
     table.datasets.push_back(rows_dataset("v", map.v, dof));
     tables.push_back(std::move(table));
   }
+  if (rec.section) tables.push_back(section_table(*rec.section, dof));
   if (rec.statistics) {
     const PeriodStatistics& s = *rec.statistics;
     const std::size_t m = stop_names.size();
@@ -148,6 +161,7 @@ std::vector<std::string> recorded_groups(const RecordSpec& record) {
   if (records_samples(record)) groups.push_back("samples");
   if (record.poincare) groups.push_back("poincare");
   if (record.impact_map) groups.push_back("impact_map");
+  if (record.section) groups.push_back("section");
   if (record.statistics) groups.push_back("stats");
   return groups;
 }
@@ -156,10 +170,10 @@ std::vector<std::string> recorded_groups(const RecordSpec& record) {
 
 void ResultFile::Impl::require_groups(const Recording& rec) const {
   const bool expected[] = {record.events, record.contacts, detail::records_samples(record),
-                           record.poincare, record.impact_map, record.statistics};
+                           record.poincare, record.impact_map, record.section.has_value(), record.statistics};
   const bool present[] = {rec.events.has_value(), rec.contacts.has_value(),
                           rec.samples.has_value(), rec.poincare.has_value(),
-                          rec.impact_map.has_value(), rec.statistics.has_value()};
+                          rec.impact_map.has_value(), rec.section.has_value(), rec.statistics.has_value()};
   for (std::size_t g = 0; g < std::size(detail::kGroups); ++g)
     if (expected[g] != present[g])
       throw std::logic_error(std::string("results: the recording ") +

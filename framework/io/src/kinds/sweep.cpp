@@ -67,7 +67,11 @@ ResultFile open_sweep_file(const SweepPlan& plan, const Scene& scene, const RunR
   start.resumed.reset();
   if (plan.follow && start.first > 0 && start.first % plan.chain_length != 0) {
     StartState s{scene.t0, {}, {}};
-    if (file.last_state(s.t, s.x, s.v)) start.resumed = s;
+    if (file.last_state(s.t, s.x, s.v)) {
+      // x_end, v_end are written in the result's frame: back to the one the last point computed in
+      ResultFrame::of(plan.scenes[start.first - 1]).to_scene(s.t, s.x, s.v);
+      start.resumed = s;
+    }
   }
   return file;
 }
@@ -153,7 +157,7 @@ RunKindInfo sweep_kind() {
   k.summary = "one run per point of a grid of one or two scene values (OpenMP threads, MPI processes), resumable";
   k.section = "sweep";
   k.missing = "missing: a sweep needs run.sweep.parameters";
-  k.groups = {"sweep", "events", "contacts", "samples", "poincare", "impact_map", "stats"};
+  k.groups = {"sweep", "events", "contacts", "samples", "poincare", "impact_map", "section", "stats"};
   k.resumable = true;
   k.every_process = true;
   k.parse = parse_sweep_section;

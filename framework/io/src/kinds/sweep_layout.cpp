@@ -198,11 +198,13 @@ void ResultFile::append_point(std::size_t index, const std::vector<double>& valu
   point.message = s.message;
   point.counts = detail::counts(s);
   point.t_end = s.t;
-  point.x_end.assign(s.x.data(), s.x.data() + s.x.size());
-  point.v_end.assign(s.v.data(), s.v.data() + s.v.size());
+  Eigen::VectorXd x_end = s.x, v_end = s.v;  // in the result's frame (record.frame)
+  recording.frame.to_result(s.t, x_end, v_end);
+  point.x_end.assign(x_end.data(), x_end.data() + x_end.size());
+  point.v_end.assign(v_end.data(), v_end.data() + v_end.size());
   const Dataset checks[] = {detail::reals("values", point.values, {values.size()}),
-                            detail::reals("t_end", {s.t}, {1}), detail::vector_dataset("x_end", s.x),
-                            detail::vector_dataset("v_end", s.v)};
+                            detail::reals("t_end", {s.t}, {1}), detail::vector_dataset("x_end", x_end),
+                            detail::vector_dataset("v_end", v_end)};
   for (const Dataset& c : checks) detail::require_finite(f.store.name(), "/sweep/" + c.name, c, where);
 
   f.write_point(static_cast<hsize_t>(index), point);

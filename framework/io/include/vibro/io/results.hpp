@@ -13,6 +13,7 @@
 ///   /contacts/{stop,t_start,t_end,force_min,t_force_min,closed}
 ///   /samples/{t,x,v}  /poincare/{t,x,v}                (x, v: rows = times, columns = DOF)
 ///   /stats/{sticking_fraction,impacts}                 (rows = periods, columns = stops)
+///   /impact_map/{t,stop,phase,velocity,x,v}  /section/{t,phase,direction,x,v}  (rows = crossings)
 /// Only what the scene records exists. A sweep adds /sweep/values (points × parameters, the
 /// paths as attribute `parameters`), /sweep/status; fixed-size data gain a leading point axis,
 /// ragged data (events, contacts) are concatenated with a `point` column.
@@ -20,6 +21,7 @@
 /// Files are written under `OUT.partial` and renamed on success; a sweep appends its points in
 /// grid order as they complete (chunked, flushed), so an interrupted sweep keeps its finished
 /// points and `vibro run --resume` continues it.
+#include "vibro/io/result_frame.hpp"
 #include "vibro/io/scene.hpp"
 
 #include <optional>
@@ -35,12 +37,18 @@ struct Recording {
   std::optional<Samples> samples;
   std::optional<Poincare> poincare;
   std::optional<ImpactMap> impact_map;
+  std::optional<Section> section;
   std::optional<PeriodStatistics> statistics;
   RunSummary summary;
   double wall_seconds = 0.0;
   double t_start = 0.0;     ///< the recorded part starts here (after the transient)
   double t_end = 0.0;       ///< and ends here: t_start + run.periods·T; run the simulator to it
   std::size_t periods = 0;  ///< forcing periods begun in [t_start, t_end): rows of /stats
+  /// The scene's map to the frame its results are written in (record.frame): samples, Poincaré
+  /// points and the impact map are mapped by map_to_result_frame(), the final state (a sweep's
+  /// x_end, v_end) when it is written; summary keeps the engine's frame (a followed sweep
+  /// starts its next point from it).
+  ResultFrame frame;
 
   /// Observers for the recorded part of a run starting at t_start. Samples are taken at
   /// t_start + i·T/N, i = 0 … ⌊N·periods⌋ - 1 (N = samples_per_period, T = scene.period()), or
@@ -52,6 +60,8 @@ struct Recording {
   /// Pointers to the engaged observers: take them once the Recording is in its final place
   /// (moving or copying it leaves them pointing at the old one).
   std::vector<Observer*> observers();
+  /// Maps the recorded states (samples, Poincaré points, impact map) to `frame`, once, after the run.
+  void map_to_result_frame();
 };
 
 /// Facts about the run written to /meta.

@@ -29,6 +29,7 @@
 #include "vibro/taylor_simulator.hpp"
 #include "vibro/friction.hpp"
 #include "vibro/modal.hpp"
+#include "vibro/section.hpp"
 #include "vibro/simulator.hpp"
 
 #include <functional>
@@ -57,6 +58,13 @@ class SceneError : public std::runtime_error {
   std::string path_, problem_;
 };
 
+/// record.section: a hyperplane nᵀx = c in the positions and the direction of the crossings
+/// recorded (vibro/section.hpp).
+struct SectionSpec {
+  Hyperplane plane;
+  Section::Direction direction = Section::Direction::both;
+};
+
 /// What a run records (each observer exists only if asked for).
 struct RecordSpec {
   bool events = false;
@@ -64,8 +72,12 @@ struct RecordSpec {
   bool statistics = false;
   bool poincare = false;
   bool impact_map = false;             ///< the state before every impact (ImpactMap)
+  std::optional<SectionSpec> section;  ///< crossings of a hyperplane (Section)
   int samples_per_period = 0;          ///< exact samples, evenly spaced in each recorded period
   std::vector<double> sample_times;    ///< or explicit times (relative to the recording start)
+  /// `record.frame`: the frame a base-excited scene's states are written in (result_frame.hpp);
+  /// defaults to base.frame (and is absolute, and unused, without a base).
+  BaseFrame frame = BaseFrame::absolute;
 };
 
 /// One swept parameter: a path into the scene and its values.
@@ -234,7 +246,8 @@ struct Scene {
   /// (taylor_simulator.hpp); empty forces for a linear scene.
   NonlinearForces forces;
   /// The frictional contacts (friction.hpp), validated; empty: none. A scene with friction has no
-  /// stops, runs on the dense engine's FrictionSimulator and only as run.kind simulate.
+  /// stops and runs on the dense engine's FrictionSimulator, in the run kinds that only run a scene
+  /// (simulate, sweep, diagram, basin, locate; the analysis kinds refuse it).
   std::vector<FrictionContact> friction;
   /// `initial.from`: the saved orbit the scene was put on ("FILE: branch B, point I …"), else "".
   std::string restart;
