@@ -468,6 +468,75 @@ TEST_CASE("continuation: through a grazing that adds an impact, onto the unstabl
   CHECK(b.points.back().p == Approx(o.p_min).margin(1e-12));
 }
 
+TEST_CASE("continuation: a fold of the orbits with the impact just beside the grazing that ends them "
+          "is not stepped over (the three-mass clearance chain at Ω ≈ 0.34057)",
+          "[continuation][three-mass][grazing]") {
+  // Down in Ω, the unstable orbits with three impacts on the clearance turn at a fold at
+  // 0.3405746067 and go back up to the grazing at 0.3406846563 that ends them (a corner: the
+  // orbits with two impacts leave it downwards). The first step from this point (one of the
+  // scene's branch points, kept to 17 digits), of 0.02 at the scene's parameter scale, lands on
+  // the two-impact orbits below both: the step across the grazing saw no turn in Ω (both ends
+  // travel down), and the fold was lost. The tangent of the three-impact orbits at the grazing
+  // (leaving it downwards, into the fold) shows the turn, and the step is cut.
+  const double p0 = 0.34227002384989125, t0 = 3.877695945534333;
+  VectorXd x(3), v(3);
+  x << 0.10311075158037762, 0.06792461761963765, 0.08288308455598971;
+  v << -0.05341092523855251, -0.11836966090314052, -0.123544509393987;
+  vibro::ContinuationOptions o;
+  o.p_min = 0.338;
+  o.p_max = 0.343;
+  o.direction = -1;
+  o.step = 0.02;
+  o.max_step = 0.02;
+  o.parameter_scale = 0.4;  // the scene's range [0.3, 0.7]
+  o.max_doublings = 0;
+  const vibro::ContinuationResult r = vibro::continue_orbits(clearance_chain_at, p0, t0, x, v, o);
+  REQUIRE_FALSE(r.branches.empty());
+  INFO("branch: " << r.branches[0].end);
+  const vibro::Bifurcation* fold = find(r, vibro::BifurcationKind::fold, 0.3405746);
+  const vibro::Bifurcation* graze = find(r, vibro::BifurcationKind::grazing, 0.3406847);
+  REQUIRE(fold != nullptr);
+  REQUIRE(graze != nullptr);
+  CHECK(fold->smooth);
+  CHECK(std::abs(fold->p - 0.3405746067) < 1e-9);
+  CHECK(graze->smooth);
+  CHECK(std::abs(graze->p - 0.3406846563) < 1e-9);
+  // The fold lies on the orbits with three impacts (the grazing's impacting side).
+  CHECK(fold->point.signature.impacts[0] == 3);
+}
+
+TEST_CASE("continuation: a grazing corner reached by short steps is located from the side without the "
+          "impact although it lies far beyond the two points in Ω (the three-mass chain at Ω ≈ 0.17979)",
+          "[continuation][three-mass][grazing]") {
+  // Past the vanishing of s3's split phase the branch follows the bounces lost one grazing at a
+  // time; each grazing is a corner where the branch turns back in Ω. From this orbit with seven
+  // impacts of s3 (a point of the scene's branch) the steps cross the corners at 0.1797894388
+  // (eight impacts / seven) and 0.1798412768 (seven / six) between points a few 1e-7 apart, while
+  // the corner lies 8 … 20 times that distance beyond the point without the impact: the secant
+  // from that side must be let reach it.
+  const double p0 = 0.17984281124250473;
+  VectorXd x(3), v(3);
+  x << 0.3203801898123175, 0.15999506626516288, 0.09077985607243874;
+  v << 0.10763994481686039, 0.06761474942522078, 0.06448766075081086;
+  vibro::ContinuationOptions o;
+  o.p_min = 0.17970;
+  o.p_max = 0.17990;
+  o.step = 0.01;
+  o.max_step = 0.02;
+  o.parameter_scale = 0.025;  // the scene's range, so that the steps are the scene's
+  o.max_points = 60;
+  const vibro::ContinuationResult r = vibro::continue_orbits(three_mass_at, p0, 0.0, x, v, o);
+  REQUIRE_FALSE(r.branches.empty());
+  for (const double at : {0.179789438829, 0.179841276770}) {
+    const vibro::Bifurcation* graze = find(r, vibro::BifurcationKind::grazing, at);
+    REQUIRE(graze != nullptr);
+    INFO("grazing near " << at << ": " << graze->p << " (" << graze->note << ")");
+    CHECK(graze->smooth);
+    CHECK(std::abs(graze->p - at) < 1e-9);
+    CHECK(std::abs(graze->value) < 1e-9);
+  }
+}
+
 namespace {
 
 /// One direction of a brute-force bifurcation diagram of the paper's system (run.kind: diagram,

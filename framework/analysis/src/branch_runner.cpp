@@ -38,6 +38,7 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
   while (static_cast<int>(branch.points.size()) < o_.max_points) {
     int iterations = 0;
     Node next;
+    bool stepped = true;  // next is the corrector's (not a jump's)
     const VectorXd y_pred = c_.scaled(cur.e) + h * cur.t;
     next.e = c_.correct(y_pred, cur.t, &iterations);
     // A corrector that travels further than the step has found another branch crossing the
@@ -107,6 +108,7 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
         continue;
       }
       next = std::move(*jumped);
+      stepped = false;
       h = std::clamp(std::abs(next.e.p - cur.e.p) / c_.P, o_.min_step, o_.max_step);
     } else {
       // Oriented along cur's tangent on a smooth stretch; where the step crossed a grazing or
@@ -183,7 +185,12 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
       branch.end = std::string("reached p_") + (limit == o_.p_max ? "max" : "min") + " = " + number_text(limit);
       return;
     }
-    examine(cur, next, branch_index, depth, doublings);
+    // A step across a grazing that passed a fold beside it unseen is cut like the steps above
+    // (examine() removes what it recorded for it).
+    if (!examine(cur, next, branch_index, depth, doublings, stepped && h > crossing_step)) {
+      h *= 0.5;
+      continue;
+    }
     append(branch, next);
     last_dp = std::max(std::abs(next.e.p - cur.e.p), 1e-9 * c_.P);
     trail.push_back(c_.scaled(next.e));
