@@ -124,9 +124,13 @@ def nearest_approach(vibro, f, i):
             inner = [n for n in range(1, len(q) - 1) if w[n - 1] < 0.0 <= w[n + 1] and q[n] <= min(q[n - 1], q[n + 1])]
             candidates += [(q[n], a + (b - a) * fractions[n - 1], a + (b - a) * fractions[n + 1]) for n in inner]
         for _, lo, hi in sorted(candidates)[:3]:
-            fine = np.linspace(lo, hi, 4001) - t0
-            rr = vibro.simulate(s, transient_periods=0, periods=2, sample_times=list(fine), threads=1)
-            approach = min(approach, float(np.min(gap(np.asarray(rr.samples.x)))))
+            for _ in range(2):   # twice: the second grid around the first one's least sample
+                fine = np.linspace(lo, hi, 4001)
+                rr = vibro.simulate(s, transient_periods=0, periods=2, sample_times=list(fine - t0), threads=1)
+                q = gap(np.asarray(rr.samples.x))
+                n = int(np.argmin(q))
+                lo, hi = fine[max(n - 1, 0)], fine[min(n + 1, len(fine) - 1)]
+            approach = min(approach, float(q[n]))
     r1 = vibro.simulate(s, transient_periods=0, periods=1, samples=20000, events=True, threads=1)
     t = np.asarray(r1.samples.t)
     impacts = (np.asarray(r1.events.stop) == j) & (np.asarray(r1.events.kind) == 0)  # kind 0: impact
