@@ -205,7 +205,7 @@ EOF
     ;;
   signal_in_continue)  # was: locate and continue ignored SIGTERM's flag, leaving a .partial behind
     # Steps of 1e-7 over the whole range: hours of continuation, ended only by the signal.
-    sed -e 's/^    max_step: .*/    max_step: 1e-7\n    max_points: 1000000/' -e 's/^    step: .*/    step: 1e-7/' \
+    sed -e '/^    max_points: /d' -e 's/^    max_step: .*/    max_step: 1e-7\n    max_points: 1000000/' -e 's/^    step: .*/    step: 1e-7/' \
       "$(dirname "$fig2")/continuation.yaml" > cont.yaml
     "$vibro" run cont.yaml -o c.h5 2> run.txt > /dev/null &
     pid=$!

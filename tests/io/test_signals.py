@@ -157,8 +157,8 @@ def cases(args):
                                     "{path: forcing.frequency, range: [0.7, 0.9], step: 0.01}}"),
             [], "lock+10", WRITTEN, ["o.h5"]),
         "continue: the corrector, steps of 1e-7": (
-            experiment(args, "wagg2004/continuation.yaml", (r"^(\s*)max_step: .*$", r"\1max_step: 1e-7\n\1max_points: 1000000"),
-                       (r"^(\s*)step: .*$", r"\1step: 1e-7")),
+            experiment(args, "wagg2004/continuation.yaml", (r"^(\s*)max_step: .*$", r"\1max_step: 1e-7"),
+                       (r"^(\s*)max_points: .*$", r"\1max_points: 1000000"), (r"^(\s*)step: .*$", r"\1step: 1e-7")),
             [], "lock+1", WRITTEN, ["o.h5"]),
         "continue: two-parameter curves": (
             experiment(args, "examples/impact_oscillator_curves.yaml", (r"^(\s*)step: 0\.02(\s*)$", r"\1step: 0.0005\2"),

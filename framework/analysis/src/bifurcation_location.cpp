@@ -112,7 +112,8 @@ std::optional<Node> BranchRunner::at_p(const Node& from, double p, const VectorX
 /// from the same side in p. Ends when the secant's next step is below half the tolerance; the
 /// zero is that step's end, the orbit the last good point's.
 std::optional<Node> BranchRunner::one_sided(const Node& good, const Node& bad, const TestFunction& f,
-                                            const std::function<bool(const Node&)>& on_good, int* count) {
+                                            const std::function<bool(const Node&)>& on_good, int* count,
+                                            double solved) {
   struct Good {
     double p, f;
     Node node;
@@ -123,11 +124,17 @@ std::optional<Node> BranchRunner::one_sided(const Node& good, const Node& bad, c
   // The zero lies within the bracket or, at a corner, beyond one of its ends: after a jump from
   // the unstable side of a fold onto the branch without the impact, the corner lies below both
   // points by a few times their distance (the paper's system at A1 = 0.4939: 2.6 ×, where a
-  // reach of 2 × left only a bisection between two branches). A secant that leads further has
-  // left the orbit family.
-  const double reach = 8.0 * std::abs(bad.e.p - good.e.p);
-  const double lo = std::min(good.e.p, bad.e.p) - reach, hi = std::max(good.e.p, bad.e.p) + reach;
+  // reach of 2 × left only a bisection between two branches). Where the steps that crossed the
+  // corner were cut short (step control near a cascade of grazings), the zero lies further
+  // beyond, by 8 … 20 × their distance (the three-mass chain of experiments/examples at Ω ≈
+  // 0.17984, 0.18025): a root beyond the reach is approached by steps to its end, the reach
+  // doubling each time, every point on the good side with f on its smooth graph, up to 2 % of the
+  // parameter scale (as far as a jump looks). A secant that leads further has left the family.
+  double reach = 8.0 * std::abs(bad.e.p - good.e.p);
+  const double first_reach = reach, max_reach = std::max(reach, 0.02 * c_.P);
+  double lo = std::min(good.e.p, bad.e.p) - reach, hi = std::max(good.e.p, bad.e.p) + reach;
   const bool doubled = c_.k > o_.period;
+  bool polishing = false;  // the zero found in p; its orbit sought within `solved` of it
   for (int it = 0; it < 60; ++it) {
     const Good& last = g.back();
     double p = 0.5 * (last.p + toward);
@@ -139,30 +146,73 @@ std::optional<Node> BranchRunner::one_sided(const Node& good, const Node& bad, c
         located_p_ = root;
         bracket_low_ = std::min(last.p, root);
         bracket_high_ = std::max(last.p, root);
-        return last.node;
+        // Where f is steep (the gap peak after the last bounce of a fast sequence moves by ~1e3
+        // lengths per unit of p), the last good orbit, within the tolerance of the zero in p, may
+        // still be well off it in f (1.2e-7 L at 5e-11 in Ω): the secant goes on below the
+        // tolerance until the orbit is within `solved` of the zero, so that the orbit kept and
+        // the p reported agree; failing that, the zero is bracketed.
+        if (!(std::abs(last.f) > solved)) return last.node;
+        polishing = true;
       }
-      if (!(root >= lo && root <= hi)) return std::nullopt;
-      p = root;
+      if (!std::isfinite(root) || (!(root >= lo && root <= hi) && reach >= max_reach)) return std::nullopt;
+      p = std::clamp(root, lo, hi);
+      if (p != root) {
+        const double grown = std::min(2.0 * reach, max_reach) - reach;
+        reach += grown;
+        lo -= grown;
+        hi += grown;
+      }
     }
     bool stepped = false;
     for (int attempt = 0; attempt < 40 && !stepped; ++attempt) {
-      if (std::abs(p - last.p) <= 0.5 * o_.locate_tolerance) break;
+      if (!polishing && std::abs(p - last.p) <= 0.5 * o_.locate_tolerance) break;
+      if (p == last.p) break;
       std::optional<Node> m = at_p(last.node, p, along);
       if (count) ++*count;
       const double fm = m ? f(*m) : kNaN;
-      if (m && on_good(*m) && std::isfinite(fm) && !(doubled && c_.closes_after(m->e, c_.k / 2))) {
+      // f is a least distance over the orbit's features (its highest gap peak, …): a value far
+      // beyond every one met so far means the feature going to zero is no longer seen there (a
+      // gap peak between two slow bounces merged away): not a point on f's smooth graph.
+      double seen = 0.0;
+      for (const Good& q : g) seen = std::max(seen, std::abs(q.f));
+      const bool jumped = std::abs(fm) > 100.0 * seen;
+      if (m && on_good(*m) && std::isfinite(fm) && !jumped && !(doubled && c_.closes_after(m->e, c_.k / 2))) {
         g.push_back({p, fm, *m});
         stepped = true;
       } else {
         p = last.p + 0.5 * (p - last.p);
       }
     }
+    if (!stepped && polishing) {  // the zero found in p, its orbit not within `solved` of it
+      one_sided_solved_ = false;
+      return g.back().node;
+    }
     if (!stepped) {  // the good side ends within the tolerance of the last good point
+      // Beyond the first reach, only where f has come down to its zero there (not where the
+      // family merely ends: at a fold of its own, or where no orbit is found).
+      if (reach > first_reach) {
+        double seen = 0.0;
+        for (const Good& q : g) seen = std::max(seen, std::abs(q.f));
+        if (!(std::abs(g.back().f) <= 1e-3 * seen)) return std::nullopt;
+      }
+      // Where f is still short of its zero there (the secant through the last two good points
+      // puts it further than the tolerance), the good side ends for another reason than the
+      // grazing or rising: the change is bracketed there, not solved.
+      if (g.size() >= 2) {
+        const Good& l = g.back();
+        const Good& q = g[g.size() - 2];
+        const double root = l.p - l.f * (l.p - q.p) / (l.f - q.f);
+        one_sided_solved_ = l.f != q.f && std::abs(root - l.p) <= o_.locate_tolerance && !(std::abs(l.f) > solved);
+      }
       located_p_ = p;
       bracket_low_ = std::min(g.back().p, p);
       bracket_high_ = std::max(g.back().p, p);
       return g.back().node;
     }
+  }
+  if (polishing) {
+    one_sided_solved_ = false;
+    return g.back().node;
   }
   return std::nullopt;
 }
@@ -215,8 +265,16 @@ void BranchRunner::record(BifurcationKind kind, int stop, const Node& a, const N
   located_p_ = kNaN;
   if (mode == Mode::one_sided) {
     const bool a_good = same_as_a(a);  // same_as_a tells the good side here
-    at = a_good ? one_sided(a, b, f, same_as_a, &count) : one_sided(b, a, f, same_as_a, &count);
-    located_smooth_ = at.has_value();
+    one_sided_solved_ = true;
+    // A grazing's orbit is kept only within 1e-9 L of touching its stop (its gap peak's value).
+    const double solved = kind == BifurcationKind::grazing ? 1e-9 * c_.L : std::numeric_limits<double>::infinity();
+    at = a_good ? one_sided(a, b, f, same_as_a, &count, solved) : one_sided(b, a, f, same_as_a, &count, solved);
+    located_smooth_ = at.has_value() && one_sided_solved_;
+    if (at && !one_sided_solved_) {
+      located_p_ = kNaN;
+      bif.note += std::string(bif.note.empty() ? "" : "; ") +
+                  "the side where its test function is smooth ends before the function reaches zero: bracketed where it ends";
+    }
     if (!at) {
       at = bisect(a, b, same_as_a, &count);
       bif.note += std::string(bif.note.empty() ? "" : "; ") + "the smooth location failed: bracketed by bisection";

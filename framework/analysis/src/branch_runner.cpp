@@ -2,7 +2,8 @@
 /// Following one branch by pseudo-arclength steps (Keller 1977): from the point y with unit
 /// tangent t, the predictor y + h t, the corrector in the hyperplane through it normal to t
 /// (corrector.hpp), the step h grown by 1.5 after ≤ 3 corrector iterations and cut by 0.6 after
-/// ≥ 6, halved on failure. Around that loop the guards that keep it on this branch: a corrector
+/// ≥ 6, halved on failure, and halved too, down to a floor, while the step may have passed a change
+/// of the orbit's events unseen (unseen_crossing). Around that loop the guards that keep it on this branch: a corrector
 /// that travels further than the step, or a point nearer to an earlier point than to the last,
 /// is refused; where the steps stall at a grazing or rising corner (the map's derivative blows up
 /// on one side) the branch is continued by a jump in p with Newton at fixed p (shooting.hpp);
@@ -16,6 +17,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 
 namespace vibro::detail {
 
@@ -27,10 +29,16 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
   double h = std::min(std::max(o_.step, o_.min_step), o_.max_step);
   double last_dp = h * c_.P;
   bool jump_tried = false, resection_tried = false;
+  // A step that may pass a change of the orbit's events unseen (unseen_crossing) is accepted
+  // only once it is this short.
+  const double crossing_step = std::max(o_.min_step, 1e-4 * o_.max_step);
+  behind_ = undo_ = Signature{};
+  behind_at_ = 0;
   std::vector<VectorXd> trail{c_.scaled(cur.e)};  // the points of this half, scaled
   while (static_cast<int>(branch.points.size()) < o_.max_points) {
     int iterations = 0;
     Node next;
+    bool stepped = true;  // next is the corrector's (not a jump's)
     const VectorXd y_pred = c_.scaled(cur.e) + h * cur.t;
     next.e = c_.correct(y_pred, cur.t, &iterations);
     // A corrector that travels further than the step has found another branch crossing the
@@ -38,6 +46,20 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
     if (next.e.ok && (c_.scaled(next.e) - y_pred).norm() > h) {
       next.e.ok = false;
       next.e.why = "the corrector left the predictor by more than the step";
+    }
+    // A step back onto the events before the last multiple change crossed is the way the branch
+    // came (past a contact phase that vanishes, a step may turn back across it): not taken.
+    if (next.e.ok && !(behind_ == cur.b.signature) && orbit_signature(next.e.map, c_.k, c_.stops_) == behind_ &&
+        back_to_change(trail, c_.scaled(next.e))) {
+      next.e.ok = false;
+      next.e.why = "the step lands back on the events before the change just crossed";
+    }
+    // Likewise the first step past a single change: straight back onto the events before it is
+    // back across the same grazing or rising (at a corner the part already followed lies on the
+    // same side in p, beside the new one, and a corrector drawn by its steep map lands there).
+    if (next.e.ok && !(undo_ == cur.b.signature) && orbit_signature(next.e.map, c_.k, c_.stops_) == undo_) {
+      next.e.ok = false;
+      next.e.why = "the step lands back across the change just crossed";
     }
     if (!next.e.ok) {
       h *= 0.5;
@@ -60,6 +82,7 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
         if (std::optional<Node> moved = resection(cur, kSectionMargin)) {
           cur = std::move(*moved);
           carry(trail, old_theta);
+          behind_at_ = std::min(behind_at_, trail.size() - 1);
           trail.push_back(c_.scaled(cur.e));
           continue;
         }
@@ -67,10 +90,14 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
       std::optional<Node> jumped;
       if (h < 1e-3 * o_.max_step && !jump_tried && near_nonsmooth(cur)) {
         jump_tried = true;
-        jumped = jump(cur, last_dp);
+        jumped = jump(cur, last_dp, trail);
         // Against a grazing with no orbit found at fixed p: along the branch of orbits with the
         // new impact, from the corner (grazing_corner.cpp).
         if (!jumped) jumped = corner(cur);
+        // A jump that lands beyond more than one change of events is brought back to the
+        // first, so that it passes no further change (nor the folds beside them) unseen.
+        else if (!single_change(cur.b.signature, jumped->b.signature))
+          jumped = nearest_across(cur, std::move(*jumped), crossing_step * c_.P);
       }
       if (!jumped) {
         if (h < o_.min_step) {
@@ -81,12 +108,34 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
         continue;
       }
       next = std::move(*jumped);
+      stepped = false;
       h = std::clamp(std::abs(next.e.p - cur.e.p) / c_.P, o_.min_step, o_.max_step);
     } else {
       // Oriented along cur's tangent on a smooth stretch; where the step crossed a grazing or
       // a rising (the events changed) the branch may turn back in p at the corner: for now
       // along the step in p, and examine() turns it away from the point it locates there.
       next.b = c_.point(next.e, cur.t, iterations);
+      // With the same events and without a fold (the tangent, oriented along cur's, keeps the
+      // sign of its p component) no real multiplier crosses +1: a step that changes how many
+      // lie above +1 has gone round a fold onto the part of the branch already followed (where
+      // a fold and a grazing are too close for the steps to see the part between them).
+      if (next.b.signature == cur.b.signature && real_above_one(next.b.multipliers) % 2 != real_above_one(cur.b.multipliers) % 2 &&
+          c_.tangent(next.e, cur.t)(cur.t.size() - 1) * cur.t(cur.t.size() - 1) > 0.0) {
+        next.e.ok = false;
+        next.e.why = "the step went round a fold it did not see";
+        h *= 0.5;
+        if (h < o_.min_step) {
+          branch.end = "step below min_step at p = " + number_text(cur.e.p) + " (" + next.e.why + ")";
+          return;
+        }
+        continue;
+      }
+      // A step that may have passed changes of the orbit's events unseen (several at once, or
+      // a fold beside a grazing) is cut back until it is short.
+      if (h > crossing_step && !unseen_crossing(cur.b, next.b).empty()) {
+        h *= 0.5;
+        continue;
+      }
       VectorXd along = cur.t;
       if (!(next.b.signature == cur.b.signature)) {
         along.setZero();
@@ -99,19 +148,13 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
     // that lands back on a part already followed is not the continuation. Refused if the new
     // point is nearer to an earlier point than to the last one.
     // (The last few points are left out: at a sharp corner the new part starts beside them.)
-    if (trail.size() >= 5) {
-      const VectorXd y = c_.scaled(next.e);
-      const double from_cur = (y - trail.back()).norm();
-      bool back = false;
-      for (std::size_t i = 0; i + 4 < trail.size(); ++i) back |= (y - trail[i]).norm() < 0.25 * from_cur;
-      if (back) {
-        h *= 0.5;
-        if (h < o_.min_step) {
-          branch.end = "step below min_step at p = " + number_text(cur.e.p) + " (steps land on the branch already followed)";
-          return;
-        }
-        continue;
+    if (lands_back(trail, c_.scaled(next.e))) {
+      h *= 0.5;
+      if (h < o_.min_step) {
+        branch.end = "step below min_step at p = " + number_text(cur.e.p) + " (steps land on the branch already followed)";
+        return;
       }
+      continue;
     }
     // A doubled branch that closes after half its period has merged back into its parent
     // (at a period doubling of the parent: doubled branches often join two of them).
@@ -142,16 +185,79 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
       branch.end = std::string("reached p_") + (limit == o_.p_max ? "max" : "min") + " = " + number_text(limit);
       return;
     }
-    examine(cur, next, branch_index, depth, doublings);
+    // A step across a grazing that passed a fold beside it unseen is cut like the steps above
+    // (examine() removes what it recorded for it).
+    if (!examine(cur, next, branch_index, depth, doublings, stepped && h > crossing_step)) {
+      h *= 0.5;
+      continue;
+    }
     append(branch, next);
     last_dp = std::max(std::abs(next.e.p - cur.e.p), 1e-9 * c_.P);
     trail.push_back(c_.scaled(next.e));
+    // Past a multiple change (a contact phase vanishing, its bounces turned free), no step or
+    // jump goes back to the events before it. (A single change may be undone further on: an
+    // impact lost at one grazing and regained at the next.)
+    if (!single_change(cur.b.signature, next.b.signature)) {
+      behind_ = cur.b.signature;
+      behind_at_ = trail.size() - 2;  // cur's place in the trail
+    }
+    undo_ = next.b.signature == cur.b.signature ? Signature{} : cur.b.signature;
     cur = std::move(next);
     jump_tried = resection_tried = false;
     if (iterations <= 3) h = std::min(1.5 * h, o_.max_step);
     else if (iterations >= 6) h = std::max(0.6 * h, o_.min_step);
   }
   branch.end = "max_points (" + std::to_string(o_.max_points) + ") reached";
+}
+
+/// How many of the multipliers are real and above +1 (a fold changes it by one).
+int BranchRunner::real_above_one(const FloquetMultipliers& m) {
+  int count = 0;
+  for (const std::complex<double>& mu : m.values)
+    count += std::abs(mu.imag()) <= 1e-12 * std::abs(mu) && mu.real() > 1.0;
+  return count;
+}
+
+/// Whether b's events differ from a's by one change at one stop at most: an impact more or
+/// fewer (a grazing), or a contact phase more or fewer with its chatter (a rising, a phase
+/// entered by chatter appearing or vanishing) and no impact count changed.
+bool BranchRunner::single_change(const Signature& a, const Signature& b) {
+  if (a.k != b.k || a.impacts.size() != b.impacts.size()) return false;
+  int changed = 0;
+  for (std::size_t j = 0; j < a.impacts.size(); ++j) {
+    const int di = std::abs(a.impacts[j] - b.impacts[j]), dc = std::abs(a.chatters[j] - b.chatters[j]),
+              dh = std::abs(a.phases[j] - b.phases[j]);
+    if (di == 0 && dc == 0 && dh == 0) continue;
+    ++changed;
+    const bool grazing = di == 1 && dc == 0 && dh == 0;
+    const bool phase = di == 0 && dc <= 1 && dh == 1;
+    if (!grazing && !phase) return false;
+  }
+  return changed <= 1;
+}
+
+/// Why a step from a to b may have passed a change of the orbit's events unseen (empty: it
+/// cannot have):
+///  * the events differ by more than one change (single_change): a long step may cross a
+///    cascade of changes (the bounces a vanishing contact phase leaves, lost one by one) and
+///    the folds between them;
+///  * the events differ by one impact of a stop (a grazing) and the orbit with the impact is
+///    stable. Near a grazing the map with the impact has a derivative that grows like 1/u, u the
+///    impact's speed (Nordmark 1991; grazing_corner.cpp): along the impacting branch a
+///    multiplier leaves the unit circle on the way to the grazing, through +1 (a fold) or −1 (a
+///    period doubling). A stable impacting point next to the orbit without the impact has that
+///    bifurcation between it and the grazing, not yet passed.
+std::string BranchRunner::unseen_crossing(const BranchPoint& a, const BranchPoint& b) {
+  const Signature& sa = a.signature;
+  const Signature& sb = b.signature;
+  if (sa == sb) return {};
+  if (!single_change(sa, sb)) return "more than one change of events";
+  for (std::size_t j = 0; j < sa.impacts.size(); ++j) {
+    if (sa.impacts[j] == sb.impacts[j] || sa.phases[j] != sb.phases[j] || sa.chatters[j] != sb.chatters[j]) continue;
+    const BranchPoint& impacting = sa.impacts[j] > sb.impacts[j] ? a : b;
+    if (impacting.multipliers.stable) return "a grazing next to a stable impacting orbit";
+  }
+  return {};
 }
 
 /// An orbit near a grazing (an impact slower than 1e-3 V, or a gap maximum within 1e-3 L of
@@ -167,12 +273,35 @@ bool BranchRunner::near_nonsmooth(const Node& n) {
   return false;
 }
 
+/// Whether y (scaled), an orbit with the events before the last multiple change, lies at that
+/// change: nearer to the last point before it than to every point followed since. (Further on
+/// the branch may meet the same events again, at another change: a cascade of bounces lost one
+/// by one after a contact phase vanished, gained back one by one until chatter holds again.)
+bool BranchRunner::back_to_change(const std::vector<VectorXd>& trail, const VectorXd& y) const {
+  if (behind_at_ >= trail.size()) return true;
+  const double to_change = (y - trail[behind_at_]).norm();
+  for (std::size_t i = behind_at_ + 1; i < trail.size(); ++i)
+    if ((y - trail[i]).norm() <= to_change) return false;
+  return true;
+}
+
+/// Whether y (scaled) is nearer to an earlier point of the trail than a quarter of its distance
+/// from the last one (the last four points left out: at a sharp corner the new part of the
+/// branch starts beside them): a point on the part of the branch already followed.
+bool BranchRunner::lands_back(const std::vector<VectorXd>& trail, const VectorXd& y) {
+  if (trail.size() < 5) return false;
+  const double from_cur = (y - trail.back()).norm();
+  for (std::size_t i = 0; i + 4 < trail.size(); ++i)
+    if ((y - trail[i]).norm() < 0.25 * from_cur) return true;
+  return false;
+}
+
 /// The orbit a little further in p, by Newton at fixed p from cur's state: steps of 4, 8, 16 …
 /// times the last step in p, up to 2 % of the parameter scale, first onwards; then backwards,
 /// where only an orbit with other events counts (at a grazing corner the branch beyond the
 /// non-smooth point turns back in p; an orbit with cur's events there is the way we came).
 /// A doubled branch accepts no orbit that closes after half its period (its parent's).
-std::optional<Node> BranchRunner::jump(const Node& cur, double last_dp) {
+std::optional<Node> BranchRunner::jump(const Node& cur, double last_dp, const std::vector<VectorXd>& trail) {
   const double dir = cur.t(cur.t.size() - 1);
   if (std::abs(dir) < 1e-6) return std::nullopt;  // at a fold p cannot be stepped
   for (const double sign : {1.0, -1.0}) {
@@ -184,11 +313,45 @@ std::optional<Node> BranchRunner::jump(const Node& cur, double last_dp) {
       std::optional<Node> m = shoot_at(cur, p, away);
       if (!m) continue;
       if (sign < 0.0 && m->b.signature == cur.b.signature) continue;
+      // Onwards, the same events with another count of real multipliers above +1: the other
+      // side of a fold just passed (the part already followed), not the continuation; the
+      // branch goes on backwards, with other events (past the fold, to a grazing corner).
+      if (m->b.signature == cur.b.signature && real_above_one(m->b.multipliers) % 2 != real_above_one(cur.b.multipliers) % 2)
+        break;
+      if (m->b.signature == behind_ && !(behind_ == cur.b.signature) && back_to_change(trail, c_.scaled(m->e))) continue;
+      if (m->b.signature == undo_ && !(undo_ == cur.b.signature)) continue;
       if (c_.k > o_.period && c_.closes_after(m->e, c_.k / 2)) continue;
+      // An orbit on the part of the branch already followed is not the way on: look further.
+      if (lands_back(trail, c_.scaled(m->e))) continue;
       return m;
     }
   }
   return std::nullopt;
+}
+
+/// The orbit beyond the change of events between cur and `far` nearest in p to cur, to `width`
+/// in p: a bisection in p between the two, each point by Newton at fixed p from cur's orbit
+/// (past a contact phase that vanishes, cur's orbit runs on into the orbit that starts the far
+/// side) or failing that from the far end's; a point with cur's events, or none, moves the near
+/// end. Each orbit is oriented along the jump in p (away from cur).
+std::optional<Node> BranchRunner::nearest_across(const Node& cur, Node far, double width) {
+  double near_p = cur.e.p;
+  VectorXd away = VectorXd::Zero(cur.t.size());
+  away(away.size() - 1) = far.e.p > cur.e.p ? 1.0 : -1.0;
+  const bool doubled = c_.k > o_.period;
+  const auto beyond = [&](const std::optional<Node>& m) {
+    return m && !(m->b.signature == cur.b.signature) && !(m->b.signature == behind_) && !(doubled && c_.closes_after(m->e, c_.k / 2));
+  };
+  for (int it = 0; it < 60 && std::abs(far.e.p - near_p) > width; ++it) {
+    const double p = 0.5 * (near_p + far.e.p);
+    std::optional<Node> m = shoot_at(cur, p, away);
+    if (!beyond(m)) m = shoot_at(far, p, away);
+    if (beyond(m))
+      far = std::move(*m);
+    else
+      near_p = p;
+  }
+  return far;
 }
 
 /// The orbit at p by Newton shooting with its trust region (shooting.hpp) from `from`'s state:

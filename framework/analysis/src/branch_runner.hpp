@@ -14,6 +14,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -49,15 +50,26 @@ class BranchRunner {
 
   // Stepping (branch_runner.cpp).
   static bool near_nonsmooth(const Node& n);
-  std::optional<Node> jump(const Node& cur, double last_dp);
+  static bool single_change(const Signature& a, const Signature& b);
+  static int real_above_one(const FloquetMultipliers& m);
+  static std::string unseen_crossing(const BranchPoint& a, const BranchPoint& b);
+  std::optional<Node> jump(const Node& cur, double last_dp, const std::vector<VectorXd>& trail);
+  static bool lands_back(const std::vector<VectorXd>& trail, const VectorXd& y);
+  bool back_to_change(const std::vector<VectorXd>& trail, const VectorXd& y) const;
   std::optional<Node> corner(const Node& cur);  // grazing_corner.cpp
+  /// The unit tangent (scaled) of the branch of orbits with the impact a grazing of cur's adds,
+  /// at cur (an orbit at or near the grazing), oriented into the impacting side, and the stop.
+  std::optional<std::pair<VectorXd, int>> corner_tangent(const Node& cur);  // grazing_corner.cpp
+  std::optional<Node> nearest_across(const Node& cur, Node far, double width);
   std::optional<Node> shoot_at(const Node& from, double p, const VectorXd& along);
   void locate_at_end(const Node& cur, double last_dp, int branch_index);
   std::optional<Node> resection(const Node& cur, double margin);
   void carry(std::vector<VectorXd>& trail, double old_theta) const;
 
   // Detection (bifurcation_detection.cpp).
-  void examine(const Node& a, Node& b, int branch_index, int depth, std::vector<std::pair<Node, int>>* doublings);
+  bool examine(const Node& a, Node& b, int branch_index, int depth, std::vector<std::pair<Node, int>>* doublings,
+               bool refuse_hidden_fold = false);
+  bool fold_beside_grazing(const Node& a, const Node& b, std::size_t first);
   void point_away(const Node& a, Node& b, std::size_t first) const;
   static std::function<bool(const Node&)> same_counts(const Signature& s, std::size_t j,
                                                      std::vector<int> Signature::*field);
@@ -68,7 +80,8 @@ class BranchRunner {
                                const std::function<bool(const Node&)>& same_as_a = {});
   std::optional<Node> at_p(const Node& from, double p, const VectorXd& along);
   std::optional<Node> one_sided(const Node& good, const Node& bad, const TestFunction& f,
-                                const std::function<bool(const Node&)>& on_good, int* count);
+                                const std::function<bool(const Node&)>& on_good, int* count,
+                                double solved = std::numeric_limits<double>::infinity());
   std::optional<Node> bisect(const Node& a, const Node& b, const std::function<bool(const Node&)>& same_as_a,
                              int* count);
   void record(BifurcationKind kind, int stop, const Node& a, const Node& b, int branch_index,
@@ -80,9 +93,13 @@ class BranchRunner {
   ContinuationResult& result_;
   const ContinuationProgress& progress_;
   Node last_located_;
+  Signature behind_;  ///< the events before the last multiple change crossed (no step goes back to them there)
+  std::size_t behind_at_ = 0;  ///< the trail's index of the last point before that change
+  Signature undo_;    ///< the events before the change the last step crossed (the next step does not go back to them)
   double located_p_ = kNaN;  ///< one-sided location: the extrapolated zero
   double bracket_low_ = 0.0, bracket_high_ = 0.0;
   bool located_smooth_ = true;
+  bool one_sided_solved_ = true;  ///< one_sided: its zero solved, not only the end of the good side found
 };
 
 }  // namespace vibro::detail

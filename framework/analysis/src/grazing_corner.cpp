@@ -27,10 +27,11 @@
 #include <algorithm>
 #include <cmath>
 #include <tuple>
+#include <utility>
 
 namespace vibro::detail {
 
-std::optional<Node> BranchRunner::corner(const Node& cur) {
+std::optional<std::pair<VectorXd, int>> BranchRunner::corner_tangent(const Node& cur) {
   const TangentMap& g = cur.e.map;
   const double L = g.summary.length_scale;
   const GapPeak* peak = nullptr;
@@ -84,6 +85,14 @@ std::optional<Node> BranchRunner::corner(const Node& cur) {
   VectorXd along = t.head(N + 1);
   if (!(along.norm() > 0.0)) return std::nullopt;
   along.normalize();
+  return std::pair{along, j};
+}
+
+std::optional<Node> BranchRunner::corner(const Node& cur) {
+  const std::optional<std::pair<VectorXd, int>> tangent = corner_tangent(cur);
+  if (!tangent) return std::nullopt;
+  const auto& [along, j] = *tangent;
+  const Index N = 2 * c_.n_;
   // Steps along it, shortest first: the first that lands on an orbit with the new impact.
   const VectorXd y = c_.scaled(cur.e);
   const int before = cur.b.signature.impacts[static_cast<std::size_t>(j)];

@@ -22,6 +22,22 @@
 ///                 orbits with the new impact, from the null space of the map without it bordered
 ///                 by the impact's first-order effect and the grazing condition (Nordmark 1991),
 ///                 stable or not, whichever way in p it leaves the corner
+///             a step that may have passed a change of events unseen is cut, h ← h/2, until
+///                 h ≤ max(min_step, 1e-4 max_step): a step whose events differ from the last
+///                 point's by more than one change (an impact, or a contact phase with its
+///                 chatter, at one stop), so that a cascade of changes (the bounces a vanishing
+///                 contact phase leaves, lost one by one) is crossed one change at a time; and a
+///                 step across a grazing whose orbit with the impact is stable (near a grazing
+///                 the impacting map's derivative grows like 1/u, u the impact's speed, so a
+///                 multiplier leaves the unit circle, a fold or a doubling, between a stable
+///                 impacting orbit and the grazing). A jump past several changes is brought back
+///                 to the first by bisection in p
+///             a step or jump that goes back is refused: the first step past a change of events
+///                 onto the events before it (back across the same grazing or rising: at a corner
+///                 both parts lie on one side in p), a step onto the events before the last
+///                 multiple change while it is nearer to that change than to every point since
+///                 (further on, a cascade may reach the same events again at another change), and
+///                 a jump onto a part of the branch already followed (the search goes on)
 ///             success: h ← 1.5 h if ≤ 3 iterations, 0.6 h if ≥ 6; the point's multipliers,
 ///                 test functions and event signature; a change between neighbours is located
 ///     stop at the scan limits (the last point placed on the limit), after max_points, or when
