@@ -226,7 +226,7 @@ class FrictionBackend final : public FullJacobianBackend {
  public:
   FrictionBackend(const LinearSystem& system, const std::vector<FrictionContact>& contacts,
                   const SimulatorOptions& solver, const LinearisationOptions& o)
-      : system_(system), contacts_(contacts), solver_(solver), options_(o) {
+      : FullJacobianBackend(solver.interrupt), system_(system), contacts_(contacts), solver_(solver), options_(o) {
     options_.jacobian = true;
   }
   Index dof() const override { return system_.dof(); }
