@@ -239,7 +239,8 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
         guard_coefficients(r, i, guard_.data());
         double rounding = 0.0, truncation = 0.0;
         step_.remainder_parts(guard_.data(), length, &rounding, &truncation);
-        const taylor::GuardCrossing c = roots_.first_crossing(guard_.data(), p_, length, triggers_(i), rounding, truncation);
+        const taylor::GuardCrossing c = roots_.first_crossing(guard_.data(), p_, length, triggers_(i), rounding, truncation,
+                                                              /*rounding_scales=*/true);
         if (c.kind == taylor::CrossingKind::crossing || c.kind == taylor::CrossingKind::at_start) {
           if (c.tau < first) {
             first = c.tau;

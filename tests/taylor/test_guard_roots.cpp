@@ -90,6 +90,34 @@ TEST_CASE("a remainder bound larger than the margin gives grazing, never a false
   }
 }
 
+TEST_CASE("a guard starting within its band of the trigger still has its later crossing found") {
+  // Right after an impact: the gap g starts at rounding distance of 0 and opens (g' = −0.2), then
+  // returns through the trigger level ε = 5e-14 near τ = 2/3 of a step of 1.6; the remainder bound
+  // (6e-14) is wider than ε, so the start cannot be told apart from the trigger level. The crossing
+  // must be found (a contact at τ = 0 reported as the answer would let the caller walk over it).
+  GuardRootFinder finder(20);
+  std::vector<double> g(21, 0.0);
+  g[0] = -2.8e-17;
+  g[1] = -0.2;
+  g[2] = 0.3;
+  const double trigger = 5e-14;
+  const auto r = finder.first_crossing(g.data(), 20, 1.6, trigger, 6e-14, 0.0, /*rounding_scales=*/true);
+  REQUIRE(r.kind == CrossingKind::crossing);
+  const double exact = (0.2 + std::sqrt(0.04 + 4 * 0.3 * (trigger + 2.8e-17))) / 0.6;
+  CHECK(std::abs(r.tau - exact) <= 8 * kEps);
+  // With a band narrower than ε the start is decided at once and the same crossing found.
+  const auto narrow = finder.first_crossing(g.data(), 20, 1.6, trigger, 1e-14);
+  CHECK_FALSE(narrow.start_touch);
+  REQUIRE(narrow.kind == CrossingKind::crossing);
+  CHECK(narrow.tau == r.tau);
+  // A band that does not narrow towards the start: the first sliver is set aside, the search goes
+  // on, and no answer claims the step is clear (a grazing contact past the start at worst).
+  const auto wide = finder.first_crossing(g.data(), 20, 1.6, trigger, 6e-14);
+  CHECK(wide.start_touch);
+  CHECK(wide.kind != CrossingKind::none);
+  if (wide.kind == CrossingKind::grazing) CHECK(wide.lower > 0.0);
+}
+
 TEST_CASE("the first of several roots is the one returned, on a scaled interval") {
   GuardRootFinder finder(20);
   // q(τ) = (τ − 0.02)(τ − 0.05)(τ − 0.08) on [0, 0.1]: below at 0, rises through 0.02 first.

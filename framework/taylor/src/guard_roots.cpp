@@ -33,6 +33,7 @@ GuardRootFinder::GuardRootFinder(int max_degree) : max_degree_(max_degree) {
   hi_.resize(entries);
   depth_.resize(entries);
   work_.resize(max_degree + 1);
+  absolute_.resize(max_degree + 1);
   ratios_.resize(static_cast<std::size_t>(max_degree + 1) * (max_degree + 1));
 }
 
@@ -83,7 +84,7 @@ double GuardRootFinder::refine(const double* c, int degree, double trigger, doub
 }
 
 GuardCrossing GuardRootFinder::first_crossing(const double* c, int degree, double h, double trigger,
-                                              double remainder, double truncation) {
+                                              double remainder, double truncation, bool rounding_scales) {
   if (degree < 0 || degree > max_degree_)
     throw std::invalid_argument("GuardRootFinder: degree " + std::to_string(degree) + " beyond the scratch's " +
                                 std::to_string(max_degree_));
@@ -102,12 +103,27 @@ GuardCrossing GuardRootFinder::first_crossing(const double* c, int degree, doubl
   const double rounding = remainder;
   remainder += truncation;  // over the whole step
   const auto band = [&](int depth) { return remainder + 2.0 * (2 * degree + depth + 4) * kUnit * scale; };
-  // Over [lo, hi] ⊂ [0, 1] (in s = τ/h): the tail's bound at s = hi, (hi)^{degree+1} of the whole.
+  // |c_k| h^k (the guard's own coefficients, the trigger not subtracted): with rounding_scales the
+  // rounding bound over [0, s h] is rounding · Σ |c_k| (s h)^k / Σ |c_k| h^k.
+  double absolute_sum = 0.0;
+  if (rounding_scales) {
+    double* a = absolute_.data();
+    power = 1.0;
+    for (int k = 0; k <= degree; ++k, power *= h) absolute_sum += (a[k] = std::abs(c[k]) * power);
+  }
+  // Over [lo, hi] ⊂ [0, 1] (in s = τ/h): the tail's bound at s = hi, (hi)^{degree+1} of the whole,
+  // and with rounding_scales the rounding's at s = hi.
   const auto interval_band = [&](int depth, double hi) {
-    if (truncation == 0.0 || hi >= 1.0) return band(depth);
+    if (hi >= 1.0 || (truncation == 0.0 && !rounding_scales)) return band(depth);
     double scaled = truncation;
     for (int k = 0; k <= degree && scaled > 0.0; ++k) scaled *= hi;
-    return rounding + scaled + 2.0 * (2 * degree + depth + 4) * kUnit * scale;
+    double round = rounding;
+    if (rounding_scales && absolute_sum > 0.0) {
+      double sum = 0.0;
+      for (int k = degree; k >= 0; --k) sum = sum * hi + absolute_[static_cast<std::size_t>(k)];
+      round = rounding * std::min(1.0, sum / absolute_sum);
+    }
+    return round + scaled + 2.0 * (2 * degree + depth + 4) * kUnit * scale;
   };
   if (q0 > band(0)) {
     result.kind = CrossingKind::at_start;
@@ -174,6 +190,14 @@ GuardCrossing GuardRootFinder::first_crossing(const double* c, int degree, doubl
     const double tau_lo = lo * h, tau_hi = hi * h;
     if (depth >= kMaxDepth ||
         tau_hi - tau_lo <= 4.0 * std::numeric_limits<double>::epsilon() * std::max(tau_hi, std::abs(h) * 1e-300)) {
+      if (lo == 0.0) {
+        // The guard starts within the band of its trigger level (right after its own event, when
+        // the band is wider than the trigger): the step's first sliver cannot be decided, but the
+        // rest of the step must still be searched — returning here would let a caller that takes
+        // a contact at τ = 0 as the event just resolved walk over a later crossing.
+        result.start_touch = true;
+        continue;
+      }
       result.kind = CrossingKind::grazing;
       result.tau = tau_lo;
       result.lower = tau_lo;

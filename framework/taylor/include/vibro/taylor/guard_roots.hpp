@@ -17,6 +17,10 @@
 ///     within the uncertainty and the caller applies its grazing rule. A transversal crossing
 ///     closer than δ/|q'| to the step's end h is reported so too (at [h − ulp, h]); the caller
 ///     then starts the next step there, where the crossing is `at_start` or certified.
+///   - a guard that starts within δ of the trigger level (|q(0)| ≤ δ, typically just after its
+///     own event) leaves a first sliver [0, ~ulp·2^k] that cannot be decided: it is set aside
+///     (`start_touch`) and the rest of [0, h] is searched as above, so a crossing later in the
+///     step is never hidden behind the contact at its start.
 ///
 /// Method (never sampling): q is written in the Bernstein basis on [0, h],
 /// q(h s) = Σ_i b_i C(p, i) s^i (1 − s)^{p−i}, b_i = Σ_{k≤i} [C(i, k)/C(p, k)] q_k h^k (Farouki &
@@ -54,6 +58,7 @@ struct GuardCrossing {
   double upper = 0.0;
   double uncertainty = 0.0;  ///< crossing: δ / |q'(τ)| — how far the true guard's root may lie
   int splits = 0;            ///< intervals examined
+  bool start_touch = false;  ///< the guard starts within the band of the trigger (see the file comment)
 };
 
 class GuardRootFinder {
@@ -67,8 +72,13 @@ class GuardRootFinder {
   /// (a Taylor step's tail, TaylorStep::remainder_parts): the band an interval is tested against
   /// narrows towards τ = 0, so a guard that starts just below its trigger and moves away is
   /// cleared in a few splits.
+  /// With `rounding_scales`, `remainder` is an evaluation-rounding bound of the form C Σ |c_k| h^k
+  /// (TaylorStep::remainder_parts' rounding) and is applied over [0, τ] as C Σ |c_k| τ^k: near the
+  /// step's start only c_0's share is left, so a guard that starts at rounding distance of its
+  /// trigger (just after its own event) is decided there even when the whole step's band is wider
+  /// than the trigger level.
   GuardCrossing first_crossing(const double* coefficients, int degree, double h, double trigger,
-                               double remainder, double truncation = 0.0);
+                               double remainder, double truncation = 0.0, bool rounding_scales = false);
 
   /// Root of q(τ) = Σ c_k τ^k − trigger bracketed by q(a) < 0 < q(b) (or the reverse), to rounding:
   /// Newton steps, replaced by bisection when they leave the bracket or do not halve it.
@@ -78,6 +88,7 @@ class GuardRootFinder {
   int max_degree_;
   std::vector<double> stack_;  // Bernstein coefficients of pending intervals, (degree+1) each
   std::vector<double> lo_, hi_;
+  std::vector<double> absolute_;  // |c_k| h^k of the call (rounding_scales)
   std::vector<int> depth_;
   std::vector<double> work_;
   std::vector<double> ratios_;  // C(i, k) / C(degree, k), row i (the Bernstein conversion)
