@@ -82,9 +82,9 @@ struct StepRecord {
 }  // namespace
 
 TaylorSimulator::TaylorSimulator(const ImpactSystem& scene, const NonlinearForces& forces, SimulatorOptions options)
-    : scene_(&scene), options_(options), tolerance_(forces.tolerance) {
+    : scene_(&scene), options_(options), tolerance_(forces.tolerance), order_(forces.order) {
   options_.validate();
-  taylor::TaylorSettings{.tolerance = tolerance_}.validate();
+  taylor::TaylorSettings{.tolerance = tolerance_, .order = order_}.validate();
   const LinearSystem& sys = scene.system();
   taylor::TaylorSystemSpec spec;
   spec.mass = sys.mass();
@@ -104,7 +104,8 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
  public:
   Loop(TaylorSimulator& sim, const std::vector<Observer*>& observers, RunSummary& summary)
       : sim_(sim), scene_(*sim.scene_), sys_(scene_.system()), observers_(observers), summary_(summary),
-        step_(*sim.system_, {.tolerance = sim.tolerance_}), probe_(*sim.system_, {.tolerance = sim.tolerance_}),
+        step_(*sim.system_, {.tolerance = sim.tolerance_, .order = sim.order_}),
+        probe_(*sim.system_, {.tolerance = sim.tolerance_, .order = sim.order_}),
         roots_(step_.order()), p_(step_.order()), n_(sys_.dof()), tab_(scene_) {
     const auto m = static_cast<Eigen::Index>(scene_.stop_count());
     forcing_.setZero(n_, p_ + 1);
@@ -232,25 +233,58 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
       for (std::size_t a = 0; a < k; ++a)
         std::copy_n(step_.force_coefficients(static_cast<int>(a)), width, r.lambda.begin() + static_cast<std::ptrdiff_t>(a * width));
       if (!armed_) arm(r);
-      // Every row's first certified rise above its trigger in [0, length].
+      // Every row's first certified rise above its trigger in [0, length]. A grazing (a touch of
+      // the trigger level within the remainder band) ends the step before it, and the next step,
+      // expanded there, decides it with its own band. A grazing at the step's start (within
+      // kStartFraction of the length, or one that would not move the time) cannot be cut at: no
+      // progress. The band shrinks with the length (the tail as h^{p+1}, the rounding towards
+      // the start's share), so the step is halved and searched again, at most kHalvings times;
+      // a guard still undecided at its start then is a numerical failure, named, never a loop
+      // and never a step taken over it. So every step either advances the time by at least
+      // kStartFraction · 2^-kHalvings of its own size or ends the run with a decision.
+      constexpr double kStartFraction = 0x1p-20;
+      constexpr int kHalvings = 30;
       double first = std::numeric_limits<double>::infinity(), cut = length;
-      Eigen::Index first_row = -1;
-      for (Eigen::Index i = 0; i < triggers_.size(); ++i) {
-        guard_coefficients(r, i, guard_.data());
-        double rounding = 0.0, truncation = 0.0;
-        step_.remainder_parts(guard_.data(), length, &rounding, &truncation);
-        const taylor::GuardCrossing c = roots_.first_crossing(guard_.data(), p_, length, triggers_(i), rounding, truncation,
-                                                              /*rounding_scales=*/true);
-        if (c.kind == taylor::CrossingKind::crossing || c.kind == taylor::CrossingKind::at_start) {
-          if (c.tau < first) {
-            first = c.tau;
-            first_row = i;
+      Eigen::Index first_row = -1, stalled_row = -1;
+      for (int halving = 0;; ++halving) {
+        first = std::numeric_limits<double>::infinity();
+        cut = length;
+        first_row = stalled_row = -1;
+        for (Eigen::Index i = 0; i < triggers_.size(); ++i) {
+          guard_coefficients(r, i, guard_.data());
+          double rounding = 0.0, truncation = 0.0;
+          step_.remainder_parts(guard_.data(), length, &rounding, &truncation);
+          const taylor::GuardCrossing c = roots_.first_crossing(guard_.data(), p_, length, triggers_(i), rounding,
+                                                                truncation, /*rounding_scales=*/true);
+          if (c.kind == taylor::CrossingKind::crossing || c.kind == taylor::CrossingKind::at_start) {
+            if (c.tau < first) {
+              first = c.tau;
+              first_row = i;
+            }
+          } else if (c.kind == taylor::CrossingKind::grazing) {
+            if (c.lower <= kStartFraction * length || !(r.t + c.lower > r.t)) {
+              if (stalled_row < 0) stalled_row = i;
+            } else {
+              cut = std::min(cut, c.lower);
+            }
           }
-        } else if (c.kind == taylor::CrossingKind::grazing && c.lower > 0.0) {
-          // A touch of the trigger level within the remainder: the step ends before it, and the
-          // next one (expanded there) decides it with its own bound.
-          cut = std::min(cut, c.lower);
         }
+        // A crossing before every undecided start is an answer; otherwise halve.
+        if (stalled_row < 0 || (first_row >= 0 && first == 0.0)) break;
+        if (halving == kHalvings || !(r.t + 0.5 * length > r.t)) {
+          const int j = row_stop_[static_cast<std::size_t>(stalled_row)];
+          std::string why = "Taylor engine: the ";
+          why += stalled_row < opening_rows_ ? "gap" : "contact force";
+          why += " guard of stop '";
+          why += scene_.stops()[static_cast<std::size_t>(j)].name;
+          why += "' stays within its remainder band of the trigger level at the step's start at t = ";
+          why += number_text(r.t);
+          why += " with the step cut to ";
+          why += number_text(length);
+          why += ": the search cannot decide it";
+          throw std::runtime_error(why);
+        }
+        length *= 0.5;
       }
       if (first_row >= 0 && first <= cut) {
         locate(first_row, first);
@@ -258,8 +292,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
         hit->row = first_row;
         return true;
       }
-      // A cut that would not move the time (below its spacing) is no cut: the step goes on.
-      if (cursor_ + cut > cursor_) length = cut;
+      length = cut;
       const double next = cursor_ + length;
       r.length = next - cursor_;
       for (Eigen::Index i = 0; i < 2 * n_; ++i) z_(i) = horner_compensated(coefficients(r, i), p_, r.length);

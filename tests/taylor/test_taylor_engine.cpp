@@ -81,6 +81,58 @@ TEST_CASE("a linear scene through the Taylor engine agrees with the exact dense 
                            << dt_gap << ", at rest |dt|/T = " << dt_rest << "; end |dx|/L = " << dx << ", |dv|/V = " << dv);
 }
 
+// A guard that starts inside its own remainder band: two masses, two stops, started 0.01 above the
+// lower stop s1 and moving up. Each impact leaves its gap at rounding distance of the trigger
+// level, and at a high order the whole step's band of that gap is wider than the trigger, so the
+// search must decide the start from the band's share there and still find the crossing later in
+// the same step (the return to the stop after each impact); walking over it fails the run's check
+// that no state lies past a stop. The scene is linear, so the exact dense engine is the reference,
+// with the tolerances (and their reasons) of the test above; at the order the tolerance sets and at
+// 20 and 27 (the orders of the rules ⌈−½ ln ε + 1⌉ and ⌈−0.7 ln ε + 1⌉ at ε = 2⁻⁵²).
+TEST_CASE("a crossing in the step after an impact is found at every order", "[taylor][engine]") {
+  const std::string text =
+      "model:\n  chain: {masses: [1, 1], springs: [1], dampers: [0.1], left_wall: {spring: 1, damper: 0.1}}\n"
+      "forcing: {frequency: 1.2, cosine: [0.5, 0]}\n"
+      "stops:\n  - {mass: 0, side: lower, position: -0.3, restitution: 0.7, name: s1}\n"
+      "  - {mass: 1, side: upper, position: 0.1, restitution: 0.7, name: s2}\n"
+      "initial: {x: [-0.29, 0], v: [0.6, 0]}\n";
+  const vibro::io::Scene scene = vibro::io::SceneDocument::parse(text).build();
+  const vibro::ImpactSystem system = scene.impact_system();
+  const double T = scene.period(), t_end = 5.0 * T;
+  vibro::Simulator dense(system, scene.solver);
+  vibro::EventLog de;
+  const vibro::RunSummary a = dense.run(0.0, scene.x0, scene.v0, t_end, {&de});
+  REQUIRE(a.status == vibro::RunStatus::completed);
+  REQUIRE(a.impacts >= 4);
+  const double L = a.length_scale, V = a.velocity_scale;
+  for (int order : {0, 20, 27}) {
+    vibro::NonlinearForces forces;
+    forces.order = order;
+    vibro::TaylorSimulator taylor(system, forces, scene.solver);
+    vibro::EventLog te;
+    const vibro::RunSummary b = taylor.run(0.0, scene.x0, scene.v0, t_end, {&te});
+    INFO("order " << order << ": " << b.message);
+    REQUIRE(b.status == vibro::RunStatus::completed);
+    REQUIRE(de.events.size() == te.events.size());
+    double dt_gap = 0.0, dt_rest = 0.0;
+    for (std::size_t i = 0; i < de.events.size(); ++i) {
+      REQUIRE(de.events[i].stop == te.events[i].stop);
+      REQUIRE(de.events[i].kind == te.events[i].kind);
+      const double dt = std::abs(de.events[i].t - te.events[i].t);
+      const double speed = std::max(std::abs(de.events[i].v_before), std::abs(de.events[i].v_after));
+      if (speed > 0.0) dt_gap = std::max(dt_gap, dt * speed / L);
+      else dt_rest = std::max(dt_rest, dt / T);
+    }
+    const double dx = (a.x - b.x).cwiseAbs().maxCoeff() / L, dv = (a.v - b.v).cwiseAbs().maxCoeff() / V;
+    INFO(de.events.size() << " events: |dt||g'|/L = " << dt_gap << ", at rest |dt|/T = " << dt_rest
+                          << ", end |dx|/L = " << dx << ", |dv|/V = " << dv << "; " << taylor.steps() << " steps");
+    CHECK(dt_gap < 1e-12);
+    CHECK(dt_rest < 1e-13);
+    CHECK(dx < 1e-12);
+    CHECK(dv < 1e-12);
+  }
+}
+
 namespace {
 
 /// x'' + c x' + k x + β x³ = A cos Ωt with one stop x ≤ s on the mass (m = 1).

@@ -61,6 +61,8 @@ struct NonlinearForces {
   std::vector<std::string> forces;  ///< n entries ("" for none) or empty
   /// The series' tolerance (TaylorSettings::tolerance; default: the unit roundoff).
   double tolerance = std::numeric_limits<double>::epsilon();
+  /// The series' order (TaylorSettings::order; default 0: from the tolerance).
+  int order = 0;
 };
 
 class TaylorSimulator {
@@ -97,6 +99,7 @@ class TaylorSimulator {
   const ImpactSystem* scene_;
   SimulatorOptions options_;
   double tolerance_;
+  int order_;
   std::unique_ptr<taylor::TaylorSystem> system_;
   long steps_ = 0;
 };

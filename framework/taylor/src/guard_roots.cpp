@@ -125,7 +125,10 @@ GuardCrossing GuardRootFinder::first_crossing(const double* c, int degree, doubl
     }
     return round + scaled + 2.0 * (2 * degree + depth + 4) * kUnit * scale;
   };
-  if (q0 > band(0)) {
+  // Already above at τ = 0: against the band there (the tail is 0 at τ = 0; with rounding_scales
+  // the rounding is c_0's share), so that a guard above its trigger at the start is never set
+  // aside as a start touch below.
+  if (q0 > (rounding_scales ? interval_band(0, 0.0) : band(0))) {
     result.kind = CrossingKind::at_start;
     return result;
   }

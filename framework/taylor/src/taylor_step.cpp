@@ -12,6 +12,9 @@ void TaylorSettings::validate() const {
   if (!(tolerance > 0.0 && tolerance < 1e-2))
     throw std::invalid_argument("TaylorSettings.tolerance = " + std::to_string(tolerance) +
                                 ": must lie in (0, 0.01) (it sets the order p = ceil(-ln(tolerance)/2 + 1))");
+  if (order != 0 && (order < 3 || order > 60))
+    throw std::invalid_argument("TaylorSettings.order = " + std::to_string(order) +
+                                ": must be 0 (from the tolerance) or lie in [3, 60]");
 }
 
 namespace {
@@ -58,7 +61,7 @@ std::string number(double v) {
 TaylorStep::TaylorStep(const TaylorSystem& system, TaylorSettings settings)
     : system_(&system), settings_(settings) {
   settings_.validate();
-  p_ = static_cast<int>(std::ceil(-0.5 * std::log(settings_.tolerance) + 1.0));
+  p_ = settings_.order > 0 ? settings_.order : static_cast<int>(std::ceil(-0.5 * std::log(settings_.tolerance) + 1.0));
   safety_ = std::exp(-0.7 / (p_ - 1));
   inverse_root_[0] = std::pow(settings_.tolerance, -1.0 / (p_ - 1));
   inverse_root_[1] = std::pow(settings_.tolerance, -1.0 / p_);
@@ -332,17 +335,22 @@ StepStatus TaylorStep::expand(double t0, const Eigen::Ref<const Eigen::VectorXd>
   for (int k = 0; k <= p_; ++k)
     if (!compute_order(k)) return StepStatus::domain_error;
 
-  // Order-p and order-(p−1) norms over z (and Φ), the step from their decay.
+  // Order-p and order-(p−1) norms over z (and Φ, and the held stops' forces λ), the step from
+  // their decay. λ counts because it is a guard of the step (its sign change is a release) and,
+  // when every coordinate is held, z is constant while λ carries the drive's series.
+  const Eigen::Index held = terms_.normals ? terms_.normals->cols() : 0;
   auto norm = [&](int k) {
     double m = 0.0;
     for (int i = 0; i < dim_; ++i) m = std::max(m, std::abs(zc(i)[k]));
     if (settings_.variational)
       for (int i = 0; i < dim_; ++i)
         for (int d = 0; d < dim_; ++d) m = std::max(m, std::abs(yc(i, d)[k]));
+    for (Eigen::Index a = 0; a < held; ++a) m = std::max(m, std::abs(force_coefficients(static_cast<int>(a))[k]));
     return m;
   };
   double scale = 1.0;
   for (int i = 0; i < dim_; ++i) scale = std::max(scale, std::abs(z0[i]));
+  for (Eigen::Index a = 0; a < held; ++a) scale = std::max(scale, std::abs(force_coefficients(static_cast<int>(a))[0]));
   const double tolerance = settings_.tolerance * scale;
   double h = std::numeric_limits<double>::infinity();
   double rho = std::numeric_limits<double>::infinity();

@@ -17,10 +17,32 @@
 ///     within the uncertainty and the caller applies its grazing rule. A transversal crossing
 ///     closer than δ/|q'| to the step's end h is reported so too (at [h − ulp, h]); the caller
 ///     then starts the next step there, where the crossing is `at_start` or certified.
-///   - a guard that starts within δ of the trigger level (|q(0)| ≤ δ, typically just after its
-///     own event) leaves a first sliver [0, ~ulp·2^k] that cannot be decided: it is set aside
-///     (`start_touch`) and the rest of [0, h] is searched as above, so a crossing later in the
-///     step is never hidden behind the contact at its start.
+///   - a guard that starts within δ(0) of the trigger level (|q(0)| ≤ δ(0), typically just after
+///     its own event) leaves a first sliver [0, h·2⁻⁸⁰] (or [0, ~ulp]) that cannot be decided: it
+///     is set aside (`start_touch`) and the rest of [0, h] is searched as above, so a crossing
+///     later in the step is never hidden behind the contact at its start.
+///
+/// Why no crossing is missed in the part declared crossing-free. Let δ(τ) bound |g − G| over
+/// [0, τ]: the tail's share δ_T (τ/h)^{p+1} and the rounding's, δ_R or, with `rounding_scales`,
+/// δ_R Σ|g_k| τ^k / Σ|g_k| h^k (the evaluation-rounding bound of Higham 2002, §5.1, at τ; both
+/// shares grow with τ, so over [a, b] ⊂ [0, h] their values at b bound them). An interval [a, b]
+/// is discarded only when every Bernstein coefficient, plus the conversion's and the splits'
+/// rounding (each coefficient within (2p + depth + 4)·2u Σ|q_k h^k| of its exact value), lies
+/// below −δ(b): then G − ε < −δ(b) on [a, b] (convex hull) and g < ε there. The search visits
+/// intervals left to right (depth first, left half first), so when it answers `crossing` at τ*
+/// every point of [0, a] but the start sliver has been discarded; `none` means all of [0, h] but
+/// that sliver. The sliver is never declared clear: `start_touch` says it was set aside, and it
+/// can only be set aside when q(0) ≤ δ(0) (a guard above its band at τ = 0 is `at_start`), i.e. the
+/// guard sits at its trigger level to within the band at the step's start — the contact the
+/// caller has just resolved. The band δ_R models the rounding of the coefficients and of their
+/// evaluation (as TaylorStep::remainder_parts states); it is not an interval enclosure.
+///
+/// Termination: the intervals form a binary tree of depth ≤ 80 searched depth first; each one
+/// examined is discarded, answered (`crossing` or `grazing` end the search), set aside (the start
+/// sliver, a leaf: once) or split into two of the next depth, so the search ends after finitely
+/// many intervals. A caller that cuts its step at a grazing must make progress: the Taylor engine
+/// (taylor_simulator.cpp) halves a step whose grazing lies at its start instead of cutting there,
+/// and reports a numerical failure naming the stop and the time if 30 halvings do not decide it.
 ///
 /// Method (never sampling): q is written in the Bernstein basis on [0, h],
 /// q(h s) = Σ_i b_i C(p, i) s^i (1 − s)^{p−i}, b_i = Σ_{k≤i} [C(i, k)/C(p, k)] q_k h^k (Farouki &

@@ -38,7 +38,9 @@
 /// which makes the last two terms of the series ≈ ε S at τ = h and, for a solution analytic in a
 /// disc of radius ρ ≈ min_k (S/‖z_[k]‖)^{1/k}, h ≈ ρ e⁻² · 0.96: the terms then decay by a factor
 /// r = h/ρ ≈ 0.13 per order, so the truncated tail is ≈ ε S r/(1 − r). With variational
-/// equations on, the norms are taken over [z; Φ] (the tangent map is as accurate as the state).
+/// equations on, the norms are taken over [z; Φ] (the tangent map is as accurate as the state);
+/// with a held set (StepTerms) over the contact forces λ too (in the norms and in S): λ is a
+/// guard of the step, and when every coordinate is held z is constant while λ carries the drive.
 /// A step whose coefficients k ≥ 1 all vanish (a polynomial solution) has h = ∞; the caller caps
 /// it (advance() stops at its end time).
 ///
@@ -95,6 +97,7 @@ namespace vibro::taylor {
 struct TaylorSettings {
   double tolerance = std::numeric_limits<double>::epsilon();  ///< ε (mixed absolute-relative)
   bool variational = false;   ///< also the state-transition matrix polynomial
+  int order = 0;              ///< the series' order p (3 … 60); 0: from the tolerance (see above)
   /// Throws std::invalid_argument naming the field, the value and the rule.
   void validate() const;
 };
