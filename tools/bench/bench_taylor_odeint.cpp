@@ -34,9 +34,11 @@
 // speed-up over the best peer.
 //
 //     build/release/tools/bench/bench_taylor_odeint [--periods P] [--repeat R] [--only METHOD] [--tolerance TOL]
+//                                                   [--order P]
 //
 // (--only: the methods whose name contains METHOD, --tolerance: that tolerance alone; for a
-// profile of one configuration, e.g. `perf record ... --only Taylor --tolerance 1e-10`.)
+// profile of one configuration, e.g. `perf record ... --only Taylor --tolerance 1e-10`;
+// --order: the Taylor engine's series order, NonlinearForces::order, instead of its rule's.)
 // Meaningful only in a Release build; docs/performance.md quotes it.
 #include "vibro/observers.hpp"
 #include "vibro/taylor_simulator.hpp"
@@ -297,6 +299,8 @@ vibro::ImpactSystem linear_part(const Problem& pb) {
   return vibro::ImpactSystem(sys, {vibro::Stop::upper(0, pb.stop, pb.r)});
 }
 
+int g_order = 0;  // --order (0: the rule's)
+
 Outcome run_taylor(const vibro::ImpactSystem& system, const Problem& pb, double tol, double t_end) {
   vibro::NonlinearForces forces;
   if (pb.gamma != 0.0) {
@@ -307,6 +311,7 @@ Outcome run_taylor(const vibro::ImpactSystem& system, const Problem& pb, double 
     forces.forces = {"-beta*x0^3"};
   }
   forces.tolerance = tol;
+  forces.order = g_order;
   vibro::TaylorSimulator sim(system, forces);
   vibro::EventLog log;
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(1);
@@ -389,8 +394,9 @@ int main(int argc, char** argv) {
     else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) repeat = std::atoi(argv[++i]);
     else if (!std::strcmp(argv[i], "--only") && i + 1 < argc) only = argv[++i];
     else if (!std::strcmp(argv[i], "--tolerance") && i + 1 < argc) only_tolerance = std::atof(argv[++i]);
+    else if (!std::strcmp(argv[i], "--order") && i + 1 < argc) g_order = std::atoi(argv[++i]);
     else {
-      std::fprintf(stderr, "usage: %s [--periods P] [--repeat R] [--only METHOD] [--tolerance TOL]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--periods P] [--repeat R] [--only METHOD] [--tolerance TOL] [--order P]\n", argv[0]);
       return 2;
     }
   }
