@@ -214,8 +214,14 @@ void run_event_loop(Engine& engine, const SimulatorOptions& options, double t0, 
       if (!engine.event(st, impacting, releasing, &why_not)) return finish(RunStatus::unsupported, why_not, true);
       if (std::string why; engine.stop_requested(&why)) return finish(RunStatus::completed, why);
       if (rate.exceeded(st.t)) {
-        const int j = !impacting.empty() ? impacting.front() : releasing.front();
         finish(RunStatus::event_cap, "");
+        if (impacting.empty() && releasing.empty()) {  // an event of another law (friction_stops.hpp)
+          summary.message = "event cap: more than " + std::to_string(options.max_events) + " events within " +
+                            number_text(window) + " time units, at t = " + number_text(st.t) +
+                            " (stick-slip switches of the frictional contacts)";
+          return;
+        }
+        const int j = !impacting.empty() ? impacting.front() : releasing.front();
         summary.message =
             event_cap_message(options, window, st.t, stops[static_cast<std::size_t>(j)], j, summary.x, summary.v);
         return;

@@ -1,5 +1,6 @@
 #include "vibro/friction.hpp"
 
+#include "friction_tables.hpp"
 #include "vibro/events.hpp"
 #include "vibro/flow.hpp"
 
@@ -91,114 +92,8 @@ std::vector<FrictionContact> validated_friction(std::vector<FrictionContact> con
 
 namespace {
 
-int sign_of(FrictionState s) { return static_cast<int>(s); }
-
-/// The pieces every mode and every resolution share: tangents, M⁻¹, and the rows that map the
-/// augmented state z to u_j, s_j'' and r's parts.
-struct Tables {
-  Eigen::Index n = 0, N = 0, off = 0;  // dof, augmented size, index of cos Ωt in z
-  Eigen::MatrixXd W, minv, minv_W;     // n × m tangents; M⁻¹; M⁻¹W
-  Eigen::MatrixXd u_rows, s2_rows;     // m × N: u_j = u_rows z, s_j'' = s2_rows z
-  Eigen::MatrixXd r_rows;              // n × N: r = f(t) − C v − K x, no friction
-  Eigen::VectorXd limit_static, limit_kinetic;  // μ_s N, μ_k N
-  /// Per contact j: Σ_k |(Wᵀ M⁻¹ W)_jk|, the largest relative acceleration u_j' that a force error
-  /// of 1 on every contact can make (resolve_states' tolerance on u').
-  Eigen::VectorXd accel_per_force;
-
-  Tables(const LinearSystem& sys, const std::vector<FrictionContact>& contacts)
-      : Tables(sys.mass(), sys.damping(), sys.stiffness(), sys.forcing(), contacts) {}
-  Tables(const Eigen::MatrixXd& M, const Eigen::MatrixXd& C, const Eigen::MatrixXd& K, const HarmonicForcing& f,
-         const std::vector<FrictionContact>& contacts) {
-    n = M.rows();
-    N = augmented_size(n, f);
-    off = 2 * n;
-    const auto m = static_cast<Eigen::Index>(contacts.size());
-    const double omega = f.frequency;
-    W.resize(n, m);
-    u_rows = Eigen::MatrixXd::Zero(m, N);
-    s2_rows = Eigen::MatrixXd::Zero(m, N);
-    limit_static.resize(m);
-    limit_kinetic.resize(m);
-    for (Eigen::Index j = 0; j < m; ++j) {
-      const FrictionContact& c = contacts[static_cast<std::size_t>(j)];
-      W.col(j) = c.tangent(n);
-      u_rows.row(j).segment(n, n) = W.col(j).transpose();
-      // s = a cos(Ωt + φ) = a (cos φ cos Ωt − sin φ sin Ωt); u = wᵀv − s'.
-      const double a = c.amplitude, cp = std::cos(c.phase), sp = std::sin(c.phase);
-      u_rows(j, off) += a * omega * sp;
-      u_rows(j, off + 1) += a * omega * cp;
-      s2_rows(j, off) = -a * omega * omega * cp;
-      s2_rows(j, off + 1) = a * omega * omega * sp;
-      limit_static(j) = c.static_coefficient * c.normal_load;
-      limit_kinetic(j) = c.kinetic_coefficient * c.normal_load;
-    }
-    minv = M.llt().solve(Eigen::MatrixXd::Identity(n, n));
-    minv_W = minv * W;
-    accel_per_force = (W.transpose() * minv_W).cwiseAbs().rowwise().sum();
-    r_rows = Eigen::MatrixXd::Zero(n, N);
-    r_rows.leftCols(n) = -K;
-    r_rows.middleCols(n, n) = -C;
-    r_rows.col(off) = f.cosine;
-    r_rows.col(off + 1) = f.sine;
-    r_rows.col(off + 2) = f.constant;
-    for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
-      r_rows.col(off + 3 + 2 * static_cast<Eigen::Index>(h)) = f.harmonics[h].cosine;
-      r_rows.col(off + 4 + 2 * static_cast<Eigen::Index>(h)) = f.harmonics[h].sine;
-    }
-  }
-
-  /// mode_rows of `states`, computed on first use and kept for the run: the resolution at every
-  /// event tries several assignments, mostly the same few, and each costs a factorisation. The
-  /// cache stops growing at kMaxCached assignments (3^m of them exist); later ones are computed
-  /// into a scratch pair each time.
-  struct Rows {
-    Eigen::MatrixXd force, accel;
-  };
-  const Rows& cached_rows(const std::vector<FrictionState>& states) const {
-    const auto it = cache_.find(states);
-    if (it != cache_.end()) return it->second;
-    if (cache_.size() >= kMaxCached) {
-      mode_rows(states, scratch_.force, scratch_.accel);
-      return scratch_;
-    }
-    Rows& r = cache_[states];
-    mode_rows(states, r.force, r.accel);
-    return r;
-  }
-  static constexpr std::size_t kMaxCached = 4096;
-  mutable std::map<std::vector<FrictionState>, Rows> cache_;
-  mutable Rows scratch_;
-
-  /// In the given states: rows (m × N) of every contact's force F_j, and rows (n × N) of the
-  /// acceleration x'' (both linear in z).
-  void mode_rows(const std::vector<FrictionState>& states, Eigen::MatrixXd& force_rows,
-                 Eigen::MatrixXd& accel_rows) const {
-    const auto m = static_cast<Eigen::Index>(states.size());
-    force_rows = Eigen::MatrixXd::Zero(m, N);
-    std::vector<Eigen::Index> stuck;
-    for (Eigen::Index j = 0; j < m; ++j) {
-      const FrictionState s = states[static_cast<std::size_t>(j)];
-      if (s == FrictionState::stuck) stuck.push_back(j);
-      else force_rows(j, off + 2) = -limit_kinetic(j) * sign_of(s);
-    }
-    Eigen::MatrixXd r = r_rows;  // r with the slipping forces
-    for (Eigen::Index j = 0; j < m; ++j)
-      if (states[static_cast<std::size_t>(j)] != FrictionState::stuck) r.col(off + 2) += W.col(j) * force_rows(j, off + 2);
-    accel_rows = minv * r;
-    if (stuck.empty()) return;
-    const auto s = static_cast<Eigen::Index>(stuck.size());
-    Eigen::MatrixXd Ws(n, s), MWs(n, s), S2(s, N);
-    for (Eigen::Index k = 0; k < s; ++k) {
-      Ws.col(k) = W.col(stuck[static_cast<std::size_t>(k)]);
-      MWs.col(k) = minv_W.col(stuck[static_cast<std::size_t>(k)]);
-      S2.row(k) = s2_rows.row(stuck[static_cast<std::size_t>(k)]);
-    }
-    const Eigen::MatrixXd G = Ws.transpose() * MWs;
-    const Eigen::MatrixXd hold = G.ldlt().solve(S2 - Ws.transpose() * accel_rows);  // F_S rows
-    for (Eigen::Index k = 0; k < s; ++k) force_rows.row(stuck[static_cast<std::size_t>(k)]) = hold.row(k);
-    accel_rows += MWs * hold;
-  }
-};
+using detail::sign_of;
+using Tables = detail::FrictionTables;
 
 }  // namespace
 
@@ -370,7 +265,13 @@ Eigen::VectorXd FrictionSimulator::forces(double t, const Eigen::VectorXd& x, co
   return F * augmented(*system_, t, x, v);
 }
 
-namespace {
+namespace detail {
+
+Eigen::MatrixXd friction_guard_rows(const FrictionTables& tab, const std::vector<FrictionState>& states,
+                                    const Eigen::MatrixXd& force_rows, std::vector<int>* contact,
+                                    std::vector<char>* force_guard) {
+  return FrictionSimulator::Mode::mode_guards(tab, states, force_rows, contact, force_guard);
+}
 
 /// The resolution of friction.hpp: the states of every contact at z, given the old states, the
 /// contact whose guard fired (−1: none, the start) and the tolerances. Returns false when no
@@ -456,20 +357,35 @@ void settle_relative_velocities(const Tables& tab, const std::vector<FrictionSta
                                 const std::vector<FrictionState>& after, Eigen::VectorXd& z) {
   std::vector<Eigen::Index> S;
   for (std::size_t j = 0; j < after.size(); ++j)
-    if (after[j] == FrictionState::stuck || before[j] == FrictionState::stuck) S.push_back(static_cast<Eigen::Index>(j));
-  if (S.empty()) return;
+    if ((after[j] == FrictionState::stuck || before[j] == FrictionState::stuck) && !tab.is_locked(static_cast<Eigen::Index>(j)))
+      S.push_back(static_cast<Eigen::Index>(j));
+  const Eigen::Index hc = tab.Wc.cols();  // held stops (friction_stops.cpp): their g' too
+  if (S.empty() && hc == 0) return;
   const Eigen::VectorXd u_all = tab.u_rows * z;
-  const auto k = static_cast<Eigen::Index>(S.size());
+  const auto ks = static_cast<Eigen::Index>(S.size());
+  const Eigen::Index k = ks + hc;
   Eigen::MatrixXd MW(tab.n, k), D(k, k);
   Eigen::VectorXd u(k);
-  for (Eigen::Index a = 0; a < k; ++a) {
+  for (Eigen::Index a = 0; a < ks; ++a) {
     MW.col(a) = tab.minv_W.col(S[static_cast<std::size_t>(a)]);
     u(a) = u_all(S[static_cast<std::size_t>(a)]);
   }
+  if (hc > 0) {
+    MW.rightCols(hc) = tab.minv_Wc;
+    u.tail(hc) = tab.uc_rows * z;
+  }
   for (Eigen::Index a = 0; a < k; ++a)
-    for (Eigen::Index b = 0; b < k; ++b) D(a, b) = tab.W.col(S[static_cast<std::size_t>(a)]).dot(MW.col(b));
+    for (Eigen::Index b = 0; b < k; ++b)
+      D(a, b) = a < ks ? tab.W.col(S[static_cast<std::size_t>(a)]).dot(MW.col(b)) : tab.Wc.col(a - ks).dot(MW.col(b));
   z.segment(tab.n, tab.n) -= MW * D.ldlt().solve(u);
 }
+
+}  // namespace detail
+
+namespace {
+
+using detail::resolve_states;
+using detail::settle_relative_velocities;
 
 }  // namespace
 

@@ -5,7 +5,8 @@
 ///     events, named in /events/kind, with the friction force, and the contacts in /scene;
 ///  3. a scene without friction writes no friction datasets and the four rigid event kinds.
 /// The refusals (μ_s < μ_k, negative or infinite loads, NaN, indices out of range, unknown keys,
-/// stops, nonlinear forces or the modal engine with friction) are files of
+/// nonlinear forces or the modal engine with friction, the tangent-map run kinds with friction
+/// and stops) are files of
 /// tests/io/malformed/friction_*.yaml.
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/results.hpp"
@@ -120,4 +121,30 @@ TEST_CASE("friction scenes run as orbits and continuations: structural zeros and
       CHECK(std::abs(p[i] - 0.6007) < 1e-3);
     }
   CHECK(onsets == 1);
+}
+
+TEST_CASE("a scene with friction and a compliant stop runs on the friction engine with stops", "[friction]") {
+  // experiments/friction/two_mass_compliant_friction.yaml: mass 0 rubs on a fixed surface, mass 1
+  // strikes a compliant stop; its engine records both laws' events.
+  const vibro::io::Scene s =
+      vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/friction/two_mass_compliant_friction.yaml").build();
+  REQUIRE(s.friction.size() == 1);
+  REQUIRE(s.stops.size() == 1);
+  CHECK(s.stops[0].is_compliant());
+  CHECK(s.engine == vibro::io::EngineKind::dense);
+  const std::unique_ptr<vibro::Engine> engine = vibro::io::make_engine(s);
+  CHECK(engine->stop_count() == 1);
+  vibro::EventLog log;
+  const vibro::RunSummary r = engine->run(s.t0, s.x0, s.v0, s.t0 + 20 * s.period(), {&log});
+  REQUIRE(r.status == vibro::RunStatus::completed);
+  int engages = 0, sticks = 0, slips = 0;
+  for (const vibro::Event& e : log.events) {
+    engages += e.kind == vibro::EventKind::engage;
+    sticks += e.kind == vibro::EventKind::friction_stick;
+    slips += e.kind == vibro::EventKind::friction_slip;
+    if (e.kind == vibro::EventKind::friction_stick) CHECK(std::abs(e.force) <= 0.3 * (1 + 1e-9));  // μ_s N
+  }
+  CHECK(engages >= 20);  // 3 per period at Ω = 0.3 in the sweep's diagram
+  CHECK(sticks >= 20);
+  CHECK(slips >= 20);
 }

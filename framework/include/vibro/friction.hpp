@@ -48,8 +48,9 @@
 /// contacts the consistent set need not be unique (as with the contact LCP of stops); the rule
 /// above picks one, and a run where none is consistent ends with RunStatus::numerical_failure.
 ///
-/// Limits: scenes with friction and stops together are refused (FrictionSimulator needs a scene
-/// without stops); the modal and Taylor engines have no friction. The analysis layer's tangent
+/// Limits: FrictionSimulator runs scenes without stops; friction together with stops runs on
+/// FrictionStopSimulator (friction_stops.hpp), which shares these modes' algebra. The modal and
+/// Taylor engines have no friction. The analysis layer's tangent
 /// maps of friction runs (saltation matrices of stick, slip and reversal; friction_tangent.hpp)
 /// are built from the switches this simulator reports to its FrictionObservers. The forcing may
 /// have extra harmonics; the surfaces move at the fundamental Ω.

@@ -5,6 +5,7 @@
 #include "scene_sections.hpp"
 
 #include "vibro/bounded_wait.hpp"
+#include "vibro/friction_stops.hpp"
 #include "vibro/io/resources.hpp"
 #include "vibro/io/run_kinds.hpp"
 
@@ -103,6 +104,8 @@ std::unique_ptr<vibro::Engine> make_engine(const Scene& scene) {
                        });
   }
   if (scene.engine == EngineKind::taylor) return std::make_unique<TaylorEngine>(scene.impact_system(), scene.forces, scene.solver);
+  if (!scene.friction.empty() && !scene.stops.empty())
+    return std::make_unique<FrictionStopEngine>(scene.impact_system(), scene.friction, scene.solver);
   if (!scene.friction.empty()) return std::make_unique<FrictionEngine>(scene.system(), scene.friction, scene.solver);
   return std::make_unique<DenseEngine>(scene.impact_system(), scene.solver);
 }
