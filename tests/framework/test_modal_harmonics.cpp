@@ -400,7 +400,7 @@ double impacts_off_reference(const std::vector<vibro::Event>& events, const vibr
 // So the modal engine refuses a periodic response above kMaxResonanceGain (1e4) times the drive's
 // quasi-static one: here δ < 5e-5, or a damping ratio below 5e-5 at exact resonance.
 TEST_CASE("modal harmonics: near resonance of a harmonic with a mode, the modal engine runs while exact and refuses "
-          "beyond, naming mode and harmonic; the dense engine stays with the reference",
+          "beyond, naming mode and harmonic, and the dense engine stays with the reference",
           "[modal][harmonics][resonance]") {
   const std::vector<Stop> stops{Stop::upper(0, 0.05, 0.8)};
   const VectorXd zero = VectorXd::Zero(3);

