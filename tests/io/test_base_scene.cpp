@@ -239,51 +239,67 @@ TEST_CASE("base: the derivative in the forcing frequency follows the base's driv
 // Continuation in base.displacement.cosine with a stop on the base: at a few branch points the
 // orbit's state must be where a long simulation from rest at that amplitude settles (stable
 // orbits, as in the harmonics' continuation test).
-TEST_CASE("base: continuation in the base amplitude matches brute-force simulation", "[scene][base][continue]") {
-  const std::string run = R"(run:
-  kind: continue
-  transient_periods: 200
-  continue:
-    path: base.displacement.cosine
-    range: [0.02, 0.1]
-    step: 0.02
-    max_step: 0.02
-)";
-  const vibro::test::TempDir dir;
-  const std::string text = kModel + "forcing: {frequency: 0.3, cosine: [0.4, 0]}\nbase:\n  displacement: {cosine: 0.02}\n" +
-                           stops(", attached: base") + run;
-  const SceneDocument doc = SceneDocument::parse(text, "c.yaml");
-  const Scene scene = doc.build();
-  const RunReport report = run_scene(doc, scene, {dir / "c.h5", 1, false, false, 0});
-  CAPTURE(report.summary);
-  REQUIRE(report.exit_code == 0);
-  const ResultReader r(dir / "c.h5");
-  const std::vector<double> p = r.read("/branch/p"), t0 = r.read("/branch/t0"), x = r.read("/branch/x"),
-                            v = r.read("/branch/v"), residual = r.read("/branch/residual");
-  const std::vector<std::int64_t> k = r.read_integers("/branch/k"), stable = r.read_integers("/branch/stable");
-  REQUIRE(p.size() >= 3);
-  int compared = 0;
-  for (std::size_t i = 0; i < p.size(); i += std::max<std::size_t>(1, p.size() / 5)) {
-    if (k[i] != 1 || stable[i] != 1) continue;
-    CHECK(residual[i] <= 1e-10);
-    SceneDocument at(doc);
-    at.set("base.displacement.cosine", p[i]);
-    const Scene s = at.build_point();
-    const double t_end = t0[i] + 400.0 * s.period();
-    const std::unique_ptr<Engine> engine = make_engine(s);
-    Samples end(std::vector<double>{t_end});
-    const RunSummary summary = engine->run(0.0, Eigen::VectorXd::Zero(2), Eigen::VectorXd::Zero(2), t_end, {&end});
-    REQUIRE(summary.status == RunStatus::completed);
-    INFO("p = " << p[i]);
-    // 400 periods of a stable orbit leave nothing of the start; what remains is the corrector's
-    // residual (≤ 1e-10 above) and rounding.
-    for (Eigen::Index q = 0; q < 2; ++q) {
-      CHECK(std::abs(end.x(q, 0) - x[2 * i + static_cast<std::size_t>(q)]) <= 1e-8);
-      CHECK(std::abs(end.v(q, 0) - v[2 * i + static_cast<std::size_t>(q)]) <= 1e-8);
+// Continued on the dense engine (the scene's choice) and on the modal one (solver.engine: modal),
+// each point checked against brute force on the dense engine.
+namespace {
+
+void base_continuation_against_brute_force(EngineKind kind, double upper) {
+  const std::string run = "run:\n  kind: continue\n  transient_periods: 200\n  continue:\n    path: base.displacement.cosine\n"
+                          "    range: [0.02, " + num(upper) + "]\n    step: 0.02\n    max_step: 0.02\n";
+  {
+    const vibro::test::TempDir dir;
+    const std::string text = kModel + "forcing: {frequency: 0.3, cosine: [0.4, 0]}\nbase:\n  displacement: {cosine: 0.02}\n" +
+                             stops(", attached: base") + run +
+                             (kind == EngineKind::modal ? "solver: {engine: modal}\n" : "");
+    const SceneDocument doc = SceneDocument::parse(text, "c.yaml");
+    const Scene scene = doc.build();
+    CHECK(scene.engine == kind);
+    const RunReport report = run_scene(doc, scene, {dir / "c.h5", 1, false, false, 0});
+    CAPTURE(report.summary);
+    REQUIRE(report.exit_code == 0);
+    const ResultReader r(dir / "c.h5");
+    const std::vector<double> p = r.read("/branch/p"), t0 = r.read("/branch/t0"), x = r.read("/branch/x"),
+                              v = r.read("/branch/v"), residual = r.read("/branch/residual");
+    const std::vector<std::int64_t> k = r.read_integers("/branch/k"), stable = r.read_integers("/branch/stable");
+    REQUIRE(p.size() >= 3);
+    int compared = 0;
+    for (std::size_t i = 0; i < p.size(); i += std::max<std::size_t>(1, p.size() / 5)) {
+      if (k[i] != 1 || stable[i] != 1) continue;
+      CHECK(residual[i] <= 1e-10);
+      SceneDocument at(doc);
+      at.set("base.displacement.cosine", p[i]);
+      Scene s = at.build_point();
+      s.engine = EngineKind::dense;
+      const double t_end = t0[i] + 400.0 * s.period();
+      const std::unique_ptr<Engine> engine = make_engine(s);
+      Samples end(std::vector<double>{t_end});
+      const RunSummary summary = engine->run(0.0, Eigen::VectorXd::Zero(2), Eigen::VectorXd::Zero(2), t_end, {&end});
+      REQUIRE(summary.status == RunStatus::completed);
+      INFO("p = " << p[i]);
+      // 400 periods of a stable orbit leave nothing of the start; what remains is the corrector's
+      // residual (≤ 1e-10 above), rounding and, for the modal branch, the engines' agreement
+      // (1e-10 of T in event times, tests/framework/test_modal_harmonics.cpp), all far below 1e-8.
+      for (Eigen::Index q = 0; q < 2; ++q) {
+        CHECK(std::abs(end.x(q, 0) - x[2 * i + static_cast<std::size_t>(q)]) <= 1e-8);
+        CHECK(std::abs(end.v(q, 0) - v[2 * i + static_cast<std::size_t>(q)]) <= 1e-8);
+      }
+      ++compared;
     }
-    ++compared;
+    CHECK(compared >= 2);
   }
-  CHECK(compared >= 2);
+}
+
+}  // namespace
+
+TEST_CASE("base: continuation in the base amplitude matches brute-force simulation", "[scene][base][continue]") {
+  base_continuation_against_brute_force(EngineKind::dense, 0.1);
+}
+
+TEST_CASE("base: continuation in the base amplitude on the modal engine matches brute force on the dense engine",
+          "[scene][base][continue][modal]") {
+  // Over [0.02, 0.06] only: the modal engine's continuation of this scene (a stop moving with the
+  // base) takes ~75 s of CPU over [0.02, 0.1], too long for the suite's time limit under load.
+  base_continuation_against_brute_force(EngineKind::modal, 0.06);
 }
 
 // The shaken impact oscillator of experiments/shaken continued in Ω: the base's drive m Ω² x_b

@@ -195,30 +195,17 @@ TEST_CASE("forcing.harmonics: the parameter derivative of a harmonic's amplitude
   CHECK(d.frequency == 0.0);
 }
 
-TEST_CASE("forcing.harmonics: continuation in a second harmonic's amplitude matches brute-force simulation",
-          "[scene][harmonics][continue]") {
-  // The two-mass chain with an impacting period-1 orbit; the second harmonic's cosine on mass 0
-  // is continued over [0, 0.04]. At a few branch points the orbit's state at its phase t0 must
-  // be where a long simulation from rest at that parameter settles (the orbit is stable).
-  const std::string forcing = R"(forcing:
-  frequency: 0.3
-  cosine: [0.5, 0]
-  harmonics:
-    - {order: 2, cosine: [0.0, 0], sine: [0, 0.02]}
-)";
-  const std::string run = R"(run:
-  kind: continue
-  transient_periods: 200
-  continue:
-    path: forcing.harmonics[0].cosine[0]
-    range: [0, 0.04]
-    step: 0.01
-    max_step: 0.01
-)";
+namespace {
+
+/// Continues `doc` (a `run.kind: continue` scene in `path`) and compares the branch with brute
+/// force: at up to five points (stable, period 1, p ≤ p_max), the orbit's state at its phase t0
+/// must be where a simulation from rest at that parameter settles after 400 periods on `brute`
+/// (the dense engine, or the scene's own). Returns how many points were compared.
+int continuation_against_brute_force(const SceneDocument& doc, const std::string& path, double p_max,
+                                     EngineKind continued, EngineKind brute) {
   const vibro::test::TempDir dir;
-  const SceneDocument doc = SceneDocument::parse(with_forcing(forcing, run), "c.yaml");
   const Scene scene = doc.build();
-  CHECK(scene.engine == EngineKind::dense);
+  CHECK(scene.engine == continued);
   const RunReport report = run_scene(doc, scene, {dir / "c.h5", 1, false, false, 0});
   CAPTURE(report.summary);
   REQUIRE(report.exit_code == 0);
@@ -228,30 +215,88 @@ TEST_CASE("forcing.harmonics: continuation in a second harmonic's amplitude matc
   const std::vector<std::int64_t> k = r.read_integers("/branch/k"), stable = r.read_integers("/branch/stable");
   REQUIRE(p.size() >= 3);
   int compared = 0;
-  // Beyond p ≈ 0.0239 the branch folds back (two stable orbits coexist there, and a run from
-  // rest may settle on either): the comparison keeps to p ≤ 0.02, where the orbit is unique.
   for (std::size_t i = 0; i < p.size(); i += std::max<std::size_t>(1, p.size() / 5)) {
-    if (k[i] != 1 || stable[i] != 1 || p[i] > 0.02) continue;
+    if (k[i] != 1 || stable[i] != 1 || p[i] > p_max) continue;
     CHECK(residual[i] <= 1e-10);
     SceneDocument at(doc);
-    at.set("forcing.harmonics[0].cosine[0]", p[i]);
-    const Scene s = at.build_point();
-    const double T = s.period();
-    const double t_end = t0[i] + 400.0 * T;
-    const ImpactSystem system = s.impact_system();  // the simulator keeps a reference
-    Simulator sim(system, s.solver);
+    at.set(path, p[i]);
+    Scene s = at.build_point();
+    s.engine = brute;
+    const double t_end = t0[i] + 400.0 * s.period();
+    const std::unique_ptr<Engine> engine = make_engine(s);
     Samples end(std::vector<double>{t_end});
-    const RunSummary summary = sim.run(0.0, Eigen::VectorXd::Zero(2), Eigen::VectorXd::Zero(2), t_end, {&end});
+    const RunSummary summary = engine->run(0.0, Eigen::VectorXd::Zero(2), Eigen::VectorXd::Zero(2), t_end, {&end});
     REQUIRE(summary.status == RunStatus::completed);
-    INFO("p = " << p[i]);
+    INFO(path << " = " << p[i]);
     // A stable orbit attracts at its largest multiplier (|μ| ≤ 0.2 here, measured): 400 periods
-    // leave nothing of the start; what remains is the corrector's residual (≤ 1e-10 above) and
-    // rounding.
-    CHECK(std::abs(end.x(0, 0) - x[2 * i]) <= 1e-8);
-    CHECK(std::abs(end.x(1, 0) - x[2 * i + 1]) <= 1e-8);
-    CHECK(std::abs(end.v(0, 0) - v[2 * i]) <= 1e-8);
-    CHECK(std::abs(end.v(1, 0) - v[2 * i + 1]) <= 1e-8);
+    // leave nothing of the start (0.2^400); what remains is the corrector's residual (≤ 1e-10
+    // above), rounding, and, across engines, their agreement (1e-10 of T in event times,
+    // tests/framework/test_modal_harmonics.cpp), all far below 1e-8.
+    for (Eigen::Index q = 0; q < 2; ++q) {
+      CHECK(std::abs(end.x(q, 0) - x[2 * i + static_cast<std::size_t>(q)]) <= 1e-8);
+      CHECK(std::abs(end.v(q, 0) - v[2 * i + static_cast<std::size_t>(q)]) <= 1e-8);
+    }
     ++compared;
   }
-  CHECK(compared >= 2);
+  return compared;
+}
+
+// The two-mass chain with an impacting period-1 orbit at Ω = 0.3 and a second harmonic.
+const std::string kTwoTone = R"(forcing:
+  frequency: 0.3
+  cosine: [0.5, 0]
+  harmonics:
+    - {order: 2, cosine: [0.0, 0], sine: [0, 0.02]}
+)";
+
+std::string continue_in(const std::string& path, double lo, double hi, double step) {
+  return "run:\n  kind: continue\n  transient_periods: 200\n  continue:\n    path: " + path + "\n    range: [" +
+         number_text(lo) + ", " + number_text(hi) + "]\n    step: " + number_text(step) +
+         "\n    max_step: " + number_text(step) + "\n";
+}
+
+}  // namespace
+
+TEST_CASE("forcing.harmonics: continuation in a second harmonic's amplitude matches brute-force simulation",
+          "[scene][harmonics][continue]") {
+  // The second harmonic's cosine on mass 0 is continued over [0, 0.04]. Beyond p ≈ 0.0239 the
+  // branch folds back (two stable orbits coexist there, and a run from rest may settle on
+  // either): the comparison keeps to p ≤ 0.02, where the orbit is unique.
+  const std::string path = "forcing.harmonics[0].cosine[0]";
+  const SceneDocument doc = SceneDocument::parse(with_forcing(kTwoTone, continue_in(path, 0, 0.04, 0.01)), "c.yaml");
+  CHECK(continuation_against_brute_force(doc, path, 0.02, EngineKind::dense, EngineKind::dense) >= 2);
+}
+
+TEST_CASE("forcing.harmonics: on the modal engine, continuation in a second harmonic's amplitude matches brute force "
+          "on both engines",
+          "[scene][harmonics][continue][modal]") {
+  // The same scene and branch as above, continued on the modal engine (its parameter derivatives
+  // carry one particular solution per harmonic); its points are checked against runs on the
+  // modal engine and on the dense one.
+  const std::string path = "forcing.harmonics[0].cosine[0]";
+  const SceneDocument doc = SceneDocument::parse(
+      with_forcing(kTwoTone, continue_in(path, 0, 0.04, 0.01)) + "solver: {engine: modal}\n", "c.yaml");
+  CHECK(continuation_against_brute_force(doc, path, 0.02, EngineKind::modal, EngineKind::modal) >= 2);
+  CHECK(continuation_against_brute_force(doc, path, 0.02, EngineKind::modal, EngineKind::dense) >= 2);
+}
+
+TEST_CASE("forcing.harmonics: continuation in a second harmonic's quadrature part (its phase) matches brute force "
+          "on both engines",
+          "[scene][harmonics][continue][modal]") {
+  // The second harmonic's sine on mass 1 turns the harmonic's phase as it grows (the cosine on
+  // mass 0 held at 0.01): continued over [0, 0.04] on each engine, checked against the dense engine.
+  const std::string path = "forcing.harmonics[0].sine[1]";
+  const std::string forcing = R"(forcing:
+  frequency: 0.3
+  cosine: [0.5, 0]
+  harmonics:
+    - {order: 2, cosine: [0.01, 0], sine: [0, 0.0]}
+)";
+  for (const char* engine : {"dense", "modal"}) {
+    INFO("engine " << engine);
+    const SceneDocument doc = SceneDocument::parse(
+        with_forcing(forcing, continue_in(path, 0, 0.04, 0.01)) + "solver: {engine: " + engine + "}\n", "c.yaml");
+    const EngineKind kind = std::string(engine) == "modal" ? EngineKind::modal : EngineKind::dense;
+    CHECK(continuation_against_brute_force(doc, path, 0.04, kind, EngineKind::dense) >= 2);
+  }
 }

@@ -24,7 +24,8 @@
 #        (where Boost was found; ~10 s). Alone: build/release/tools/bench/bench_taylor_odeint
 #        --periods 200 --repeat 5;
 #     7. bench_harmonics: the paper's system driven by its plain forcing keys and by 1, 2, 4, 8
-#        harmonics (µs per period and per event, alternated runs, medians).
+#        harmonics (µs per period and per event, alternated runs, medians), and bench_harmonic_cost:
+#        ns per state evaluation with 0 … 8 extra harmonics on the dense and the modal engine (~5 s).
 #     8. tools/bench/study_throughput.py: basin, diagram and continuation points per second on the
 #        paper's system (whole `vibro run` commands on 2 threads, 5 alternated rounds, medians; ~2 min).
 #   options: --build DIR (default build/release), --out FILE (default docs/performance.md)
@@ -44,7 +45,7 @@ if [[ "$build" == "$root/build/release" ]]; then
   # the benchmarks are built by the dev preset (the release preset is the user's lean build)
   cmake --preset dev -DCMAKE_CXX_COMPILER_LAUNCHER="$(command -v ccache || true)" > /dev/null
 fi
-targets=(bench_engine work_precision bench_chain bench_laws bench_harmonics vibro_tests_allocations vibro)
+targets=(bench_engine work_precision bench_chain bench_laws bench_harmonics bench_harmonic_cost vibro_tests_allocations vibro)
 # The Taylor engine against Boost.Odeint (and SUNDIALS where found): built where Boost's headers
 # were found at configure time.
 grep -q '^VIBRO_BOOST_ODEINT_INCLUDE:PATH=/' "$build/CMakeCache.txt" && targets+=(bench_taylor_odeint)
@@ -88,6 +89,7 @@ if [[ -x "$build/tools/bench/bench_taylor_odeint" ]]; then
 fi
 echo "report.sh: 7/8 drives with several harmonics" >&2
 "$build/tools/bench/bench_harmonics" --periods 400 --rounds 5 > "$raw/harmonics.txt"
+"$build/tools/bench/bench_harmonic_cost" --evaluations 20000 --rounds 5 > "$raw/harmonic_cost.txt"
 echo "report.sh: 8/8 study run kinds" >&2
 /usr/bin/python3 tools/bench/study_throughput.py --build "$build" --rounds 5 --threads 2 > "$raw/study.txt"
 
