@@ -593,7 +593,14 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   const double t_guess = scene.t0 + scene.run.transient_periods * scene.period();
   Scene built = scene;
   built.solver = o.solver;
-  const RunSummary warm = make_engine(built)->run(scene.t0, scene.x0, scene.v0, t_guess);
+  // The run's engine (a long modal chain's modes, under run_bounded): an interrupt in its set-up
+  // is an interrupted transient, the file written with no branch.
+  RunSummary warm;
+  try {
+    warm = make_engine(built)->run(scene.t0, scene.x0, scene.v0, t_guess);
+  } catch (const Interrupted&) {
+    warm.status = RunStatus::interrupted;
+  }
   const auto stopped = [&] { return request.interrupt && request.interrupt->load(); };
   if (warm.status != RunStatus::completed && warm.status != RunStatus::interrupted)
     throw SceneError(scene.file, 1, 1, "run.transient_periods",
