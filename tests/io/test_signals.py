@@ -33,7 +33,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 
 LIMIT = 2.0  # seconds from the signal to the process's end: 1 s guaranteed + 1 s for a loaded machine
@@ -171,10 +170,10 @@ def cases(args):
             [], "lock+10", WRITTEN, ["o.h5"]),
         # Continuation on the modal engine makes its own engine at each parameter value: the
         # modes of the 3000-mass chain again (run where the wait is bounded). The run's engine
-        # for the transient makes them first, so the signal comes half a set-up's time after
-        # that one ends ("lock+setup*1.5": the set-up timed on this machine, below).
+        # for the transient makes them first, so the signal comes 0.3 s into the second set-up
+        # on a thread of its own (seconds long).
         "continue: the modal family engine's set-up, 3000-mass chain": (
-            chain(3000, "modal", MODAL_CONTINUE % ""), [], "lock+setup*1.5", WRITTEN, ["o.h5"]),
+            chain(3000, "modal", MODAL_CONTINUE % ""), [], "bounded#2+0.3", WRITTEN, ["o.h5"]),
         "continue: the corrector, steps of 1e-7": (
             experiment(args, "wagg2004/continuation.yaml", (r"^(\s*)max_step: .*$", r"\1max_step: 1e-7"),
                        (r"^(\s*)max_points: .*$", r"\1max_points: 1000000"), (r"^(\s*)step: .*$", r"\1step: 1e-7")),
@@ -195,37 +194,17 @@ def cases(args):
     }
 
 
-_setup = {"lock": threading.Lock(), "seconds": None}
-
-
-def modal_setup_seconds(args):
-    """Seconds from the lock to the end of a run that only makes the modes of the 3000-mass modal
-    chain (and runs 0.001 periods): the set-up's time on this machine under its present load,
-    measured once."""
-    with _setup["lock"]:
-        if _setup["seconds"] is None:
-            work = tempfile.mkdtemp(prefix="vibro-signals-", dir=args.work)
-            try:
-                with open(os.path.join(work, "s.yaml"), "w") as f:
-                    f.write(chain(3000, "modal", "run: {periods: 0.001}"))
-                p = subprocess.Popen([args.vibro, "run", "s.yaml", "-o", "o.h5"], cwd=work,
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-                while not os.path.exists(os.path.join(work, "o.h5.lock")) and p.poll() is None:
-                    time.sleep(0.01)
-                locked = time.monotonic()
-                p.wait(120)
-                _setup["seconds"] = time.monotonic() - locked
-            finally:
-                shutil.rmtree(work, ignore_errors=True)
-        return _setup["seconds"]
+def threads(pid):
+    """The process's thread count (0 once it has ended)."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            return next(int(line.split()[1]) for line in f if line.startswith("Threads:"))
+    except (OSError, StopIteration):
+        return 0
 
 
 def run_case(args, name, spec):
     scene, extra, when, last_line, files = spec
-    wait = None
-    if isinstance(when, str):  # "lock+S": S seconds after the run made its output's lock
-        after = when.split("+")[1]  # S, or "setup*F": F times the modal set-up's time (timed first)
-        wait = float(after) if not after.startswith("setup*") else float(after[6:]) * modal_setup_seconds(args)
     work = tempfile.mkdtemp(prefix="vibro-signals-", dir=args.work)
     try:
         with open(os.path.join(work, "s.yaml"), "w") as f:
@@ -234,11 +213,22 @@ def run_case(args, name, spec):
             p = subprocess.Popen([args.vibro, "run", "s.yaml", "-o", "o.h5"] + extra, cwd=work,
                                  stdout=subprocess.DEVNULL, stderr=err)
         problems = []
-        if wait is not None:
+        if isinstance(when, str) and when.startswith("lock+"):  # S seconds after the run made its output's lock
             deadline = time.monotonic() + 60
             while not os.path.exists(os.path.join(work, "o.h5.lock")) and p.poll() is None and time.monotonic() < deadline:
                 time.sleep(0.02)
-            time.sleep(wait)
+            time.sleep(float(when[5:]))
+        elif isinstance(when, str):  # "bounded#K+S": S seconds into the run's K-th bounded set-up, the
+            # K-th time it runs a computation on a thread of its own (bounded_wait.hpp: 2 threads)
+            k, after = when[8:].split("+")
+            seen, inside, deadline = 0, False, time.monotonic() + 120
+            while seen < int(k) and p.poll() is None and time.monotonic() < deadline:
+                count = threads(p.pid)
+                if count >= 2 and not inside:
+                    seen += 1
+                inside = count >= 2
+                time.sleep(0.005)
+            time.sleep(float(after))
         else:
             time.sleep(when)
         if p.poll() is not None:
