@@ -107,7 +107,7 @@ for target in "${targets[@]}"; do
   out=$work/$target.log
   executed=$(stat number_of_executed_units "$target")
   wall=$(awk -v a="${started[$target]}" -v b="${ended[$target]}" 'BEGIN { printf "%.0f", b - a }')
-  per_second=$(awk -v n="${executed:-0}" -v s="$wall" 'BEGIN { printf "%.0f", s > 0 ? n / s : 0 }')
+  per_second=$(awk -v n="${executed:-0}" -v s="$wall" 'BEGIN { printf "%.0f", (s > 0 ? n / s : 0) }')
   # libFuzzer's last status line: "#N DONE cov: C ft: F corp: U/S ..." (or the last line before a finding).
   last=$(grep -E '^#[0-9]+.*cov: ' "$out" | tail -1 || true)
   cov=$(sed -n 's/.*cov: \([0-9]*\).*/\1/p' <<< "$last")
