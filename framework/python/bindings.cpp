@@ -11,6 +11,7 @@
 /// interrupted (vibro/__init__.py raises vibro.Interrupted carrying it); any other exception a
 /// handler raises is re-raised once the worker is done. Signals reach Python's main thread
 /// only, so a run in another thread is stopped by its own flag, never by Ctrl-C.
+#include "vibro/bounded_wait.hpp"
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/run_kinds.hpp"
 #include "vibro/io/session.hpp"
@@ -131,6 +132,9 @@ struct Work {
   std::condition_variable finished;
   bool done = false;
   vibro::io::MemoryRun run;
+  /// The stop flag ended a set-up that nothing can poll (run_bounded, bounded_wait.hpp) before
+  /// the run held anything: no image, an interrupted run all the same.
+  bool set_up_interrupted = false;
   std::exception_ptr failure;
   std::atomic<double> progress_done{-1.0}, progress_total{0.0};  ///< RunRequest::on_progress
 };
@@ -287,12 +291,19 @@ py::tuple run(const SceneDocument& doc, int threads, int show, const py::object&
             w.progress_total.store(total);
             w.progress_done.store(done);
           };
-        w.run = vibro::io::run_in_memory(copy, scene, options);
+        try {
+          w.run = vibro::io::run_in_memory(copy, scene, options);
+        } catch (const vibro::Interrupted&) {  // a bounded set-up, before the kind held a result
+          w.set_up_interrupted = true;
+          w.run = {};
+          w.run.exit_code = 130;
+          w.run.summary = "Interrupted during a set-up computation: nothing was computed.";
+        }
       },
       progress);
   if (work->failure) std::rethrow_exception(work->failure);  // interrupted before it ran
   py::bytes image(work->run.image.data(), work->run.image.size());
-  return py::make_tuple(image, work->run.exit_code, work->run.summary, interrupted);
+  return py::make_tuple(image, work->run.exit_code, work->run.summary, interrupted || work->set_up_interrupted);
 }
 
 /// Builds `doc` (validates it) with the GIL released: a sweep's check builds every point.

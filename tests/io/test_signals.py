@@ -3,9 +3,11 @@
 
 Each case writes a scene chosen to sit in one phase for several seconds (a dense chain's check,
 a large contact set's flow, the modal engine's set-up and run, the layout of 3e7 sample times,
-one long event-search segment, in the recorded periods and in the transient, a sweep point,
+the evaluation of thousands of samples in one segment free of events, one long event-search
+segment, in the recorded periods and in the transient, a sweep point,
 Newton-Krylov shooting on a 1000-mass chain, shooting on a dense chain (the section probe's scan,
-tangent maps), a continuation's start on it and its corrector, a two-parameter curve, locate,
+tangent maps), a continuation's start on it and its corrector, the modal family engine a
+continuation makes at a parameter value, a two-parameter curve, locate,
 basin, diagram and Lyapunov points, the Taylor engine), starts `vibro run` on it in a folder of
 its own, waits until the run is in that phase (its output's lock made, or a fixed time for the
 check, which makes no file), sends SIGTERM and measures how long the process takes to end.
@@ -79,6 +81,13 @@ run: {periods: 30}
 
 DENSE_ORBIT = "run: {kind: orbit, transient_periods: 0, orbit: {period: 1}}"
 
+# One period of a 1000-mass modal chain whose stop is never reached: one segment free of events,
+# its 5000 sample times evaluated at O(n²) each (seconds; polled between batches).
+SAMPLES_IN_ONE_SEGMENT = chain(1000, "modal", "record: {samples: {per_period: 5000}}\nrun: {periods: 1}").replace(
+    "position: 0.1", "position: 100")
+
+MODAL_CONTINUE = "run: {kind: continue, transient_periods: 0, continue: {path: forcing.frequency, range: [0.7, 0.9], step: 0.01%s}}"
+
 LONG_SEGMENT = """model: {chain: {masses: [3], left_wall: {spring: 1.4, damper: 0.14}}}
 forcing: {frequency: 1e-9, cosine: [0]}
 stops: [{mass: 0, side: lower, position: -0.2, restitution: 0.9}, {mass: 0, side: upper, position: 0.1, restitution: 0}]
@@ -128,6 +137,9 @@ def cases(args):
             MANY_SAMPLES, [], "lock+0.2", SIMULATION_NOT_WRITTEN, []),
         "simulate: modal engine, 1000-mass chain": (
             chain(1000, "modal", "run: {periods: 1e6}"), [], "lock+1", SIMULATION_NOT_WRITTEN, []),
+        # Evaluating the samples of one segment free of events (polled every few milliseconds).
+        "simulate: 5000 samples in one segment of a 1000-mass modal chain": (
+            SAMPLES_IN_ONE_SEGMENT, [], "lock+2", SIMULATION_NOT_WRITTEN, []),
         "simulate: event search in one long segment": (
             LONG_SEGMENT, [], "lock+1", SIMULATION_NOT_WRITTEN, []),
         # The same in the transient: the line says so ("Interrupted during the transient at t = …").
@@ -156,6 +168,12 @@ def cases(args):
             ONE_STOP_200.format(run="run: {kind: continue, transient_periods: 0, continue: "
                                     "{path: forcing.frequency, range: [0.7, 0.9], step: 0.01}}"),
             [], "lock+10", WRITTEN, ["o.h5"]),
+        # Continuation on the modal engine makes its own engine at each parameter value: the
+        # modes of the 3000-mass chain again (run where the wait is bounded). The run's engine
+        # for the transient makes them first, so the signal comes 0.3 s into the second set-up
+        # on a thread of its own (seconds long).
+        "continue: the modal family engine's set-up, 3000-mass chain": (
+            chain(3000, "modal", MODAL_CONTINUE % ""), [], "bounded#2+0.3", WRITTEN, ["o.h5"]),
         "continue: the corrector, steps of 1e-7": (
             experiment(args, "wagg2004/continuation.yaml", (r"^(\s*)max_step: .*$", r"\1max_step: 1e-7"),
                        (r"^(\s*)max_points: .*$", r"\1max_points: 1000000"), (r"^(\s*)step: .*$", r"\1step: 1e-7")),
@@ -176,6 +194,15 @@ def cases(args):
     }
 
 
+def threads(pid):
+    """The process's thread count (0 once it has ended)."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            return next(int(line.split()[1]) for line in f if line.startswith("Threads:"))
+    except (OSError, StopIteration):
+        return 0
+
+
 def run_case(args, name, spec):
     scene, extra, when, last_line, files = spec
     work = tempfile.mkdtemp(prefix="vibro-signals-", dir=args.work)
@@ -186,12 +213,22 @@ def run_case(args, name, spec):
             p = subprocess.Popen([args.vibro, "run", "s.yaml", "-o", "o.h5"] + extra, cwd=work,
                                  stdout=subprocess.DEVNULL, stderr=err)
         problems = []
-        if isinstance(when, str):  # "lock+S": S seconds after the run made its output's lock
-            wait = float(when.split("+")[1])
+        if isinstance(when, str) and when.startswith("lock+"):  # S seconds after the run made its output's lock
             deadline = time.monotonic() + 60
             while not os.path.exists(os.path.join(work, "o.h5.lock")) and p.poll() is None and time.monotonic() < deadline:
                 time.sleep(0.02)
-            time.sleep(wait)
+            time.sleep(float(when[5:]))
+        elif isinstance(when, str):  # "bounded#K+S": S seconds into the run's K-th bounded set-up, the
+            # K-th time it runs a computation on a thread of its own (bounded_wait.hpp: 2 threads)
+            k, after = when[8:].split("+")
+            seen, inside, deadline = 0, False, time.monotonic() + 120
+            while seen < int(k) and p.poll() is None and time.monotonic() < deadline:
+                count = threads(p.pid)
+                if count >= 2 and not inside:
+                    seen += 1
+                inside = count >= 2
+                time.sleep(0.005)
+            time.sleep(float(after))
         else:
             time.sleep(when)
         if p.poll() is not None:

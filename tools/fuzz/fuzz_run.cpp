@@ -7,13 +7,15 @@
 // orbit, continue, locate, basin, diagram, Lyapunov), in memory as the Python module runs it, on
 // one thread, its stop flag raised after 1 s as a signal would: it must end within 25 s of that
 // (a phase deaf to the flag takes minutes; 25 s leaves room for ASan and a loaded machine, below
-// run.sh's 30 s timeout).
+// run.sh's 30 s timeout); and again with the flag raised 0, 2 or 20 ms after it starts (the
+// input's bytes choose), a signal in its set-up or first steps.
 // What is fuzzed is that every path ends in a status or a SceneError / InvalidInput /
 // ResourceError (ResultError for a value that cannot be written), never in a crash, an abort, a
 // hang (an interrupt not honoured: the watchdog aborts), a completed run with a non-finite state
 // or a recorded state past a stop, or a sanitizer report. Build and run: docs/fuzzing.md.
 #include "fuzz_input.hpp"
 
+#include "vibro/bounded_wait.hpp"
 #include "vibro/io/recorded_gaps.hpp"
 #include "vibro/io/resources.hpp"
 #include "vibro/io/result_file.hpp"
@@ -113,18 +115,28 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // The run kind as `vibro run` runs it (the runner, its files in memory), stopped after 1 s as
   // by a signal: a status and an exit code, or one of the documented errors; never an abort (an
   // exception in a sweep's worker), never deaf to the flag.
-  try {
+  // Then once more with the flag raised almost at once — 0, 2 or 20 ms after the run starts, as
+  // the input's bytes choose: a signal in its set-up or its first points, which the run above
+  // meets only when it is slow. It must end the same ways, within 25 s of the flag.
+  unsigned sum = 0;
+  for (std::size_t i = 0; i < size; ++i) sum += data[i];
+  constexpr double kEarly[] = {0.0, 0.002, 0.02};
+  for (const double after : {1.0, kEarly[sum % 3]}) {
     std::atomic<bool> stop{false};
-    io::MemoryRunOptions options;
-    options.threads = 1;
-    options.interrupt = &stop;
-    const Watchdog watchdog(stop, 1.0, 25.0);
-    const io::MemoryRun run = io::run_in_memory(*whole_doc, *whole, options);
-    if (run.exit_code == 130 && !stop.load()) __builtin_trap();  // interrupted, with no interrupt
-  } catch (const io::SceneError&) {
-  } catch (const InvalidInput&) {
-  } catch (const io::ResourceError&) {
-  } catch (const io::ResultError&) {  // a value that cannot be written (not finite): exit code 3
+    try {
+      io::MemoryRunOptions options;
+      options.threads = 1;
+      options.interrupt = &stop;
+      const Watchdog watchdog(stop, after, 25.0);
+      const io::MemoryRun run = io::run_in_memory(*whole_doc, *whole, options);
+      if (run.exit_code == 130 && !stop.load()) __builtin_trap();  // interrupted, with no interrupt
+    } catch (const io::SceneError&) {
+    } catch (const InvalidInput&) {
+    } catch (const io::ResourceError&) {
+    } catch (const io::ResultError&) {  // a value that cannot be written (not finite): exit code 3
+    } catch (const Interrupted&) {      // a bounded set-up (bounded_wait.hpp) ended by the flag
+      if (!stop.load()) __builtin_trap();
+    }
   }
   return 0;
 }

@@ -114,6 +114,7 @@ void carry_to_phase(const ContinuationFamily& family, BranchPoint& b, double the
     b.x_fixed = r.x;
     b.v_fixed = r.v;
   } catch (const InvalidInput&) {
+  } catch (const Interrupted&) {  // the engine's set-up at p, bounded (bounded_wait.hpp): NaN, as a failed run
   }
 }
 

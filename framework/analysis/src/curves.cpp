@@ -55,7 +55,10 @@
 ///    or 1:2 resonance (not located).
 #include "vibro/continuation.hpp"
 
+#include "vibro/bounded_wait.hpp"
+
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <complex>
 #include <functional>
@@ -522,7 +525,11 @@ Curve CurveFollower::follow(double p2_start) {
     }
     return curve;
   };
+  // Interrupted (the run's flag, or an engine's set-up under run_bounded, bounded_wait.hpp): the
+  // curve ends where it is, with the points so far.
+  const std::atomic<bool>* stop = options.branch.solver.interrupt;
   while (static_cast<int>(curve.points.size()) < options.max_points) {
+    if (stop && stop->load(std::memory_order_relaxed)) return finish("interrupted");
     const CurvePoint last = curve.points.back();
     Eigen::Vector2d previous_dir = dir;
     if (curve.points.size() >= 2) {
@@ -548,7 +555,16 @@ Curve CurveFollower::follow(double p2_start) {
       return finish("left the parameter limits");
     std::string failed;
     const int side_before = side;
-    const std::optional<CurvePoint> cp = next(last, dir, h, side, failed);
+    std::optional<CurvePoint> cp;
+    try {
+      cp = next(last, dir, h, side, failed);
+    } catch (const Interrupted&) {
+      return finish("interrupted");
+    }
+    if (stop && stop->load(std::memory_order_relaxed)) {  // a point located before it is kept
+      if (cp) curve.points.push_back(*cp);
+      return finish("interrupted");
+    }
     if (!cp) {
       h *= 0.5;
       if (h < 1e-6)
@@ -556,7 +572,12 @@ Curve CurveFollower::follow(double p2_start) {
                                      : "no orbit near the predictor: " + failed);
       continue;
     }
-    if (smooth_kind) between(curve, static_cast<int>(curve.points.size()) - 1, last, *cp, dir, h, side_before);
+    try {
+      if (smooth_kind) between(curve, static_cast<int>(curve.points.size()) - 1, last, *cp, dir, h, side_before);
+    } catch (const Interrupted&) {
+      curve.points.push_back(*cp);
+      return finish("interrupted");
+    }
     curve.points.push_back(*cp);
     h = std::min(1.5 * h, 4.0 * options.step);
   }

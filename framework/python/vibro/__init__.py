@@ -49,7 +49,10 @@ class Interrupted(KeyboardInterrupt):
 
     ``result`` is what was computed until then: a simulation up to the event where it stopped
     (status ``interrupted``), a sweep's finished points (``/sweep`` attribute ``completed``), a
-    locate run with the orbits it had. Catch ``KeyboardInterrupt`` to keep it::
+    locate run with the orbits it had; None when the interrupt came during a set-up before the
+    run held anything (the modes of a long modal chain, a large system's factorisations: they
+    run where the stop is answered within 10 ms, docs/results.md "Signals"). Catch
+    ``KeyboardInterrupt`` to keep it::
 
         try:
             r = vibro.sweep(scene, {"forcing.frequency": np.linspace(0.24, 0.28, 400)})
@@ -596,8 +599,11 @@ def _run(doc, threads, output=None, force=False, progress=None):
     elif progress not in (None, False):
         raise TypeError(f"progress: expected True, False, None or a callable(done, total), found {progress!r}")
     image, exit_code, summary, interrupted = doc.run(count, show, callback)
-    result = Result(_Image.from_bytes(image), exit_code, summary)
+    # No image: interrupted in a set-up before the run held anything (result None).
+    result = Result(_Image.from_bytes(image), exit_code, summary) if len(image) else None
     if interrupted:
+        if result is None:
+            raise Interrupted("vibro: run interrupted during its set-up; nothing was computed (.result is None)", None)
         raise Interrupted("vibro: run interrupted; the partial result is in .result", result)
     if output is not None:
         result.save(os.fspath(output), overwrite=bool(force))

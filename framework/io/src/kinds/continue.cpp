@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
 #include <regex>
 
 namespace vibro::io {
@@ -222,17 +223,45 @@ SystemDerivative derivative_at(const Entry& e, const Scene& s) {
   return {};
 }
 
-/// The engine continuation drives at one point of the scene (the engine the base scene resolved to).
+/// Modal chains of at least this many masses make their modes under run_bounded, as make_engine
+/// does for the run's own engine (scene.cpp).
+constexpr Eigen::Index kBoundedModalFromMasses = 256;
+/// Dense systems of at least this many degrees of freedom are built under run_bounded, as the
+/// corrector factorises (corrector.cpp).
+constexpr Eigen::Index kBoundedFromCoordinates = 64;
+
+/// The engine continuation drives at one point of the scene (the engine the base scene resolved
+/// to); a continuation makes one for each parameter value, a two-parameter curve one for each
+/// point of the plane. Its set-up cannot poll the run's interrupt flag, so for large systems it
+/// runs under run_bounded (bounded_wait.hpp): raising the flag throws Interrupted within 10 ms,
+/// which continuation takes as an interrupted map. The same construction on the same data: the
+/// same bits.
 std::unique_ptr<FamilyEngine> engine_at(const Scene& s, EngineKind engine, SystemDerivative d,
                                         const SimulatorOptions& solver) {
-  // A friction scene's contacts are the family's "stops" (friction_tangent.hpp).
-  if (!s.friction.empty()) return friction_family_engine(s.system(), s.friction, std::move(d), solver);
-  if (engine == EngineKind::modal) {
-    if (!s.chain) throw InvalidInput("the chain's damping is not proportional at this value (modal engine)");
-    return modal_family_engine(*s.chain, s.stops, std::move(d), modal_options(solver));
+  if (engine != EngineKind::modal || !s.friction.empty()) {
+    // The dense system at this value is built here, on its first use: M's Cholesky factor and the
+    // definiteness checks of C and K (LinearSystem, O(n³): seconds from a thousand coordinates on).
+    const bool large = s.dof() >= kBoundedFromCoordinates;
+    return run_bounded(large ? solver.interrupt : nullptr,
+                       [dense = s.dense, stops = s.stops, forces = s.forces, friction = s.friction, engine,
+                        d = std::move(d), solver]() mutable -> std::unique_ptr<FamilyEngine> {
+                         // A friction scene's contacts are the family's "stops" (friction_tangent.hpp).
+                         if (!friction.empty())
+                           return friction_family_engine(dense.get(), std::move(friction), std::move(d), solver);
+                         ImpactSystem system(dense.get(), std::move(stops));
+                         if (engine == EngineKind::taylor)
+                           return taylor_family_engine(std::move(system), std::move(forces), std::move(d), solver);
+                         return dense_family_engine(std::move(system), std::move(d), solver);
+                       });
   }
-  if (engine == EngineKind::taylor) return taylor_family_engine(s.impact_system(), s.forces, std::move(d), solver);
-  return dense_family_engine(s.impact_system(), std::move(d), solver);
+  if (!s.chain) throw InvalidInput("the chain's damping is not proportional at this value (modal engine)");
+  // The chain's modes at this value (one LAPACK call, and the family engine's own mechanics).
+  const bool long_chain = s.chain->dof() >= kBoundedModalFromMasses;
+  return run_bounded(long_chain ? solver.interrupt : nullptr,
+                     [chain = *s.chain, stops = s.stops, d = std::move(d),
+                      options = modal_options(solver)]() mutable -> std::unique_ptr<FamilyEngine> {
+                       return modal_family_engine(std::move(chain), std::move(stops), std::move(d), options);
+                     });
 }
 
 std::vector<Eigen::VectorXd> multipliers_part(const std::vector<BranchPoint>& pts, bool imag) {
@@ -500,7 +529,13 @@ void write_impact_map(ResultFile& file, const SceneDocument& doc, const Scene& s
       Scene built = at.build_point();
       built.solver.interrupt = request.interrupt;
       ImpactMap map;
-      const RunSummary s = make_engine(built)->run(q.t0, q.x, q.v, q.t0 + q.k * built.period(), {&map});
+      std::unique_ptr<vibro::Engine> engine;
+      try {
+        engine = make_engine(built);  // a long modal chain's set-up is bounded: Interrupted
+      } catch (const Interrupted&) {
+        break;
+      }
+      const RunSummary s = engine->run(q.t0, q.x, q.v, q.t0 + q.k * built.period(), {&map});
       if (s.status == RunStatus::completed) {
         t.insert(t.end(), map.t.begin(), map.t.end());
         phase.insert(phase.end(), map.phase.begin(), map.phase.end());
@@ -558,7 +593,14 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   const double t_guess = scene.t0 + scene.run.transient_periods * scene.period();
   Scene built = scene;
   built.solver = o.solver;
-  const RunSummary warm = make_engine(built)->run(scene.t0, scene.x0, scene.v0, t_guess);
+  // The run's engine (a long modal chain's modes, under run_bounded): an interrupt in its set-up
+  // is an interrupted transient, the file written with no branch.
+  RunSummary warm;
+  try {
+    warm = make_engine(built)->run(scene.t0, scene.x0, scene.v0, t_guess);
+  } catch (const Interrupted&) {
+    warm.status = RunStatus::interrupted;
+  }
   const auto stopped = [&] { return request.interrupt && request.interrupt->load(); };
   if (warm.status != RunStatus::completed && warm.status != RunStatus::interrupted)
     throw SceneError(scene.file, 1, 1, "run.transient_periods",
@@ -579,8 +621,23 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
     if (!stopped()) throw SceneError(scene.file, 1, 1, "run.continue", e.what());
   }
   std::vector<Curve> curves;
-  if (!spec.curve_path.empty()) {
-    const Entry e1 = classify(doc, spec.path), e2 = classify(doc, spec.curve_path);
+  // The curves' two parameters classified: the dense system built at the point and beside it,
+  // three times or more (M's Cholesky factor, C's and K's definiteness: O(n³), seconds from a
+  // thousand coordinates on), under run_bounded for large systems as the corrector's LU is; an
+  // interrupt there follows no curve.
+  std::optional<std::pair<Entry, Entry>> entries;
+  if (!spec.curve_path.empty() && !result.bifurcations.empty() && !stopped()) {
+    try {
+      entries = run_bounded(scene.dof() >= kBoundedFromCoordinates ? request.interrupt : nullptr,
+                            [doc, p1 = spec.path, p2 = spec.curve_path] {
+                              return std::pair<Entry, Entry>(classify(doc, p1), classify(doc, p2));
+                            });
+    } catch (const Interrupted&) {
+    }
+  }
+  if (entries) {
+    const Entry& e1 = entries->first;
+    const Entry& e2 = entries->second;
     // A point the scene rejects (a corrector's step can reach Ω < 0) is no system there, as in
     // continuation_family: InvalidInput, which the line's continuation takes as no orbit.
     const PlaneContinuationFamily plane = [&doc, &spec, &o, e1, e2, engine = scene.engine](double a, double b) {
@@ -608,6 +665,7 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
       const std::string kind = to_string(b.kind);
       if (!b.smooth || std::find(spec.curve_kinds.begin(), spec.curve_kinds.end(), kind) == spec.curve_kinds.end()) continue;
       for (int dir : {1, -1}) {
+        if (stopped()) break;  // interrupted: no further curve (the one cut short ends "interrupted")
         co.direction = dir;
         curves.push_back(follow_curve(plane, b, p2, co));
         std::fprintf(stderr, "  curve of the %s at %s = %.10f (stop %d), %s: %zu points (%s)\n", kind.c_str(),
