@@ -6,7 +6,8 @@
 /// of the orbit's events unseen (unseen_crossing). Around that loop the guards that keep it on this branch: a corrector
 /// that travels further than the step, or a point nearer to an earlier point than to the last,
 /// is refused; where the steps stall at a grazing or rising corner (the map's derivative blows up
-/// on one side) the branch is continued by a jump in p with Newton at fixed p (shooting.hpp);
+/// on one side) the branch is continued by a jump in p with Newton at fixed p (shooting.hpp),
+/// and a fold that a jump from a stable orbit passes beside a grazing is located on the side;
 /// where an event drifts into the section, the section is moved into the longest event-free
 /// stretch of the orbit and the tangent carried to it by the tangent map of the stretch.
 #include "branch_runner.hpp"
