@@ -65,10 +65,29 @@ bool BranchRunner::examine(const Node& a, Node& b, int branch_index, int depth,
       // Jacobian grows like 1/u as the impact speed u → 0).
       const auto fewer_side = [j, fewer](const Node& n) { return n.b.signature.impacts[j] == fewer; };
       const Node& good = fewer_side(a) ? a : b;
+      const Node& other = fewer_side(a) ? b : a;
       const bool ok = std::isfinite(f(good)) && f(good) < 0.0;
-      record(BifurcationKind::grazing, stop, a, b, branch_index, f, ok ? Mode::one_sided : Mode::bisection,
-             ok ? fewer_side : same_counts(sa, j, &Signature::impacts),
-             ok ? "" : "no gap maximum on the side without the impact: bracketed by bisection");
+      // Without a gap maximum there (a jump landed where the lost impact's flight has none), the
+      // side with the impact, where the height its slowest impact would rise past the stop is
+      // defined (> 0), locates it instead; failing that, it is bracketed by bisection.
+      // (Only a solved location is kept from that side: one that ends bracketed is replaced by
+      // the bisection between the two points.)
+      const auto more_side = [j, more](const Node& n) { return n.b.signature.impacts[j] == more; };
+      const bool ok_more = !ok && std::isfinite(f(other)) && f(other) > 0.0;
+      if (ok) {
+        record(BifurcationKind::grazing, stop, a, b, branch_index, f, Mode::one_sided, fewer_side, "");
+      } else {
+        bool solved = false;
+        if (ok_more) {
+          record(BifurcationKind::grazing, stop, a, b, branch_index, f, Mode::one_sided, more_side,
+                 "no gap maximum on the side without the impact: located from the side with it");
+          solved = result_.bifurcations.back().smooth;
+          if (!solved) result_.bifurcations.pop_back();
+        }
+        if (!solved)
+          record(BifurcationKind::grazing, stop, a, b, branch_index, f, Mode::bisection, same_counts(sa, j, &Signature::impacts),
+                 "no gap maximum on the side without the impact: bracketed by bisection");
+      }
     }
     if (sa.phases[j] != sb.phases[j]) {
       explained = true;

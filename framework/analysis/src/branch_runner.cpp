@@ -6,7 +6,8 @@
 /// of the orbit's events unseen (unseen_crossing). Around that loop the guards that keep it on this branch: a corrector
 /// that travels further than the step, or a point nearer to an earlier point than to the last,
 /// is refused; where the steps stall at a grazing or rising corner (the map's derivative blows up
-/// on one side) the branch is continued by a jump in p with Newton at fixed p (shooting.hpp);
+/// on one side) the branch is continued by a jump in p with Newton at fixed p (shooting.hpp),
+/// and a fold that a jump from a stable orbit passes beside a grazing is located on the side;
 /// where an event drifts into the section, the section is moved into the longest event-free
 /// stretch of the orbit and the tangent carried to it by the tangent map of the stretch.
 #include "branch_runner.hpp"
@@ -191,6 +192,11 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
       h *= 0.5;
       continue;
     }
+    // A jump, or a step at the floor, from a stable orbit across the grazing of one of its own
+    // impacts has passed the fold (or doubling) between them (unseen_crossing): it is located
+    // on the impacting orbits by short steps from cur (fold_before_grazing).
+    if ((!stepped || h <= crossing_step) && cur.b.multipliers.stable && loses_impact(cur.b.signature, next.b.signature))
+      fold_before_grazing(cur, h, branch_index);
     append(branch, next);
     last_dp = std::max(std::abs(next.e.p - cur.e.p), 1e-9 * c_.P);
     trail.push_back(c_.scaled(next.e));
@@ -208,6 +214,53 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
     else if (iterations >= 6) h = std::max(0.6 * h, o_.min_step);
   }
   branch.end = "max_points (" + std::to_string(o_.max_points) + ") reached";
+}
+
+/// The fold (or period doubling) that lies on the impacting orbits between a stable orbit cur
+/// and the grazing that ends one of its impacts, where the branch has passed it by a jump or a
+/// step at the floor: corrector steps from cur along its tangent, h halved where one fails or
+/// where the orbit loses the impact, until the tangent's p component or the doubling test
+/// changes sign; the bifurcation is then located between the two last orbits (record). These
+/// orbits are not added to the branch. Nothing is recorded if the steps give out (below
+/// min_step, or 80 correctors) first.
+void BranchRunner::fold_before_grazing(const Node& cur, double h, int branch_index) {
+  if (!o_.locate) return;
+  const Index last = cur.t.size() - 1;
+  const Node saved = last_located_;
+  Node a = cur;
+  h = std::max(h, o_.min_step);
+  for (int evaluations = 0; evaluations < 80; ++evaluations) {
+    const VectorXd y_pred = c_.scaled(a.e) + h * a.t;
+    int iterations = 0;
+    Node b;
+    b.e = c_.correct(y_pred, a.t, &iterations);
+    bool ok = b.e.ok && (c_.scaled(b.e) - y_pred).norm() <= h;
+    if (ok) {
+      b.b = c_.point(b.e, a.t, iterations);
+      ok = b.b.signature == a.b.signature;
+    }
+    if (!ok) {
+      h *= 0.5;
+      if (h < o_.min_step) break;
+      continue;
+    }
+    b.t = c_.tangent(b.e, a.t);
+    b.b.tangent_p = b.t(last);
+    const std::string note = "on the impacting orbits the branch passes by a jump across the grazing beside it (located by steps not kept with the branch)";
+    if (a.t(last) * b.t(last) < 0.0) {
+      const TestFunction f = [](const Node& n) { return n.t(n.t.size() - 1); };
+      record(BifurcationKind::fold, -1, a, b, branch_index, f, Mode::two_sided, {}, note);
+      break;
+    }
+    if (doubling_test(a.b.multipliers) * doubling_test(b.b.multipliers) < 0.0) {
+      const TestFunction f = [](const Node& n) { return doubling_test(n.b.multipliers); };
+      record(BifurcationKind::period_doubling, -1, a, b, branch_index, f, Mode::two_sided, {}, note);
+      break;
+    }
+    a = std::move(b);
+    if (iterations <= 3) h = std::min(1.5 * h, o_.max_step);
+  }
+  last_located_ = saved;
 }
 
 /// How many of the multipliers are real and above +1 (a fold changes it by one).
@@ -234,6 +287,14 @@ bool BranchRunner::single_change(const Signature& a, const Signature& b) {
     if (!grazing && !phase) return false;
   }
   return changed <= 1;
+}
+
+/// Whether b's events are a's with one impact fewer at one stop (a grazing that ends a's impact).
+bool BranchRunner::loses_impact(const Signature& a, const Signature& b) {
+  if (!single_change(a, b)) return false;
+  for (std::size_t j = 0; j < a.impacts.size(); ++j)
+    if (a.impacts[j] == b.impacts[j] + 1 && a.phases[j] == b.phases[j] && a.chatters[j] == b.chatters[j]) return true;
+  return false;
 }
 
 /// Why a step from a to b may have passed a change of the orbit's events unseen (empty: it

@@ -51,6 +51,8 @@ class BranchRunner {
   // Stepping (branch_runner.cpp).
   static bool near_nonsmooth(const Node& n);
   static bool single_change(const Signature& a, const Signature& b);
+  static bool loses_impact(const Signature& a, const Signature& b);
+  void fold_before_grazing(const Node& cur, double h, int branch_index);
   static int real_above_one(const FloquetMultipliers& m);
   static std::string unseen_crossing(const BranchPoint& a, const BranchPoint& b);
   std::optional<Node> jump(const Node& cur, double last_dp, const std::vector<VectorXd>& trail);

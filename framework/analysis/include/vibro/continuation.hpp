@@ -15,7 +15,13 @@
 ///             y_pred ← y + h t
 ///             Newton on [F(y); tᵀ(y − y_pred)] = 0 from y_pred (the exact Jacobian)
 ///             failure (no convergence in max_corrector_iterations, a run that fails, an orbit
-///                 that leaves the scan limits by more than a step): h ← h/2, retry; h < min: stop
+///                 that leaves the scan limits by more than a step, a corrector that travels
+///                 further than the step: another branch crossing the hyperplane): h ← h/2,
+///                 retry; h < min: stop
+///             steps shrinking (h < 1e-2 max_step) while an event lies within a small margin of
+///                 the section (an impact drifting through it makes the map jump): the section
+///                 moved into the longest event-free stretch of the orbit, the tangent carried
+///                 there by the stretch's tangent map
 ///             steps shrinking against a grazing (the map's derivative blows up on the side with
 ///                 the impact, and Newton from the other side cannot see it): the orbit beyond by
 ///                 Newton at fixed p; failing that, a step along the tangent of the branch of
@@ -32,6 +38,13 @@
 ///                 multiplier leaves the unit circle, a fold or a doubling, between a stable
 ///                 impacting orbit and the grazing). A jump past several changes is brought back
 ///                 to the first by bisection in p
+///             a step with the same events whose count of real multipliers above +1 changes
+///                 while the tangent's p component keeps its sign has gone round a fold unseen:
+///                 h ← h/2
+///             a jump, or a step at that floor, from a stable orbit across the grazing of one
+///                 of its impacts has passed the fold (or doubling) between them: it is located
+///                 on the impacting orbits by short steps from the last point (steps not kept
+///                 with the branch), and the branch goes on from the jump
 ///             a step or jump that goes back is refused: the first step past a change of events
 ///                 onto the events before it (back across the same grazing or rising: at a corner
 ///                 both parts lie on one side in p), a step onto the events before the last
@@ -62,7 +75,9 @@
 ///    orbit's nearest approach to the stop, continuous through the grazing — below it the
 ///    largest interior maximum of the gap (< 0), above it the height u²/(2|g''|) the slowest
 ///    impact's free parabola would rise past the stop (> 0; u the approach speed, g'' the gap's
-///    free acceleration at impact);
+///    free acceleration at impact); solved from the side without the impact, or, where that
+///    side's orbit has no gap maximum at the stop, from the side with it; failing both,
+///    bracketed by bisection;
 ///  * rising / multi-sliding of stop j (a contact phase of j splits): before it, the least
 ///    interior minimum of j's contact force (> 0); after it, the minimum of the force the held
 ///    flow continued past the release would need (< 0) (Wagg 2004; linearisation.hpp features);
