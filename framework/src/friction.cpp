@@ -222,10 +222,8 @@ const FrictionSimulator::Mode& FrictionSimulator::mode(const std::vector<Frictio
   return *it->second;
 }
 
-namespace {
-
 /// z = [x; v; cos Ωt; sin Ωt; 1; cos k₁Ωt; sin k₁Ωt; …] (flow.hpp's layout).
-Eigen::VectorXd augmented(const LinearSystem& sys, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
+Eigen::VectorXd detail::augmented_state(const LinearSystem& sys, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
   const Eigen::Index n = sys.dof();
   const HarmonicForcing& f = sys.forcing();
   Eigen::VectorXd z(augmented_size(n, f));
@@ -238,8 +236,6 @@ Eigen::VectorXd augmented(const LinearSystem& sys, double t, const Eigen::Vector
   }
   return z;
 }
-
-}  // namespace
 
 FrictionModeRows friction_mode_rows(const Eigen::MatrixXd& M, const Eigen::MatrixXd& C, const Eigen::MatrixXd& K,
                                     const HarmonicForcing& forcing, const std::vector<FrictionContact>& contacts,
@@ -254,7 +250,7 @@ FrictionModeRows friction_mode_rows(const Eigen::MatrixXd& M, const Eigen::Matri
 
 Eigen::VectorXd FrictionSimulator::relative_velocities(double t, const Eigen::VectorXd& v) const {
   const Tables tab(*system_, contacts_);
-  return tab.u_rows * augmented(*system_, t, Eigen::VectorXd::Zero(tab.n), v);
+  return tab.u_rows * detail::augmented_state(*system_, t, Eigen::VectorXd::Zero(tab.n), v);
 }
 
 Eigen::VectorXd FrictionSimulator::forces(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
@@ -262,7 +258,7 @@ Eigen::VectorXd FrictionSimulator::forces(double t, const Eigen::VectorXd& x, co
   const Tables tab(*system_, contacts_);
   Eigen::MatrixXd F, A;
   tab.mode_rows(states, F, A);
-  return F * augmented(*system_, t, x, v);
+  return F * detail::augmented_state(*system_, t, x, v);
 }
 
 namespace detail {

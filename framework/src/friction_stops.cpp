@@ -145,21 +145,6 @@ class FrictionStopView final : public SegmentView {
   mutable Eigen::VectorXd z_;
 };
 
-/// z = [x; v; cos Ωt; sin Ωt; 1; harmonics] (flow.hpp).
-Eigen::VectorXd augmented_state(const LinearSystem& sys, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) {
-  const Eigen::Index n = sys.dof();
-  const HarmonicForcing& f = sys.forcing();
-  Eigen::VectorXd z(augmented_size(n, f));
-  z << x, v, std::cos(f.frequency * t), std::sin(f.frequency * t), 1.0,
-      Eigen::VectorXd::Zero(2 * static_cast<Eigen::Index>(f.harmonics.size()));
-  for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
-    const double rate = f.harmonics[h].rate(f.frequency);
-    z(2 * n + 3 + 2 * static_cast<Eigen::Index>(h)) = std::cos(rate * t);
-    z(2 * n + 4 + 2 * static_cast<Eigen::Index>(h)) = std::sin(rate * t);
-  }
-  return z;
-}
-
 }  // namespace
 
 /// The engine side of event_loop.hpp, and the stops' algebra of event_resolution.hpp (one
@@ -232,7 +217,7 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
     // The frictional contacts at the start (friction.hpp): those at u = 0 decided by the
     // resolution, the others slipping with u.
     states_.assign(sim_.contacts_.size(), FrictionState::slip_positive);
-    const Eigen::VectorXd z = augmented_state(sys_, st.t, st.x, st.v);
+    const Eigen::VectorXd z = detail::augmented_state(sys_, st.t, st.x, st.v);
     const FrictionTables& tab = mode(st.stuck).tables();
     const Eigen::VectorXd u = tab.u_rows * z;
     std::vector<char> candidate(states_.size());
@@ -347,7 +332,7 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
               ContactSet& held, Eigen::Ref<Eigen::VectorXd> forces) override {
     held.clear();
     if (candidates.empty()) return;
-    const Eigen::VectorXd z = augmented_state(sys_, t, x, v);
+    const Eigen::VectorXd z = detail::augmented_state(sys_, t, x, v);
     const FrictionTables& tab = mode({}).tables();  // the engaged compliant stops, no held stop
     const auto k = static_cast<Eigen::Index>(candidates.size());
     Eigen::MatrixXd Nc(sys_.dof(), k);
@@ -409,7 +394,7 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
   void force_rates(const ContactSet& held, int j, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
                    double* slope, double* curvature) override {
     const Mode& md = mode(held);
-    const Eigen::VectorXd z = augmented_state(sys_, t, x, v);
+    const Eigen::VectorXd z = detail::augmented_state(sys_, t, x, v);
     const auto a = std::lower_bound(md.held().begin(), md.held().end(), j) - md.held().begin();
     const Eigen::VectorXd Az = md.generator() * z;
     *slope = -md.held_rows().row(a).dot(Az);
@@ -456,7 +441,7 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
                                  summary_, why, work_))
         return false;
     }
-    Eigen::VectorXd z = augmented_state(sys_, st.t, st.x, st.v);
+    Eigen::VectorXd z = detail::augmented_state(sys_, st.t, st.x, st.v);
     {  // An impulse may have moved a relative velocity off zero: that contact slips with it.
       const Eigen::VectorXd u = mode(st.stuck).tables().u_rows * z;
       for (std::size_t j = 0; j < states_.size(); ++j) {

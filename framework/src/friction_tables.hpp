@@ -215,6 +215,10 @@ bool resolve_states(const FrictionTables& tab, const Eigen::VectorXd& z, std::ve
 void settle_relative_velocities(const FrictionTables& tab, const std::vector<FrictionState>& before,
                                 const std::vector<FrictionState>& after, Eigen::VectorXd& z);
 
+/// z = [x; v; cos Ωt; sin Ωt; 1; cos k₁Ωt; sin k₁Ωt; …] (flow.hpp's layout) at time t: the
+/// augmented state both friction engines evaluate their rows on (friction.cpp).
+Eigen::VectorXd augmented_state(const LinearSystem& sys, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v);
+
 }  // namespace vibro::detail
 
 namespace vibro::detail {
