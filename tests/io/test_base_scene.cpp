@@ -292,7 +292,10 @@ void base_continuation_against_brute_force(EngineKind kind, double upper) {
 }  // namespace
 
 TEST_CASE("base: continuation in the base amplitude matches brute-force simulation", "[scene][base][continue]") {
-  base_continuation_against_brute_force(EngineKind::dense, 0.1);
+  // Over [0.02, 0.06], as on the modal engine: above 0.079 the branch enters a cascade of
+  // chatter and period-doubled branches that costs ~12 s of CPU (minutes under the sanitizers)
+  // and adds no point this comparison can use (its stable period-1 points are sampled).
+  base_continuation_against_brute_force(EngineKind::dense, 0.06);
 }
 
 TEST_CASE("base: continuation in the base amplitude on the modal engine matches brute force on the dense engine",
