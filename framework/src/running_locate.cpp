@@ -1,5 +1,7 @@
 #include "vibro/running_locate.hpp"
 
+#include "vibro/bounded_wait.hpp"
+
 #include <atomic>
 #include <algorithm>
 #include <cmath>
@@ -243,7 +245,11 @@ std::vector<ScanPoint> scan(const EngineFamily& family, const std::vector<double
   const std::atomic<bool>* stop = options.orbit.solver.interrupt;
   for (std::size_t i = 1; i < grid.size(); ++i) {
     if (stop && stop->load(std::memory_order_relaxed)) break;  // interrupted: the points scanned so far
-    points.push_back(c.from(points.back(), grid[i]));
+    try {
+      points.push_back(c.from(points.back(), grid[i]));
+    } catch (const Interrupted&) {  // likewise, in the set-up of the point's engine (bounded_wait.hpp)
+      break;
+    }
     if (options.on_point) options.on_point(i + 1);
   }
   return points;

@@ -7,6 +7,7 @@
 ///  * the reduced map (structural zeros) and the record's validity.
 #include "support/chains.hpp"
 #include "support/analysis_helpers.hpp"
+#include "vibro/bounded_wait.hpp"
 #include "vibro/lyapunov.hpp"
 #include "vibro/modal_tangent.hpp"
 #include "vibro/shooting.hpp"
@@ -16,6 +17,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <atomic>
 #include <ios>
 #include <cmath>
 #include <complex>
@@ -523,6 +525,38 @@ TEST_CASE("modal tangent map: a record refuses to be used after the engine ran a
                     return o;
                   }()),
                   vibro::InvalidInput);
+}
+
+// fill_jacobian carries J's 2N columns in blocks (of 64 to 127) so that it can look at the
+// interrupt flag between them: each column's products do not depend on the block that holds it,
+// so J is bit for bit the one pass J·I (no tolerance), here through free flights, impacts,
+// sticking, release and a held set's own modes (both routes), with 2N = 160 (blocks of 64 and 96).
+// Raised before fill_jacobian, the flag makes it throw Interrupted (and linearise report the map
+// as interrupted: tests/io/test_signals.py).
+TEST_CASE("modal tangent map: the full J in column blocks is the one-pass J bit for bit, and an interrupt ends it",
+          "[modal_tangent]") {
+  const int n = 80;
+  on_both_routes([&](vibro::ModalSimulatorOptions o) {
+    std::atomic<bool> stop{false};
+    o.interrupt = &stop;
+    const BandedChain chain = uniform_chain(n, 0.05, 0.6, 0.35);
+    vibro::ModalEngine engine(chain, {Stop::upper(0, 0.3, 0.0), Stop::lower(40, -0.1, 0.7)}, o);
+    const VectorXd zero = VectorXd::Zero(n);
+    const vibro::ModalTangent t(engine, 0.0, zero, zero, 60.0);
+    REQUIRE(t.map().summary.status == vibro::RunStatus::completed);
+    CHECK(t.map().summary.sticks >= 1);
+    CHECK(t.map().summary.impacts >= 3);
+    vibro::TangentMap blocked;
+    t.fill_jacobian(blocked);
+    const MatrixXd whole = t.apply(MatrixXd::Identity(2 * n, 2 * n));
+    REQUIRE(blocked.jacobian.rows() == 2 * n);
+    REQUIRE(blocked.jacobian.cols() == 2 * n);
+    CHECK(blocked.jacobian.cwiseAbs().maxCoeff() > 0.0);
+    CHECK((blocked.jacobian.array() == whole.array()).all());
+    stop = true;
+    vibro::TangentMap cut;
+    CHECK_THROWS_AS(t.fill_jacobian(cut), vibro::Interrupted);
+  });
 }
 
 namespace {

@@ -7,8 +7,9 @@ the evaluation of thousands of samples in one segment free of events, one long e
 segment, in the recorded periods and in the transient, a sweep point,
 Newton-Krylov shooting on a 1000-mass chain, shooting on a dense chain (the section probe's scan,
 tangent maps), a continuation's start on it and its corrector, the modal family engine a
-continuation makes at a parameter value, a two-parameter curve, locate,
-basin, diagram and Lyapunov points, the Taylor engine), starts `vibro run` on it in a folder of
+continuation makes at a parameter value, the modal engine's full-Jacobian tangent map of a
+continuation's start, a two-parameter curve, locate, basin, diagram and Lyapunov points and a
+later point's engine set-up on a long modal chain, the Taylor engine), starts `vibro run` on it in a folder of
 its own, waits until the run is in that phase (its output's lock made, or a fixed time for the
 check, which makes no file), sends SIGTERM and measures how long the process takes to end.
 
@@ -88,6 +89,16 @@ SAMPLES_IN_ONE_SEGMENT = chain(1000, "modal", "record: {samples: {per_period: 50
 
 MODAL_CONTINUE = "run: {kind: continue, transient_periods: 0, continue: {path: forcing.frequency, range: [0.7, 0.9], step: 0.01%s}}"
 
+# The point-by-point kinds on a long modal chain whose stops are never reached (each point's orbit
+# is quick): every point makes its own engine, the chain's modes (seconds, run where the wait is
+# bounded), and the signal comes 0.3 s into a later point's set-up, after a point is done.
+SET_UP_MASSES = 3000
+GRID = "path: forcing.frequency, linspace: [0.7, 0.8, 3]"
+
+
+def free_chain(run):
+    return chain(SET_UP_MASSES, "modal", run).replace("position: 0.1", "position: 100")
+
 LONG_SEGMENT = """model: {chain: {masses: [3], left_wall: {spring: 1.4, damper: 0.14}}}
 forcing: {frequency: 1e-9, cosine: [0]}
 stops: [{mass: 0, side: lower, position: -0.2, restitution: 0.9}, {mass: 0, side: upper, position: 0.1, restitution: 0}]
@@ -110,7 +121,8 @@ WRITTEN = r"Results in o\.h5\.$"
 
 
 def cases(args):
-    """name: (scene text, extra arguments, when to signal, last stderr line, files left)."""
+    """name: (scene text, extra arguments, when to signal, last stderr line, files left[, a
+    pattern stderr must hold: what was done])."""
     n = 200
     ONE_STOP_200 = "\n".join([
         "model: {chain: {masses: %s, springs: %s, dampers: %s, left_wall: {spring: 1, damper: 0.02}}}"
@@ -174,6 +186,12 @@ def cases(args):
         # on a thread of its own (seconds long).
         "continue: the modal family engine's set-up, 3000-mass chain": (
             chain(3000, "modal", MODAL_CONTINUE % ""), [], "bounded#2+0.3", WRITTEN, ["o.h5"]),
+        # The start's shooting on the modal engine forms the full Jacobian of each map: 2N = 1200
+        # directions through every event of the period, O(N³) at each held set (about 7 s for
+        # this map; polled between blocks of columns and between events). The set-ups before it
+        # take a few hundredths of a second.
+        "continue: the modal engine's full-Jacobian tangent map, 600-mass chain": (
+            chain(600, "modal", MODAL_CONTINUE % ""), [], "lock+1", WRITTEN, ["o.h5"]),
         "continue: the corrector, steps of 1e-7": (
             experiment(args, "wagg2004/continuation.yaml", (r"^(\s*)max_step: .*$", r"\1max_step: 1e-7"),
                        (r"^(\s*)max_points: .*$", r"\1max_points: 1000000"), (r"^(\s*)step: .*$", r"\1step: 1e-7")),
@@ -191,6 +209,24 @@ def cases(args):
             experiment(args, "chaos/bifurcation_wagg.yaml"), [], "lock+1", WRITTEN, ["o.h5"]),
         "lyapunov: points": (
             experiment(args, "chaos/lyapunov_chain.yaml"), [], "lock+1", WRITTEN, ["o.h5"]),
+        # A later point's engine set-up (the first point's is bounded set-up 1; a basin's run that
+        # fixes its scales comes before it): the points done are written, status interrupted.
+        "locate: a later point's engine set-up": (
+            free_chain("run: {kind: locate, transient_periods: 0, locate: {%s, max_period: 1, max_periods: 2}}" % GRID),
+            ["--threads", "1"], "bounded#2+0.3", WRITTEN, ["o.h5"], r"\(1 grid points, 1 orbits"),
+        "basin: a later point's engine set-up": (
+            free_chain("run: {kind: basin, transient_periods: 0, basin: {parameters: [{%s}, {path: 'forcing.cosine[0]', "
+                       "values: [0.6]}], max_period: 1, max_periods: 2, seed_stride: 1}}" % GRID),
+            ["--threads", "1"], "bounded#3+0.3", WRITTEN, ["o.h5"], r"^  2 points not run: interrupted \(label -3\)$"),
+        "diagram: a later value's engine set-up": (
+            free_chain("run: {kind: diagram, transient_periods: 0, diagram: {%s, points: 2, directions: up, "
+                       "max_period: 1, settle: 0}}" % GRID),
+            ["--threads", "1"], "bounded#2+0.3", WRITTEN, ["o.h5"], r", 2 not reached \(up: at forcing\.frequency = 0\.75: interrupted while its engine was set up\)"),
+        "lyapunov: a later point's engine set-up": (
+            free_chain("run: {kind: lyapunov, transient_periods: 0, lyapunov: {%s, count: 1, transient: 0, align: 0, "
+                       "periods: 1}}" % GRID),
+            ["--threads", "1"], "bounded#2+0.3", WRITTEN, ["o.h5"],
+            r" 2 points not reached \(at forcing\.frequency = 0\.75: interrupted while its engine was set up\)\.$"),
     }
 
 
@@ -204,7 +240,7 @@ def threads(pid):
 
 
 def run_case(args, name, spec):
-    scene, extra, when, last_line, files = spec
+    scene, extra, when, last_line, files, *said = spec
     work = tempfile.mkdtemp(prefix="vibro-signals-", dir=args.work)
     try:
         with open(os.path.join(work, "s.yaml"), "w") as f:
@@ -251,6 +287,9 @@ def run_case(args, name, spec):
             problems.append(f"exit code {code}, expected 130")
         if not re.search(last_line, last):
             problems.append(f"last stderr line {last!r} does not match {last_line!r}")
+        for pattern in said:
+            if not any(re.search(pattern, line) for line in lines):
+                problems.append(f"no stderr line matches {pattern!r}")
         left = sorted(f for f in os.listdir(work) if f not in ("s.yaml", "err.txt"))
         if left != sorted(files):
             problems.append(f"files left: {left}, expected {sorted(files)}")

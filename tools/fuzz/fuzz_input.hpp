@@ -22,6 +22,13 @@ inline constexpr std::size_t kMaxInput = 64 * 1024;
 /// is linear in its points by design (a 10⁶-point linspace takes seconds, not a hang).
 inline constexpr double kMaxGridPoints = 1000;
 
+/// A run over a grid of two axes (a basin, a two-parameter sweep) with more points than this is
+/// skipped by fuzz_run: 256 × 256, experiments/chaos/basin_wagg.yaml's grid, so the seeds run
+/// whole. Each axis is validated value by value when the scene loads (linear, bounded above),
+/// but the run allocates, labels and writes every point of the product even when interrupted at
+/// once: 1000 × 1000 points are seconds of that in release, tens of seconds under ASan.
+inline constexpr std::size_t kMaxGridCells = 256 * 256;
+
 /// The document, with the "#set" lines applied; none if the input is skipped or refused.
 inline std::optional<io::SceneDocument> document(const std::uint8_t* data, std::size_t size) {
   if (size > kMaxInput) return std::nullopt;
@@ -35,18 +42,24 @@ inline std::optional<io::SceneDocument> document(const std::uint8_t* data, std::
       at = end + 1;
       if (at >= text.size()) break;
     }
-    // Every run kind's grid (scene.cpp's parse_axis callers). The basin grids were missing: a
-    // fuzzed basin_wagg.yaml with 8561 rows took 12–16 s per input under ASan (35 µs per row in
-    // release, linear as designed), which libFuzzer reported as slow units.
-    for (const char* grid :
-         {"run.sweep.parameters[0].linspace[2]", "run.sweep.parameters[0].logspace[2]",
-          "run.sweep.parameters[1].linspace[2]", "run.sweep.parameters[1].logspace[2]",
-          "run.basin.parameters[0].linspace[2]", "run.basin.parameters[0].logspace[2]",
-          "run.basin.parameters[1].linspace[2]", "run.basin.parameters[1].logspace[2]",
-          "run.locate.linspace[2]", "run.locate.logspace[2]", "run.diagram.linspace[2]", "run.diagram.logspace[2]",
-          "run.lyapunov.linspace[2]", "run.lyapunov.logspace[2]"}) {
+    // Every run kind's grid (run_section.cpp's RunSection::axis callers), in each of its three
+    // forms: a linspace or logspace count above the limit, or a values list with a number past
+    // it. The basin grids were missing: a fuzzed basin_wagg.yaml with 8561 rows took 12–16 s per
+    // input under ASan (35 µs per row in release, linear as designed), which libFuzzer reported
+    // as slow units.
+    const std::string past = "values[" + std::to_string(static_cast<long>(kMaxGridPoints)) + "]";
+    for (const char* grid : {"run.sweep.parameters[0]", "run.sweep.parameters[1]", "run.basin.parameters[0]",
+                             "run.basin.parameters[1]", "run.locate", "run.diagram", "run.lyapunov"}) {
+      const std::string axis(grid);
+      for (const char* spaced : {".linspace[2]", ".logspace[2]"}) {
+        try {
+          if (doc.get(axis + spaced) > kMaxGridPoints) return std::nullopt;
+        } catch (const io::SceneError&) {
+        }
+      }
       try {
-        if (doc.get(grid) > kMaxGridPoints) return std::nullopt;
+        (void)doc.get(axis + "." + past);  // a number there: more than kMaxGridPoints values
+        return std::nullopt;
       } catch (const io::SceneError&) {
       }
     }

@@ -1,8 +1,8 @@
 // libFuzzer target: `vibro check` and a short run of any scene the loader accepts, then the
 // scene's own run kind. The short run is cut short on purpose (at most 2 periods, no transient,
-// ≤ 100 samples per period, 2000 events per window, ≤ 16 degrees of freedom and stops, the first
-// point of a sweep) and, as Ctrl-C would, interrupted through SimulatorOptions::interrupt after
-// 2 s of wall time (a stiff scene may legitimately need millions of search steps). Then the whole
+// ≤ 100 samples per period, 2000 events per window, ≤ 16 degrees of freedom and stops, grids of
+// at most 65 536 points (fuzz_input.hpp), the first point of a sweep) and, as Ctrl-C would,
+// interrupted through SimulatorOptions::interrupt after 2 s of wall time (a stiff scene may legitimately need millions of search steps). Then the whole
 // scene runs as `vibro run` runs it (every run kind: a sweep's points with their sample times,
 // orbit, continue, locate, basin, diagram, Lyapunov), in memory as the Python module runs it, on
 // one thread, its stop flag raised after 1 s as a signal would: it must end within 25 s of that
@@ -80,6 +80,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     io::Scene scene = doc->build();
     if (scene.dof() > 16 || scene.stops.size() > 16) return 0;
+    std::size_t cells = 1;  // each axis has at most kMaxGridPoints values (fuzz::document)
+    for (const io::SweepAxis& axis : scene.run.axes) cells *= axis.values.size();
+    if (cells > fuzz::kMaxGridCells) return 0;
     whole.emplace(scene);  // the run kind's own run (below), before the limits
     whole_doc.emplace(*doc);
     if (scene.run.kind == io::RunSpec::Kind::sweep && !scene.run.axes.empty()) {

@@ -3,6 +3,8 @@
 #include "mechanics.hpp"
 #include "transition.hpp"
 
+#include "vibro/bounded_wait.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -709,7 +711,7 @@ ModalTangent::ModalTangent(ModalEngine& engine, double t0, const VectorXd& x0, c
 ModalTangent::~ModalTangent() = default;
 
 void ModalTangent::apply_range(std::size_t from, std::size_t to, MatrixXd& D, bool modal_in, bool modal_out,
-                               Sensitivity* p) const {
+                               Sensitivity* p, const std::atomic<bool>* stop) const {
   if (map_.summary.status != RunStatus::completed)
     throw std::logic_error("ModalTangent: the run did not complete (" + std::string(to_string(map_.summary.status)) +
                            "); its tangent map is not defined");
@@ -725,6 +727,7 @@ void ModalTangent::apply_range(std::size_t from, std::size_t to, MatrixXd& D, bo
     modal = in_modal;
   };
   for (std::size_t i = from; i < to; ++i) {
+    if (stop && stop->load(std::memory_order_relaxed)) throw Interrupted();
     const Op& op = r.ops[i];
     if (const auto* f = std::get_if<Flight>(&op)) {
       // A flight maps z to z_p(t_end) + J_h (z − z_p(t_begin)), z_p the set's particular solution
@@ -783,7 +786,21 @@ MatrixXd ModalTangent::physical_coordinates(const MatrixXd& modal) const {
 
 void ModalTangent::fill_jacobian(TangentMap& out) const {
   const Index N2 = 2 * n_;
-  out.jacobian = apply(MatrixXd::Identity(N2, N2));
+  const std::atomic<bool>* stop = sim_->options().interrupt;
+  // J = J I, its columns in blocks (the header): a block of at least 64 columns keeps every
+  // basis change a matrix product (ChainModes' times(): more than 8 columns), whose entries do
+  // not depend on how many columns it has, so the blocks give J's bits as one pass does
+  // (tests/analysis/test_modal_tangent.cpp).
+  constexpr Index kBlock = 64;
+  MatrixXd J(N2, N2);
+  for (Index first = 0; first < N2;) {
+    const Index cols = N2 - first < 2 * kBlock ? N2 - first : kBlock;
+    MatrixXd D = MatrixXd::Identity(N2, N2).middleCols(first, cols);
+    apply_range(0, record_->ops.size(), D, false, false, nullptr, stop);
+    J.middleCols(first, cols) = D;
+    first += cols;
+  }
+  out.jacobian = std::move(J);
   if (map_.free_dimension >= N2 || !record_->split_mode) {
     out.reduced = out.jacobian;
     out.lift = MatrixXd::Identity(N2, N2);
@@ -804,9 +821,9 @@ void ModalTangent::fill_jacobian(TangentMap& out) const {
     }
   }
   MatrixXd L = B;
-  apply_range(record_->split, record_->ops.size(), L, false, false);  // J₂ B
+  apply_range(record_->split, record_->ops.size(), L, false, false, nullptr, stop);  // J₂ B
   out.lift = L;
-  apply_range(0, record_->split, L, false, false);                     // J₁ J₂ B
+  apply_range(0, record_->split, L, false, false, nullptr, stop);                     // J₁ J₂ B
   out.reduced = B.transpose() * L;
 }
 
@@ -821,8 +838,18 @@ TangentMap linearise(ModalEngine& engine, double t0, const VectorXd& x0, const V
   ModalTangent tangent(engine, t0, x0, v0, t1, options);
   TangentMap out = tangent.map();
   if (out.summary.status != RunStatus::completed) return out;
-  if (options.directions.size() > 0) out.products = tangent.apply(options.directions);
-  else if (options.jacobian) tangent.fill_jacobian(out);
+  if (options.directions.size() > 0) {
+    out.products = tangent.apply(options.directions);
+  } else if (options.jacobian) {
+    try {
+      tangent.fill_jacobian(out);
+    } catch (const Interrupted&) {  // as the dense engine's map interrupted while J is formed
+      out.jacobian = out.reduced = out.lift = MatrixXd();
+      out.summary.status = RunStatus::interrupted;
+      out.summary.message = "interrupted at t = " + number_text(out.summary.t) + " while the tangent map was formed";
+      return out;
+    }
+  }
   if (options.parameter) out.parameter = tangent.parameter(*options.parameter);
   return out;
 }

@@ -142,7 +142,10 @@ std::vector<Transition> locate_between(const EngineFamily& family, const ScanPoi
 /// bracket spans both: the doubling lies in it.
 void merge_doublings(std::vector<Transition>& sorted);
 
-/// Only the continuation (no location): the orbits at the grid points.
+/// Only the continuation (no location): the orbits at the grid points. Interrupted
+/// (options.orbit.solver.interrupt, or Interrupted from the family's set-up of an engine after
+/// the first point: bounded_wait.hpp), the points scanned so far; Interrupted at the first point
+/// is thrown.
 std::vector<ScanPoint> scan(const SystemFamily& family, const std::vector<double>& grid, double t0,
                             const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                             const ScanOptions& options);

@@ -59,6 +59,7 @@
 #include "vibro/engine.hpp"
 #include "vibro/linearisation.hpp"
 
+#include <atomic>
 #include <memory>
 #include <vector>
 
@@ -105,7 +106,12 @@ class ModalTangent {
   Eigen::MatrixXd physical_coordinates(const Eigen::MatrixXd& modal) const;  ///< Φ̃ D
 
   /// J itself (2N products) with its reduced map and lift (linearisation.hpp, structural
-  /// zeros): O(N²) memory. For chains of up to a few thousand masses.
+  /// zeros): O(N²) memory. For chains of up to a few thousand masses, where it takes seconds to
+  /// minutes (O(N³) at each event with stops held): the columns go through the record in blocks
+  /// of 64 to 127 (one pass for 2N < 128; each column's products are the same whichever block
+  /// holds it), and between blocks and between the record's ops the engine's interrupt flag
+  /// (SimulatorOptions::interrupt) is looked at. Throws Interrupted once it is raised; `out`
+  /// then has no J (linearise reports the map as interrupted).
   void fill_jacobian(TangentMap& out) const;
 
   struct Record;       ///< what the run left (defined in modal_tangent.cpp only)
@@ -117,8 +123,9 @@ class ModalTangent {
   /// Ops [from, to) of the record applied to D in place; D's columns in modal coordinates on the
   /// way in / out where asked. With `p`, column p->column is a parameter sensitivity ζ and also
   /// gets the affine terms of each flight and event.
+  /// With `stop`, throws Interrupted before an op once *stop is raised.
   void apply_range(std::size_t from, std::size_t to, Eigen::MatrixXd& D, bool modal_in, bool modal_out,
-                   Sensitivity* p = nullptr) const;
+                   Sensitivity* p = nullptr, const std::atomic<bool>* stop = nullptr) const;
 
   const ModalChainSimulator* sim_;
   long run_ = 0;
@@ -131,7 +138,8 @@ class ModalTangent {
 /// empty) or the products J·directions, and ∂z1/∂p for options.parameter (see parameter()).
 /// With options.features, the features of linearisation.hpp (gap peaks, force dips, impacts).
 /// Throws InvalidInput for a parameter derivative that moves M, C or K or has the wrong size and
-/// for directions of the wrong size.
+/// for directions of the wrong size. The engine's interrupt flag raised while J is formed
+/// (fill_jacobian) ends the map as the dense engine's does: status interrupted, no J.
 TangentMap linearise(ModalEngine& engine, double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                      double t1, const LinearisationOptions& options = {});
 

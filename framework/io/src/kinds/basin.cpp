@@ -7,6 +7,7 @@
 #include "../mpi_world.hpp"
 #include "../progress.hpp"
 
+#include "vibro/bounded_wait.hpp"
 #include "vibro/io/result_file.hpp"
 
 #include <fmt/format.h>
@@ -295,6 +296,7 @@ RunReport run_basin(const SceneDocument& doc, const Scene& scene, const RunReque
           if (!engine || !initial_only) engine = make_engine(built);
           results[g] = run_point(*engine, built.t0, built.x0, built.v0, T, min_periods, spec, known, scales);
           progress.add();
+        } catch (const Interrupted&) {  // in the set-up of the point's engine (bounded_wait.hpp): not run (-3)
         } catch (...) {
           const std::lock_guard<std::mutex> hold(lock);
           if (!failure) failure = std::current_exception();

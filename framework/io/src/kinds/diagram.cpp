@@ -6,6 +6,7 @@
 #include "../datasets.hpp"
 #include "../progress.hpp"
 
+#include "vibro/bounded_wait.hpp"
 #include "vibro/io/result_file.hpp"
 
 #include <fmt/format.h>
@@ -164,7 +165,13 @@ void follow(const SceneDocument& doc, const Scene& scene, const std::vector<doub
     point.set(path, grid[g]);
     Scene built = point.build_point();
     built.solver.interrupt = request.interrupt;
-    const std::unique_ptr<Engine> engine = make_engine(built);
+    std::unique_ptr<Engine> engine;
+    try {
+      engine = make_engine(built);
+    } catch (const Interrupted&) {  // in the set-up of the value's engine (bounded_wait.hpp): not reached
+      out.message = fmt::format("at {} = {:.12g}: interrupted while its engine was set up", path, grid[g]);
+      return;
+    }
     const double T = built.period(), t0 = built.t0;
     RunSummary s;
     s.status = RunStatus::completed;

@@ -6,6 +6,7 @@
 #include "../datasets.hpp"
 #include "../progress.hpp"
 
+#include "vibro/bounded_wait.hpp"
 #include "vibro/running_locate.hpp"
 #include "vibro/io/result_file.hpp"
 
@@ -163,6 +164,7 @@ RunReport run_locate(const SceneDocument& doc, const Scene& scene, const RunRequ
       if (request.interrupt && request.interrupt->load()) continue;
       found[i] = locate_between(family, points[i], points[i + 1], options, &orbits);
       progress.add();
+    } catch (const Interrupted&) {  // an engine's set-up (bounded_wait.hpp): the bracket is left unexplored
     } catch (...) {
       const std::lock_guard<std::mutex> hold(lock);
       if (!failure) failure = std::current_exception();

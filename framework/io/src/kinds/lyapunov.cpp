@@ -7,6 +7,7 @@
 #include "../progress.hpp"
 
 #include "vibro/io/result_file.hpp"
+#include "vibro/bounded_wait.hpp"
 #include "vibro/engine.hpp"
 #include "vibro/friction_tangent.hpp"
 #include "vibro/lyapunov.hpp"
@@ -62,7 +63,14 @@ RunReport run_lyapunov(const SceneDocument& doc, const Scene& scene, const RunRe
     options.periods = spec.periods;
     LyapunovResult r;
     if (built.engine == EngineKind::modal) {  // matrix-free frames on the modal engine
-      const std::unique_ptr<Engine> engine = make_engine(built);
+      std::unique_ptr<Engine> engine;
+      try {
+        engine = make_engine(built);
+      } catch (const Interrupted&) {  // in the set-up of the point's engine (bounded_wait.hpp): not reached
+        const std::string what = "interrupted while its engine was set up";
+        messages[g] = spec.along ? fmt::format("at {} = {:.12g}: {}", path, grid[g], what) : what;
+        return false;
+      }
       r = lyapunov_spectrum(dynamic_cast<ModalEngine&>(*engine), built.t0, x, v, options);
     } else if (!built.friction.empty()) {  // dry friction (friction_tangent.hpp)
       r = lyapunov_spectrum(built.system(), built.friction, built.solver, built.t0, x, v, options);
