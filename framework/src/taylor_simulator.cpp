@@ -491,13 +491,20 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
       harmonic_series(rate, t0, p_, cos_.data(), sin_.data());
       const double* cosine = drive_.col(column).data();
       const double* sine = drive_.col(column + 1).data();
-      for (int k = 0; k <= p_; ++k) {
+      int k = 0;
+      if (first) {  // column 0 with the constant part, then the columns written (not added to)
+        for (Eigen::Index i = 0; i < n; ++i) out[i] = constant[i] + (cosine[i] * cos_[0] + sine[i] * sin_[0]);
+        for (k = 1; k <= p_; ++k) {
+          const double c = cos_[static_cast<std::size_t>(k)], s = sin_[static_cast<std::size_t>(k)];
+          double* col = out + static_cast<Eigen::Index>(k) * n;
+          for (Eigen::Index i = 0; i < n; ++i) col[i] = cosine[i] * c + sine[i] * s;
+        }
+        return;
+      }
+      for (; k <= p_; ++k) {
         const double c = cos_[static_cast<std::size_t>(k)], s = sin_[static_cast<std::size_t>(k)];
         double* col = out + static_cast<Eigen::Index>(k) * n;
-        for (Eigen::Index i = 0; i < n; ++i) {
-          const double term = cosine[i] * c + sine[i] * s;
-          col[i] = first ? (k == 0 ? constant[i] + term : term) : col[i] + term;
-        }
+        for (Eigen::Index i = 0; i < n; ++i) col[i] = col[i] + (cosine[i] * c + sine[i] * s);
       }
     };
     add_harmonic(f.frequency, 1, true);

@@ -4,7 +4,9 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -145,4 +147,59 @@ TEST_CASE("refine reaches the root to rounding from a bracket") {
   // The reverse orientation (q falling through the root) too.
   const double d[3] = {2.0, 0.0, -1.0};
   CHECK(std::abs(GuardRootFinder::refine(d, 2, 0.0, 1.0, 2.0) - std::sqrt(2.0)) <= 2 * kEps * std::sqrt(2.0));
+}
+
+// The degree-reduced exclusion (a `none` from the polynomial truncated to a lower degree, the
+// dropped terms bounded by Σ|a_k|) must never clear a guard that reaches its trigger: random
+// degree-27 guards with coefficients decaying like 0.45^k (a Taylor step's at a coarse tolerance)
+// whose maximum over the step lies anywhere from 0.3 below the trigger to above it. Every `none`
+// is checked against the guard's maximum on 4001 points (its largest value plus the sampling gap's
+// curvature bound stays below the trigger: at an interior maximum q' = 0, so q there exceeds the
+// nearest sample by at most ½ max|q''| (gap/2)², and the ends are samples), every crossing's root
+// against the polynomial's value.
+// The reduced test must answer some of the cases the cheap Σ|a_k| test cannot.
+TEST_CASE("the degree-reduced exclusion never clears a guard that reaches its trigger") {
+  GuardRootFinder finder(27);
+  std::uint64_t state = 12345;
+  auto uniform = [&state] {  // xorshift64*: reproducible, no library generator's variation
+    state ^= state >> 12;
+    state ^= state << 25;
+    state ^= state >> 27;
+    return static_cast<double>((state * 2685821657736338717ULL) >> 11) * 0x1p-53;
+  };
+  int none = 0, beyond_sum = 0, crossings = 0;
+  std::vector<double> c(28);
+  for (int trial = 0; trial < 3000; ++trial) {
+    double decay = 1.0;
+    for (int k = 1; k <= 27; ++k, decay *= 0.45) c[k] = (2.0 * uniform() - 1.0) * decay;
+    c[0] = 0.0;
+    double peak = -std::numeric_limits<double>::infinity(), curvature = 0.0;
+    for (int k = 2; k <= 27; ++k) curvature += k * (k - 1) * std::abs(c[k]);
+    for (int i = 0; i <= 4000; ++i) {
+      const double tau = i / 4000.0;
+      double v = c[27];
+      for (int k = 26; k >= 0; --k) v = v * tau + c[k];
+      peak = std::max(peak, v);
+    }
+    c[0] = -peak + 0.3 * uniform() - 0.25;  // the maximum from 0.25 below the trigger to 0.05 above
+    const double remainder = 1e-12;
+    double absolute = std::abs(c[0]);
+    for (int k = 1; k <= 27; ++k) absolute += std::abs(c[k]);
+    const GuardCrossing r = finder.first_crossing(c.data(), 27, 1.0, 0.0, remainder);
+    const double top = c[0] + peak;  // the sampled maximum
+    if (r.kind == CrossingKind::none) {
+      ++none;
+      if (c[0] + (absolute - std::abs(c[0])) >= -remainder) ++beyond_sum;  // where the Σ|a_k| test could not answer
+      INFO("trial " << trial << ": sampled maximum " << top);
+      CHECK(top + 0.5 * curvature * std::pow(0.5 / 4000.0, 2) < 0.0);
+    } else if (r.kind == CrossingKind::crossing) {
+      ++crossings;
+      double v = c[27];
+      for (int k = 26; k >= 0; --k) v = v * r.tau + c[k];
+      CHECK(std::abs(v) <= 1e-12);
+    }
+  }
+  INFO(none << " none (" << beyond_sum << " beyond the sum test), " << crossings << " crossings");
+  CHECK(beyond_sum > 100);
+  CHECK(crossings > 100);
 }

@@ -114,19 +114,20 @@ TEST_CASE("every recurrence's polynomial equals its function over the step") {
   check_time_function("2^t", [](double t) { return std::pow(2.0, t); });
 }
 
-TEST_CASE("the order and step follow Jorba and Zou's rule") {
+TEST_CASE("the order and step follow the order rule and Jorba and Zou's step") {
   TaylorSystem system = one_mass("", 1.0);  // x'' = -x: z_[k] ~ 1/k!
   TaylorStep step(system);
-  CHECK(step.order() == 20);  // ⌈−½ ln 2⁻⁵² + 1⌉ = ⌈19.02⌉
+  CHECK(step.order() == 20);  // min(20, ⌈−0.7 ln 2⁻⁵² + 1⌉ = ⌈26.23⌉)
   REQUIRE(step.expand(0.0, Eigen::Vector2d(1.0, 0.0)) == StepStatus::ok);
   // ‖z_[19]‖ = 1/19!, ‖z_[20]‖ = 1/20!: h = min_k (ε/‖z_[k]‖)^{1/k} · e^{−0.7/19}.
   const double expected = std::min(std::pow(kEps * std::tgamma(20.0), 1.0 / 19), std::pow(kEps * std::tgamma(21.0), 1.0 / 20)) *
                           std::exp(-0.7 / 19);
   CHECK(step.step_size() == Approx(expected).epsilon(1e-12));
   TaylorStep coarse(system, {.tolerance = 1e-8});
-  CHECK(coarse.order() == 11);  // ⌈−½ ln 1e-8 + 1⌉ = ⌈10.21⌉
+  CHECK(coarse.order() == 14);  // ⌈−0.7 ln 1e-8 + 1⌉ = ⌈13.89⌉
+  CHECK(TaylorStep(system, {.tolerance = 1e-10}).order() == 18);  // ⌈17.12⌉
   CHECK_THROWS_WITH(TaylorStep(system, {.tolerance = 0.5}),
-                    "TaylorSettings.tolerance = 0.500000: must lie in (0, 0.01) (it sets the order p = ceil(-ln(tolerance)/2 + 1))");
+                    "TaylorSettings.tolerance = 0.500000: must lie in (0, 0.01) (it sets the order p = min(20, ceil(-0.7 ln(tolerance) + 1)))");
 }
 
 TEST_CASE("the guard's remainder bound covers the truncated tail") {
@@ -259,8 +260,11 @@ TEST_CASE("forced damped linear oscillator against its exact solution") {
   CHECK(max_error <= 1e-13);
 }
 
-TEST_CASE("the variational matrix equals central differences of the flow") {
-  // Two coupled masses whose forces use every operation of the Dag, over t ∈ [0, 5] (many steps).
+namespace {
+
+/// Two coupled masses whose forces use every operation of the Dag (and guards with the rest: a
+/// quotient by a varying series, time itself, a negation, sqrt, exp and a difference).
+TaylorSystemSpec every_operation_spec() {
   TaylorSystemSpec spec;
   spec.mass = (Eigen::Matrix2d() << 2.0, 0.3, 0.3, 1.0).finished();
   spec.stiffness = (Eigen::Matrix2d() << 2.0, -1.0, -1.0, 1.5).finished();
@@ -270,7 +274,15 @@ TEST_CASE("the variational matrix equals central differences of the flow") {
   spec.forces = {"-beta*x0^3 + 0.3*cos(Omega*t) + 0.1*sin(x1) - 0.05*v0^2*tanh(x1)",
                  "-0.2*x1^3/(1 + x0^2) + 0.05*exp(-x1^2)*sqrt(1.5 + cos(x0)) + 0.02*log(2 + sin(v1))"
                  " + 0.01*atan(v0)*tan(0.3*x1) + 0.01*(2 + x0)^1.5 - 0.01*(2 + v1)^beta"};
-  TaylorSystem system(spec);
+  spec.guards = {"x0/(2 + sin(t)) - t", "-sqrt(3 + x1*v0) + exp(0.2*t)*x0"};
+  return spec;
+}
+
+}  // namespace
+
+TEST_CASE("the variational matrix equals central differences of the flow") {
+  // Over t ∈ [0, 5] (many steps).
+  TaylorSystem system(every_operation_spec());
   TaylorStep step(system, {.variational = true});
   Eigen::Vector4d z0(0.4, -0.3, 0.2, 0.5);
   Eigen::VectorXd end(4), plus(4), minus(4);
@@ -298,6 +310,29 @@ TEST_CASE("the variational matrix equals central differences of the flow") {
   // z, only the step sizes may differ through Φ's norms): equal to the integration's accuracy.
   REQUIRE(advance(plain, 0.0, z0, 5.0, plus) == StepStatus::ok);
   CHECK((plus - end).cwiseAbs().maxCoeff() <= 1e-13);
+}
+
+// Orders ≥ 1 of a step without tangents run on the flat tape of the Dag (TaylorStep::tape_order);
+// with tangents every order runs on the Dag itself (node_order). Both apply the same recurrences
+// in the same order, so the state's and the guards' coefficients must be the same to the bit.
+TEST_CASE("the tape's coefficients equal the Dag's to the bit") {
+  TaylorSystem system(every_operation_spec());
+  for (double tolerance : {kEps, 1e-10}) {
+    TaylorStep tape(system, {.tolerance = tolerance});
+    TaylorStep dag(system, {.tolerance = tolerance, .variational = true});
+    const Eigen::Vector4d z0(0.4, -0.3, 0.2, 0.5);
+    REQUIRE(tape.expand(0.7, z0) == StepStatus::ok);
+    REQUIRE(dag.expand(0.7, z0) == StepStatus::ok);
+    const int p = tape.order();
+    long differing = 0;
+    for (int i = 0; i < 4; ++i)
+      for (int k = 0; k <= p; ++k) differing += tape.state_coefficients(i)[k] != dag.state_coefficients(i)[k];
+    for (int g = 0; g < 2; ++g)
+      for (int k = 0; k <= p; ++k) differing += tape.guard_coefficients(g)[k] != dag.guard_coefficients(g)[k];
+    INFO("tolerance " << tolerance << ", order " << p);
+    CHECK(differing == 0);
+    CHECK(tape.guard_coefficients(1)[p] != 0.0);  // the series reach the last order
+  }
 }
 
 TEST_CASE("Duffing steps per period and time per step", "[.report]") {

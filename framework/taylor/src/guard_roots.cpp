@@ -34,7 +34,23 @@ GuardRootFinder::GuardRootFinder(int max_degree) : max_degree_(max_degree) {
   depth_.resize(entries);
   work_.resize(max_degree + 1);
   absolute_.resize(max_degree + 1);
-  ratios_.resize(static_cast<std::size_t>(max_degree + 1) * (max_degree + 1));
+  ratios_.resize(static_cast<std::size_t>(max_degree) + 1);
+}
+
+const double* GuardRootFinder::bernstein_ratios(int degree) {
+  std::vector<double>& table = ratios_[static_cast<std::size_t>(degree)];
+  if (table.empty()) {  // once per degree (the first call that needs it)
+    const auto width = static_cast<std::size_t>(degree) + 1;
+    table.assign(width * width, 0.0);
+    for (int i = 0; i <= degree; ++i) {
+      double ratio = 1.0;  // k = 0 first
+      for (int k = 0; k <= i; ++k) {
+        table[static_cast<std::size_t>(i) * width + k] = ratio;
+        if (k < degree) ratio *= static_cast<double>(i - k) / static_cast<double>(degree - k);
+      }
+    }
+  }
+  return table.data();
 }
 
 double GuardRootFinder::refine(const double* c, int degree, double trigger, double a, double b) {
@@ -139,20 +155,37 @@ GuardCrossing GuardRootFinder::first_crossing(const double* c, int degree, doubl
     result.splits = 1;
     return result;
   }
-  // b_i = Σ_{k≤i} C(i,k)/C(p,k) a_k, from the top down so that root[] can be overwritten; the
-  // ratios C(i,k)/C(p,k) tabulated once per degree.
-  if (ratio_degree_ != degree) {
-    for (int i = 1; i <= degree; ++i) {
-      double ratio = 1.0;  // k = 0 first
-      for (int k = 0; k <= i; ++k) {
-        ratios_[static_cast<std::size_t>(i) * width + k] = ratio;
-        ratio *= static_cast<double>(i - k) / static_cast<double>(degree - k);
+  // The same at a lower degree m: q = Q_m + T with Q_m = Σ_{k≤m} a_k s^k and |T(s)| ≤
+  // Σ_{k>m} |a_k| on [0, 1]. Every Bernstein coefficient of Q_m (degree m) plus that tail, plus
+  // twice the conversion's rounding allowance, below −band: `none`, certified as above, for an
+  // O(m²) conversion instead of O(p²). m is the lowest degree whose tail is at most an eighth of
+  // the margin at τ = 0; where the guard rises too close to the band for that, the full search
+  // below decides.
+  if (q0 < -band(0)) {
+    const double target = 0.125 * (-q0 - band(0));
+    double tail = 0.0;
+    int m = degree;
+    while (m > 1 && tail + std::abs(root[m]) <= target) tail += std::abs(root[m--]);
+    if (m < degree - 1) {
+      const double* ratios = bernstein_ratios(m);
+      double largest = -std::numeric_limits<double>::infinity();
+      for (int i = 0; i <= m; ++i) {
+        const double* ratio = ratios + static_cast<std::size_t>(i) * (m + 1);
+        double b = 0.0;
+        for (int k = 0; k <= i; ++k) b += ratio[k] * root[k];
+        largest = std::max(largest, b);
+      }
+      if (largest + tail + 2.0 * (2 * degree + 4) * kUnit * scale < -band(0)) {
+        result.splits = 1;
+        return result;
       }
     }
-    ratio_degree_ = degree;
   }
+  // b_i = Σ_{k≤i} C(i,k)/C(p,k) a_k, from the top down so that root[] can be overwritten; the
+  // ratios C(i,k)/C(p,k) tabulated once per degree.
+  const double* ratios = bernstein_ratios(degree);
   for (int i = degree; i >= 1; --i) {
-    const double* ratio = &ratios_[static_cast<std::size_t>(i) * width];
+    const double* ratio = ratios + static_cast<std::size_t>(i) * width;
     double s = 0.0;
     for (int k = 0; k <= i; ++k) s += ratio[k] * root[k];
     root[i] = s;

@@ -11,7 +11,7 @@ namespace vibro::taylor {
 void TaylorSettings::validate() const {
   if (!(tolerance > 0.0 && tolerance < 1e-2))
     throw std::invalid_argument("TaylorSettings.tolerance = " + std::to_string(tolerance) +
-                                ": must lie in (0, 0.01) (it sets the order p = ceil(-ln(tolerance)/2 + 1))");
+                                ": must lie in (0, 0.01) (it sets the order p = min(20, ceil(-0.7 ln(tolerance) + 1)))");
   if (order != 0 && (order < 3 || order > 60))
     throw std::invalid_argument("TaylorSettings.order = " + std::to_string(order) +
                                 ": must be 0 (from the tolerance) or lie in [3, 60]");
@@ -61,7 +61,7 @@ std::string number(double v) {
 TaylorStep::TaylorStep(const TaylorSystem& system, TaylorSettings settings)
     : system_(&system), settings_(settings) {
   settings_.validate();
-  p_ = settings_.order > 0 ? settings_.order : static_cast<int>(std::ceil(-0.5 * std::log(settings_.tolerance) + 1.0));
+  p_ = settings_.order > 0 ? settings_.order : std::min(20, static_cast<int>(std::ceil(-0.7 * std::log(settings_.tolerance) + 1.0)));
   safety_ = std::exp(-0.7 / (p_ - 1));
   inverse_root_[0] = std::pow(settings_.tolerance, -1.0 / (p_ - 1));
   inverse_root_[1] = std::pow(settings_.tolerance, -1.0 / p_);
@@ -79,6 +79,36 @@ TaylorStep::TaylorStep(const TaylorSystem& system, TaylorSettings settings)
     y_.assign(static_cast<std::size_t>(dim_) * dim_ * width, 0.0);
     dforce_k_.resize(system.coordinates(), dim_);
     dacc_k_.resize(system.coordinates(), dim_);
+  }
+  const std::vector<DagNode>& dag = system.dag().nodes();
+  for (std::size_t id = 0; id < dag.size(); ++id) {
+    const DagNode& n = dag[id];
+    if (n.time_constant) continue;  // its orders ≥ 1 are 0 (zeroed above, never written)
+    Instruction in{Code::Time, id * width, n.a >= 0 ? static_cast<std::size_t>(n.a) * width : 0,
+                   n.b >= 0 ? static_cast<std::size_t>(n.b) * width : 0, n.value};
+    switch (n.op) {
+      case Op::Constant: case Op::Parameter: continue;  // time-constant (not reached)
+      case Op::Time: in.code = Code::Time; break;
+      case Op::State: in.code = Code::State; in.a = static_cast<std::size_t>(n.index) * width; break;
+      case Op::Add: in.code = Code::Add; break;
+      case Op::Subtract: in.code = Code::Subtract; break;
+      case Op::Negate: in.code = Code::Negate; break;
+      case Op::Multiply:
+        in.code = dag[n.a].time_constant ? Code::ScaleLeft : (dag[n.b].time_constant ? Code::ScaleRight : Code::Multiply);
+        break;
+      case Op::Square: in.code = Code::Square; break;
+      case Op::Divide: in.code = dag[n.b].time_constant ? Code::DivideByConstant : Code::Divide; break;
+      case Op::PowerReal: in.code = Code::PowerReal; break;
+      case Op::Sqrt: in.code = Code::Sqrt; break;
+      case Op::Exp: in.code = Code::Exp; break;
+      case Op::Log: in.code = Code::Log; break;
+      case Op::Sin: in.code = Code::Sin; break;
+      case Op::Cos: in.code = Code::Cos; break;
+      case Op::Tan: in.code = Code::Tan; break;
+      case Op::Tanh: in.code = Code::Tanh; break;
+      case Op::Atan: in.code = Code::Atan; break;
+    }
+    tape_.push_back(in);
   }
 }
 
@@ -120,7 +150,120 @@ const double* TaylorStep::guard_coefficients(int g) const {
   return &c_[static_cast<std::size_t>(system_->guard_nodes()[g]) * (p_ + 1)];
 }
 
+inline void TaylorStep::tape_order(int k) {
+  // The same recurrences as node_order (the same operations in the same order: the same bits),
+  // without the Dag's indirections.
+  double* c = c_.data();
+  double* u = aux_.data();
+  const double* z = z_.data();
+  for (const Instruction& in : tape_) {
+    double* C = c + in.out;
+    const double* A = c + in.a;
+    const double* B = c + in.b;
+    switch (in.code) {
+      case Code::Time: C[k] = k == 1 ? 1.0 : 0.0; break;
+      case Code::State: C[k] = z[in.a + static_cast<std::size_t>(k)]; break;
+      case Code::Add: C[k] = A[k] + B[k]; break;
+      case Code::Subtract: C[k] = A[k] - B[k]; break;
+      case Code::Negate: C[k] = -A[k]; break;
+      case Code::ScaleLeft: C[k] = A[0] * B[k]; break;
+      case Code::ScaleRight: C[k] = A[k] * B[0]; break;
+      case Code::Multiply: C[k] = convolution(A, B, k, 0, k); break;
+      case Code::Square:
+        C[k] = 2.0 * convolution(A, A, k, 0, (k + 1) / 2 - 1) + (k % 2 == 0 ? A[k / 2] * A[k / 2] : 0.0);
+        break;
+      case Code::DivideByConstant: C[k] = A[k] / B[0]; break;
+      case Code::Divide: C[k] = (A[k] - convolution(B, C, k, 1, k)) / B[0]; break;
+      case Code::PowerReal: {
+        double s = 0.0;
+        for (int j = 0; j < k; ++j) s += (in.value * (k - j) - j) * A[k - j] * C[j];
+        C[k] = s / (k * A[0]);
+        break;
+      }
+      case Code::Sqrt: C[k] = (A[k] - convolution(C, C, k, 1, k - 1)) / (2.0 * C[0]); break;
+      case Code::Exp: C[k] = weighted(A, C, k); break;
+      case Code::Log: {
+        double s = 0.0;
+        for (int j = 1; j < k; ++j) s += j * C[j] * A[k - j];
+        C[k] = (A[k] - s / k) / A[0];
+        break;
+      }
+      case Code::Sin: {
+        double* U = u + in.out;
+        C[k] = weighted(A, U, k);
+        U[k] = -weighted(A, C, k);
+        break;
+      }
+      case Code::Cos: C[k] = u[in.a + static_cast<std::size_t>(k)]; break;
+      case Code::Tan: {
+        double* U = u + in.out;
+        C[k] = weighted(A, U, k);
+        U[k] = convolution(C, C, k, 0, k);
+        break;
+      }
+      case Code::Tanh: {
+        double* U = u + in.out;
+        C[k] = weighted(A, U, k);
+        U[k] = -convolution(C, C, k, 0, k);
+        break;
+      }
+      case Code::Atan: {
+        double* U = u + in.out;
+        U[k] = convolution(A, A, k, 0, k);
+        double s = 0.0;
+        for (int j = 1; j < k; ++j) s += (k - j) * U[j] * C[k - j];
+        C[k] = (A[k] - s / k) / U[0];
+        break;
+      }
+    }
+  }
+}
+
 bool TaylorStep::compute_order(int k) {
+  if (!node_order(k)) return false;
+  return linear_order(k);
+}
+
+void TaylorStep::tape_orders() {
+  // Orders 1 … p without tangents: the tape, then the linear part (as linear_order, the same
+  // operations in the same order) with every loop bound and matrix hoisted out of the orders.
+  const int n = system_->coordinates();
+  const std::size_t width = static_cast<std::size_t>(p_) + 1;
+  const auto un = static_cast<std::size_t>(n);
+  double* z = z_.data();
+  const double* c = c_.data();
+  const double* ax = system_->position_matrix().data();  // column-major n × n
+  const double* av = system_->velocity_matrix().data();
+  const double* minv = system_->inverse_mass().data();
+  const int* forces = system_->force_nodes().data();
+  const double* drive = terms_.acceleration ? terms_.acceleration->data() : nullptr;  // n × (p + 1)
+  const bool held = terms_.normals != nullptr;
+  double* force = force_k_.data();
+  double* acc = acc_k_.data();
+  for (int k = 1; k <= p_; ++k) {
+    tape_order(k);
+    if (held) {  // the constraint's projection (Eigen products): the general path
+      linear_order(k);
+      continue;
+    }
+    const auto uk = static_cast<std::size_t>(k);
+    for (std::size_t i = 0; i < un; ++i) force[i] = forces[i] >= 0 ? c[static_cast<std::size_t>(forces[i]) * width + uk] : 0.0;
+    for (std::size_t i = 0; i < un; ++i) {
+      double a = 0.0;
+      for (std::size_t j = 0; j < un; ++j)
+        a += ax[i + j * un] * z[j * width + uk] + av[i + j * un] * z[(un + j) * width + uk] + minv[i + j * un] * force[j];
+      acc[i] = drive ? a + drive[i + uk * un] : a;
+    }
+    if (k == p_) break;
+    const double scale = 1.0 / (k + 1);
+    for (std::size_t i = 0; i < un; ++i) {
+      z[i * width + uk + 1] = z[(un + i) * width + uk] * scale;
+      z[(un + i) * width + uk + 1] = acc[i] * scale;
+    }
+  }
+}
+
+bool TaylorStep::node_order(int k) {
   const std::vector<DagNode>& nodes = system_->dag().nodes();
   const int count = static_cast<int>(nodes.size());
   const bool tangents = settings_.variational;
@@ -265,8 +408,13 @@ bool TaylorStep::compute_order(int k) {
       }
     }
   }
+  return true;
+}
+
+bool TaylorStep::linear_order(int k) {
   // z_[k+1] = f_[k] / (k + 1), the linear part applied to the k-th coefficients, then the
   // supplied terms (StepTerms): the time series and the held stops' constraint.
+  const bool tangents = settings_.variational;
   const int n = system_->coordinates();
   const Eigen::MatrixXd& ax = system_->position_matrix();
   const Eigen::MatrixXd& av = system_->velocity_matrix();
@@ -332,8 +480,13 @@ StepStatus TaylorStep::expand(double t0, const Eigen::Ref<const Eigen::VectorXd>
     trouble_ = "the state is not finite at t = " + number(t0);
     return StepStatus::not_finite;
   }
-  for (int k = 0; k <= p_; ++k)
-    if (!compute_order(k)) return StepStatus::domain_error;
+  if (!compute_order(0)) return StepStatus::domain_error;
+  if (settings_.variational) {
+    for (int k = 1; k <= p_; ++k)
+      if (!compute_order(k)) return StepStatus::domain_error;
+  } else {
+    tape_orders();  // orders ≥ 1 have no domain to leave (the order-0 checks cover them)
+  }
 
   // Order-p and order-(p−1) norms over z (and Φ, and the held stops' forces λ), the step from
   // their decay. λ counts because it is a guard of the step (its sign change is a release) and,

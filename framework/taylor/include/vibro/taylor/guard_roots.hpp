@@ -52,7 +52,8 @@
 /// search is depth first, left half first, splitting by de Casteljau's algorithm at the midpoint:
 /// an interval with max b_i < −δ is discarded; one with b_0 < −δ, b_p > δ and exactly one sign
 /// change holds exactly one root, which is refined; any other is split. The scratch is allocated
-/// once (first_crossing allocates nothing). Rounding in the
+/// once, the conversion's table of a degree on the first call that needs it (first_crossing
+/// allocates at most once per degree over the finder's life). Rounding in the
 /// conversion and the splits (convex combinations, each coefficient's error ≤ (p + depth) u Σ|b|)
 /// is added to δ.
 ///
@@ -60,7 +61,9 @@
 /// enough for the control polygon to lie within 1e-10 of q (width ~ √(1e-10) relative, ~17
 /// splits); one that peaks 1e-10 above ε has two roots ~1e-5 apart, separated after as many.
 /// A guard far below its trigger over the whole step (q(0) + Σ_{k≥1} |q_k| h^k < −δ, which
-/// bounds every Bernstein coefficient) is answered `none` before the conversion.
+/// bounds every Bernstein coefficient) is answered `none` before the conversion; one whose
+/// polynomial truncated to a degree m < p − 1, converted at degree m, lies below −δ by more than
+/// the dropped terms' Σ_{k>m} |q_k| h^k is answered `none` after that O(m²) conversion.
 ///
 /// Usage:
 ///     vibro::taylor::GuardRootFinder finder(step.order());
@@ -85,7 +88,7 @@ struct GuardCrossing {
 
 class GuardRootFinder {
  public:
-  /// Scratch for polynomials up to degree `max_degree` (allocated once).
+  /// Scratch for polynomials up to degree `max_degree` (allocated once; see the file comment).
   explicit GuardRootFinder(int max_degree);
 
   /// First crossing of Σ_{k≤degree} coefficients[k] τ^k − trigger over [0, h] with remainder
@@ -113,8 +116,9 @@ class GuardRootFinder {
   std::vector<double> absolute_;  // |c_k| h^k of the call (rounding_scales)
   std::vector<int> depth_;
   std::vector<double> work_;
-  std::vector<double> ratios_;  // C(i, k) / C(degree, k), row i (the Bernstein conversion)
-  int ratio_degree_ = -1;       // the degree ratios_ is for
+  /// C(i, k) / C(d, k) at [i (d + 1) + k] for degree d (the Bernstein conversion), built on first use.
+  const double* bernstein_ratios(int degree);
+  std::vector<std::vector<double>> ratios_;  // by degree
 };
 
 }  // namespace vibro::taylor

@@ -12,7 +12,18 @@ namespace vibro::taylor {
 inline void harmonic_series(double w, double t0, int order, double* c, double* s) {
   const double C = std::cos(w * t0), S = std::sin(w * t0);
   double f = 1.0;
-  for (int k = 0; k <= order; ++k) {
+  int k = 0;
+  for (; k + 3 <= order; k += 4) {  // the cycle of four unrolled (the same products as below)
+    c[k] = f * C; s[k] = f * S;
+    f *= w / (k + 1);
+    c[k + 1] = -f * S; s[k + 1] = f * C;
+    f *= w / (k + 2);
+    c[k + 2] = -f * C; s[k + 2] = -f * S;
+    f *= w / (k + 3);
+    c[k + 3] = f * S; s[k + 3] = -f * C;
+    f *= w / (k + 4);
+  }
+  for (; k <= order; ++k) {
     switch (k % 4) {
       case 0: c[k] = f * C; s[k] = f * S; break;
       case 1: c[k] = -f * S; s[k] = f * C; break;

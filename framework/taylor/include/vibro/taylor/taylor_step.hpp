@@ -31,16 +31,30 @@
 /// ## Order and step size (Jorba & Zou 2005, §3.2–3.3)
 /// With tolerance ε (a setting, default 2⁻⁵² ≈ 2.2e-16, the unit roundoff of double) and the
 /// mixed absolute-relative scale S = max(1, ‖z_[0]‖∞) — absolute below 1, relative above — the
-/// order is p = ⌈−½ ln ε + 1⌉ (20 at the default) and the step
+/// order is p = min(20, ⌈−0.7 ln ε + 1⌉) (20 at the default, 18 at 1e-10, 14 at 1e-8) and the step
 ///
 ///     h = min_{k ∈ {p−1, p}} (ε S / ‖z_[k]‖∞)^{1/k} · exp(−0.7 / (p − 1)),
 ///
 /// which makes the last two terms of the series ≈ ε S at τ = h and, for a solution analytic in a
-/// disc of radius ρ ≈ min_k (S/‖z_[k]‖)^{1/k}, h ≈ ρ e⁻² · 0.96: the terms then decay by a factor
-/// r = h/ρ ≈ 0.13 per order, so the truncated tail is ≈ ε S r/(1 − r). With variational
+/// disc of radius ρ ≈ min_k (S/‖z_[k]‖)^{1/k}, h ≈ ρ ε^{1/p} · 0.97 (≈ 0.23 ρ below the cap,
+/// ≈ 0.16 ρ at the default): the terms then decay by a factor r = h/ρ per order, so the truncated
+/// tail is ≈ ε S r/(1 − r). With variational
 /// equations on, the norms are taken over [z; Φ] (the tangent map is as accurate as the state);
 /// with a held set (StepTerms) over the contact forces λ too (in the norms and in S): λ is a
 /// guard of the step, and when every coordinate is held z is constant while λ carries the drive.
+/// Order: with a cost per step of a p² (the products' convolutions) the work per unit time
+/// p² ε^{−1/p} is least at p = −½ ln ε (Jorba & Zou's order); with a cost linear in p (each
+/// order's pass over the tape, the linear part, Horner, the guard's passes) at p = −ln ε. For
+/// the small systems an impact oscillator has the linear part weighs as much as the products:
+/// the Taylor engine's instruction count on tools/bench/bench_taylor_odeint's Duffing and pendulum
+/// oscillators (200 periods, valgrind's callgrind) is least at p = 27 for ε = 2⁻⁵² (of 20, 24,
+/// 27, 30), 18 for 1e-10 (of 13, 14, 18, 20, 27) and 14 for 1e-8 (of 14, 18, 20, 24, 27, 30), and
+/// within 3 % from 20 to 30 at 1e-12 — the factor 0.7 (at 1e-10 21 % fewer instructions than
+/// Jorba & Zou's 13). The cap at 20: near the unit roundoff the longer step of a higher order
+/// puts the guard's remainder bound (its evaluation rounding 4(p + 1) u Σ|g_k| h^k) above the
+/// event search's trigger level of 1e-13 of the scale (at order 27, 3.8e-13 against 3.6e-13 for
+/// the guard 3 x0 − 2 v0 of tests/taylor/test_taylor_step.cpp), although it would take 20 % fewer
+/// instructions there. TaylorSettings::order overrides the rule.
 /// A step whose coefficients k ≥ 1 all vanish (a polynomial solution) has h = ∞; the caller caps
 /// it (advance() stops at its end time).
 ///
@@ -88,6 +102,7 @@
 
 #include <Eigen/Dense>
 
+#include <cstdint>
 #include <limits>
 #include <string>
 #include <vector>
@@ -156,7 +171,7 @@ class TaylorStep {
   int order() const { return p_; }
   double start_time() const { return t0_; }
   double step_size() const { return h_; }
-  /// Radius-of-convergence estimate ρ (see the header): h ≈ ρ e⁻² · 0.96.
+  /// Radius-of-convergence estimate ρ (see the header): h ≈ ρ ε^{1/p} · 0.97.
   double radius() const { return rho_; }
 
   /// z(t₀ + τ) and z'(t₀ + τ) from the step's polynomial (Horner).
@@ -179,6 +194,10 @@ class TaylorStep {
 
  private:
   bool compute_order(int k);
+  bool node_order(int k);   // every node by the Dag (order 0, and the tangents)
+  void tape_order(int k);   // order k ≥ 1 of the tape below
+  void tape_orders();       // orders 1 … p without tangents: the tape and the linear part
+  bool linear_order(int k); // the linear part and the StepTerms: z_[k+1] from the forces' f_[k]
   double* c(int node) { return &c_[static_cast<std::size_t>(node) * (p_ + 1)]; }
   double* aux(int node) { return &aux_[static_cast<std::size_t>(node) * (p_ + 1)]; }
   double* dc(int node, int d) { return &dc_[(static_cast<std::size_t>(node) * dim_ + d) * (p_ + 1)]; }
@@ -194,6 +213,19 @@ class TaylorStep {
   double inverse_root_[2] = {1.0, 1.0};  // ε^{−1/(p−1)}, ε^{−1/p}
   Eigen::VectorXd parameters_;
   std::vector<double> c_, aux_, dc_, z_, y_;
+  /// The recurrences of orders ≥ 1 as a flat tape: the Dag's nodes that vary in time, in
+  /// topological order, each with its operation specialised (a product or quotient with a
+  /// time-constant operand as a scaling) and its operands' offsets in c_, aux_ and z_ precomputed.
+  enum class Code : std::uint8_t {
+    Time, State, Add, Subtract, Negate, ScaleLeft, ScaleRight, Multiply, Square, DivideByConstant, Divide,
+    PowerReal, Sqrt, Exp, Log, Sin, Cos, Tan, Tanh, Atan
+  };
+  struct Instruction {
+    Code code;
+    std::size_t out, a, b;  // offsets of the node's series and its operands' (State: in z_; Cos: the Sin's aux)
+    double value;           // PowerReal: α
+  };
+  std::vector<Instruction> tape_;
   Eigen::VectorXd force_k_;   // M⁻¹ F_[k] scratch
   Eigen::MatrixXd dforce_k_;  // n × 2n scratch
   std::string trouble_;
