@@ -148,24 +148,20 @@ void move_stops_with_base(std::vector<Stop>& stops, const std::vector<bool>& att
     // fixed in the laboratory: m = −c; otherwise it keeps its own motion.
     const double m = attached[j] == relative ? 0.0 : (relative ? -c : c);
     if (m == 0.0) continue;
-    if (s.amplitude != 0.0)
+    if (s.amplitude != 0.0 || s.has_higher_harmonics())
       throw InvalidInput(stop_label(stops, j) + ": " +
-                         (relative ? std::string("a stop with its own motion (amplitude) that is not attached to the base "
+                         (relative ? std::string("a stop with its own motion (amplitude, harmonics) that is not attached to the base "
                                                  "moves by its own and the base's motion in the relative frame; use "
                                                  "base.frame: absolute")
-                                   : std::string("a stop attached to the base moves with it; its own amplitude would "
-                                                 "add a second motion: remove the amplitude or the attachment")));
-    if (base.has_higher_harmonics())
-      throw InvalidInput(stop_label(stops, j) + ": " +
-                         (relative ? std::string("in the relative frame a stop fixed in the laboratory moves with the base, ")
-                                   : std::string("a stop attached to the base moves with it, ")) +
-                         "and a moving stop follows one harmonic of the forcing frequency; the base displacement has a "
-                         "harmonic of order ≥ 2 (attach the stop to the laboratory, change the frame, or drop the higher "
-                         "harmonics)");
+                                   : std::string("a stop attached to the base moves with it; its own amplitude or harmonics "
+                                                 "would add a second motion: remove them or the attachment")));
     // m (a cos Ωt + b sin Ωt) = A cos(Ωt + φ): A cos φ = m a, −A sin φ = m b.
     const double a = m * base.first_cosine(), b = m * base.first_sine();
     s.amplitude = std::hypot(a, b);
     s.phase = std::atan2(-b, a);
+    // Orders ≥ 2 follow as the stop's own higher harmonics, m (a_k cos kΩt + b_k sin kΩt).
+    for (const BaseHarmonic& h : base.displacement)
+      if (h.order >= 2) s.harmonics.push_back({h.order, m * h.cosine, m * h.sine});
   }
 }
 

@@ -216,6 +216,20 @@ void ContactMode::build_reduced() const {
     sc(a) = st.s_cos();
     ss(a) = st.s_sin();
   }
+  // Their higher harmonics (stops.hpp), one column per harmonic h of the forcing (the slot
+  // ImpactSystem gave each order a stop moves at): s_h(t) = Hc_h cos k_hΩt + Hs_h sin k_hΩt.
+  const auto H = static_cast<Eigen::Index>(sys.forcing().harmonics.size());
+  Eigen::MatrixXd Hc = Eigen::MatrixXd::Zero(m, H), Hs = Eigen::MatrixXd::Zero(m, H);
+  bool higher = false;
+  for (Eigen::Index a = 0; a < m; ++a) {
+    const Stop& st = scene.stops()[static_cast<std::size_t>(active_[static_cast<std::size_t>(a)])];
+    for (std::size_t i = 0; i < st.harmonics.size(); ++i) {
+      const auto h = static_cast<Eigen::Index>(forcing_slot(sys.forcing(), st.harmonics[i].order));
+      Hc(a, h) += st.h_cos(i);
+      Hs(a, h) += st.h_sin(i);
+      higher = true;
+    }
+  }
   // Engaged compliant stops: their springs and dashpots join K and C, their s(t), s'(t) and
   // preload f (stops.hpp): force −w (k g + c g' + F_p) with g = wᵀx − s, g' = wᵀv − s'.
   Eigen::MatrixXd engaged_damping, engaged_stiffness;
@@ -232,6 +246,12 @@ void ContactMode::build_reduced() const {
       engaged_forcing.constant += (st.stiffness * st.s0() - st.preload) * w;
       engaged_forcing.cosine += (st.stiffness * st.s_cos() + st.damping * omega * st.s_sin()) * w;
       engaged_forcing.sine += (st.stiffness * st.s_sin() - st.damping * omega * st.s_cos()) * w;
+      for (std::size_t i = 0; i < st.harmonics.size(); ++i) {
+        ForcingHarmonic& fh = engaged_forcing.harmonics[forcing_slot(engaged_forcing, st.harmonics[i].order)];
+        const double wh = fh.rate(omega), hc = st.h_cos(i), hs = st.h_sin(i);
+        fh.cosine += (st.stiffness * hc + st.damping * wh * hs) * w;
+        fh.sine += (st.stiffness * hs - st.damping * wh * hc) * w;
+      }
     }
   }
   const Eigen::MatrixXd& M = sys.mass();
@@ -246,9 +266,19 @@ void ContactMode::build_reduced() const {
   red->forcing.constant = N.transpose() * (f.constant - K * P * s0);
   red->forcing.cosine = N.transpose() * (f.cosine - K * P * sc - omega * C * P * ss + w2 * M * P * sc);
   red->forcing.sine = N.transpose() * (f.sine - K * P * ss + omega * C * P * sc + w2 * M * P * ss);
-  // Extra harmonics (system.hpp): the stops move at Ω only, so they enter as Nᵀ f_h.
-  for (const ForcingHarmonic& h : f.harmonics)
-    red->forcing.harmonics.push_back({h.order, N.transpose() * h.cosine, N.transpose() * h.sine});
+  // Extra harmonics (system.hpp): Nᵀ f_h, and where held stops move at k_h Ω the same terms as
+  // at Ω with ω_h = k_h Ω in place of Ω.
+  for (std::size_t i = 0; i < f.harmonics.size(); ++i) {
+    const ForcingHarmonic& h = f.harmonics[i];
+    if (!higher) {
+      red->forcing.harmonics.push_back({h.order, N.transpose() * h.cosine, N.transpose() * h.sine});
+      continue;
+    }
+    const double wh = h.rate(omega), wh2 = wh * wh;
+    const auto hc = Hc.col(static_cast<Eigen::Index>(i)), hs = Hs.col(static_cast<Eigen::Index>(i));
+    red->forcing.harmonics.push_back({h.order, N.transpose() * (h.cosine - K * P * hc - wh * C * P * hs + wh2 * M * P * hc),
+                                      N.transpose() * (h.sine - K * P * hs + wh * C * P * hc + wh2 * M * P * hs)});
+  }
   const Eigen::Index extra = 2 * static_cast<Eigen::Index>(f.harmonics.size());
 
   // T maps [y; y'; c; s; 1; c_h; s_h…] to [x; v; c; s; 1; c_h; s_h…].
@@ -262,6 +292,16 @@ void ContactMode::build_reduced() const {
   T.block(n, 2 * nf, n, 1) = omega * P * ss;
   T.block(n, 2 * nf + 1, n, 1) = -omega * P * sc;
   T.block(2 * n, 2 * nf, 3 + extra, 3 + extra).setIdentity();
+  if (higher)
+    for (std::size_t i = 0; i < f.harmonics.size(); ++i) {
+      const double wh = f.harmonics[i].rate(omega);
+      const auto hc = Hc.col(static_cast<Eigen::Index>(i)), hs = Hs.col(static_cast<Eigen::Index>(i));
+      const Eigen::Index col = augmented_size(nf, i);
+      T.block(0, col, n, 1) = P * hc;
+      T.block(0, col + 1, n, 1) = P * hs;
+      T.block(n, col, n, 1) = wh * P * hs;
+      T.block(n, col + 1, n, 1) = -wh * P * hc;
+    }
   red->to_full = T;
 
   // The flow's set-up (eigenvectors, Schur form, exponential of the 2n_f + 3 generator) cannot
@@ -288,6 +328,12 @@ void ContactMode::build_reduced() const {
     Eigen::MatrixXd q = minv_w_.transpose() * rhs;  // Wᵀ M⁻¹ (…)
     q.col(2 * n) += w2 * sc;                         // - s'' = Ω² (sc cos + ss sin)
     q.col(2 * n + 1) += w2 * ss;
+    if (higher)
+      for (std::size_t i = 0; i < f.harmonics.size(); ++i) {
+        const double wh = f.harmonics[i].rate(omega);
+        q.col(augmented_size(n, i)) += wh * wh * Hc.col(static_cast<Eigen::Index>(i));
+        q.col(augmented_size(n, i) + 1) += wh * wh * Hs.col(static_cast<Eigen::Index>(i));
+      }
     red->force_rows = delassus_.llt().solve(q);
   } else {
     red->force_rows.resize(0, Nf);
@@ -305,6 +351,11 @@ void ContactMode::build_reduced() const {
     g(2 * n) = -st.s_cos();
     g(2 * n + 1) = -st.s_sin();
     g(2 * n + 2) = -st.s0();
+    for (std::size_t i = 0; i < st.harmonics.size(); ++i) {
+      const Eigen::Index col = augmented_size(n, forcing_slot(f, st.harmonics[i].order));
+      g(col) = -st.h_cos(i);
+      g(col + 1) = -st.h_sin(i);
+    }
     rows.row(r++) = g * T;
     red->watched.push_back(static_cast<int>(j));
   }
@@ -321,6 +372,11 @@ void ContactMode::build_reduced() const {
     g(2 * n) = st.s_cos();
     g(2 * n + 1) = st.s_sin();
     g(2 * n + 2) = st.s0();
+    for (std::size_t i = 0; i < st.harmonics.size(); ++i) {
+      const Eigen::Index col = augmented_size(n, forcing_slot(f, st.harmonics[i].order));
+      g(col) = st.h_cos(i);
+      g(col + 1) = st.h_sin(i);
+    }
     rows.row(r++) = g * T;
     red->watched.push_back(j);
   }

@@ -119,7 +119,7 @@ RunScales run_scales(const SimulatorOptions& o, double omega, double kmax, doubl
   const double stiff = std::max(kmax, mmax * omega * omega);
   double L = o.length_scale;
   RunScales s;
-  for (const Stop& st : stops) s.L_stops = std::max({s.L_stops, std::abs(st.position), st.amplitude});
+  for (const Stop& st : stops) s.L_stops = std::max({s.L_stops, std::abs(st.position), st.motion_extent()});
   if (L == 0.0) {
     const double x_max = x0.size() > 0 ? x0.cwiseAbs().maxCoeff() : 0.0;
     const double v_term = (v0.size() > 0 ? v0.cwiseAbs().maxCoeff() : 0.0) / omega, f_term = fmax / stiff;

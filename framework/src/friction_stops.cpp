@@ -45,6 +45,11 @@ class FrictionStopSimulator::Mode {
       row(off) = -st.s_cos();
       row(off + 1) = -st.s_sin();
       row(off + 2) = -st.s0();
+      for (std::size_t i = 0; i < st.harmonics.size(); ++i) {  // on the forcing's slot of its order
+        const Eigen::Index col = augmented_size(n, forcing_slot(sys.forcing(), st.harmonics[i].order));
+        row(col) = -st.h_cos(i);
+        row(col + 1) = -st.h_sin(i);
+      }
       return row;
     };
     for (int j = 0; j < static_cast<int>(stops.size()); ++j)
@@ -368,6 +373,7 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
     for (Eigen::Index a = 0; a < k; ++a) {
       const Stop& st = stops_[static_cast<std::size_t>(candidates[static_cast<std::size_t>(a)])];
       q(a) = Nc.col(a).dot(accel) + omega_ * omega_ * (st.s_cos() * c + st.s_sin() * s);  // − p''
+      if (st.has_higher_harmonics()) q(a) -= stop_higher_motion(st, omega_, t, 2);
     }
     solve_lcp(G, q, forces, lcp_);
     for (Eigen::Index a = 0; a < k; ++a)
@@ -410,7 +416,8 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
  private:
   double stop_position(int j, double t) const {
     const Stop& st = stops_[static_cast<std::size_t>(j)];
-    return st.s0() + st.s_cos() * std::cos(omega_ * t) + st.s_sin() * std::sin(omega_ * t);
+    const double p = st.s0() + st.s_cos() * std::cos(omega_ * t) + st.s_sin() * std::sin(omega_ * t);
+    return st.has_higher_harmonics() ? p + stop_higher_motion(st, omega_, t, 0) : p;
   }
   double compliant_force(int j, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) const {
     const Stop& st = stops_[static_cast<std::size_t>(j)];

@@ -92,13 +92,14 @@ struct FrictionTables {
     minv_Wc.resize(n, 0);
     uc_rows.resize(0, N);
     s2c_rows.resize(0, N);
-    if (stops) add_stops(*stops, omega);
+    if (stops) add_stops(*stops, omega, &f);
   }
 
   /// The stops' part (friction_stops.hpp): engaged compliant stops into r, held rigid stops as
   /// constraint columns. A stop's motion p = s0 + sc cos Ωt + ss sin Ωt gives
-  /// p' = Ω (ss cos Ωt − sc sin Ωt) and p'' = −Ω² (sc cos Ωt + ss sin Ωt).
-  void add_stops(const FrictionStopPart& part, double omega) {
+  /// p' = Ω (ss cos Ωt − sc sin Ωt) and p'' = −Ω² (sc cos Ωt + ss sin Ωt); its higher harmonics
+  /// (stops.hpp) the same at k_h Ω on the forcing's slot of their order.
+  void add_stops(const FrictionStopPart& part, double omega, const HarmonicForcing* forcing) {
     const std::vector<Stop>& stops = *part.stops;
     for (int j : part.engaged) {
       const Stop& st = stops[static_cast<std::size_t>(j)];
@@ -110,6 +111,13 @@ struct FrictionTables {
       r_rows.col(off) += w * (k * sc + c * omega * ss);
       r_rows.col(off + 1) += w * (k * ss - c * omega * sc);
       r_rows.col(off + 2) += w * (k * st.s0() - st.preload);
+      for (std::size_t i = 0; i < st.harmonics.size(); ++i) {  // higher harmonics, ω_h = k_h Ω in place of Ω
+        const std::size_t slot = forcing_slot(*forcing, st.harmonics[i].order);
+        const Eigen::Index col = augmented_size(n, slot);
+        const double wh = forcing->harmonics[slot].rate(omega), hc = st.h_cos(i), hs = st.h_sin(i);
+        r_rows.col(col) += w * (k * hc + c * wh * hs);
+        r_rows.col(col + 1) += w * (k * hs - c * wh * hc);
+      }
     }
     const auto h = static_cast<Eigen::Index>(part.held.size());
     Wc.resize(n, h);
@@ -123,6 +131,15 @@ struct FrictionTables {
       uc_rows(a, off + 1) = omega * st.s_cos();
       s2c_rows(a, off) = -omega * omega * st.s_cos();
       s2c_rows(a, off + 1) = -omega * omega * st.s_sin();
+      for (std::size_t i = 0; i < st.harmonics.size(); ++i) {
+        const std::size_t slot = forcing_slot(*forcing, st.harmonics[i].order);
+        const Eigen::Index col = augmented_size(n, slot);
+        const double wh = forcing->harmonics[slot].rate(omega);
+        uc_rows(a, col) = -wh * st.h_sin(i);
+        uc_rows(a, col + 1) = wh * st.h_cos(i);
+        s2c_rows(a, col) = -wh * wh * st.h_cos(i);
+        s2c_rows(a, col + 1) = -wh * wh * st.h_sin(i);
+      }
     }
     minv_Wc = minv * Wc;
     locked.assign(static_cast<std::size_t>(W.cols()), 0);

@@ -239,6 +239,10 @@ ModalChainSimulator::ModalChainSimulator(const ChainModes& modes, std::vector<St
       throw InvalidInput(label + ": restitution = " + number_text(s.restitution) + ": must be in [0, 1]");
     if (s.amplitude > 0.0 && !(W > 0.0))
       throw InvalidInput(label + ": a moving stop needs forcing.frequency > 0");
+    if (s.has_higher_harmonics())
+      throw InvalidInput(label + ": a stop moving with more than one harmonic (order " +
+                         std::to_string(s.harmonics.front().order) +
+                         ") is handled by the dense engine only (solver.engine: dense or auto)");
     if (s.is_compliant())
       throw InvalidInput(label + ": a compliant stop (law: compliant) is handled by the dense engine only "
                          "(solver.engine: dense or auto)");

@@ -23,12 +23,14 @@ void require_positive(double value, const char* field, bool allow_zero = false) 
 
 /// Per-run tables of the stops (allocated once per run, so that no event allocates): the normals
 /// W and M⁻¹W, the Delassus matrix of all stops G = WᵀM⁻¹W (a set's G is its principal
-/// submatrix), each stop's motion s(t) = s0 + sc cos Ωt + ss sin Ωt, and for the second-order
+/// submatrix), each stop's motion s(t) = s0 + sc cos Ωt + ss sin Ωt (and whether higher harmonics
+/// add to it, stops.hpp), and for the second-order
 /// chatter rule α_j = -w_jᵀ M⁻¹ C M⁻¹ w_j / G_jj and the pieces of its state correction,
 /// M⁻¹ C M⁻¹ w_j, M⁻¹ K M⁻¹ w_j and M⁻¹ C (event_resolution.cpp, chatter_correction).
 struct StopTables {
   Eigen::MatrixXd normals, minv_normals, delassus, damped_normals, stiff_normals, minv_damping;
   Eigen::VectorXd s0, sc, ss, chatter_alpha, chatter_beta;
+  std::vector<char> higher;  ///< per stop: whether it moves with harmonics of order ≥ 2 too
 
   explicit StopTables(const ImpactSystem& scene) {
     const LinearSystem& sys = scene.system();
@@ -52,6 +54,7 @@ struct StopTables {
       s0(j) = st.s0();
       sc(j) = st.s_cos();
       ss(j) = st.s_sin();
+      higher.push_back(st.has_higher_harmonics() ? 1 : 0);
       chatter_alpha(j) = -minv_normals.col(j).dot(sys.damping() * minv_normals.col(j)) / delassus(j, j);
       // β_j = (qᵀ C M⁻¹ C q − qᵀ K q) / G − (qᵀ C q / G)², q = M⁻¹ w_j (simulator.hpp, ChatterRule).
       const auto q = minv_normals.col(j);
@@ -80,12 +83,15 @@ class DenseAlgebra final : public detail::ContactAlgebra {
 
   double gap(int j, double t, const Eigen::VectorXd& x) const override {
     const auto [c, s] = phase(t);
-    return tab_.normals.col(j).dot(x) - (tab_.s0(j) + tab_.sc(j) * c + tab_.ss(j) * s);
+    const double g = tab_.normals.col(j).dot(x) - (tab_.s0(j) + tab_.sc(j) * c + tab_.ss(j) * s);
+    return tab_.higher[static_cast<std::size_t>(j)] ? g - higher(j, t, 0) : g;
   }
   void gap_rates(double t, const Eigen::VectorXd& v, Eigen::Ref<Eigen::VectorXd> out) const override {
     const auto [c, s] = phase(t);
-    for (Eigen::Index j = 0; j < out.size(); ++j)
+    for (Eigen::Index j = 0; j < out.size(); ++j) {
       out(j) = tab_.normals.col(j).dot(v) - omega_ * (-tab_.sc(j) * s + tab_.ss(j) * c);
+      if (tab_.higher[static_cast<std::size_t>(j)]) out(j) -= higher(static_cast<int>(j), t, 1);
+    }
   }
   /// The engaged compliant stops whose forces act alongside (nullptr or empty: none); the
   /// held rigid stops' algebra then runs on the mode with them (contact.hpp).
@@ -116,6 +122,7 @@ class DenseAlgebra final : public detail::ContactAlgebra {
       const int j = candidates[static_cast<std::size_t>(a)];
       const double s_dd = -omega_ * omega_ * (tab_.sc(j) * c + tab_.ss(j) * s);
       q(a) = tab_.minv_normals.col(j).dot(residual_) - s_dd;
+      if (tab_.higher[static_cast<std::size_t>(j)]) q(a) -= higher(j, t, 2);
     }
     solve_lcp(G, q, forces, lcp_);
     for (Eigen::Index a = 0; a < k; ++a)
@@ -159,7 +166,8 @@ class DenseAlgebra final : public detail::ContactAlgebra {
   double compliant_force(int j, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) const {
     const Stop& st = scene_.stops()[static_cast<std::size_t>(j)];
     const auto [c, s] = phase(t);
-    const double rate = tab_.normals.col(j).dot(v) - omega_ * (-tab_.sc(j) * s + tab_.ss(j) * c);
+    double rate = tab_.normals.col(j).dot(v) - omega_ * (-tab_.sc(j) * s + tab_.ss(j) * c);
+    if (tab_.higher[static_cast<std::size_t>(j)]) rate -= higher(j, t, 1);
     return st.stiffness * gap(j, t, x) + st.damping * rate + st.preload;
   }
   /// The mode of the held rigid stops `held` with the engaged compliant ones (sorted union).
@@ -171,6 +179,10 @@ class DenseAlgebra final : public detail::ContactAlgebra {
   }
 
  private:
+  /// The higher harmonics' part of stop j's s, s' or s'' (stops.hpp).
+  double higher(int j, double t, int derivative) const {
+    return stop_higher_motion(scene_.stops()[static_cast<std::size_t>(j)], omega_, t, derivative);
+  }
   /// (cos Ωt, sin Ωt), kept for the last t (an event asks for them several times).
   std::pair<double, double> phase(double t) const {
     if (!(t == phase_t_)) {

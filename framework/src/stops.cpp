@@ -5,6 +5,8 @@
 #include <cmath>
 #include <map>
 #include <sstream>
+#include <stdexcept>
+#include <utility>
 
 namespace vibro {
 namespace {
@@ -13,10 +15,25 @@ namespace {
 /// direction (α, β > 0 scale each to the unit normal): s(t) = s0 + s_c cos Ωt + s_s sin Ωt, so
 /// the sum's least value is its mean minus the amplitude of the summed harmonic. Exact: two
 /// stops that move together (fixed to one shaken rig) keep their clearance however far they
-/// move, while the amplitudes summed would refuse them.
+/// move, while the amplitudes summed would refuse them. With higher harmonics the amplitude of
+/// each order's summed harmonic is subtracted as well: a lower bound of the least clearance
+/// (reached when the harmonics peak together), still exact for two stops that move together.
 double least_room(const Stop& a, const Stop& b, double alpha, double beta) {
-  return alpha * a.s0() + beta * b.s0() -
-         std::hypot(alpha * a.s_cos() + beta * b.s_cos(), alpha * a.s_sin() + beta * b.s_sin());
+  double room = alpha * a.s0() + beta * b.s0() -
+                std::hypot(alpha * a.s_cos() + beta * b.s_cos(), alpha * a.s_sin() + beta * b.s_sin());
+  std::map<int, std::pair<double, double>> orders;  // order: the summed (cosine, sine)
+  for (std::size_t h = 0; h < a.harmonics.size(); ++h) {
+    std::pair<double, double>& sum = orders[a.harmonics[h].order];
+    sum.first += alpha * a.h_cos(h);
+    sum.second += alpha * a.h_sin(h);
+  }
+  for (std::size_t h = 0; h < b.harmonics.size(); ++h) {
+    std::pair<double, double>& sum = orders[b.harmonics[h].order];
+    sum.first += beta * b.h_cos(h);
+    sum.second += beta * b.h_sin(h);
+  }
+  for (const auto& entry : orders) room -= std::hypot(entry.second.first, entry.second.second);
+  return room;
 }
 
 std::string label(const Stop& stop, std::size_t j) {
@@ -91,8 +108,8 @@ void check_general_pairs(const std::vector<Stop>& stops, Eigen::Index n) {
         if (!(room > 0.0))
           throw InvalidInput(label(a, j) + " and " + label(b, k) +
                              " leave no room between them (opposite normals; clearance along the unit normal " +
-                             number_text(clearance) + ", stop amplitudes " + number_text(a.amplitude / na) +
-                             " + " + number_text(b.amplitude / nb) + ", least clearance while they move " +
+                             number_text(clearance) + ", stop amplitudes " + number_text(a.motion_extent() / na) +
+                             " + " + number_text(b.motion_extent() / nb) + ", least clearance while they move " +
                              number_text(room) + "): the clearance must stay positive");
       }
     }
@@ -140,6 +157,12 @@ Stop Stop::moving(double a, double phi) const {
   return s;
 }
 
+Stop Stop::with_harmonics(std::vector<StopHarmonic> higher) const {
+  Stop s = *this;
+  s.harmonics.insert(s.harmonics.end(), higher.begin(), higher.end());
+  return s;
+}
+
 Stop Stop::compliant(double k, double c, double preload_force) const {
   Stop s = *this;
   s.law = Law::compliant;
@@ -177,6 +200,62 @@ double Stop::s_cos() const {
 double Stop::s_sin() const {
   const double v = -amplitude * std::sin(phase);
   return kind == Kind::lower ? -v : v;
+}
+
+double Stop::h_cos(std::size_t h) const {
+  const double v = harmonics[h].cosine;
+  return kind == Kind::lower ? -v : v;
+}
+double Stop::h_sin(std::size_t h) const {
+  const double v = harmonics[h].sine;
+  return kind == Kind::lower ? -v : v;
+}
+
+double Stop::motion_extent() const {
+  double e = amplitude;
+  for (const StopHarmonic& h : harmonics) e += std::hypot(h.cosine, h.sine);
+  return e;
+}
+
+double stop_higher_motion(const Stop& stop, double frequency, double t, int derivative) {
+  double out = 0.0;
+  for (std::size_t h = 0; h < stop.harmonics.size(); ++h) {
+    const double w = stop.harmonics[h].rate(frequency), c = std::cos(w * t), s = std::sin(w * t);
+    const double a = stop.h_cos(h), b = stop.h_sin(h);
+    switch (derivative) {
+      case 0: out += a * c + b * s; break;
+      case 1: out += w * (-a * s + b * c); break;
+      default: out -= w * w * (a * c + b * s); break;
+    }
+  }
+  return out;
+}
+
+double stop_motion(const Stop& s, double frequency, double t, int derivative) {
+  const double w = frequency, c = std::cos(w * t), sn = std::sin(w * t);
+  double first = 0.0;
+  switch (derivative) {
+    case 0: first = s.s0() + s.s_cos() * c + s.s_sin() * sn; break;
+    case 1: first = w * (-s.s_cos() * sn + s.s_sin() * c); break;
+    default: first = -w * w * (s.s_cos() * c + s.s_sin() * sn); break;
+  }
+  return first + stop_higher_motion(s, frequency, t, derivative);
+}
+
+std::size_t forcing_slot(const HarmonicForcing& forcing, int order) {
+  for (std::size_t h = 0; h < forcing.harmonics.size(); ++h)
+    if (forcing.harmonics[h].order == order) return h;
+  throw std::logic_error("forcing_slot: the forcing has no harmonic of order " + std::to_string(order) +
+                         " (ImpactSystem adds one for every order a stop moves at)");
+}
+
+void refuse_higher_harmonic_stops(const std::vector<Stop>& stops, const std::string& engine) {
+  for (std::size_t j = 0; j < stops.size(); ++j)
+    if (stops[j].has_higher_harmonics())
+      throw InvalidInput(engine + " does not support stops moving with more than one harmonic: stops[" +
+                         std::to_string(j) + "]" + (stops[j].name.empty() ? "" : " (" + stops[j].name + ")") +
+                         " moves at order " + std::to_string(stops[j].harmonics.front().order) +
+                         " (the dense engine runs them)");
 }
 
 std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, double frequency) {
@@ -221,6 +300,21 @@ std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, doubl
     }
     if (s.amplitude > 0.0 && frequency == 0.0)
       throw InvalidInput(who + ": a moving stop needs a forcing frequency > 0 (it moves at Ω)");
+    for (std::size_t h = 0; h < s.harmonics.size(); ++h) {
+      const StopHarmonic& hh = s.harmonics[h];
+      const std::string at = who + ": harmonics[" + std::to_string(h) + "]";
+      if (hh.order < 2)
+        throw InvalidInput(at + ": order " + std::to_string(hh.order) +
+                           " (expected a whole number ≥ 2; the first harmonic is amplitude and phase)");
+      for (std::size_t k = 0; k < h; ++k)
+        if (s.harmonics[k].order == hh.order)
+          throw InvalidInput(at + ": order " + std::to_string(hh.order) + " is given twice");
+      if (!std::isfinite(hh.cosine) || !std::isfinite(hh.sine))
+        throw InvalidInput(at + ": cosine " + number_text(hh.cosine) + ", sine " + number_text(hh.sine) +
+                           ": must be finite");
+      if (frequency == 0.0)
+        throw InvalidInput(at + ": a moving stop needs a forcing frequency > 0 (it moves at multiples of Ω)");
+    }
   }
 
   // Duplicates (same normal, same side) and contradictions (opposite normals leaving no room).
@@ -264,7 +358,8 @@ std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, doubl
       if (!(room > 0.0))
         throw InvalidInput(label(a, j) + " and " + label(b, k) +
                            " leave no room between them (clearance " + number_text(a.s0() + b.s0()) +
-                           ", stop amplitudes " + number_text(a.amplitude) + " + " + number_text(b.amplitude) +
+                           ", stop amplitudes " + number_text(a.motion_extent()) + " + " +
+                           number_text(b.motion_extent()) +
                            ", least clearance while they move " + number_text(room) +
                            "): the clearance must stay positive");
     }
@@ -281,12 +376,13 @@ double stop_gap(const Stop& s, double frequency, double t, const Eigen::Ref<cons
     case Stop::Kind::between: wx = x(s.mass) - x(s.other); break;
     case Stop::Kind::normal: wx = s.direction.dot(x); break;
   }
-  return wx - (s.s0() + s.s_cos() * std::cos(frequency * t) + s.s_sin() * std::sin(frequency * t));
+  const double g = wx - (s.s0() + s.s_cos() * std::cos(frequency * t) + s.s_sin() * std::sin(frequency * t));
+  return s.has_higher_harmonics() ? g - stop_higher_motion(s, frequency, t, 0) : g;
 }
 
 double stops_length_scale(const std::vector<Stop>& stops, double extra) {
   double L = std::abs(extra);
-  for (const Stop& s : stops) L = std::max({L, std::abs(s.position), s.amplitude});
+  for (const Stop& s : stops) L = std::max({L, std::abs(s.position), s.motion_extent()});
   return std::max(L, 1e-300);
 }
 
@@ -307,9 +403,30 @@ void check_admissible(const std::vector<Stop>& stops, double frequency, double t
   }
 }
 
+namespace {
+
+/// The system with a zero forcing harmonic of every order ≥ 2 a stop moves at and the drive
+/// lacks (the system itself when none is missing).
+LinearSystem with_stop_orders(LinearSystem system, const std::vector<Stop>& stops) {
+  HarmonicForcing f = system.forcing();
+  const std::size_t had = f.harmonics.size();
+  for (const Stop& s : stops)
+    for (const StopHarmonic& h : s.harmonics) {
+      bool present = false;
+      for (const ForcingHarmonic& fh : f.harmonics) present = present || fh.order == h.order;
+      if (!present)
+        f.harmonics.push_back({h.order, Eigen::VectorXd::Zero(system.dof()), Eigen::VectorXd::Zero(system.dof())});
+    }
+  if (f.harmonics.size() == had) return system;
+  return LinearSystem(system.mass(), system.damping(), system.stiffness(), std::move(f));
+}
+
+}  // namespace
+
 ImpactSystem::ImpactSystem(LinearSystem system, std::vector<Stop> stops)
     : system_(std::move(system)),
       stops_(validated_stops(std::move(stops), system_.dof(), system_.forcing().frequency)) {
+  system_ = with_stop_orders(std::move(system_), stops_);
   const Eigen::Index n = system_.dof();
   normals_.resize(n, static_cast<Eigen::Index>(stops_.size()));
   for (std::size_t j = 0; j < stops_.size(); ++j)
@@ -322,6 +439,7 @@ Eigen::VectorXd ImpactSystem::gaps(double t, const Eigen::Ref<const Eigen::Vecto
   for (std::size_t j = 0; j < stops_.size(); ++j) {
     const Stop& s = stops_[j];
     g(static_cast<Eigen::Index>(j)) -= s.s0() + s.s_cos() * std::cos(w * t) + s.s_sin() * std::sin(w * t);
+    if (s.has_higher_harmonics()) g(static_cast<Eigen::Index>(j)) -= stop_higher_motion(s, w, t, 0);
   }
   return g;
 }
@@ -332,6 +450,7 @@ Eigen::VectorXd ImpactSystem::gap_rates(double t, const Eigen::Ref<const Eigen::
   for (std::size_t j = 0; j < stops_.size(); ++j) {
     const Stop& s = stops_[j];
     g(static_cast<Eigen::Index>(j)) -= w * (-s.s_cos() * std::sin(w * t) + s.s_sin() * std::cos(w * t));
+    if (s.has_higher_harmonics()) g(static_cast<Eigen::Index>(j)) -= stop_higher_motion(s, w, t, 1);
   }
   return g;
 }

@@ -85,6 +85,7 @@ TaylorSimulator::TaylorSimulator(const ImpactSystem& scene, const NonlinearForce
     : scene_(&scene), options_(options), tolerance_(forces.tolerance), order_(forces.order) {
   options_.validate();
   taylor::TaylorSettings{.tolerance = tolerance_, .order = order_}.validate();
+  refuse_higher_harmonic_stops(scene.stops(), "the Taylor engine (model.forces)");
   const LinearSystem& sys = scene.system();
   taylor::TaylorSystemSpec spec;
   spec.mass = sys.mass();

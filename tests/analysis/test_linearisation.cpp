@@ -512,3 +512,47 @@ TEST_CASE("linearisation: on a 32-mass chain (eigen-decomposition path of the fl
     }
   }
 }
+
+// A stop moving with three harmonics of Ω (stops.hpp): the tangent map through its impacts and
+// sticking, and the derivative in its second harmonic's cosine (SystemDerivative's
+// stop_harmonic_cosine), against central differences of the engine's map, with the bounds of
+// the tests above.
+TEST_CASE("linearisation: a stop moving with three harmonics: Jacobian and the derivative in its "
+          "second harmonic equal central differences",
+          "[linearisation][differences][parameter]") {
+  vibro::models::Wagg2004 p;
+  p.frequency = 0.3;
+  p.r = 0.0;
+  const ImpactSystem plain = vibro::models::wagg2004(p);
+  auto with_stop = [&](double c2) {
+    std::vector<Stop> stops = plain.stops();
+    stops[1] = stops[1].moving(0.02, 0.4).with_harmonics({{2, c2, -0.005}, {3, 0.0, 0.004}});
+    return ImpactSystem(plain.system(), stops);
+  };
+  const ImpactSystem sys = with_stop(0.01);
+  REQUIRE(sys.system().forcing().harmonics.size() == 2);
+  const double T = 2.0 * kPi / p.frequency;
+  const VectorXd z0 = on_orbit(sys, 100.0, 0.3);
+  LinearisationOptions o;
+  o.parameter = SystemDerivative{};
+  o.parameter->stop_harmonic_cosine = {{}, {1.0, 0.0}};  // stop 1 is upper: s = p
+  const TangentMap m = vibro::linearise(sys, {}, 0.3 * T, z0.head(2), z0.tail(2), 1.3 * T, o);
+  REQUIRE(m.summary.status == vibro::RunStatus::completed);
+  REQUIRE_FALSE(m.starts_held);
+  CHECK(m.summary.impacts + m.summary.sticks >= 1);
+  const VectorXd scale = state_scale(2, 0.3, 0.3 * p.frequency);
+  check_against(m.jacobian,
+                central([&](const VectorXd& z) { return engine_map(sys, {}, 0.3 * T, z, 1.3 * T); }, z0, scale, 1e-5),
+                scale, 1e-8);
+  REQUIRE(m.parameter.size() == 4);
+  const Differences d = central(
+      [&](const VectorXd& h) { return engine_map(with_stop(0.01 + h(0)), {}, 0.3 * T, z0, 1.3 * T); },
+      VectorXd::Zero(1), VectorXd::Ones(1), 1e-6);
+  for (Eigen::Index r = 0; r < 4; ++r) {
+    const double diff = std::abs(m.parameter(r) - d.value(r, 0)) / scale(r);
+    const double bound = std::max(1e-8, 10.0 * d.error(r, 0) / scale(r));
+    INFO("row " << r << ": exact " << m.parameter(r) << ", differences " << d.value(r, 0));
+    CHECK(diff <= bound);
+  }
+  CHECK(m.parameter.cwiseAbs().maxCoeff() > 1e-3);  // the harmonic moves the map
+}

@@ -82,6 +82,24 @@ SceneError error_of(const std::string& text) {
   throw;
 }
 
+/// A scene that must be refused: its text, the key the error names and a phrase of the problem.
+struct BadInput {
+  std::string text, path, says;
+};
+
+/// Each case refused at its key with file:line:col.
+void check_bad_input(const std::vector<BadInput>& cases) {
+  for (const BadInput& c : cases) {
+    INFO(c.text);
+    const SceneError e = error_of(c.text);
+    CHECK(e.path() == c.path);
+    CHECK(e.line() > 1);
+    CHECK(e.column() >= 1);
+    CHECK_THAT(std::string(e.what()), Contains("b.yaml:" + std::to_string(e.line()) + ":"));
+    if (!c.says.empty()) CHECK_THAT(e.problem(), Contains(c.says));
+  }
+}
+
 }  // namespace
 
 // x_b = a cos Ωt + b sin Ωt through the left wall (k_L, c_L) and the right wall (k_R, c_R): the
@@ -127,7 +145,7 @@ TEST_CASE("base: a stop attached to the base is the force form with the stop mov
   CHECK((tx.x - tf.x).cwiseAbs().maxCoeff() > 1e-3);
 }
 
-TEST_CASE("base: higher harmonics run on both engines, and with a stop on the base are refused", "[scene][base]") {
+TEST_CASE("base: higher harmonics run on both engines, and with a stop on the base on the dense one", "[scene][base]") {
   const std::string base = "base:\n  displacement:\n    cosine: 0.05\n    harmonics:\n      - {order: 2, cosine: 0.01}\n";
   const Scene s = SceneDocument::parse(kModel + "forcing: {frequency: 0.3}\n" + base + stops(""), "h.yaml").build();
   CHECK(s.engine == EngineKind::dense);  // two masses: auto chooses as without harmonics
@@ -144,18 +162,61 @@ TEST_CASE("base: higher harmonics run on both engines, and with a stop on the ba
   // k x_b for the 2nd harmonic on mass 0: 1 · 0.01, and its dashpot's sine −c a 2Ω.
   CHECK(s.forcing().harmonics[0].cosine(0) == 0.01);
   CHECK(s.forcing().harmonics[0].sine(0) == -(0.1 * (0.01 * 0.6)));
-  const SceneError e = error_of(kModel + "forcing: {frequency: 0.3}\n" + base + stops(", attached: base"));
-  CHECK(e.path() == "stops[1]");
-  CHECK(e.line() == 17);
-  CHECK_THAT(std::string(e.what()), Contains("b.yaml:17:") && Contains("one harmonic") && Contains("order ≥ 2"));
+  // A stop on the base moves with both harmonics: auto takes the dense engine and says why, the
+  // modal engine refuses it at solver.engine, naming the stop.
+  const Scene on = SceneDocument::parse(kModel + "forcing: {frequency: 0.3}\n" + base + stops(", attached: base"), "a.yaml")
+                       .build();
+  CHECK(on.engine == EngineKind::dense);
+  CHECK_THAT(on.engine_reason, Contains("stops[1]") && Contains("more than one harmonic"));
+  REQUIRE(on.stops[1].harmonics.size() == 1);
+  CHECK(on.stops[1].harmonics[0].order == 2);
+  CHECK(on.stops[1].harmonics[0].cosine == 0.01);
+  const SceneError e =
+      error_of(kModel + "forcing: {frequency: 0.3}\n" + base + stops(", attached: base") + "solver: {engine: modal}\n");
+  CHECK(e.path() == "solver.engine");
+  CHECK_THAT(std::string(e.what()), Contains("b.yaml:") && Contains("stops[1]") && Contains("more than one harmonic"));
+  // A stop moving on its own with the same motion as the attached one is the same scene, bit for bit.
+  const Scene own = SceneDocument::parse(kModel + "forcing: {frequency: 0.3}\n" + base +
+                                             stops(", amplitude: 0.05, harmonics: [{order: 2, cosine: 0.01}]"),
+                                         "o.yaml")
+                        .build();
+  same(trace_of(on, 10.0), trace_of(own, 10.0));
+}
+
+TEST_CASE("stops[j].harmonics: the first harmonic as amplitude and phase, bad input with file:line:col", "[scene][base]") {
+  const std::string head = kModel + "forcing: {frequency: 0.3}\n";
+  // order 1 written as a harmonic is amplitude and phase: c cos Ωt + s sin Ωt = A cos(Ωt + φ).
+  const Scene s = SceneDocument::parse(head + stops(", harmonics: [{order: 1, cosine: 0.03, sine: -0.04}, {order: 3, sine: 0.01}]"),
+                                       "h.yaml")
+                      .build();
+  CHECK(s.stops[1].amplitude == std::hypot(0.03, -0.04));
+  CHECK(s.stops[1].phase == std::atan2(0.04, 0.03));
+  REQUIRE(s.stops[1].harmonics.size() == 1);
+  CHECK(s.stops[1].harmonics[0].order == 3);
+  CHECK(s.stops[1].harmonics[0].cosine == 0.0);
+  CHECK(s.stops[1].harmonics[0].sine == 0.01);
+  const std::vector<BadInput> cases{
+      {head + stops(", harmonics: [{order: 0, cosine: 0.1}]"), "stops[1].harmonics[0].order", "whole number"},
+      {head + stops(", harmonics: [{order: -2, cosine: 0.1}]"), "stops[1].harmonics[0].order", "whole number"},
+      {head + stops(", harmonics: [{order: 2.5, cosine: 0.1}]"), "stops[1].harmonics[0].order", "whole number"},
+      {head + stops(", harmonics: [{order: 2, cosine: .nan}]"), "stops[1].harmonics[0].cosine", ""},
+      {head + stops(", harmonics: [{order: 2, sine: .inf}]"), "stops[1].harmonics[0].sine", ""},
+      {head + stops(", harmonics: [{order: 2}, {order: 2, sine: 0.1}]"), "stops[1].harmonics[1].order", "given twice"},
+      {head + stops(", amplitude: 0.1, harmonics: [{order: 1, sine: 0.1}]"), "stops[1].harmonics[0].order", "one place"},
+      {head + stops(", harmonics: {order: 2}"), "stops[1].harmonics", "a list"},
+      {head + stops(", harmonics: [{order: 2, cos: 0.1}]"), "stops[1].harmonics[0].cos", "cosine"},
+      {kModel + stops(", harmonics: [{order: 2, cosine: 0.1}]"), "stops[1].harmonics", "forcing.frequency > 0"},
+      {head + stops(", harmonics: [{order: 2, cosine: 0.1}]") + "solver: {engine: modal}\n", "solver.engine",
+       "more than one harmonic"},
+      {head + stops(", harmonics: [{order: 2, cosine: 0.1}]") + "solver: {engine: taylor}\n", "stops[1]",
+       "Taylor engine"},
+  };
+  check_bad_input(cases);
 }
 
 TEST_CASE("base: bad input names file, line, column and key", "[scene][base]") {
   const std::string head = kModel + "forcing: {frequency: 0.3}\n";
-  struct Case {
-    std::string text, path, says;
-  };
-  const std::vector<Case> cases{
+  const std::vector<BadInput> cases{
       {head + "base:\n  displacement:\n    harmonics: [{order: 0, cosine: 0.1}]\n" + stops(""),
        "base.displacement.harmonics[0].order", "whole number"},
       {head + "base:\n  displacement:\n    harmonics: [{order: 1.5, cosine: 0.1}]\n" + stops(""),
@@ -180,15 +241,7 @@ TEST_CASE("base: bad input names file, line, column and key", "[scene][base]") {
        "base:\n  displacement: {cosine: 0.1}\n" + stops(""),
        "base.influence", "missing"},
   };
-  for (const Case& c : cases) {
-    INFO(c.text);
-    const SceneError e = error_of(c.text);
-    CHECK(e.path() == c.path);
-    CHECK(e.line() > 1);
-    CHECK(e.column() >= 1);
-    CHECK_THAT(std::string(e.what()), Contains("b.yaml:" + std::to_string(e.line()) + ":"));
-    if (!c.says.empty()) CHECK_THAT(e.problem(), Contains(c.says));
-  }
+  check_bad_input(cases);
 }
 
 // model.matrices with an influence vector: the drive is K ι x_b + C ι x_b' (absolute). The same
@@ -243,12 +296,14 @@ TEST_CASE("base: the derivative in the forcing frequency follows the base's driv
 // each point checked against brute force on the dense engine.
 namespace {
 
-void base_continuation_against_brute_force(EngineKind kind, double upper) {
-  const std::string run = "run:\n  kind: continue\n  transient_periods: 200\n  continue:\n    path: base.displacement.cosine\n"
-                          "    range: [0.02, " + num(upper) + "]\n    step: 0.02\n    max_step: 0.02\n";
+void base_continuation_against_brute_force(EngineKind kind, double upper,
+                                           const std::string& base = "base:\n  displacement: {cosine: 0.02}\n",
+                                           const std::string& path = "base.displacement.cosine", double start = 0.02) {
+  const std::string run = "run:\n  kind: continue\n  transient_periods: 200\n  continue:\n    path: " + path + "\n"
+                          "    range: [" + num(start) + ", " + num(upper) + "]\n    step: 0.02\n    max_step: 0.02\n";
   {
     const vibro::test::TempDir dir;
-    const std::string text = kModel + "forcing: {frequency: 0.3, cosine: [0.4, 0]}\nbase:\n  displacement: {cosine: 0.02}\n" +
+    const std::string text = kModel + "forcing: {frequency: 0.3, cosine: [0.4, 0]}\n" + base +
                              stops(", attached: base") + run +
                              (kind == EngineKind::modal ? "solver: {engine: modal}\n" : "");
     const SceneDocument doc = SceneDocument::parse(text, "c.yaml");
@@ -267,7 +322,7 @@ void base_continuation_against_brute_force(EngineKind kind, double upper) {
       if (k[i] != 1 || stable[i] != 1) continue;
       CHECK(residual[i] <= 1e-10);
       SceneDocument at(doc);
-      at.set("base.displacement.cosine", p[i]);
+      at.set(path, p[i]);
       Scene s = at.build_point();
       s.engine = EngineKind::dense;
       const double t_end = t0[i] + 400.0 * s.period();
@@ -296,6 +351,35 @@ TEST_CASE("base: continuation in the base amplitude matches brute-force simulati
   // chatter and period-doubled branches that costs ~12 s of CPU (minutes under the sanitizers)
   // and adds no point this comparison can use (its stable period-1 points are sampled).
   base_continuation_against_brute_force(EngineKind::dense, 0.06);
+}
+
+// The base's second harmonic moves the attached stop with two harmonics: continuation in that
+// harmonic's amplitude (the drive and the stop's motion both move with it), its derivative
+// against the central difference of the scene's data, and its orbits against brute force.
+TEST_CASE("base: continuation in the base's second harmonic with a stop on the base matches brute force",
+          "[scene][base][continue]") {
+  const std::string base = "base:\n  displacement:\n    cosine: 0.02\n    harmonics: [{order: 2, cosine: 0.005}]\n";
+  const std::string path = "base.displacement.harmonics[0].cosine";
+  const SceneDocument doc =
+      SceneDocument::parse(kModel + "forcing: {frequency: 0.3, cosine: [0.4, 0]}\n" + base + stops(", attached: base"), "d.yaml");
+  const SystemDerivative d = parameter_derivative(doc, path);
+  // x_b gains cos 2Ωt per unit: the attached upper stop on mass 1 (c = 1) by the same.
+  REQUIRE(d.stop_harmonic_cosine.size() == 2);
+  REQUIRE(d.stop_harmonic_cosine[1].size() == 1);
+  CHECK(std::abs(d.stop_harmonic_cosine[1][0] - 1.0) <= 1e-12);
+  CHECK(d.stop_harmonic_cosine[0].empty());
+  REQUIRE(d.harmonic_cosine.size() == 1);
+  CHECK(std::abs(d.harmonic_cosine[0](0) - 1.0) <= 1e-12);  // k_left ι_0 = 1
+  // A stop's own harmonic is a continuation parameter too (a lower stop: s = −p).
+  const SceneDocument own = SceneDocument::parse(
+      kModel + "forcing: {frequency: 0.3}\nstops:\n  - {mass: 0, side: lower, position: -0.3, restitution: 0.7, "
+               "harmonics: [{order: 3, sine: 0.01}]}\n",
+      "o.yaml");
+  const SystemDerivative ds = parameter_derivative(own, "stops[0].harmonics[0].sine");
+  REQUIRE(ds.stop_harmonic_sine.size() == 1);
+  REQUIRE(ds.stop_harmonic_sine[0].size() == 1);
+  CHECK(std::abs(ds.stop_harmonic_sine[0][0] + 1.0) <= 1e-12);
+  base_continuation_against_brute_force(EngineKind::dense, 0.045, base, path, 0.005);
 }
 
 TEST_CASE("base: continuation in the base amplitude on the modal engine matches brute force on the dense engine",

@@ -37,6 +37,12 @@ std::string set_text(const ContactSet& s) {
 }
 
 std::string stops_text(const io::Scene& scene) {
+  // "  moving ±a phase φ" and "  order k: cos c sin s" per higher harmonic; empty for a fixed stop.
+  auto motion_text = [](const Stop& s) {
+    std::string m = s.amplitude > 0 ? fmt::format("  moving ±{:.6g} phase {:.6g}", s.amplitude, s.phase) : "";
+    for (const StopHarmonic& h : s.harmonics) m += fmt::format("  order {}: cos {:.6g} sin {:.6g}", h.order, h.cosine, h.sine);
+    return m;
+  };
   std::string out = "\nStops (g = w·x - s(t) ≤ 0):\n";
   for (std::size_t j = 0; j < scene.stops.size(); ++j) {
     const Stop& s = scene.stops[j];
@@ -44,14 +50,14 @@ std::string stops_text(const io::Scene& scene) {
       std::string n;
       for (Eigen::Index i = 0; i < s.direction.size(); ++i) n += fmt::format("{}{:.6g}", i ? ", " : "", s.direction(i));
       out += fmt::format("  [{}] {:<20} normal  n = [{}]  at {:.6g}  r = {:.6g}{}\n", j, s.name, n, s.position, s.restitution,
-                         s.amplitude > 0 ? fmt::format("  moving ±{:.6g} phase {:.6g}", s.amplitude, s.phase) : "");
+                         motion_text(s));
       continue;
     }
     const char* kind = s.kind == Stop::Kind::upper ? "upper" : s.kind == Stop::Kind::lower ? "lower" : "between";
     out += fmt::format("  [{}] {:<20} {:<7} mass {}{}  at {:.6g}  r = {:.6g}{}\n", j, s.name, kind, s.mass,
                        s.kind == Stop::Kind::between ? fmt::format(" - mass {}", s.other) : "", s.position,
                        s.restitution,
-                       s.amplitude > 0 ? fmt::format("  moving ±{:.6g} phase {:.6g}", s.amplitude, s.phase) : "");
+                       motion_text(s));
   }
   return out;
 }

@@ -5,7 +5,9 @@
 // With n degrees of freedom and the stops in canonical form (stops.hpp) g_j = w_jᵀx − s_j(t):
 //
 //   forcing      f(t) = F0 + Fc cos Ωt + Fs sin Ωt + Σ_h (Fc_h cos k_hΩt + Fs_h sin k_hΩt)
-//   stop motion  s_j(t) = s0_j + sc_j cos Ωt + ss_j sin Ωt, and its time derivatives
+//   stop motion  s_j(t) = s0_j + sc_j cos Ωt + ss_j sin Ωt + Σ_h (hc_jh cos k_hΩt + hs_jh sin k_hΩt)
+//                (the stop's higher harmonics on the forcing's slots h, stops.hpp), and its time
+//                derivatives
 //   free         a_free = M⁻¹ (f − C v − K x)
 //   held set S   W = [w_j]_{j∈S}, Q = M⁻¹ W, G = Wᵀ Q (Delassus), and from Wᵀ x'' = s''_S:
 //                  λ_S = G⁻¹ (Wᵀ a_free − s''_S)                 (contact forces, contact.hpp)
@@ -171,12 +173,26 @@ class Mechanics {
     const T c = cos(omega_ * t), s = sin(omega_ * t);
     const T& a = sc_[J];
     const T& b = ss_[J];
+    T out;
     switch (k) {
-      case 0: return s0_[J] + a * c + b * s;
-      case 1: return omega_ * (b * c - a * s);
-      case 2: return -omega_ * omega_ * (a * c + b * s);
-      default: return omega_ * omega_ * omega_ * (a * s - b * c);
+      case 0: out = s0_[J] + a * c + b * s; break;
+      case 1: out = omega_ * (b * c - a * s); break;
+      case 2: out = -omega_ * omega_ * (a * c + b * s); break;
+      default: out = omega_ * omega_ * omega_ * (a * s - b * c); break;
     }
+    if (stop_slots_.empty() || stop_slots_[J].empty()) return out;
+    for (std::size_t i = 0; i < stop_slots_[J].size(); ++i) {
+      const T w = harmonic_rate(stop_slots_[J][i]), ch = cos(w * t), sh = sin(w * t);
+      const T& p = hc_[J][i];
+      const T& q = hs_[J][i];
+      switch (k) {
+        case 0: out += p * ch + q * sh; break;
+        case 1: out += w * (q * ch - p * sh); break;
+        case 2: out -= w * w * (p * ch + q * sh); break;
+        default: out += w * w * w * (p * sh - q * ch); break;
+      }
+    }
+    return out;
   }
 
   /// The forcing's harmonic amplitudes: F0 (h = 0), Fc (h = 1), Fs (h = 2).
@@ -363,6 +379,12 @@ class Mechanics {
       X.col(2 * n) += w * (ks_[J] * sc_[J] + cs_[J] * omega_ * ss_[J]);
       X.col(2 * n + 1) += w * (ks_[J] * ss_[J] - cs_[J] * omega_ * sc_[J]);
       X.col(2 * n + 2) += w * (ks_[J] * s0_[J] - fp_[J]);
+      for (std::size_t i = 0; !stop_slots_.empty() && i < stop_slots_[J].size(); ++i) {
+        const std::size_t h = stop_slots_[J][i];
+        const T wh = harmonic_rate(h);
+        X.col(augmented_size(n, h)) += w * (ks_[J] * hc_[J][i] + cs_[J] * wh * hs_[J][i]);
+        X.col(augmented_size(n, h) + 1) += w * (ks_[J] * hs_[J][i] - cs_[J] * wh * hc_[J][i]);
+      }
     }
     return mass_inverse(X);
   }
@@ -378,6 +400,12 @@ class Mechanics {
       const auto J = static_cast<std::size_t>(S[a]);
       Z(static_cast<Eigen::Index>(a), 2 * n) = -omega_ * omega_ * sc_[J];
       Z(static_cast<Eigen::Index>(a), 2 * n + 1) = -omega_ * omega_ * ss_[J];
+      for (std::size_t i = 0; !stop_slots_.empty() && i < stop_slots_[J].size(); ++i) {
+        const std::size_t h = stop_slots_[J][i];
+        const T wh = harmonic_rate(h);
+        Z(static_cast<Eigen::Index>(a), augmented_size(n, h)) = -wh * wh * hc_[J][i];
+        Z(static_cast<Eigen::Index>(a), augmented_size(n, h) + 1) = -wh * wh * hs_[J][i];
+      }
     }
     return G.partialPivLu().solve(MatT<T>(W.transpose() * free_rows(key) - Z));
   }
@@ -390,6 +418,10 @@ class Mechanics {
     row(2 * n) = -sc_[J];
     row(2 * n + 1) = -ss_[J];
     row(2 * n + 2) = -s0_[J];
+    for (std::size_t i = 0; !stop_slots_.empty() && i < stop_slots_[J].size(); ++i) {
+      row(augmented_size(n, stop_slots_[J][i])) = -hc_[J][i];
+      row(augmented_size(n, stop_slots_[J][i]) + 1) = -hs_[J][i];
+    }
     return row;
   }
 
@@ -537,6 +569,28 @@ class Mechanics {
       cs_.push_back(make(s.damping, 0.0));
       fp_.push_back(make(s.preload, 0.0));
     }
+    bool higher = false;
+    for (const Stop& s : stops) higher = higher || s.has_higher_harmonics();
+    if (higher) {  // each harmonic on the forcing's slot of its order (ImpactSystem adds it)
+      stop_slots_.resize(m_);
+      hc_.resize(m_);
+      hs_.resize(m_);
+      for (std::size_t j = 0; j < m_; ++j)
+        for (std::size_t i = 0; i < stops[j].harmonics.size(); ++i) {
+          const int order = stops[j].harmonics[i].order;
+          std::size_t h = 0;
+          while (h < orders_.size() && orders_[h] != order) ++h;
+          if (h == orders_.size())
+            throw std::logic_error("Mechanics: the forcing has no harmonic of order " + std::to_string(order) +
+                                   " that a stop moves at");
+          stop_slots_[j].push_back(h);
+          auto derivative = [&](const std::vector<std::vector<double>>& list) {
+            return j < list.size() && i < list[j].size() ? list[j][i] : 0.0;
+          };
+          hc_[j].push_back(make(stops[j].h_cos(i), derivative(d.stop_harmonic_cosine)));
+          hs_[j].push_back(make(stops[j].h_sin(i), derivative(d.stop_harmonic_sine)));
+        }
+    }
     if (has_compliant(stops)) {
       if (banded_) throw std::logic_error("Mechanics: the banded form takes rigid stops only");
       for (const Stop& s : stops) compliant_.push_back(s.is_compliant());
@@ -556,6 +610,10 @@ class Mechanics {
   Eigen::LLT<MatT<T>> llt_;
   std::vector<SparseNormal> normals_;
   std::vector<T> s0_, sc_, ss_, r_;
+  // Higher harmonics of the stops (empty when no stop has any): stop j's harmonic i sits on the
+  // forcing's slot stop_slots_[j][i] with canonical coefficients hc_[j][i], hs_[j][i].
+  std::vector<std::vector<std::size_t>> stop_slots_;
+  std::vector<std::vector<T>> hc_, hs_;
   std::vector<T> ks_, cs_, fp_;  // k_s, c_s, F_p of compliant stops (k_s, c_s, F_p: stops.hpp)
   std::vector<char> compliant_;  // per stop; empty when every stop is rigid
 };

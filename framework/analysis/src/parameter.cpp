@@ -2,9 +2,11 @@
 
 #include "vibro/system.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <tuple>
+#include <vector>
 
 namespace vibro {
 namespace {
@@ -40,6 +42,10 @@ bool SystemDerivative::is_zero() const {
       if (!zero(v)) return false;
   for (const StopDerivative& s : stops)
     if (s.offset != 0.0 || s.cosine != 0.0 || s.sine != 0.0 || s.restitution != 0.0) return false;
+  for (const auto* list : {&stop_harmonic_cosine, &stop_harmonic_sine})
+    for (const std::vector<double>& stop : *list)
+      for (double v : stop)
+        if (v != 0.0) return false;
   return true;
 }
 
@@ -75,6 +81,14 @@ void SystemDerivative::validate(Eigen::Index n, std::size_t m) const {
   for (const StopDerivative& s : stops)
     if (!std::isfinite(s.offset) || !std::isfinite(s.cosine) || !std::isfinite(s.sine) || !std::isfinite(s.restitution))
       throw InvalidInput("parameter derivative: a stop derivative is not finite");
+  for (const auto* list : {&stop_harmonic_cosine, &stop_harmonic_sine}) {
+    if (list->size() > m)
+      throw InvalidInput("parameter derivative: stop harmonic derivatives for " + std::to_string(list->size()) +
+                         " stops, the system has " + std::to_string(m));
+    for (const std::vector<double>& stop : *list)
+      for (double v : stop)
+        if (!std::isfinite(v)) throw InvalidInput("parameter derivative: a stop harmonic's derivative is not finite");
+  }
 }
 
 SystemDerivative SystemDerivative::combined(double a, const SystemDerivative& o, double b) const {
@@ -106,6 +120,18 @@ SystemDerivative SystemDerivative::combined(double a, const SystemDerivative& o,
     const StopDerivative y = j < o.stops.size() ? o.stops[j] : StopDerivative{};
     out.stops[j] = {a * x.offset + b * y.offset, a * x.cosine + b * y.cosine, a * x.sine + b * y.sine,
                     a * x.restitution + b * y.restitution};
+  }
+  for (auto [mine, theirs, into] : {std::tuple{&stop_harmonic_cosine, &o.stop_harmonic_cosine, &out.stop_harmonic_cosine},
+                                    std::tuple{&stop_harmonic_sine, &o.stop_harmonic_sine, &out.stop_harmonic_sine}}) {
+    into->resize(std::max(mine->size(), theirs->size()));
+    for (std::size_t j = 0; j < into->size(); ++j) {
+      const std::vector<double> none;
+      const std::vector<double>& x = j < mine->size() ? (*mine)[j] : none;
+      const std::vector<double>& y = j < theirs->size() ? (*theirs)[j] : none;
+      (*into)[j].resize(std::max(x.size(), y.size()));
+      for (std::size_t i = 0; i < (*into)[j].size(); ++i)
+        (*into)[j][i] = a * (i < x.size() ? x[i] : 0.0) + b * (i < y.size() ? y[i] : 0.0);
+    }
   }
   return out;
 }

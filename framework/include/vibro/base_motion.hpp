@@ -30,11 +30,11 @@
 /// position moves by c_j x_b(t), c_j = (the stop's coordinate combination)ᵀ ι: ι_i for a stop on
 /// mass i (upper or lower), ι_i − ι_k for a stop between masses i and k, nᵀι along a normal n.
 /// In the relative frame the roles swap: a stop attached to the base stands still and a stop fixed
-/// in the laboratory moves by −c_j x_b(t). A moving stop follows one harmonic of Ω (stops.hpp),
-/// so a stop that has to move may do so only when x_b has no harmonic of order ≥ 2; otherwise
-/// move_stops_with_base refuses it. Gaps, impact velocities and Newton's law are the same in both
-/// frames (g = wᵀx − s(t) = wᵀy − (s(t) − c x_b(t))), so the two formulations give the same motion,
-/// x(t) = y(t) + ι x_b(t), v_x(t) = v_y(t) + ι x_b'(t).
+/// in the laboratory moves by −c_j x_b(t). A stop that moves so takes x_b's first harmonic as its
+/// amplitude and phase and its orders ≥ 2 as its higher harmonics (stops.hpp). Gaps, impact
+/// velocities and Newton's law are the same in both frames (g = wᵀx − s(t) = wᵀy − (s(t) −
+/// c x_b(t))), so the two formulations give the same motion, x(t) = y(t) + ι x_b(t),
+/// v_x(t) = v_y(t) + ι x_b'(t).
 ///
 /// Usage:
 ///     vibro::BaseExcitation b{.displacement = {{1, 0.05, 0.0}, {2, 0.01, 0.0}},
@@ -95,9 +95,9 @@ HarmonicForcing base_forcing_rate(const HarmonicForcing& f, const BaseExcitation
 double base_coefficient(const Stop& stop, const Eigen::VectorXd& influence);
 
 /// Makes the stops move as the frame requires (absolute: those attached move by c_j x_b;
-/// relative: those not attached move by −c_j x_b). attached has one entry per stop. Throws
-/// InvalidInput "stops[j] (name): …" when such a stop already moves on its own (amplitude > 0)
-/// or when x_b has a harmonic of order ≥ 2 (a moving stop follows one harmonic).
+/// relative: those not attached move by −c_j x_b; x_b's orders ≥ 2 join the stop's harmonics,
+/// even when zero). attached has one entry per stop. Throws InvalidInput "stops[j] (name): …"
+/// when such a stop already moves on its own (amplitude > 0).
 void move_stops_with_base(std::vector<Stop>& stops, const std::vector<bool>& attached, const BaseExcitation& base);
 
 }  // namespace vibro

@@ -4,10 +4,16 @@
 ///
 /// Every stop j is written in one canonical form, a gap function that must stay ≤ 0:
 ///
-///     g_j(x, t) = w_jᵀ x - s_j(t) ≤ 0,     s_j(t) = s0_j + a_j cos(Ω t + φ_j),
+///     g_j(x, t) = w_jᵀ x - s_j(t) ≤ 0,
+///     s_j(t) = s0_j + a_j cos(Ω t + φ_j) + Σ_h (c_jh cos(k_h Ω t) + d_jh sin(k_h Ω t)),
 ///
 /// where Ω is the forcing frequency of the system (a moving stop is driven by the same source as
-/// the forcing, so the reduced sticking equations stay in the F0 + Fc cos + Fs sin family).
+/// the forcing) and the k_h ≥ 2 are the orders of the stop's higher harmonics (none by default).
+/// The stop's motion is then a finite sum of harmonics of Ω like the drive, so the reduced
+/// sticking equations stay in the drive's family and every flow stays exact: ImpactSystem gives
+/// the system's forcing a harmonic (zero if the drive has none) of every order a stop moves at,
+/// so that cos k Ωt and sin k Ωt are components of the augmented state (flow.hpp) and a gap is
+/// a linear function of it.
 /// The three physical kinds map onto it as
 ///   * upper stop on mass i at p (x_i ≤ p):        w = e_i,        s = p
 ///   * lower stop on mass i at p (x_i ≥ p):        w = -e_i,       s = -p
@@ -52,6 +58,17 @@
 
 namespace vibro {
 
+/// One higher harmonic of a stop's motion: cosine cos(k Ω t) + sine sin(k Ω t), order k ≥ 2,
+/// in the units and the sense of the stop's position (a lower stop's harmonic moves the stop,
+/// not its canonical offset s, like its position).
+struct StopHarmonic {
+  int order = 2;
+  double cosine = 0.0;
+  double sine = 0.0;
+  /// k Ω, computed as ForcingHarmonic::rate does (bit for bit the flow's rate).
+  double rate(double frequency) const { return static_cast<double>(order) * frequency; }
+};
+
 struct Stop {
   enum class Kind { upper, lower, between, normal };
   /// The contact law: rigid (Newton's impact law, restitution r) or compliant (k_s, c_s, F_p).
@@ -69,6 +86,10 @@ struct Stop {
   double stiffness = 0.0;       ///< k_s > 0 of a compliant stop
   double damping = 0.0;         ///< c_s ≥ 0 of a compliant stop
   double preload = 0.0;         ///< F_p ≥ 0 of a compliant stop: its push at zero penetration
+  /// Higher harmonics of the motion (orders ≥ 2, distinct), added to position + amplitude
+  /// cos(Ω t + phase): the stop's position is p(t) = position + amplitude cos(Ω t + phase)
+  /// + Σ_h (cosine_h cos(k_h Ω t) + sine_h sin(k_h Ω t)).
+  std::vector<StopHarmonic> harmonics = {};
 
   static Stop upper(Eigen::Index mass, double position, double restitution);
   static Stop lower(Eigen::Index mass, double position, double restitution);
@@ -77,17 +98,44 @@ struct Stop {
   static Stop general(Eigen::VectorXd normal, double position, double restitution);
   /// The same stop, moving as position + amplitude cos(Ω t + phase).
   Stop moving(double amplitude, double phase) const;
+  /// The same stop with these higher harmonics (orders ≥ 2) added to its motion.
+  Stop with_harmonics(std::vector<StopHarmonic> higher) const;
   /// The same stop, compliant with stiffness k_s, damping c_s and preload F_p (its restitution
   /// is unused).
   Stop compliant(double stiffness, double damping, double preload = 0.0) const;
   bool is_compliant() const { return law == Law::compliant; }
 
-  /// Canonical form: w (dense, length n), and s(t) = s0 + sc cos Ωt + ss sin Ωt.
+  /// Canonical form: w (dense, length n), and s(t) = s0 + sc cos Ωt + ss sin Ωt
+  /// + Σ_h (h_cos(h) cos k_h Ωt + h_sin(h) sin k_h Ωt).
   Eigen::VectorXd normal(Eigen::Index n) const;
   double s0() const;
   double s_cos() const;
   double s_sin() const;
+  double h_cos(std::size_t h) const;
+  double h_sin(std::size_t h) const;
+  /// Whether the stop moves with a harmonic of order ≥ 2.
+  bool has_higher_harmonics() const { return !harmonics.empty(); }
+  /// A bound on |p(t) − position|: amplitude + Σ_h hypot(cosine_h, sine_h) (the amplitude
+  /// itself when there are no higher harmonics).
+  double motion_extent() const;
 };
+
+/// The part of the canonical offset s_j(t) (derivative 0), its rate s_j'(t) (1) or its
+/// acceleration s_j''(t) (2) that the stop's higher harmonics contribute; 0 without them. Each
+/// reader adds it to its own first-harmonic terms, so a stop without higher harmonics gives the
+/// same numbers bit for bit.
+double stop_higher_motion(const Stop& stop, double frequency, double t, int derivative);
+
+/// The canonical offset s_j(t) (derivative 0), s_j'(t) (1) or s_j''(t) (2), exactly.
+double stop_motion(const Stop& stop, double frequency, double t, int derivative);
+
+/// The index h in forcing.harmonics of the harmonic of `order` (≥ 2); throws std::logic_error
+/// when the forcing has none (ImpactSystem adds one for every order a stop moves at).
+std::size_t forcing_slot(const HarmonicForcing& forcing, int order);
+
+/// Throws InvalidInput "<engine> does not support stops moving with more than one harmonic:
+/// stops[j] (name) moves at order k" when a stop has a higher harmonic.
+void refuse_higher_harmonic_stops(const std::vector<Stop>& stops, const std::string& engine);
 
 /// The checks of ImpactSystem's constructor, without a LinearSystem and without the n × m matrix
 /// of normals: O(m log m) for m stops on n degrees of freedom, forcing frequency Ω. Gives unnamed
@@ -97,7 +145,7 @@ struct Stop {
 /// other stop (parallel normals on the same side, antiparallel ones without room).
 std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, double frequency);
 
-/// g_j(x, t) = w_jᵀ x - s_j(t) of one stop, O(1).
+/// g_j(x, t) = w_jᵀ x - s_j(t) of one stop, O(1 + its harmonics).
 double stop_gap(const Stop& stop, double frequency, double t,
                 const Eigen::Ref<const Eigen::VectorXd>& x);
 
@@ -113,6 +161,8 @@ void check_admissible(const std::vector<Stop>& stops, double frequency, double t
 /// A LinearSystem with its stops, validated together.
 class ImpactSystem {
  public:
+  /// Gives the system's forcing a zero harmonic of every order ≥ 2 that a stop moves at and the
+  /// drive lacks (appended in the order the stops name them), so that the flows hold it.
   /// Throws InvalidInput naming the stop (index and name) when a mass index is out of range,
   /// r ∉ [0, 1], a value is not finite, a general normal has the wrong length or is zero, two
   /// stops are the same constraint (parallel normals on the same side), or two opposing stops

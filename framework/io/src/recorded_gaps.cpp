@@ -26,11 +26,12 @@ void scan(const std::vector<Stop>& stops, double frequency, double tolerance, do
     const bool general = s.kind == Stop::Kind::normal;
     const double sign = s.kind == Stop::Kind::lower ? -1.0 : 1.0;
     const double wv = general ? s.direction.dot(v) : sign * v(s.mass) - (s.other >= 0 ? v(s.other) : 0.0);
-    const double rate = wv - frequency * (-s.s_cos() * std::sin(frequency * t) + s.s_sin() * std::cos(frequency * t));
+    double rate = wv - frequency * (-s.s_cos() * std::sin(frequency * t) + s.s_sin() * std::cos(frequency * t));
+    if (s.has_higher_harmonics()) rate -= stop_higher_motion(s, frequency, t, 1);
     // For a general normal, the sizes rounded in nᵀx: Σ|n_l x_l|.
     const double size = (general ? s.direction.cwiseProduct(x).cwiseAbs().sum()
                                  : std::abs(x(s.mass)) + (s.other >= 0 ? std::abs(x(s.other)) : 0.0)) +
-                        std::abs(s.position) + s.amplitude;
+                        std::abs(s.position) + s.motion_extent();
     const double bound = tolerance + std::abs(rate) * t_resolution + rounding * size;
     const double excess = g - bound;
     if (!(excess <= d.excess)) {  // NaN too: a non-finite state is past every bound

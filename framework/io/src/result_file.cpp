@@ -119,6 +119,24 @@ std::vector<Dataset> scene_datasets(const Scene& scene) {
     for (std::size_t j = 0; j < m; ++j) normals.row(static_cast<Eigen::Index>(j)) = stops[j].normal(scene.dof()).transpose();
     c.push_back(matrix_dataset("stop_normal", normals));
   }
+  bool higher = false;
+  for (const Stop& stop : stops) higher = higher || stop.has_higher_harmonics();
+  if (higher) {  // stops' harmonics of order ≥ 2 (docs/results.md): one entry per stop and harmonic
+    std::vector<std::int64_t> which, order;
+    std::vector<double> cosine, sine;
+    for (std::size_t j = 0; j < m; ++j)
+      for (const StopHarmonic& h : stops[j].harmonics) {
+        which.push_back(static_cast<std::int64_t>(j));
+        order.push_back(h.order);
+        cosine.push_back(h.cosine);
+        sine.push_back(h.sine);
+      }
+    const std::size_t q = which.size();
+    c.push_back(integers("stop_harmonic_stop", std::move(which), {q}));
+    c.push_back(integers("stop_harmonic_order", std::move(order), {q}));
+    c.push_back(reals("stop_harmonic_cosine", std::move(cosine), {q}));
+    c.push_back(reals("stop_harmonic_sine", std::move(sine), {q}));
+  }
   if (!scene.friction.empty()) {  // frictional contacts (docs/results.md); absent without friction
     const std::size_t q = scene.friction.size();
     std::vector<std::int64_t> fkind, fmass, fother;

@@ -206,6 +206,45 @@ Stop read_general_stop(Reader& r, const YAML::Node& s, const std::string& path, 
   return Stop::general(to_vector(normal), p, 1.0);
 }
 
+/// `stops[j].harmonics` (docs/scenes.md): a list of {order: k, cosine: c, sine: s}, k a whole
+/// number ≥ 1, each order once, moving the stop's position by c cos kΩt + s sin kΩt. Order 1 is
+/// the stop's amplitude and phase (given here or as amplitude/phase, not both: A = hypot(c, s),
+/// φ = atan2(−s, c)); orders ≥ 2 become Stop::harmonics in the order written.
+void read_stop_harmonics(Reader& r, const YAML::Node& s, const std::string& stop_path, const HarmonicForcing& f,
+                         Stop& stop) {
+  const YAML::Node list = s["harmonics"];
+  r.note(list);
+  const std::string at = stop_path + ".harmonics";
+  if (!list.IsSequence()) r.fail(list, at, "expected a list of {order, cosine, sine}, found " + describe(list));
+  if (!(f.frequency > 0.0))
+    r.fail(list, at, "a moving stop moves at multiples of the forcing frequency: set forcing.frequency > 0");
+  std::vector<std::pair<long, std::string>> seen;  // order, where
+  for (std::size_t h = 0; h < list.size(); ++h) {
+    const std::string path = at + "[" + std::to_string(h) + "]";
+    const YAML::Node e = list[h];
+    r.expect_map(e, path, {"order", "cosine", "sine"});
+    if (!e["order"])
+      r.fail(e, path + ".order", "missing: each harmonic needs its order k (a whole number ≥ 1; frequency k × forcing.frequency)");
+    const long order = r.integer(e["order"], path + ".order", 1, 1000000);
+    for (const auto& [k, where] : seen)
+      if (k == order) r.fail(e["order"], path + ".order", "order " + std::to_string(order) + " is given twice (also " + where + ")");
+    seen.emplace_back(order, path);
+    const double c = e["cosine"] ? r.number(e["cosine"], path + ".cosine") : 0.0;
+    const double sn = e["sine"] ? r.number(e["sine"], path + ".sine") : 0.0;
+    if (order == 1) {
+      for (const char* key : {"amplitude", "phase"})
+        if (s[key])
+          r.fail(e["order"], path + ".order", std::string("order 1 is also given by ") + stop_path + "." + key +
+                                                  ": give the first harmonic in one place");
+      // c cos Ωt + s sin Ωt = A cos(Ωt + φ): A cos φ = c, −A sin φ = s.
+      stop.amplitude = std::hypot(c, sn);
+      stop.phase = std::atan2(-sn, c);
+      continue;
+    }
+    stop.harmonics.push_back({static_cast<int>(order), c, sn});
+  }
+}
+
 /// `stops`, validated together (stops[j] errors point at that stop).
 void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
   auto& n = p.n;
@@ -218,8 +257,8 @@ void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
     for (std::size_t j = 0; j < sn.size(); ++j) {
       const YAML::Node s = sn[j];
       const std::string path = "stops[" + std::to_string(j) + "]";
-      r.expect_map(s, path, {"mass", "side", "between", "normal", "position", "gap", "restitution", "amplitude", "phase", "name",
-                                "law", "stiffness", "damping", "preload", "attached"});
+      r.expect_map(s, path, {"mass", "side", "between", "normal", "position", "gap", "restitution", "amplitude", "phase", "harmonics",
+                                "name", "law", "stiffness", "damping", "preload", "attached"});
       Stop stop;
       if (s["normal"]) {
         stop = read_general_stop(r, s, path, n);
@@ -271,6 +310,7 @@ void read_stops(Reader& r, const YAML::Node& root, SceneParts& p) {
                  "a moving stop moves at the forcing frequency: set forcing.frequency > 0");
       }
       if (s["phase"]) stop.phase = r.number(s["phase"], path + ".phase");
+      if (s["harmonics"]) read_stop_harmonics(r, s, path, f, stop);
       if (s["name"]) stop.name = r.text(s["name"], path + ".name");
       attached.push_back(s["attached"] && r.choice(s["attached"], path + ".attached", {"base", "laboratory"}) == "base");
       stops.push_back(stop);
@@ -532,6 +572,14 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
   int general_stop = -1;  // the first stop along a general normal, which the modal engine refuses
   for (std::size_t j = 0; j < p.stops.size() && general_stop < 0; ++j)
     if (p.stops[j].kind == Stop::Kind::normal) general_stop = static_cast<int>(j);
+  int harmonic_stop = -1;  // the first stop moving with a harmonic of order ≥ 2 (dense engine only)
+  for (std::size_t j = 0; j < p.stops.size() && harmonic_stop < 0; ++j)
+    if (p.stops[j].has_higher_harmonics()) harmonic_stop = static_cast<int>(j);
+  const std::string harmonic_why =
+      harmonic_stop < 0 ? std::string()
+                        : "stops[" + std::to_string(harmonic_stop) + "] moves with more than one harmonic (order " +
+                              std::to_string(p.stops[static_cast<std::size_t>(harmonic_stop)].harmonics.front().order) +
+                              "), which the dense engine handles";
   if (resolve_taylor_engine(r, root, p)) {
     // nonlinear forces (or solver.engine: taylor): the Taylor engine, scene_forces.cpp
   } else if (engine_choice == EngineChoice::modal) {
@@ -544,6 +592,7 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     if (!floating.empty()) refuse(floating + " tied to no wall by springs: a rigid-body mode (give the chain a wall spring)");
     if (compliant) refuse("it has compliant stops (law: compliant), which the dense engine handles");
     if (general_stop >= 0) refuse("stops[" + std::to_string(general_stop) + "] has a general normal: " + kModalStopsOnly);
+    if (harmonic_stop >= 0) refuse(harmonic_why);
     engine = EngineKind::modal;
     reason = "solver.engine: modal";
   } else if (engine_choice == EngineChoice::dense) {
@@ -552,6 +601,8 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     reason = "auto: compliant stops (the dense engine handles them)";
   } else if (general_stop >= 0) {
     reason = "auto: stops[" + std::to_string(general_stop) + "] has a general normal (" + kModalStopsOnly + ")";
+  } else if (harmonic_stop >= 0) {
+    reason = "auto: " + harmonic_why;
   } else if (!chain_links) {
     reason = "auto: model.matrices (the modal engine needs model.chain)";
   } else if (!banded) {
@@ -567,6 +618,12 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
              std::to_string(kModalAutomaticMinimumDof) + ")";
   }
 
+  if (harmonic_stop >= 0 && engine == EngineKind::taylor)
+    r.fail(root["stops"][static_cast<std::size_t>(harmonic_stop)], "stops[" + std::to_string(harmonic_stop) + "]",
+           "the Taylor engine (nonlinear forces, or solver.engine: taylor) does not run stops moving with more than "
+           "one harmonic (this stop moves at order " +
+               std::to_string(p.stops[static_cast<std::size_t>(harmonic_stop)].harmonics.front().order) +
+               "); the dense and the friction engine do");
   // Sections are searched in the exact flows of the dense and the modal engine (vibro/section.hpp).
   if (const YAML::Node rn = root["record"]; rn && rn["section"]) {
     const YAML::Node sn = rn["section"];

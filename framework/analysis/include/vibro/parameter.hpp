@@ -47,6 +47,9 @@ struct SystemDerivative {
   double frequency = 0.0;  ///< dΩ/dp
   /// One per stop, in the system's order; empty means zero for every stop.
   std::vector<StopDerivative> stops;
+  /// d/dp of the canonical coefficients (Stop::h_cos, Stop::h_sin) of each stop's higher
+  /// harmonics: [j][i] for stop j's harmonic i (Stop::harmonics' order); a short list means zero.
+  std::vector<std::vector<double>> stop_harmonic_cosine, stop_harmonic_sine;
   /// d/dp of the named parameters of the nonlinear forces (the Taylor engine's
   /// NonlinearForces::parameters, in their order); empty means zero. Linear scenes have none.
   Eigen::VectorXd force_parameters;

@@ -33,13 +33,23 @@ struct Data {
   double omega = 0.0;
   std::vector<std::array<double, 4>> stops;  // s0, sc, ss, r
   std::vector<Eigen::VectorXd> Hc, Hs;       // extra harmonics (system.hpp)
+  std::vector<Eigen::VectorXd> stop_hc, stop_hs;  // per stop: its higher harmonics' h_cos, h_sin (stops.hpp)
 };
 
 Data data_of(const Scene& s) {
   const LinearSystem& sys = s.system();
   Data d{sys.mass(), sys.damping(), sys.stiffness(), sys.forcing().constant, sys.forcing().cosine, sys.forcing().sine,
          sys.forcing().frequency, {}, {}, {}};
-  for (const Stop& st : s.stops) d.stops.push_back({st.s0(), st.s_cos(), st.s_sin(), st.restitution});
+  for (const Stop& st : s.stops) {
+    d.stops.push_back({st.s0(), st.s_cos(), st.s_sin(), st.restitution});
+    const auto H = static_cast<Eigen::Index>(st.harmonics.size());
+    d.stop_hc.emplace_back(H);
+    d.stop_hs.emplace_back(H);
+    for (Eigen::Index i = 0; i < H; ++i) {
+      d.stop_hc.back()(i) = st.h_cos(static_cast<std::size_t>(i));
+      d.stop_hs.back()(i) = st.h_sin(static_cast<std::size_t>(i));
+    }
+  }
   for (const ForcingHarmonic& h : sys.forcing().harmonics) {
     d.Hc.push_back(h.cosine);
     d.Hs.push_back(h.sine);
@@ -65,6 +75,11 @@ double largest(const Data& a, const Data& b, double scale) {
   }
   for (std::size_t j = 0; j < a.stops.size(); ++j)
     for (int i = 0; i < 4; ++i) m = std::max(m, std::abs(a.stops[j][static_cast<std::size_t>(i)] + scale * b.stops[j][static_cast<std::size_t>(i)]));
+  for (std::size_t j = 0; j < a.stop_hc.size(); ++j)
+    if (a.stop_hc[j].size() > 0) {
+      over(a.stop_hc[j], b.stop_hc[j]);
+      over(a.stop_hs[j], b.stop_hs[j]);
+    }
   return m;
 }
 
@@ -85,6 +100,11 @@ SystemDerivative difference(const Data& plus, const Data& minus, double h) {
   for (std::size_t j = 0; j < plus.stops.size(); ++j)
     d.stops.push_back({(plus.stops[j][0] - minus.stops[j][0]) * k, (plus.stops[j][1] - minus.stops[j][1]) * k,
                        (plus.stops[j][2] - minus.stops[j][2]) * k, (plus.stops[j][3] - minus.stops[j][3]) * k});
+  for (std::size_t j = 0; j < plus.stop_hc.size(); ++j) {
+    const Eigen::VectorXd c = (plus.stop_hc[j] - minus.stop_hc[j]) * k, s = (plus.stop_hs[j] - minus.stop_hs[j]) * k;
+    d.stop_harmonic_cosine.emplace_back(c.data(), c.data() + c.size());
+    d.stop_harmonic_sine.emplace_back(s.data(), s.data() + s.size());
+  }
   return d;
 }
 
@@ -171,6 +191,10 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
     }
     for (std::size_t j = 0; j < sum.stops.size(); ++j)
       for (std::size_t i = 0; i < 4; ++i) sum.stops[j][i] += minus.stops[j][i];
+    for (std::size_t j = 0; j < sum.stop_hc.size(); ++j) {
+      sum.stop_hc[j] += minus.stop_hc[j];
+      sum.stop_hs[j] += minus.stop_hs[j];
+    }
     if (largest(sum, d0, -2.0) > 64.0 * std::numeric_limits<double>::epsilon() * size)
       refuse(doc, path,
              "enters the system nonlinearly (its second difference does not vanish); continuation needs a value "
