@@ -669,3 +669,47 @@ TEST_CASE("continuation: the vanishing of mass 1's split sticking phase moves wi
     }
   }
 }
+
+TEST_CASE("continuation: a grazing corner whose orbits without the impact are first met where the lost "
+          "impact's flight has no gap maximum is solved at the corner (the paper's system at Ω ≈ "
+          "0.2574626)",
+          "[continuation][wagg2004][grazing]") {
+  // Past the vanishing of mass 1's split phase the branch loses its bounces one grazing at a time.
+  // From this stable orbit with 15 impacts of s1 (a point of the scene's branch, kept to 17
+  // digits), with the step the scene's run takes there, the branch turns at a fold at 0.2574627888
+  // and comes back down, unstable, to the grazing corner at 0.2574626340, where the orbits with 14
+  // impacts leave upwards. The step past the corner lands on a 14-impact orbit 1.4e-6 above it
+  // whose flight of the lost impact has no gap maximum: its largest gap maximum is another
+  // flight's (−0.44 L), flat in Ω, and the grazing used to be bracketed by the landing point
+  // instead (0.2574644489 in the scene). The corner, solved on its own by Newton on the grazing
+  // condition from the 14-impact side near it: 0.2574626340 (test function 5.6e-14).
+  const double p0 = 0.25746276592783146;
+  VectorXd x(2), v(2);
+  x << 0.291379641461578, 0.07708840629395695;
+  v << 0.14891914464512584, 0.007625906388432056;
+  vibro::ContinuationOptions o;
+  o.p_min = 0.24;
+  o.p_max = 0.28;
+  o.step = 6.862153e-05;  // the scene's step at this point
+  o.max_step = 0.02;
+  o.max_points = 6;
+  o.max_doublings = 0;
+  const auto start = std::chrono::steady_clock::now();
+  const vibro::ContinuationResult r = vibro::continue_orbits(paper_at, p0, 0.0, x, v, o);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  REQUIRE_FALSE(r.branches.empty());
+  INFO("branch: " << r.branches[0].end << " (" << seconds << " s)");
+  for (const vibro::Bifurcation& b : r.bifurcations)
+    UNSCOPED_INFO(vibro::to_string(b.kind) << " at " << b.p << (b.smooth ? " solved" : " bracketed") << " (" << b.note << ")");
+  const vibro::Bifurcation* fold = find(r, vibro::BifurcationKind::fold, 0.2574627888);
+  const vibro::Bifurcation* graze = find(r, vibro::BifurcationKind::grazing, 0.2574626340);
+  REQUIRE(fold != nullptr);
+  REQUIRE(graze != nullptr);
+  CHECK(std::abs(fold->p - 0.2574627888) < 1e-9);
+  CHECK(graze->stop == 0);
+  CHECK(graze->smooth);
+  // Within 1e-9 of the independent solve (its 10 digits), touching the stop to 1e-9 L.
+  CHECK(std::abs(graze->p - 0.2574626340) < 1e-9);
+  CHECK(std::abs(graze->value) < 1e-9);
+  CHECK(graze->point.signature.impacts[0] == 14);
+}

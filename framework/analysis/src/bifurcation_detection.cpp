@@ -76,6 +76,28 @@ bool BranchRunner::examine(const Node& a, Node& b, int branch_index, int depth,
       const bool ok_more = !ok && std::isfinite(f(other)) && f(other) > 0.0;
       if (ok) {
         record(BifurcationKind::grazing, stop, a, b, branch_index, f, Mode::one_sided, fewer_side, "");
+        // Bracketed where the side without the impact ends: its f at `good` may be another
+        // flight's gap maximum (nearer_feature); from an orbit of that side where f is the grazing
+        // flight's own, the location is solved. Kept only if it is.
+        if (o_.locate && !result_.bifurcations.back().smooth) {
+          const Bifurcation first = result_.bifurcations.back();
+          const Node first_at = last_located_;
+          int count = 0;
+          if (const std::optional<Node> near = nearer_feature(good, other, f, fewer_side, &count)) {
+            result_.bifurcations.pop_back();
+            record(BifurcationKind::grazing, stop, *near, other, branch_index, f, Mode::one_sided, fewer_side,
+                   "the side without the impact first reached where its largest gap maximum is another flight's: "
+                   "located from its orbits nearer to the grazing");
+            result_.bifurcations.back().evaluations += first.evaluations + count;
+            if (!result_.bifurcations.back().smooth) {
+              result_.bifurcations.back() = first;
+              result_.bifurcations.back().evaluations += count;
+              last_located_ = first_at;
+            }
+          } else {
+            result_.bifurcations.back().evaluations += count;
+          }
+        }
       } else {
         bool solved = false;
         if (ok_more) {

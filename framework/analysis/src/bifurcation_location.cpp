@@ -217,6 +217,40 @@ std::optional<Node> BranchRunner::one_sided(const Node& good, const Node& bad, c
   return std::nullopt;
 }
 
+/// An orbit of good's side nearer to the zero of f than `good`, where good's f is not yet the
+/// feature that goes to zero there: far from a grazing the flight whose impact is lost may have no
+/// interior gap maximum at all (its maximum merges with the flight's end), and the orbit's largest
+/// gap maximum, f there, is another flight's, far from zero and flat in p (the paper's system at
+/// Ω ≈ 0.2574644: −0.44 L, 1.8e-6 above the grazing corner, where the secant had nothing to follow).
+/// The side's orbits are followed by Newton at fixed p from good towards `bad` and beyond it, up to
+/// 6 times their distance (at a corner both parts of the branch lie on one side in p): a bisection
+/// on whether an orbit of that side exists there, each point from the nearest one found, until one
+/// has |f| ≤ 1e-3 |f(good)| (the grazing flight's own maximum, near zero). nullopt if none does.
+std::optional<Node> BranchRunner::nearer_feature(const Node& good, const Node& bad, const TestFunction& f,
+                                                 const std::function<bool(const Node&)>& on_good, int* count) {
+  const double f_good = f(good);
+  if (!std::isfinite(f_good) || f_good == 0.0) return std::nullopt;
+  const double dir = bad.e.p > good.e.p ? 1.0 : -1.0;
+  Node lo = good;
+  // (6, not 8: the bisection's points then never fall on bad's p itself, from where the secant
+  // towards bad would have no step to take.)
+  double hi = good.e.p + dir * 6.0 * std::abs(bad.e.p - good.e.p);
+  const bool doubled = c_.k > o_.period;
+  for (int it = 0; it < 60 && std::abs(hi - lo.e.p) > o_.locate_tolerance; ++it) {
+    const double p = 0.5 * (lo.e.p + hi);
+    std::optional<Node> m = at_p(lo, p, lo.t);
+    if (count) ++*count;
+    const double fm = m ? f(*m) : kNaN;
+    if (!m || !on_good(*m) || !std::isfinite(fm) || (doubled && c_.closes_after(m->e, c_.k / 2))) {
+      hi = p;
+      continue;
+    }
+    if (std::abs(fm) <= 1e-3 * std::abs(f_good)) return m;
+    lo = std::move(*m);
+  }
+  return std::nullopt;
+}
+
 /// Bisection in p on a discrete property (same_as_a: whether a point is on a's side), each
 /// point by Newton at fixed p from the nearer bracket end's orbit (or the farther one's if
 /// that fails). Returns a's-side end of the final bracket; where no orbit can be found inside

@@ -84,6 +84,8 @@ class BranchRunner {
   std::optional<Node> one_sided(const Node& good, const Node& bad, const TestFunction& f,
                                 const std::function<bool(const Node&)>& on_good, int* count,
                                 double solved = std::numeric_limits<double>::infinity());
+  std::optional<Node> nearer_feature(const Node& good, const Node& bad, const TestFunction& f,
+                                    const std::function<bool(const Node&)>& on_good, int* count);
   std::optional<Node> bisect(const Node& a, const Node& b, const std::function<bool(const Node&)>& same_as_a,
                              int* count);
   void record(BifurcationKind kind, int stop, const Node& a, const Node& b, int branch_index,

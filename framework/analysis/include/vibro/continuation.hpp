@@ -75,9 +75,10 @@
 ///    orbit's nearest approach to the stop, continuous through the grazing — below it the
 ///    largest interior maximum of the gap (< 0), above it the height u²/(2|g''|) the slowest
 ///    impact's free parabola would rise past the stop (> 0; u the approach speed, g'' the gap's
-///    free acceleration at impact); solved from the side without the impact, or, where that
-///    side's orbit has no gap maximum at the stop, from the side with it; failing both,
-///    bracketed by bisection;
+///    free acceleration at impact); solved from the side without the impact (where its orbit
+///    was met far from the grazing, whose flight there has no gap maximum of its own, from that
+///    side's orbits nearer to it), or, where that side's orbit has no gap maximum at the stop,
+///    from the side with it; failing both, bracketed by bisection;
 ///  * rising / multi-sliding of stop j (a contact phase of j splits): before it, the least
 ///    interior minimum of j's contact force (> 0); after it, the minimum of the force the held
 ///    flow continued past the release would need (< 0) (Wagg 2004; linearisation.hpp features);
