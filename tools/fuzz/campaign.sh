@@ -7,9 +7,11 @@
 #
 #   -n RUNS   executions per target (libFuzzer -runs), default 1000000
 #   -t SECONDS  at most this wall time per target (libFuzzer -max_total_time), default none
-#   -b BUILD  the sanitize build whose tools/fuzz/TARGET binaries run, default build/sanitize
-#             (cmake --preset sanitize && cmake --build --preset sanitize --target fuzz_scene fuzz_run);
-#             only read: nothing is written there unless WORK lies inside it
+#   -b BUILD  the build whose tools/fuzz/TARGET binaries run, default build/fuzz (the `fuzz` preset:
+#             UBSan, no ASan, -O2: cmake --preset fuzz && cmake --build --preset fuzz); build/sanitize
+#             for ASan + UBSan at -O1 (cmake --build --preset sanitize --target fuzz_scene fuzz_run),
+#             several times slower (docs/fuzzing.md). The log and the table rows name the build's
+#             sanitizers and optimisation. Only read: nothing is written there unless WORK lies inside it
 #   -w WORK   where the campaign writes (created; it must not exist or be empty), default
 #             BUILD/fuzz-campaign-DATE: seeds/, corpus-TARGET/ (what the run learnt),
 #             TARGET.log (libFuzzer's output), TARGET-crash-* etc. (findings), campaign.log
@@ -32,7 +34,7 @@ cd "$(dirname "$0")/../.."
 source=$PWD
 runs=1000000
 seconds=0
-build=build/sanitize
+build=build/fuzz
 work=
 while getopts "n:t:b:w:" option; do
   case $option in
@@ -40,7 +42,7 @@ while getopts "n:t:b:w:" option; do
     t) seconds=$OPTARG ;;
     b) build=$OPTARG ;;
     w) work=$OPTARG ;;
-    *) sed -n '5,13p' "$0" >&2; exit 2 ;;
+    *) sed -n '5,18p' "$0" >&2; exit 2 ;;
   esac
 done
 shift $((OPTIND - 1))
@@ -50,7 +52,7 @@ case $runs in '' | *[!0-9]*) echo "campaign: -n $runs: not a whole number of exe
 case $seconds in '' | *[!0-9]*) echo "campaign: -t $seconds: not a whole number of seconds" >&2; exit 2 ;; esac
 build=$(cd "$build" && pwd) || { echo "campaign: no build folder $build" >&2; exit 2; }
 for target in "${targets[@]}"; do
-  [ -x "$build/tools/fuzz/$target" ] || { echo "campaign: $build/tools/fuzz/$target is missing (build it: cmake --build --preset sanitize --target $target)" >&2; exit 2; }
+  [ -x "$build/tools/fuzz/$target" ] || { echo "campaign: $build/tools/fuzz/$target is missing (build it: cmake --build --preset fuzz, or --preset sanitize --target $target)" >&2; exit 2; }
 done
 work=${work:-$build/fuzz-campaign-$(date -u +%Y%m%dT%H%M%SZ)}
 if [ -e "$work" ] && [ -n "$(ls -A "$work")" ]; then
@@ -69,10 +71,16 @@ if [ -n "$tree" ] && git -C "$tree" rev-parse --short HEAD > /dev/null 2>&1; the
   commit=$(git -C "$tree" rev-parse --short HEAD)
   git -C "$tree" diff --quiet HEAD -- 2> /dev/null || commit="$commit (with uncommitted changes)"
 fi
+# Which instrumentation the binaries carry, from the build's cache: "ASan + UBSan, -O1" or "UBSan, -O2".
+cache() { sed -n "s/^$1:[A-Z]*=//p" "$build/CMakeCache.txt" 2>/dev/null | head -1; }
+flags="$(cache CMAKE_CXX_FLAGS) $(cache "CMAKE_CXX_FLAGS_$(cache CMAKE_BUILD_TYPE | tr a-z A-Z)")"
+sanitizers=$(grep -o -- '-fsanitize=[a-z,-]*' <<< "$flags" | sed 's/-fsanitize=//' | tr ',' '\n' | sed -n 's/^address$/ASan/p; s/^undefined$/UBSan/p' | sort -u | paste -sd+ | sed 's/+/ + /g')
+optimisation=$(grep -o -- '-O[0-3s]' <<< "$flags" | tail -1)
+instrumented="${sanitizers:-no sanitizer}, ${optimisation:-?}"
 log=$work/campaign.log
 {
-  echo "campaign: $(date -u '+%Y-%m-%d %H:%M:%S UTC'), $runs executions per target$([ "$seconds" = 0 ] || echo " (at most $seconds s each)"), both at once"
-  echo "build: $build (sources $tree at $commit; binaries of $(date -u -r "$build/tools/fuzz/${targets[0]}" '+%Y-%m-%d %H:%M UTC'))"
+  echo "campaign: $(date -u '+%Y-%m-%d %H:%M:%S UTC'), $runs executions per target$([ "$seconds" = 0 ] || echo " (at most $seconds s each)"), ${#targets[@]} target(s) at once"
+  echo "build: $build, $instrumented (sources $tree at $commit; binaries of $(date -u -r "$build/tools/fuzz/${targets[0]}" '+%Y-%m-%d %H:%M UTC'))"
   echo "seeds: $seeds scenes; dictionary tools/fuzz/scene.dict; max_len ${MAX_LEN:-4096}; machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
 } | tee "$log" >&2
 
@@ -80,12 +88,19 @@ declare -A pid started
 for target in "${targets[@]}"; do
   mkdir -p "$work/corpus-$target"
   started[$target]=$(date +%s.%N)
-  ( cd "$work" &&
-    exec nice -n "${NICE:-0}" env ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 \
+  # The subshell's `times` gives the target's CPU time (every thread's), which a loaded machine
+  # does not stretch as it stretches the wall time. fuzz_run writes its per-input phase times
+  # (FUZZ_RUN_TIMES, tools/fuzz/fuzz_run.cpp) to WORK/TARGET.times.
+  ( cd "$work" || exit 2
+    code=0
+    nice -n "${NICE:-0}" env ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 \
       UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 LSAN_OPTIONS=suppressions=$source/tools/fuzz/lsan.supp \
+      FUZZ_RUN_TIMES="$work/$target.times" \
       "$build/tools/fuzz/$target" "$work/corpus-$target" "$work/seeds" -dict="$source/tools/fuzz/scene.dict" \
       -runs="$runs" -max_total_time="$seconds" -max_len="${MAX_LEN:-4096}" -timeout=30 -rss_limit_mb=4096 -malloc_limit_mb=4096 \
-      -artifact_prefix="$work/$target-" -print_final_stats=1 > "$work/$target.log" 2>&1 ) &
+      -artifact_prefix="$work/$target-" -print_final_stats=1 > "$work/$target.log" 2>&1 || code=$?
+    times > "$work/$target.cpu"  # (not in a pipe: a pipe's subshell has no children)
+    exit $code ) &
   pid[$target]=$!
 done
 
@@ -103,11 +118,16 @@ done
 
 stat() { sed -n "s/^stat::$1: *//p" "$work/$2.log" | tail -1; }
 rows=()
+together="both targets at once"
+[ ${#targets[@]} -gt 1 ] || together="one target alone"
 for target in "${targets[@]}"; do
   out=$work/$target.log
   executed=$(stat number_of_executed_units "$target")
   wall=$(awk -v a="${started[$target]}" -v b="${ended[$target]}" 'BEGIN { printf "%.0f", b - a }')
   per_second=$(awk -v n="${executed:-0}" -v s="$wall" 'BEGIN { printf "%.0f", (s > 0 ? n / s : 0) }')
+  # `times`' children line: "XmY.YYYs XmY.YYYs" (user, system).
+  cpu=$(tail -1 "$work/$target.cpu" 2> /dev/null | awk '{ s = 0; for (i = 1; i <= 2; ++i) { split($i, p, /[ms]/); s += 60 * p[1] + p[2] } printf "%.0f", s }' || true)
+  per_cpu=$(awk -v n="${executed:-0}" -v s="${cpu:-0}" 'BEGIN { printf "%.0f", (s > 0 ? n / s : 0) }')
   # libFuzzer's last status line: "#N DONE cov: C ft: F corp: U/S ..." (or the last line before a finding).
   last=$(grep -E '^#[0-9]+.*cov: ' "$out" | tail -1 || true)
   cov=$(sed -n 's/.*cov: \([0-9]*\).*/\1/p' <<< "$last")
@@ -131,10 +151,13 @@ for target in "${targets[@]}"; do
     found="${what:-exit code ${code[$target]}}; input: $(echo $artifacts | tr ' ' ',')"
   fi
   {
-    echo "$target: executions ${executed:-?} of $runs, wall ${wall} s, ${per_second} exec/s, coverage cov ${cov:-?} ft ${ft:-?} (corpus ${corp:-?} inputs), peak RSS ${rss:-?} MB, slowest input ${slowest:-?} s, exit code ${code[$target]}"
+    echo "$target: executions ${executed:-?} of $runs, wall ${wall} s, ${per_second} exec/s, CPU ${cpu:-?} s (${per_cpu} executions per CPU second), coverage cov ${cov:-?} ft ${ft:-?} (corpus ${corp:-?} inputs), peak RSS ${rss:-?} MB, slowest input ${slowest:-?} s, exit code ${code[$target]}"
     echo "$target: found: $found"
+    if [ -s "$work/$target.times" ]; then  # where fuzz_run's time went (per run kind and phase)
+      python3 "$source/tools/fuzz/times.py" "$work/$target.times" | sed "s/^/$target: /" || true
+    fi
   } | tee -a "$log" >&2
-  rows+=("| $(date -u +%Y-%m-%d) | $target | \`campaign.sh -n $runs$([ "$seconds" = 0 ] || echo " -t $seconds")\` (at $commit; both targets at once) | ${executed:-?} | $wall | $per_second | cov ${cov:-?}, ft ${ft:-?} | $found |")
+  rows+=("| $(date -u +%Y-%m-%d) | $target | \`campaign.sh -n $runs$([ "$seconds" = 0 ] || echo " -t $seconds")\` ($instrumented; at $commit; $together) | ${executed:-?} | $wall | $per_second ($per_cpu per CPU s) | cov ${cov:-?}, ft ${ft:-?} | $found |")
 done
 {
   echo

@@ -22,12 +22,42 @@ inline constexpr std::size_t kMaxInput = 64 * 1024;
 /// is linear in its points by design (a 10⁶-point linspace takes seconds, not a hang).
 inline constexpr double kMaxGridPoints = 1000;
 
-/// A run over a grid of two axes (a basin, a two-parameter sweep) with more points than this is
-/// skipped by fuzz_run: 256 × 256, experiments/chaos/basin_wagg.yaml's grid, so the seeds run
-/// whole. Each axis is validated value by value when the scene loads (linear, bounded above),
-/// but the run allocates, labels and writes every point of the product even when interrupted at
-/// once: 1000 × 1000 points are seconds of that in release, tens of seconds under ASan.
-inline constexpr std::size_t kMaxGridCells = 256 * 256;
+/// Every run kind's grid (run_section.cpp's RunSection::axis callers); each is given by a
+/// `linspace` or `logspace` (a count) or a `values` list.
+inline constexpr const char* kGrids[] = {"run.sweep.parameters[0]", "run.sweep.parameters[1]", "run.basin.parameters[0]",
+                                         "run.basin.parameters[1]", "run.locate", "run.diagram", "run.lyapunov"};
+
+/// The grids fuzz_run runs: at most this many points per axis. Each point of a grid is a scene,
+/// validated when the scene is built and set up again when the run starts, linear in the points
+/// by design: a basin of 256 × 256 points (experiments/chaos/basin_wagg.yaml) takes 1.1–1.9 s to
+/// build under ASan, a diagram of 200 points 1.2 s, where fuzz_run can spend a few ms on an input.
+/// fuzz_run lowers a larger count to this one (limit_grids, the same ends) and skips an input with
+/// a longer values list.
+inline constexpr double kRunGridPoints = 16;
+
+/// Whether every grid of `doc` has at most `points` points. A `linspace` or `logspace` count above
+/// it is lowered to it (the same ends) if `lower`, else makes the answer false; a `values` list
+/// with more makes it false.
+inline bool limit_grids(io::SceneDocument& doc, double points, bool lower) {
+  const std::string past = "values[" + std::to_string(static_cast<long>(points)) + "]";
+  for (const char* grid : kGrids) {
+    const std::string axis(grid);
+    for (const char* spaced : {".linspace[2]", ".logspace[2]"}) {
+      try {
+        if (doc.get(axis + spaced) <= points) continue;
+        if (!lower) return false;
+        doc.set(axis + spaced, points);
+      } catch (const io::SceneError&) {
+      }
+    }
+    try {
+      (void)doc.get(axis + "." + past);  // a number there: more than `points` values
+      return false;
+    } catch (const io::SceneError&) {
+    }
+  }
+  return true;
+}
 
 /// The document, with the "#set" lines applied; none if the input is skipped or refused.
 inline std::optional<io::SceneDocument> document(const std::uint8_t* data, std::size_t size) {
@@ -42,27 +72,9 @@ inline std::optional<io::SceneDocument> document(const std::uint8_t* data, std::
       at = end + 1;
       if (at >= text.size()) break;
     }
-    // Every run kind's grid (run_section.cpp's RunSection::axis callers), in each of its three
-    // forms: a linspace or logspace count above the limit, or a values list with a number past
-    // it. The basin grids were missing: a fuzzed basin_wagg.yaml with 8561 rows took 12–16 s per
-    // input under ASan (35 µs per row in release, linear as designed), which libFuzzer reported
-    // as slow units.
-    const std::string past = "values[" + std::to_string(static_cast<long>(kMaxGridPoints)) + "]";
-    for (const char* grid : {"run.sweep.parameters[0]", "run.sweep.parameters[1]", "run.basin.parameters[0]",
-                             "run.basin.parameters[1]", "run.locate", "run.diagram", "run.lyapunov"}) {
-      const std::string axis(grid);
-      for (const char* spaced : {".linspace[2]", ".logspace[2]"}) {
-        try {
-          if (doc.get(axis + spaced) > kMaxGridPoints) return std::nullopt;
-        } catch (const io::SceneError&) {
-        }
-      }
-      try {
-        (void)doc.get(axis + "." + past);  // a number there: more than kMaxGridPoints values
-        return std::nullopt;
-      } catch (const io::SceneError&) {
-      }
-    }
+    // Every run kind's grid, in each of its three forms (a fuzzed basin_wagg.yaml with 8561 rows
+    // takes 12–16 s under ASan: 35 µs per row in release, linear as designed).
+    if (!limit_grids(doc, kMaxGridPoints, false)) return std::nullopt;
     return doc;
   } catch (const io::SceneError&) {
     return std::nullopt;
