@@ -532,7 +532,7 @@ TEST_CASE("modal tangent map: a record refuses to be used after the engine ran a
 // so J is bit for bit the one pass J·I (no tolerance), here through free flights, impacts,
 // sticking, release and a held set's own modes (both routes), with 2N = 160 (blocks of 64 and 96).
 // Raised before fill_jacobian, the flag makes it throw Interrupted (and linearise report the map
-// as interrupted: tests/io/test_signals.py).
+// as interrupted: tests/io/test_signals.py); so it does for products along given directions.
 TEST_CASE("modal tangent map: the full J in column blocks is the one-pass J bit for bit, and an interrupt ends it",
           "[modal_tangent]") {
   const int n = 80;
@@ -556,6 +556,7 @@ TEST_CASE("modal tangent map: the full J in column blocks is the one-pass J bit 
     stop = true;
     vibro::TangentMap cut;
     CHECK_THROWS_AS(t.fill_jacobian(cut), vibro::Interrupted);
+    CHECK_THROWS_AS(t.apply(MatrixXd::Identity(2 * n, 3)), vibro::Interrupted);
   });
 }
 

@@ -20,7 +20,7 @@ constexpr Index kBoundedFromCoordinates = 64;
 
 }  // namespace
 
-/// B's LU, its eigenvalues: O(n³) and not pollable, so from kBoundedFromCoordinates on under
+/// B's LU, the SVD when it fails, its eigenvalues: O(n³) and not pollable, so from kBoundedFromCoordinates on under
 /// run_bounded with the run's interrupt flag, on copies of their inputs (bounded_wait.hpp): the
 /// same bits; raising the flag throws Interrupted within 10 ms.
 template <class F>
@@ -79,10 +79,11 @@ VectorXd Continuer::tangent(const Eval& e, const VectorXd& along) const {
   VectorXd rhs = VectorXd::Zero(N);
   rhs(N - 1) = 1.0;
   VectorXd t = bounded([B, rhs] { return VectorXd(B.fullPivLu().solve(rhs)); });
-  if (!t.allFinite() || t.norm() == 0.0) {  // `along` ⟂ the null space: take it from the SVD
-    Eigen::JacobiSVD<MatrixXd> svd(jacobian(e), Eigen::ComputeFullV);
-    t = svd.matrixV().col(N - 1);
-  }
+  if (!t.allFinite() || t.norm() == 0.0)  // `along` ⟂ the null space: take it from the SVD (bounded as the LU)
+    t = bounded([A = MatrixXd(jacobian(e)), N] {
+      const Eigen::JacobiSVD<MatrixXd> svd(A, Eigen::ComputeFullV);
+      return VectorXd(svd.matrixV().col(N - 1));
+    });
   t.normalize();
   if (t.dot(along) < 0.0) t = -t;
   return t;

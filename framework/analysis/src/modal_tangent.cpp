@@ -751,16 +751,18 @@ void ModalTangent::apply_range(std::size_t from, std::size_t to, MatrixXd& D, bo
   want(modal_out);
 }
 
-MatrixXd ModalTangent::through(const MatrixXd& directions, bool modal) const {
+MatrixXd ModalTangent::through(const MatrixXd& directions, bool modal, const std::atomic<bool>* stop) const {
   if (directions.rows() != 2 * n_)
     throw InvalidInput("modal tangent: directions have " + std::to_string(directions.rows()) +
                        " rows, expected 2n = " + std::to_string(2 * n_));
   MatrixXd D = directions;
-  apply_range(0, record_->ops.size(), D, modal, modal);
+  apply_range(0, record_->ops.size(), D, modal, modal, nullptr, stop);
   return D;
 }
 
-MatrixXd ModalTangent::apply(const MatrixXd& directions) const { return through(directions, false); }
+MatrixXd ModalTangent::apply(const MatrixXd& directions) const {
+  return through(directions, false, sim_->options().interrupt);
+}
 
 VectorXd ModalTangent::parameter(const SystemDerivative& derivative) const {
   check_derivative(derivative, n_, sim_->stops().size());
@@ -838,17 +840,16 @@ TangentMap linearise(ModalEngine& engine, double t0, const VectorXd& x0, const V
   ModalTangent tangent(engine, t0, x0, v0, t1, options);
   TangentMap out = tangent.map();
   if (out.summary.status != RunStatus::completed) return out;
-  if (options.directions.size() > 0) {
-    out.products = tangent.apply(options.directions);
-  } else if (options.jacobian) {
-    try {
+  try {
+    if (options.directions.size() > 0)
+      out.products = tangent.apply(options.directions);
+    else if (options.jacobian)
       tangent.fill_jacobian(out);
-    } catch (const Interrupted&) {  // as the dense engine's map interrupted while J is formed
-      out.jacobian = out.reduced = out.lift = MatrixXd();
-      out.summary.status = RunStatus::interrupted;
-      out.summary.message = "interrupted at t = " + number_text(out.summary.t) + " while the tangent map was formed";
-      return out;
-    }
+  } catch (const Interrupted&) {  // as the dense engine's map interrupted while J is formed
+    out.jacobian = out.reduced = out.lift = out.products = MatrixXd();
+    out.summary.status = RunStatus::interrupted;
+    out.summary.message = "interrupted at t = " + number_text(out.summary.t) + " while the tangent map was formed";
+    return out;
   }
   if (options.parameter) out.parameter = tangent.parameter(*options.parameter);
   return out;

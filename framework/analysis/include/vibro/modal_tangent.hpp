@@ -88,7 +88,8 @@ class ModalTangent {
   const TangentMap& map() const { return map_; }
   Eigen::Index size() const { return 2 * n_; }
 
-  /// J·D for D of 2N rows (unscaled x, v).
+  /// J·D for D of 2N rows (unscaled x, v). The engine's interrupt flag is looked at between the
+  /// record's ops, as in fill_jacobian(): throws Interrupted once it is raised.
   Eigen::MatrixXd apply(const Eigen::MatrixXd& directions) const;
   /// ∂(x1, v1)/∂p at fixed t0, t1 along dD (TangentMap::parameter of linearisation.hpp), exactly,
   /// for a dD that leaves the chain's homogeneous dynamics alone: Ω, the forcing, every stop's
@@ -118,8 +119,9 @@ class ModalTangent {
   struct Sensitivity;  ///< a parameter column's data (likewise)
 
  private:
-  /// The whole record on D, in physical or modal coordinates; checks D's size.
-  Eigen::MatrixXd through(const Eigen::MatrixXd& directions, bool modal) const;
+  /// The whole record on D, in physical or modal coordinates; checks D's size. With `stop`, as
+  /// apply_range.
+  Eigen::MatrixXd through(const Eigen::MatrixXd& directions, bool modal, const std::atomic<bool>* stop = nullptr) const;
   /// Ops [from, to) of the record applied to D in place; D's columns in modal coordinates on the
   /// way in / out where asked. With `p`, column p->column is a parameter sensitivity ζ and also
   /// gets the affine terms of each flight and event.
