@@ -12,12 +12,15 @@
 #include <functional>
 #include <limits>
 #include <stdexcept>
+#include <utility>
+#include <vector>
 
 namespace vibro {
 namespace {
 
 using taylor::horner_compensated;
 using taylor::harmonic_series;
+using taylor::harmonic_tail;
 
 double horner(const double* a, int p, double tau) {
   double s = a[p];
@@ -30,11 +33,18 @@ double horner_slope(const double* a, int p, double tau) {
   return s;
 }
 
+/// One harmonic of a stop's motion in the canonical offset s_j(t) (stops.hpp): c cos wt + s sin wt.
+struct MotionHarmonic {
+  double rate, cosine, sine;
+};
+
 /// The stops' tables (per run): normals W, M⁻¹W, G = WᵀM⁻¹W, the stops' motion, and the
 /// chatter rule's coefficients of the linear part (as the dense engine's, simulator.cpp).
 struct TaylorTables {
   Eigen::MatrixXd normals, minv_normals, delassus, damped_normals, stiff_normals, minv_damping;
   Eigen::VectorXd s0, sc, ss, alpha, beta;
+  std::vector<std::vector<MotionHarmonic>> higher;  ///< per stop: its harmonics of order ≥ 2
+  std::vector<std::vector<std::pair<Eigen::Index, double>>> entries;  ///< per stop: w's nonzero (l, w_l)
 
   explicit TaylorTables(const ImpactSystem& scene) {
     const LinearSystem& sys = scene.system();
@@ -58,6 +68,12 @@ struct TaylorTables {
       s0(j) = st.s0();
       sc(j) = st.s_cos();
       ss(j) = st.s_sin();
+      entries.emplace_back();
+      for (Eigen::Index l = 0; l < normals.rows(); ++l)
+        if (normals(l, j) != 0.0) entries.back().emplace_back(l, normals(l, j));
+      higher.emplace_back();
+      for (std::size_t h = 0; h < st.harmonics.size(); ++h)
+        higher.back().push_back({st.harmonics[h].rate(sys.forcing().frequency), st.h_cos(h), st.h_sin(h)});
       const auto q = minv_normals.col(j);
       const double G = delassus(j, j), qcq = q.dot(sys.damping() * q);
       alpha(j) = -qcq / G;
@@ -85,7 +101,6 @@ TaylorSimulator::TaylorSimulator(const ImpactSystem& scene, const NonlinearForce
     : scene_(&scene), options_(options), tolerance_(forces.tolerance), order_(forces.order) {
   options_.validate();
   taylor::TaylorSettings{.tolerance = tolerance_, .order = order_}.validate();
-  refuse_higher_harmonic_stops(scene.stops(), "the Taylor engine (model.forces)");
   const LinearSystem& sys = scene.system();
   taylor::TaylorSystemSpec spec;
   spec.mass = sys.mass();
@@ -126,6 +141,24 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
     cos_.resize(static_cast<std::size_t>(p_) + 3);
     sin_.resize(static_cast<std::size_t>(p_) + 3);
     stop_pos_.resize(static_cast<std::size_t>(p_) + 3);
+    harmonic_cos_.resize(static_cast<std::size_t>(p_) + 3);
+    harmonic_sin_.resize(static_cast<std::size_t>(p_) + 3);
+    // The stops' motion caps the step (motion_cap): stop j's series cut after order p leaves out
+    // at most Σ_h A_h (w_h h)^{p+1} / ((p+1)! (1 − w_h h/(p+2))) (harmonic_tail), which stays
+    // below ε S when E_j h^{p+1} / (p+1)! ≤ ε S / 2, E_j = Σ_h A_h w_h^{p+1}, and w_h h ≤ (p+2)/2.
+    double factorial = 1.0;
+    for (int k = 2; k <= p_ + 1; ++k) factorial *= k;
+    for (Eigen::Index j = 0; j < m; ++j) {
+      double e = 0.0;
+      auto add = [&](double amplitude, double w) {
+        if (amplitude == 0.0 || w == 0.0) return;
+        e += amplitude * std::pow(std::abs(w), p_ + 1);
+        motion_rate_ = std::max(motion_rate_, std::abs(w));
+      };
+      add(std::hypot(tab_.sc(j), tab_.ss(j)), frequency());
+      for (const MotionHarmonic& h : tab_.higher[static_cast<std::size_t>(j)]) add(std::hypot(h.cosine, h.sine), h.rate);
+      if (e > 0.0) motion_cap_ = std::min(motion_cap_, std::pow(factorial / (2.0 * e), 1.0 / (p_ + 1)));
+    }
     guard_.resize(static_cast<std::size_t>(p_) + 1);
     z_.resize(2 * n_);
     rate_.resize(2 * n_);
@@ -224,7 +257,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
       ++sim_.steps_;
       // The step runs its full length past the search window's end b (the windows only pace the
       // loop's progress report and interruption), cut at the segment's reach alone.
-      double length = std::min(step_.step_size(), reach_ - cursor_);
+      double length = std::min({step_.step_size(), motion_cap(), reach_ - cursor_});
       const std::size_t width = static_cast<std::size_t>(p_) + 1;
       r.z.resize(static_cast<std::size_t>(2 * n_) * width);
       for (Eigen::Index i = 0; i < 2 * n_; ++i)
@@ -255,6 +288,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
           guard_coefficients(r, i, guard_.data());
           double rounding = 0.0, truncation = 0.0;
           step_.remainder_parts(guard_.data(), length, &rounding, &truncation);
+          if (i < opening_rows_) truncation += motion_tail(row_stop_[static_cast<std::size_t>(i)], std::min(length, step_.step_size()));
           const taylor::GuardCrossing c = roots_.first_crossing(guard_.data(), p_, length, triggers_(i), rounding,
                                                                 truncation, /*rounding_scales=*/true);
           if (c.kind == taylor::CrossingKind::crossing || c.kind == taylor::CrossingKind::at_start) {
@@ -337,12 +371,14 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
 
   // ---- ContactAlgebra (event_resolution.hpp) ----
   double gap(int j, double t, const Eigen::VectorXd& x) const override {
-    return tab_.normals.col(j).dot(x) - (tab_.s0(j) + tab_.sc(j) * std::cos(frequency() * t) +
-                                         tab_.ss(j) * std::sin(frequency() * t));
+    const double g = tab_.normals.col(j).dot(x) - (tab_.s0(j) + tab_.sc(j) * std::cos(frequency() * t) +
+                                                   tab_.ss(j) * std::sin(frequency() * t));
+    return g - higher_motion(j, t, 0);
   }
   void gap_rates(double t, const Eigen::VectorXd& v, Eigen::Ref<Eigen::VectorXd> out) const override {
     const double w = frequency(), c = std::cos(w * t), s = std::sin(w * t);
-    for (Eigen::Index j = 0; j < out.size(); ++j) out(j) = tab_.normals.col(j).dot(v) - w * (-tab_.sc(j) * s + tab_.ss(j) * c);
+    for (Eigen::Index j = 0; j < out.size(); ++j)
+      out(j) = tab_.normals.col(j).dot(v) - w * (-tab_.sc(j) * s + tab_.ss(j) * c) - higher_motion(static_cast<int>(j), t, 1);
   }
   /// The acceleration LCP (contact.hpp) with the free acceleration of the nonlinear system.
   void settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, const ContactSet& candidates,
@@ -359,7 +395,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
     const double w = frequency(), c = std::cos(w * t), s = std::sin(w * t);
     for (Eigen::Index a = 0; a < k; ++a) {
       const int j = candidates[static_cast<std::size_t>(a)];
-      q(a) = tab_.normals.col(j).dot(rate_.tail(n_)) + w * w * (tab_.sc(j) * c + tab_.ss(j) * s);
+      q(a) = tab_.normals.col(j).dot(rate_.tail(n_)) + w * w * (tab_.sc(j) * c + tab_.ss(j) * s) - higher_motion(j, t, 2);
     }
     // q = Wᵀ a_free − p̈ is the free gap acceleration; the LCP wants it as the dense engine's
     // Wᵀ M⁻¹ (f − C v − K x) − s'' (the same quantity).
@@ -492,35 +528,72 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
       harmonic_series(rate, t0, p_, cos_.data(), sin_.data());
       const double* cosine = drive_.col(column).data();
       const double* sine = drive_.col(column + 1).data();
-      int k = 0;
-      if (first) {  // column 0 with the constant part, then the columns written (not added to)
-        for (Eigen::Index i = 0; i < n; ++i) out[i] = constant[i] + (cosine[i] * cos_[0] + sine[i] * sin_[0]);
-        for (k = 1; k <= p_; ++k) {
-          const double c = cos_[static_cast<std::size_t>(k)], s = sin_[static_cast<std::size_t>(k)];
-          double* col = out + static_cast<Eigen::Index>(k) * n;
-          for (Eigen::Index i = 0; i < n; ++i) col[i] = cosine[i] * c + sine[i] * s;
+      const double* cs = cos_.data();
+      const double* sn = sin_.data();
+      // Coordinate by coordinate (each entry is its own closed form: the order of the loops does
+      // not change a bit), the orders innermost, contiguous for one coordinate.
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const double a = cosine[i], b = sine[i];
+        double* row = out + i;
+        if (first) {  // order 0 with the constant part, then the entries written (not added to)
+          row[0] = constant[i] + (a * cs[0] + b * sn[0]);
+          for (int k = 1; k <= p_; ++k) row[static_cast<Eigen::Index>(k) * n] = a * cs[k] + b * sn[k];
+        } else {
+          for (int k = 0; k <= p_; ++k) {
+            double& e = row[static_cast<Eigen::Index>(k) * n];
+            e = e + (a * cs[k] + b * sn[k]);
+          }
         }
-        return;
-      }
-      for (; k <= p_; ++k) {
-        const double c = cos_[static_cast<std::size_t>(k)], s = sin_[static_cast<std::size_t>(k)];
-        double* col = out + static_cast<Eigen::Index>(k) * n;
-        for (Eigen::Index i = 0; i < n; ++i) col[i] = col[i] + (cosine[i] * c + sine[i] * s);
       }
     };
     add_harmonic(f.frequency, 1, true);
     for (std::size_t h = 0; h < f.harmonics.size(); ++h)
       add_harmonic(f.harmonics[h].rate(f.frequency), 3 + 2 * static_cast<Eigen::Index>(h), false);
     if (!held || !stop_acc) return;
-    harmonic_series(f.frequency, t0, p_ + 2, cos_.data(), sin_.data());
     for (std::size_t a = 0; a < held->key.size(); ++a) {
       const int j = held->key[a];
-      for (int k = 0; k <= p_; ++k) {
-        const auto kk = static_cast<std::size_t>(k) + 2;
+      motion_series(j, t0, p_ + 2, stop_pos_.data());
+      for (int k = 0; k <= p_; ++k)
         (*stop_acc)(static_cast<Eigen::Index>(a), k) =
-            static_cast<double>((k + 1) * (k + 2)) * (tab_.sc(j) * cos_[kk] + tab_.ss(j) * sin_[kk]);
+            static_cast<double>((k + 1) * (k + 2)) * stop_pos_[static_cast<std::size_t>(k) + 2];
+    }
+  }
+  /// Stop j's position s_j(t0 + τ)'s series to `order` (≤ p + 2) in out: s0, the first harmonic
+  /// and every higher one, each in closed form (harmonic_series).
+  void motion_series(int j, double t0, int order, double* out) {
+    const bool moving = tab_.sc(j) != 0.0 || tab_.ss(j) != 0.0;  // a fixed stop's position is s0 alone
+    if (moving) harmonic_series(frequency(), t0, order, cos_.data(), sin_.data());
+    for (int k = 0; k <= order; ++k) {
+      const auto kk = static_cast<std::size_t>(k);
+      const double s0 = k == 0 ? tab_.s0(j) : 0.0;
+      out[k] = moving ? s0 + tab_.sc(j) * cos_[kk] + tab_.ss(j) * sin_[kk] : s0;
+    }
+    for (const MotionHarmonic& h : tab_.higher[static_cast<std::size_t>(j)]) {
+      harmonic_series(h.rate, t0, order, harmonic_cos_.data(), harmonic_sin_.data());
+      for (int k = 0; k <= order; ++k) {
+        const auto kk = static_cast<std::size_t>(k);
+        out[k] += h.cosine * harmonic_cos_[kk] + h.sine * harmonic_sin_[kk];
       }
     }
+  }
+  /// The higher harmonics' part of stop j's s_j, s_j' or s_j'' at t (stops.hpp; 0 without them).
+  double higher_motion(int j, double t, int derivative) const {
+    if (tab_.higher[static_cast<std::size_t>(j)].empty()) return 0.0;
+    return stop_higher_motion(scene_.stops()[static_cast<std::size_t>(j)], frequency(), t, derivative);
+  }
+  /// The bound on what stop j's motion series, cut after order p, leaves out over [0, h].
+  double motion_tail(int j, double h) const {
+    double tail = harmonic_tail(std::hypot(tab_.sc(j), tab_.ss(j)), frequency(), h, p_);
+    for (const MotionHarmonic& m : tab_.higher[static_cast<std::size_t>(j)])
+      tail += harmonic_tail(std::hypot(m.cosine, m.sine), m.rate, h, p_);
+    return tail;
+  }
+  /// The longest step over which every stop's motion series stays within ε S of the motion
+  /// (the constructor's rule; S = max(1, ‖z‖∞) as the step's own scale): infinity for fixed stops.
+  double motion_cap() const {
+    if (!std::isfinite(motion_cap_)) return motion_cap_;
+    const double scale = std::max(1.0, z_.cwiseAbs().maxCoeff());
+    return std::min(motion_cap_ * std::pow(sim_.tolerance_ * scale, 1.0 / (p_ + 1)), 0.5 * (p_ + 2) / motion_rate_);
   }
   /// z'(t) of the free system (the drive and the nonlinear forces at (t, z)).
   void rate_at(double t, const Eigen::VectorXd& z, Eigen::VectorXd& out) {
@@ -559,18 +632,14 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
       for (int k = 0; k <= p_; ++k) g[k] = -r.lambda[a * (static_cast<std::size_t>(p_) + 1) + static_cast<std::size_t>(k)];
       return;
     }
-    const bool moving = tab_.sc(j) != 0.0 || tab_.ss(j) != 0.0;  // a fixed stop's position is s0 alone
-    if (moving) harmonic_series(frequency(), r.t, p_, stop_pos_.data(), sin_.data());
-    for (int k = 0; k <= p_; ++k) {
-      double s = 0.0;
-      for (Eigen::Index l = 0; l < n_; ++l) {
-        const double w = tab_.normals(l, j);
-        if (w != 0.0) s += w * coefficients(r, l)[k];
-      }
-      const auto kk = static_cast<std::size_t>(k);
-      const double s0 = k == 0 ? tab_.s0(j) : 0.0;
-      g[k] = s - (moving ? s0 + tab_.sc(j) * stop_pos_[kk] + tab_.ss(j) * sin_[kk] : s0);
+    motion_series(j, r.t, p_, stop_pos_.data());
+    // wᵀx's series over the normal's nonzero entries (in the order of the coordinates), then p(t)'s.
+    std::fill(g, g + p_ + 1, 0.0);
+    for (const auto& [l, w] : tab_.entries[static_cast<std::size_t>(j)]) {
+      const double* x = coefficients(r, l);
+      for (int k = 0; k <= p_; ++k) g[k] += w * x[k];
     }
+    for (int k = 0; k <= p_; ++k) g[k] -= stop_pos_[static_cast<std::size_t>(k)];
   }
   /// At the segment's first step: a row starting inside its band (0 < h ≤ ε) and moving away is
   /// re-armed at ε + h(0), as the dense engine's finder does (events.hpp), so that rounding
@@ -627,7 +696,8 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
   HeldSet* held_ = nullptr;
   ContactSet empty_;
   Eigen::MatrixXd forcing_, probe_forcing_, drive_;
-  std::vector<double> cos_, sin_, stop_pos_, guard_;
+  std::vector<double> cos_, sin_, stop_pos_, guard_, harmonic_cos_, harmonic_sin_;
+  double motion_cap_ = std::numeric_limits<double>::infinity(), motion_rate_ = 0.0;
   Eigen::VectorXd z_, z_probe_, rate_, residual_, q_, h_, d_, triggers_;
   Eigen::MatrixXd G_;
   LcpWorkspace lcp_;

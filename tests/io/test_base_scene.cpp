@@ -208,8 +208,6 @@ TEST_CASE("stops[j].harmonics: the first harmonic as amplitude and phase, bad in
       {kModel + stops(", harmonics: [{order: 2, cosine: 0.1}]"), "stops[1].harmonics", "forcing.frequency > 0"},
       {head + stops(", harmonics: [{order: 2, cosine: 0.1}]") + "solver: {engine: modal}\n", "solver.engine",
        "more than one harmonic"},
-      {head + stops(", harmonics: [{order: 2, cosine: 0.1}]") + "solver: {engine: taylor}\n", "stops[1]",
-       "Taylor engine"},
   };
   check_bad_input(cases);
 }

@@ -18,6 +18,10 @@
 ///    units of long-double rounding in θ.
 ///  * Impact: v⁺ = −r v⁻ (Newton's law for one coordinate). Impacts only: a rebound slower than
 ///    `stick_velocity` throws std::runtime_error (the test's parameters must not chatter).
+///  * A moving stop (`stop_harmonics`, none by default): the stop's position is
+///    stop + Σ (c cos kΩt + s sin kΩt), the gap x − p(t) is bisected as above, and Newton's law
+///    acts on the velocity relative to the stop: v⁺ − p'(t) = −r (v⁻ − p'(t)); `impacts` then holds
+///    the relative approach speed v⁻ − p'(t).
 ///
 /// Usage:
 ///     vibro::test::ReferenceDuffingImpact ref{.m = 1, .c = 0.05, .k = 1, .beta = 0.5, ...};
@@ -34,6 +38,21 @@ struct ReferenceDuffingImpact {
   long double m = 1, c = 0, k = 1, beta = 0, amplitude = 0, omega = 1, stop = 1, restitution = 1;
   long double gravity = 0;  ///< γ of the pendulum term γ sin x
   long double step_rate = 0.02L;
+  struct Harmonic {
+    int order;
+    long double cosine, sine;
+  };
+  std::vector<Harmonic> stop_harmonics;
+
+  /// The stop's position p(t) (derivative 0) or its rate p'(t) (1).
+  long double stop_at(long double time, int derivative) const {
+    long double p = derivative == 0 ? stop : 0.0L;
+    for (const Harmonic& h : stop_harmonics) {
+      const long double w = h.order * omega, c = std::cos(w * time), s = std::sin(w * time);
+      p += derivative == 0 ? h.cosine * c + h.sine * s : w * (-h.cosine * s + h.sine * c);
+    }
+    return p;
+  }
   long double stick_velocity = 1e-7L;
 
   struct Impact {
@@ -72,28 +91,31 @@ struct ReferenceDuffingImpact {
     v = v0;
     impacts.clear();
     const long double x_max = std::max(std::fabs(stop), std::fabs(x0)) + 2.0L;  // bounds |x| for ρ
+    long double fastest = omega;  // the stop's fastest harmonic bounds ρ too
+    for (const Harmonic& h : stop_harmonics) fastest = std::max(fastest, h.order * omega);
     const long double rho =
-        std::max(std::sqrt((std::fabs(k) + 3.0L * std::fabs(beta) * x_max * x_max + std::fabs(gravity)) / m), omega);
+        std::max(std::sqrt((std::fabs(k) + 3.0L * std::fabs(beta) * x_max * x_max + std::fabs(gravity)) / m), fastest);
     const long double h = step_rate / rho;
     while (t < t_end) {
       const long double hs = std::min(h, t_end - t);
       long double xn = x, vn = v;
       step(t, hs, xn, vn);
-      if (xn - stop > 0.0L) {
+      if (xn - stop_at(t + hs, 0) > 0.0L) {
         long double lo = 0.0L, hi = hs;  // g(lo) ≤ 0 < g(hi)
         for (int i = 0; i < 200 && hi - lo > 4.0L * std::numeric_limits<long double>::epsilon() * std::max(t, 1.0L); ++i) {
           const long double mid = 0.5L * (lo + hi);
           long double xm = x, vm = v;
           step(t, mid, xm, vm);
-          (xm - stop > 0.0L ? hi : lo) = mid;
+          (xm - stop_at(t + mid, 0) > 0.0L ? hi : lo) = mid;
         }
         long double xe = x, ve = v;
         step(t, hi, xe, ve);
         t += hi;
-        x = stop;
-        impacts.push_back({t, ve});
-        v = -restitution * ve;
-        if (std::fabs(v) < stick_velocity) throw std::runtime_error("reference: chatter (rebound below stick_velocity)");
+        x = stop_at(t, 0);
+        const long double rate = stop_at(t, 1);
+        impacts.push_back({t, ve - rate});
+        v = rate - restitution * (ve - rate);
+        if (std::fabs(v - rate) < stick_velocity) throw std::runtime_error("reference: chatter (rebound below stick_velocity)");
         continue;
       }
       t += hs;

@@ -13,6 +13,7 @@
 #include <memory>
 #include <cmath>
 #include <string>
+#include <vector>
 
 namespace {
 
@@ -144,20 +145,28 @@ vibro::ImpactSystem duffing_system(double c, double k, double amplitude, double 
   return vibro::ImpactSystem(sys, {vibro::Stop::upper(0, stop, r)});
 }
 
-}  // namespace
+constexpr double kDuffingStop = 0.6;
 
-// A forced, damped Duffing impact oscillator (hardening β = 0.5, stop at 0.6, r = 0.8) over 10
-// forcing periods, against the independent long-double RK8 reference with its own bisection on the
-// gap (tests/support/reference_duffing_impact.hpp, accurate to ~1e-16 of the state). Both start at
-// rest; the orbit impacts about once a period at speeds of order 0.5 (no chatter). The Taylor
-// engine carries rounding only (~1e-16 per step, a few hundred steps), and an impact passes the
-// state's error on (times r), so the impact times and the end state are held to 1e-12 of the
-// scales (T, and the stop's position and the speed scale 1): a wrong root, a missed impact or a
-// truncated series would differ by far more (a step at tolerance 1e-10 gives ~1e-9).
-TEST_CASE("a Duffing impact oscillator agrees with an independent long-double reference", "[taylor][engine]") {
-  const double c = 0.05, k = 1.0, beta = 0.5, A = 0.8, omega = 1.3, s = 0.6, r = 0.8;
+/// How far the Taylor engine's run lies from the long-double reference's.
+struct ReferenceGap {
+  std::size_t impacts = 0;
+  long steps = 0;
+  double dt = 0.0, du = 0.0, dx = 0.0, dv = 0.0;  ///< max |Δt|/T, max |Δv⁻| over the impacts; end |Δx|/s, |Δv|
+};
+
+/// x'' + 0.05 x' + x + 0.5 x³ = 0.8 cos 1.3t (m = 1) with `stop` (an upper stop on the mass at
+/// kDuffingStop, r = 0.8, moving as `motion` says to the reference) from rest over 10 forcing
+/// periods, through the Taylor engine and through the reference; every event must be an impact,
+/// the two must find as many, and the differences stay below the bounds of the test below.
+ReferenceGap duffing_against_reference(const vibro::Stop& stop,
+                                       const std::vector<vibro::test::ReferenceDuffingImpact::Harmonic>& motion) {
+  const double c = 0.05, k = 1.0, beta = 0.5, A = 0.8, omega = 1.3;
   const double T = 2.0 * std::acos(-1.0) / omega, t_end = 10.0 * T;
-  const vibro::ImpactSystem system = duffing_system(c, k, A, omega, s, r);
+  vibro::HarmonicForcing f{.constant = Eigen::VectorXd::Zero(1), .cosine = Eigen::VectorXd::Constant(1, A),
+                           .sine = Eigen::VectorXd::Zero(1), .frequency = omega};
+  vibro::LinearSystem sys(Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Constant(1, 1, c),
+                          Eigen::MatrixXd::Constant(1, 1, k), f);
+  const vibro::ImpactSystem system(sys, {stop});
   vibro::NonlinearForces forces;
   forces.parameters = {{"beta", beta}};
   forces.forces = {"-beta*x0^3"};
@@ -174,27 +183,45 @@ TEST_CASE("a Duffing impact oscillator agrees with an independent long-double re
   ref.beta = beta;
   ref.amplitude = A;
   ref.omega = omega;
-  ref.stop = s;
-  ref.restitution = r;
+  ref.stop = stop.position;
+  ref.restitution = stop.restitution;
+  ref.stop_harmonics = motion;
   ref.run(0.0L, 0.0L, 0.0L, t_end);
   REQUIRE(ref.impacts.size() >= 5);
   REQUIRE(log.events.size() == ref.impacts.size());
-  double dt = 0.0, du = 0.0;
+  ReferenceGap g;
+  g.impacts = log.events.size();
+  g.steps = taylor.steps();
   for (std::size_t i = 0; i < log.events.size(); ++i) {
     REQUIRE(log.events[i].kind == vibro::EventKind::impact);
-    dt = std::max(dt, std::abs(log.events[i].t - static_cast<double>(ref.impacts[i].t)) / T);
-    du = std::max(du, std::abs(log.events[i].v_before - static_cast<double>(ref.impacts[i].v_before)));
+    g.dt = std::max(g.dt, std::abs(log.events[i].t - static_cast<double>(ref.impacts[i].t)) / T);
+    g.du = std::max(g.du, std::abs(log.events[i].v_before - static_cast<double>(ref.impacts[i].v_before)));
   }
-  const double dx = std::abs(run.x(0) - static_cast<double>(ref.x)) / s;
-  const double dv = std::abs(run.v(0) - static_cast<double>(ref.v));
-  INFO(log.events.size() << " impacts: max |dt|/T = " << dt << ", |du| = " << du << "; end |dx|/s = " << dx
-                         << ", |dv| = " << dv << "; " << taylor.steps() << " Taylor steps");
-  CHECK(dt < 1e-12);
-  CHECK(du < 1e-12);
-  CHECK(dx < 1e-12);
-  CHECK(dv < 1e-12);
-  WARN("Duffing vs reference: " << log.events.size() << " impacts, max |dt|/T = " << dt << ", |du| = " << du
-                                << ", end |dx|/s = " << dx << ", |dv| = " << dv << ", " << taylor.steps() << " steps");
+  g.dx = std::abs(run.x(0) - static_cast<double>(ref.x)) / stop.position;
+  g.dv = std::abs(run.v(0) - static_cast<double>(ref.v));
+  INFO(g.impacts << " impacts: max |dt|/T = " << g.dt << ", |du| = " << g.du << "; end |dx|/s = " << g.dx
+                 << ", |dv| = " << g.dv << "; " << g.steps << " Taylor steps");
+  CHECK(g.dt < 1e-12);
+  CHECK(g.du < 1e-12);
+  CHECK(g.dx < 1e-12);
+  CHECK(g.dv < 1e-12);
+  return g;
+}
+
+}  // namespace
+
+// A forced, damped Duffing impact oscillator (hardening β = 0.5, stop at 0.6, r = 0.8) over 10
+// forcing periods, against the independent long-double RK8 reference with its own bisection on the
+// gap (tests/support/reference_duffing_impact.hpp, accurate to ~1e-16 of the state). Both start at
+// rest; the orbit impacts about once a period at speeds of order 0.5 (no chatter). The Taylor
+// engine carries rounding only (~1e-16 per step, a few hundred steps), and an impact passes the
+// state's error on (times r), so the impact times and the end state are held to 1e-12 of the
+// scales (T, and the stop's position and the speed scale 1): a wrong root, a missed impact or a
+// truncated series would differ by far more (a step at tolerance 1e-10 gives ~1e-9).
+TEST_CASE("a Duffing impact oscillator agrees with an independent long-double reference", "[taylor][engine]") {
+  const ReferenceGap g = duffing_against_reference(vibro::Stop::upper(0, kDuffingStop, 0.8), {});
+  WARN("Duffing vs reference: " << g.impacts << " impacts, max |dt|/T = " << g.dt << ", |du| = " << g.du
+                                << ", end |dx|/s = " << g.dx << ", |dv| = " << g.dv << ", " << g.steps << " steps");
 }
 
 // A conservative Duffing oscillator (no damping, no drive, β = 1) bouncing elastically (r = 1) on a
@@ -343,4 +370,116 @@ TEST_CASE("moving stops, a general normal and harmonics agree with the dense eng
   CHECK(dv < 1e-12);
   WARN("moving and general stops, harmonics: " << de.events.size() << " events, |dt||g'|/L = " << dt_gap
                                                << ", end |dx|/L = " << dx << ", |dv|/V = " << dv);
+}
+
+namespace {
+
+/// The dense and the Taylor engine on one scene over `periods` forcing periods: the largest event
+/// time difference weighted by the speed (|dt||g'|/L), at rest (|dt|/T), and the end state's.
+struct EngineGap {
+  vibro::RunSummary dense, taylor;
+  std::size_t events = 0;
+  double dt_gap = 0.0, dt_rest = 0.0, dx = 0.0, dv = 0.0;
+};
+
+EngineGap dense_against_taylor(const vibro::io::Scene& scene, double periods) {
+  const vibro::ImpactSystem system = scene.impact_system();
+  const double T = scene.period(), t_end = periods * T;
+  vibro::Simulator dense(system, scene.solver);
+  vibro::TaylorSimulator taylor(system, {}, scene.solver);
+  vibro::EventLog de, te;
+  EngineGap g;
+  g.dense = dense.run(0.0, scene.x0, scene.v0, t_end, {&de});
+  g.taylor = taylor.run(0.0, scene.x0, scene.v0, t_end, {&te});
+  REQUIRE(g.dense.status == vibro::RunStatus::completed);
+  INFO(g.taylor.message);
+  REQUIRE(g.taylor.status == vibro::RunStatus::completed);
+  REQUIRE(de.events.size() == te.events.size());
+  g.events = de.events.size();
+  const double L = g.dense.length_scale, V = g.dense.velocity_scale;
+  for (std::size_t i = 0; i < de.events.size(); ++i) {
+    REQUIRE(de.events[i].stop == te.events[i].stop);
+    REQUIRE(de.events[i].kind == te.events[i].kind);
+    const double dt = std::abs(de.events[i].t - te.events[i].t);
+    const double speed = std::max(std::abs(de.events[i].v_before), std::abs(de.events[i].v_after));
+    if (speed > 0.0) g.dt_gap = std::max(g.dt_gap, dt * speed / L);
+    else g.dt_rest = std::max(g.dt_rest, dt / T);
+  }
+  g.dx = (g.dense.x - g.taylor.x).cwiseAbs().maxCoeff() / L;
+  g.dv = (g.dense.v - g.taylor.v).cwiseAbs().maxCoeff() / V;
+  return g;
+}
+
+}  // namespace
+
+// Stops moving with several harmonics (orders 2, 3 and 5 besides the first): the seed paper's
+// sticking orbit with both stops shaken, forced through the Taylor engine, against the dense
+// engine over 20 periods, with impacts, chatter and sticking on the moving stops (the held
+// stops' p̈ enters the constrained series, the impact law the stop's velocity). Same tolerances
+// and reasons as the first test above: the stops' motion enters both engines in closed form.
+TEST_CASE("stops moving with several harmonics agree with the dense engine", "[taylor][engine]") {
+  vibro::io::SceneDocument doc =
+      vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/wagg2004/fig2_sticking_orbit.yaml");
+  doc.replace("stops", "[{mass: 0, side: lower, position: -0.3, restitution: 0.7, amplitude: 0.01, phase: 0.3,"
+                       "   harmonics: [{order: 2, cosine: 0.01, sine: 0.005}, {order: 3, sine: -0.004}]},"
+                       " {mass: 1, side: upper, position: 0.1, restitution: 0.7, harmonics: [{order: 5, cosine: 0.003}]}]");
+  doc.replace("run", "{kind: simulate}");
+  const vibro::io::Scene scene = doc.build();
+  REQUIRE(scene.stops[0].harmonics.size() == 2);
+  const EngineGap g = dense_against_taylor(scene, 20.0);
+  REQUIRE(g.dense.impacts > 10);
+  REQUIRE(g.dense.sticks > 0);
+  REQUIRE(g.dense.chatters > 0);
+  INFO(g.events << " events (" << g.dense.impacts << " impacts, " << g.dense.chatters << " chatters, " << g.dense.sticks
+                << " sticks): |dt||g'|/L = " << g.dt_gap << ", at rest |dt|/T = " << g.dt_rest << ", end |dx|/L = " << g.dx
+                << ", |dv|/V = " << g.dv);
+  CHECK(g.dt_gap < 1e-12);
+  CHECK(g.dt_rest < 1e-13);
+  CHECK(g.dx < 1e-12);
+  CHECK(g.dv < 1e-12);
+}
+
+// A base moving with three harmonics (orders 1, 2, 3) in the absolute frame, one stop attached to
+// it (so it moves with all three) and one fixed: the scene as written, forced through the Taylor
+// engine, against the dense engine over 20 periods, with the tolerances above.
+TEST_CASE("a stop riding a base of several harmonics agrees with the dense engine", "[taylor][engine]") {
+  const std::string text =
+      "model:\n  chain: {masses: [1, 1], springs: [1], dampers: [0.1], left_wall: {spring: 1, damper: 0.1},"
+      " right_wall: {spring: 0.5, damper: 0.05}}\n"
+      "forcing: {frequency: 0.3, cosine: [0.3, 0]}\n"
+      "base:\n  displacement: {cosine: 0.05, harmonics: [{order: 2, cosine: 0.02}, {order: 3, sine: 0.01}]}\n"
+      "  frame: absolute\n"
+      "stops:\n  - {mass: 0, side: lower, position: -0.3, restitution: 0.7, name: s1}\n"
+      "  - {mass: 1, side: upper, position: 0.1, restitution: 0.7, name: s2, attached: base}\n"
+      "initial: {x: [0, 0], v: [0, 0]}\n"
+      "solver: {engine: taylor}\n";
+  const vibro::io::Scene scene = vibro::io::SceneDocument::parse(text).build();
+  CHECK(scene.engine == vibro::io::EngineKind::taylor);
+  REQUIRE(scene.stops[1].harmonics.size() == 2);
+  const EngineGap g = dense_against_taylor(scene, 20.0);
+  REQUIRE(g.dense.impacts > 10);
+  INFO(g.events << " events (" << g.dense.impacts << " impacts, " << g.dense.sticks << " sticks): |dt||g'|/L = "
+                << g.dt_gap << ", at rest |dt|/T = " << g.dt_rest << ", end |dx|/L = " << g.dx << ", |dv|/V = " << g.dv);
+  CHECK(g.dt_gap < 1e-12);
+  CHECK(g.dt_rest < 1e-13);
+  CHECK(g.dx < 1e-12);
+  CHECK(g.dv < 1e-12);
+}
+
+// The forced Duffing impact oscillator of the reference test above with its stop moving at
+// orders 1, 2 and 4: every impact against the long-double reference, which bisects the gap
+// x − p(t) with p(t) summed from its own cosines and sines and applies Newton's law to the
+// velocity relative to the stop (tests/support/reference_duffing_impact.hpp). Impact times,
+// relative approach speeds and the end state to 1e-12, as there and for the same reasons.
+TEST_CASE("a Duffing impact oscillator on a stop moving with several harmonics agrees with the reference",
+          "[taylor][engine]") {
+  const double a1 = 0.03, b1 = -0.02, a2 = 0.02, b4 = 0.005;  // p(t) = s + a1 cos Ωt + b1 sin Ωt + a2 cos 2Ωt + b4 sin 4Ωt
+  // a cos(Ωt + φ) = a1 cos Ωt + b1 sin Ωt with a = hypot(a1, b1), φ = atan2(−b1, a1).
+  const vibro::Stop stop = vibro::Stop::upper(0, kDuffingStop, 0.8)
+                               .moving(std::hypot(a1, b1), std::atan2(-b1, a1))
+                               .with_harmonics({{.order = 2, .cosine = a2}, {.order = 4, .sine = b4}});
+  const ReferenceGap g = duffing_against_reference(stop, {{1, a1, b1}, {2, a2, 0.0L}, {4, 0.0L, b4}});
+  WARN("Duffing on a stop of three harmonics vs reference: " << g.impacts << " impacts, max |dt|/T = " << g.dt
+                                                             << ", |du| = " << g.du << ", end |dx|/s = " << g.dx
+                                                             << ", |dv| = " << g.dv << ", " << g.steps << " steps");
 }

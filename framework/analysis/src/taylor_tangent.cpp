@@ -194,7 +194,7 @@ class TaylorPart final : public detail::NonlinearPart {
     taylor::TaylorStep& step = *plain_step_;
     const int p = step.order();
     const auto width = static_cast<std::size_t>(p) + 1;
-    std::vector<double> g(width + 1), dg(width), shifted(width), cs(width + 1), sn(width + 1);
+    std::vector<double> g(width + 1), dg(width), shifted(width), cs(width + 1), sn(width + 1), hc(width), hs(width);
     taylor::GuardRootFinder finder(p);
     const MatrixXd W = scene_.normals();
     const double omega = scene_.system().forcing().frequency;
@@ -214,6 +214,10 @@ class TaylorPart final : public detail::NonlinearPart {
             if (W(l, j) != 0.0) s += W(l, j) * step.state_coefficients(static_cast<int>(l))[k];
           const auto kk = static_cast<std::size_t>(k);
           g[kk] = s - ((k == 0 ? st.s0() : 0.0) + st.s_cos() * cs[kk] + st.s_sin() * sn[kk]);
+        }
+        for (std::size_t q = 0; q < st.harmonics.size(); ++q) {  // the motion's harmonics of order ≥ 2
+          harmonic_series(st.harmonics[q].rate(omega), t, p, hc.data(), hs.data());
+          for (std::size_t k = 0; k < width; ++k) g[k] -= st.h_cos(q) * hc[k] + st.h_sin(q) * hs[k];
         }
         for (int k = 0; k < p; ++k) dg[static_cast<std::size_t>(k)] = (k + 1) * g[static_cast<std::size_t>(k) + 1];
         dg[static_cast<std::size_t>(p)] = 0.0;

@@ -572,7 +572,7 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
   int general_stop = -1;  // the first stop along a general normal, which the modal engine refuses
   for (std::size_t j = 0; j < p.stops.size() && general_stop < 0; ++j)
     if (p.stops[j].kind == Stop::Kind::normal) general_stop = static_cast<int>(j);
-  int harmonic_stop = -1;  // the first stop moving with a harmonic of order ≥ 2 (dense engine only)
+  int harmonic_stop = -1;  // the first stop moving with a harmonic of order ≥ 2 (not on the modal engine)
   for (std::size_t j = 0; j < p.stops.size() && harmonic_stop < 0; ++j)
     if (p.stops[j].has_higher_harmonics()) harmonic_stop = static_cast<int>(j);
   const std::string harmonic_why =
@@ -618,12 +618,6 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
              std::to_string(kModalAutomaticMinimumDof) + ")";
   }
 
-  if (harmonic_stop >= 0 && engine == EngineKind::taylor)
-    r.fail(root["stops"][static_cast<std::size_t>(harmonic_stop)], "stops[" + std::to_string(harmonic_stop) + "]",
-           "the Taylor engine (nonlinear forces, or solver.engine: taylor) does not run stops moving with more than "
-           "one harmonic (this stop moves at order " +
-               std::to_string(p.stops[static_cast<std::size_t>(harmonic_stop)].harmonics.front().order) +
-               "); the dense and the friction engine do");
   // Sections are searched in the exact flows of the dense and the modal engine (vibro/section.hpp).
   if (const YAML::Node rn = root["record"]; rn && rn["section"]) {
     const YAML::Node sn = rn["section"];

@@ -107,11 +107,19 @@ GuardCrossing GuardRootFinder::first_crossing(const double* c, int degree, doubl
   GuardCrossing result;
   const int width = degree + 1;
   // q in the scaled variable s = τ/h: a_k = q_k h^k, then its Bernstein coefficients on [0, 1].
+  // With rounding_scales also |c_k| h^k (the guard's own coefficients, the trigger not
+  // subtracted): the rounding bound over [0, s h] is rounding · Σ |c_k| (s h)^k / Σ |c_k| h^k.
   double* root = &stack_[0];
-  double scale = 0.0, power = 1.0;
-  for (int k = 0; k <= degree; ++k, power *= h) {
-    root[k] = (c[k] - (k == 0 ? trigger : 0.0)) * power;
+  double* a = absolute_.data();
+  double scale = 0.0, power = 1.0, absolute_sum = 0.0;
+  root[0] = c[0] - trigger;
+  scale = std::abs(root[0]);
+  if (rounding_scales) absolute_sum = (a[0] = std::abs(c[0]));
+  power *= h;
+  for (int k = 1; k <= degree; ++k, power *= h) {
+    root[k] = c[k] * power;
     scale += std::abs(root[k]);
+    if (rounding_scales) absolute_sum += (a[k] = std::abs(c[k]) * power);
   }
   if (!std::isfinite(scale) || !(remainder >= 0.0) || !(truncation >= 0.0))
     throw std::invalid_argument("GuardRootFinder: coefficients, step or remainder not finite");
@@ -119,14 +127,6 @@ GuardCrossing GuardRootFinder::first_crossing(const double* c, int degree, doubl
   const double rounding = remainder;
   remainder += truncation;  // over the whole step
   const auto band = [&](int depth) { return remainder + 2.0 * (2 * degree + depth + 4) * kUnit * scale; };
-  // |c_k| h^k (the guard's own coefficients, the trigger not subtracted): with rounding_scales the
-  // rounding bound over [0, s h] is rounding · Σ |c_k| (s h)^k / Σ |c_k| h^k.
-  double absolute_sum = 0.0;
-  if (rounding_scales) {
-    double* a = absolute_.data();
-    power = 1.0;
-    for (int k = 0; k <= degree; ++k, power *= h) absolute_sum += (a[k] = std::abs(c[k]) * power);
-  }
   // Over [lo, hi] ⊂ [0, 1] (in s = τ/h): the tail's bound at s = hi, (hi)^{degree+1} of the whole,
   // and with rounding_scales the rounding's at s = hi.
   const auto interval_band = [&](int depth, double hi) {
