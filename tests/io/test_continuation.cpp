@@ -11,9 +11,12 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <iomanip>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -101,6 +104,49 @@ TEST_CASE("a continue run writes the branch and the located rising, as the libra
   REQUIRE(rising >= 0);
   CHECK(r.read_integers("/bifurcations/stop")[static_cast<std::size_t>(rising)] == 0);
   CHECK(std::abs(at[static_cast<std::size_t>(rising)] - 0.2560063298) < 1e-9);  // tests/study: the reference's
+}
+
+TEST_CASE("run.continue.parameter_scale: a run over a narrow range steps as the run over the full range",
+          "[runner][continue]") {
+  const vibro::test::TempDir dir;
+  const auto branch = [&](const std::string& text, const std::string& name) {
+    const SceneDocument doc = SceneDocument::parse(text, name + ".yaml");
+    const std::string out = dir / (name + ".h5");
+    const RunReport report = run_scene(doc, doc.build(), {out, 1, false, false, 0});
+    CAPTURE(report.summary);
+    REQUIRE(report.exit_code == 0);
+    return ResultReader(out).read("/branch/p");
+  };
+  // The full range [0.2559, 0.2561]; the same start over [0.2559, 0.25605], with and without the
+  // full range's width as P.
+  const std::vector<double> full = branch(kContinue, "full");
+  const std::string narrow = with("range: [0.2559, 0.2561]", "range: [0.2559, 0.25605]");
+  // (P as the full run computes it, 0.2561 − 0.2559, to the last bit: 2.0000000000000018e-4.)
+  std::ostringstream width;
+  width << std::setprecision(17) << 0.2561 - 0.2559;
+  const std::vector<double> scaled =
+      branch(with("range: [0.2559, 0.2561]", "range: [0.2559, 0.25605]\n    parameter_scale: " + width.str()), "scaled");
+  const std::vector<double> own = branch(narrow, "own");
+  REQUIRE(full.size() >= 4);
+  REQUIRE(scaled.size() >= 3);
+  // With P given, every point below the narrow limit is the full run's (the same steps, in the
+  // same order, from the same start: the same arithmetic); the last one is placed on the limit.
+  // (Points in order of arclength: the limit below the start, the start, then the steps up.)
+  for (std::size_t i = 0; i + 1 < scaled.size(); ++i) CHECK(scaled[i] == full[i]);
+  CHECK(std::abs(scaled.back() - 0.25605) <= 1e-10);  // placed on the limit to locate_tolerance
+  // Without it P is the narrow range's width (1.5e-4): the first step up already differs.
+  REQUIRE(own.size() >= 3);
+  CHECK(own[1] == full[1]);
+  CHECK(std::abs(own[2] - full[2]) > 1e-7);
+
+  // Refused, at its place: a scale that is not > 0.
+  for (const char* bad : {"0", "-1e-4"}) {
+    const std::string text = with("max_step: 0.2", std::string("max_step: 0.2\n    parameter_scale: ") + bad);
+    const SceneError e = error_of(text);
+    CHECK(e.path() == "run.continue.parameter_scale");
+    CHECK(e.line() == 1 + std::count(text.begin(), text.begin() + static_cast<long>(text.find("parameter_scale")), '\n'));
+    CHECK_THAT(e.problem(), Catch::Contains("a scale > 0"));
+  }
 }
 
 TEST_CASE("continuation parameters: derivatives of the data along a path, and paths refused with their place",

@@ -600,6 +600,7 @@ RunReport run_continuation(const SceneDocument& doc, const Scene& scene, const R
   o.step = spec.step;
   o.min_step = spec.min_step;
   o.max_step = spec.max_step;
+  o.parameter_scale = spec.parameter_scale;
   o.max_points = spec.max_points;
   o.tolerance = spec.tolerance;
   o.locate = spec.locate;
@@ -761,7 +762,7 @@ void parse_continue_section(RunSection& s) {
   if (ct && s.full) {
     ContinueSpec& c = run.continuation;
     r.expect_map(ct, "run.continue", {"path", "range", "direction", "period", "phase", "step", "min_step", "max_step",
-                                      "max_points", "tolerance", "locate", "locate_tolerance", "max_doublings", "max_branches",
+                                      "parameter_scale", "max_points", "tolerance", "locate", "locate_tolerance", "max_doublings", "max_branches",
                                       "max_total_points", "curve", "switch"});
     // A continuation parameter: a number the file sets, outside `run` (and, below, one that
     // moves the system: kinds/continue.cpp checks that through the parameter's derivative).
@@ -805,6 +806,9 @@ void parse_continue_section(RunSection& s) {
     if (ct["min_step"]) c.min_step = r.number_in(ct["min_step"], "run.continue.min_step", 1e-15, 1.0, "a step in (0, 1]");
     if (ct["max_step"]) c.max_step = r.number_in(ct["max_step"], "run.continue.max_step", 1e-12, 1.0, "a step in (0, 1]");
     if (c.min_step > c.max_step) r.fail(ct, "run.continue.min_step", "must not exceed run.continue.max_step");
+    if (ct["parameter_scale"])
+      c.parameter_scale = r.number_in(ct["parameter_scale"], "run.continue.parameter_scale", std::numeric_limits<double>::min(),
+                                      std::numeric_limits<double>::max(), "a scale > 0 in the parameter's units");
     if (ct["max_points"]) c.max_points = static_cast<int>(r.integer(ct["max_points"], "run.continue.max_points", 2, 1000000));
     if (ct["tolerance"]) c.tolerance = r.number_in(ct["tolerance"], "run.continue.tolerance", 1e-15, 1e-4, "a relative tolerance in [1e-15, 1e-4]");
     if (ct["locate"]) c.locate = r.boolean(ct["locate"], "run.continue.locate");

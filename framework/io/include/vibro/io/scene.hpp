@@ -105,6 +105,7 @@ struct ContinueSpec {
   int period = 1;                     ///< k
   double phase = 0.0;                 ///< section phase θ, radians
   double step = 0.01, min_step = 1e-7, max_step = 0.05;
+  double parameter_scale = 0.0;       ///< P, the parameter's scale in the steps (0: p_max − p_min)
   int max_points = 400;
   double tolerance = 1e-11;
   bool locate = true;
