@@ -50,7 +50,8 @@ targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(fuzz_scene fuzz_run)
 case $runs in '' | *[!0-9]*) echo "campaign: -n $runs: not a whole number of executions" >&2; exit 2 ;; esac
 case $seconds in '' | *[!0-9]*) echo "campaign: -t $seconds: not a whole number of seconds" >&2; exit 2 ;; esac
-build=$(cd "$build" && pwd) || { echo "campaign: no build folder $build" >&2; exit 2; }
+[ -d "$build" ] || { echo "campaign: no build folder $build (the campaign build: cmake --preset fuzz && cmake --build --preset fuzz; or -b build/sanitize)" >&2; exit 2; }
+build=$(cd "$build" && pwd)
 for target in "${targets[@]}"; do
   [ -x "$build/tools/fuzz/$target" ] || { echo "campaign: $build/tools/fuzz/$target is missing (build it: cmake --build --preset fuzz, or --preset sanitize --target $target)" >&2; exit 2; }
 done
