@@ -2,6 +2,7 @@
 // period against central differences of the map, a Den Hartog orbit's Floquet multipliers
 // against those of the finite-difference Jacobian, its Lyapunov spectrum against its multipliers,
 // and continuation in Ω locating the onset of sticking against Den Hartog's closed form.
+// Parameter derivatives in N, μ_k, μ_s and continuation in N: at the end of the file.
 #include "support/den_hartog.hpp"
 #include "vibro/continuation.hpp"
 #include "vibro/friction_tangent.hpp"
@@ -57,6 +58,13 @@ Eigen::MatrixXd central_differences(const LinearSystem& sys, const std::vector<F
   return J;
 }
 
+/// The number of events of one kind in a tangent map's run.
+int count(const TangentMap& m, EventKind kind) {
+  int n = 0;
+  for (const Event& e : m.events) n += e.kind == kind;
+  return n;
+}
+
 /// The middle of the longest stretch of [t0, t1] free of switches and stuck phases.
 double free_time(const TangentMap& m) {
   std::vector<double> busy;
@@ -94,13 +102,8 @@ TEST_CASE("the tangent map of a stick-slip period against central differences of
 
   const TangentMap m = linearise(sys, contacts, {}, ta, za.head(1), za.tail(1), ta + T);
   REQUIRE(m.summary.status == RunStatus::completed);
-  int sticks = 0, slips = 0;
-  for (const Event& e : m.events) {
-    sticks += e.kind == EventKind::friction_stick;
-    slips += e.kind == EventKind::friction_slip;
-  }
-  REQUIRE(sticks >= 1);
-  REQUIRE(slips >= 1);
+  REQUIRE(count(m, EventKind::friction_stick) >= 1);
+  REQUIRE(count(m, EventKind::friction_slip) >= 1);
   // The stuck direction collapses: the reduced map is 1 × 1 and J has an exact zero eigenvalue.
   CHECK(m.free_dimension == 1);
   CHECK(m.reduced.rows() == 1);
@@ -356,4 +359,123 @@ TEST_CASE("two masses with a surface contact and a rubbing pair: the tangent map
   const double err = (D.cwiseInverse().asDiagonal() * (m.jacobian - fd) * D.asDiagonal()).cwiseAbs().maxCoeff();
   WARN("two masses: max |J − J_fd| (scaled) = " << err);
   CHECK(err < 1e-6);
+}
+
+// Parameter derivatives in a frictional contact's data (parameter.hpp, FrictionDerivative): the
+// period map's parameter column in N, μ_k and μ_s against central differences of the map on a
+// stick-slip orbit (μ_k N moves the slips' force, μ_s N the slip starts), and continuation of Den
+// Hartog's oscillator in N locating the onset of sticking against his closed form.
+
+namespace {
+
+enum class Datum { normal_load, kinetic, static_ };
+
+double& datum(FrictionContact& c, Datum d) {
+  return d == Datum::normal_load ? c.normal_load : (d == Datum::kinetic ? c.kinetic_coefficient : c.static_coefficient);
+}
+double& datum(FrictionDerivative& c, Datum d) {
+  return d == Datum::normal_load ? c.normal_load : (d == Datum::kinetic ? c.kinetic_coefficient : c.static_coefficient);
+}
+const char* name_of(Datum d) { return d == Datum::normal_load ? "N" : (d == Datum::kinetic ? "mu_k" : "mu_s"); }
+
+}  // namespace
+
+TEST_CASE("friction: the period map's parameter column in N, mu_k and mu_s equals central differences",
+          "[friction][analysis][parameter]") {
+  // experiments/examples/stick_slip.yaml: a mass on a moving belt (N = 1, μ_s = 0.5, μ_k = 0.3,
+  // belt 0.5 cos(0.6 t + 0.3)), sticking for part of each period.
+  const LinearSystem sys = one_mass(1.0, 0.05, 1.0, 1.0, 0.6);
+  const FrictionContact base = FrictionContact::on_surface(0, 1.0, 0.5, 0.3, 0.5, 0.3);
+  const double T = 2.0 * std::numbers::pi / 0.6;
+  FrictionSimulator sim(sys, {base});
+  const FrictionSummary settle = sim.run(0.0, Eigen::VectorXd::Constant(1, 0.2), Eigen::VectorXd::Constant(1, -0.1), 20 * T);
+  REQUIRE(settle.status == RunStatus::completed);
+  const double t0 = settle.t;
+  const Eigen::VectorXd z0 = stacked(settle.x, settle.v);
+  for (Datum d : {Datum::normal_load, Datum::kinetic, Datum::static_}) {
+    INFO("d/d" << name_of(d));
+    LinearisationOptions lo;
+    lo.jacobian = false;
+    SystemDerivative sd;
+    sd.friction.resize(1);
+    datum(sd.friction[0], d) = 1.0;
+    lo.parameter = sd;
+    const TangentMap m = linearise(sys, {base}, {}, t0, z0.head(1), z0.tail(1), t0 + T, lo);
+    REQUIRE(m.summary.status == RunStatus::completed);
+    REQUIRE(count(m, EventKind::friction_stick) >= 1);
+    REQUIRE(count(m, EventKind::friction_slip) >= 1);
+    // Central differences with h = 1e-5 of the value: truncation h²|P'''|/6 ~ 1e-11 of the
+    // scale, rounding δ/h with δ ~ 1e-14 of the map (flows exact, switches located to a few
+    // ulps) ~ 1e-9. 1e-6 relative is asked (as of the Jacobian in the first test above);
+    // a missing term (the slips' force, the slip start's shift) is O(1) of the column.
+    FrictionContact plus = base, minus = base;
+    const double h = 1e-5 * datum(plus, d);
+    datum(plus, d) += h;
+    datum(minus, d) -= h;
+    const Eigen::VectorXd fd = (map_of(sys, {plus}, t0, z0, t0 + T) - map_of(sys, {minus}, t0, z0, t0 + T)) / (2.0 * h);
+    INFO("dP/dp = " << m.parameter.transpose() << ", central differences " << fd.transpose());
+    WARN("stick-slip period, d/d" << name_of(d) << ": |dP/dp - central differences| / |dP/dp| = "
+                                  << (m.parameter - fd).norm() / m.parameter.norm() << ", |dP/dp| = " << m.parameter.norm());
+    CHECK(m.parameter.norm() > 1e-2);
+    CHECK((m.parameter - fd).norm() <= 1e-6 * m.parameter.norm());
+  }
+}
+
+TEST_CASE("friction: a derivative of more or fewer contacts than the scene has is refused", "[friction][analysis][parameter]") {
+  const LinearSystem sys = one_mass(1.0, 0.05, 1.0, 1.0, 0.6);
+  LinearisationOptions lo;
+  SystemDerivative sd;
+  sd.friction.resize(2);
+  lo.parameter = sd;
+  CHECK_THROWS_WITH(linearise(sys, {FrictionContact::on_surface(0, 1.0, 0.5, 0.3)}, {}, 0.0, Eigen::VectorXd::Zero(1),
+                              Eigen::VectorXd::Constant(1, 0.3), 1.0, lo),
+                    Catch::Contains("2 contact derivatives for 1 frictional contacts"));
+}
+
+TEST_CASE("friction: continuation of Den Hartog's oscillator in the normal load locates the onset of sticking",
+          "[friction][analysis][parameter]") {
+  // m = k = F0 = 1, c = 0.05, Ω = 0.65, μ_s = μ_k = 0.5, so F_f = N/2: without stops for small
+  // N, sticking at the turning points beyond N* = 2 F_f*, F_f* the friction force where the
+  // turning point's acceleration of his closed form falls to 0 (long double bisection in F_f).
+  const double m = 1.0, c = 0.05, k = 1.0, F0 = 1.0, W = 0.65, mu = 0.5;
+  long double lo = 0.3L, hi = 0.95L;
+  REQUIRE(test::DenHartog(m, c, k, F0, lo, W).turning_acceleration() > 0);
+  REQUIRE(test::DenHartog(m, c, k, F0, hi, W).turning_acceleration() < 0);
+  for (int i = 0; i < 80; ++i) {
+    const long double mid = 0.5L * (lo + hi);
+    (test::DenHartog(m, c, k, F0, mid, W).turning_acceleration() > 0 ? lo : hi) = mid;
+  }
+  const double n_star = static_cast<double>(lo + hi) / mu * 0.5;
+  const LinearSystem sys = one_mass(m, c, k, F0, W);
+  SystemDerivative along_n;
+  along_n.friction = {FrictionDerivative{1.0, 0.0, 0.0}};
+  const ContinuationFamily family = [&](double n) {
+    return friction_family_engine(sys, {FrictionContact::on_surface(0, n, mu, mu)}, along_n, {});
+  };
+  ContinuationOptions o;
+  o.p_min = 0.4;
+  o.p_max = n_star + 0.3;
+  o.direction = +1;
+  o.max_points = 200;
+  const double n0 = 0.5;
+  FrictionSimulator sim(sys, {FrictionContact::on_surface(0, n0, mu, mu)});
+  const FrictionSummary settle = sim.run(0.0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), 600.0);
+  REQUIRE(settle.status == RunStatus::completed);
+  const ContinuationResult r = continue_orbits(family, n0, settle.t, settle.x, settle.v, o);
+  REQUIRE(!r.branches.empty());
+  const Bifurcation* onset = nullptr;
+  for (const Bifurcation& b : r.bifurcations)
+    if (b.kind == BifurcationKind::rising && b.stop == 0) onset = &b;
+  REQUIRE(onset != nullptr);
+  WARN("onset of sticking: N = " << onset->p << " (closed form " << n_star << ", difference " << onset->p - n_star
+                                  << "), smooth " << onset->smooth);
+  CHECK(onset->smooth);
+  // Located to the continuation's locate_tolerance (1e-10) on a smooth test function; the closed
+  // form's bisection is exact to long double: 1e-8 leaves room for the corrector's tolerance.
+  CHECK(std::abs(onset->p - n_star) < 1e-8);
+  // Beyond it the orbit sticks at both turning points: four switches per period, a structural zero.
+  const BranchPoint& last = r.branches.front().points.back();
+  CHECK(last.p > n_star);
+  CHECK(last.signature.phases.at(0) == 4);
+  CHECK(last.multipliers.structural_zeros == 1);
 }

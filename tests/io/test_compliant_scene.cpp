@@ -2,9 +2,12 @@
 ///  1. experiments/examples/soft_impact.yaml loads as its comment says: one compliant stop with
 ///     its stiffness, damping and preload, run on the dense engine (auto picks it, and says why);
 ///  2. its simulation writes engage and disengage events, named in /events/kind, alternating,
-///     and the stops' laws in /scene.
+///     and the stops' laws in /scene;
+///  3. a compliant stop's stiffness, damping and preload as continuation paths: the parameter
+///     derivative moves that entry of that stop and nothing else.
 /// The refusals (bad k_s, c_s, F_p, unknown law, restitution on a compliant stop, stiffness on a
 /// rigid one, the modal engine) are files of tests/io/malformed/compliant_*.yaml.
+#include "vibro/io/kinds/continue.hpp"
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/results.hpp"
 #include "vibro/io/scene.hpp"
@@ -14,6 +17,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -63,4 +67,37 @@ TEST_CASE("a compliant stop's switches are recorded as engage and disengage even
   CHECK(r.read_integers("/events/kind").front() == static_cast<std::int64_t>(ev.front().kind));
   CHECK(r.read_integers("/scene/stop_law") == std::vector<std::int64_t>{1});
   CHECK(r.read("/scene/stop_stiffness") == std::vector<double>{25.0});
+}
+
+TEST_CASE("a compliant stop's stiffness, damping and preload are continuation parameters", "[compliant][continue]") {
+  // A soft-impact oscillator with all three (a value at 0 has an invalid side: c_s, F_p ≥ 0).
+  const vibro::io::SceneDocument doc = vibro::io::SceneDocument::parse(R"(
+model:
+  chain:
+    masses: [1]
+    left_wall: {spring: 1, damper: 0.02}
+forcing:
+  frequency: 0.9
+  cosine: [0.5]
+stops:
+  - {mass: 0, side: upper, position: 1, law: compliant, stiffness: 25, damping: 0.1, preload: 0.05}
+)",
+                                                                       "soft.yaml");
+  for (const char* key : {"stiffness", "damping", "preload"}) {
+    INFO(key);
+    const vibro::SystemDerivative d = vibro::io::parameter_derivative(doc, std::string("stops[0].") + key);
+    REQUIRE(d.stops.size() == 1);
+    const vibro::StopDerivative& s = d.stops[0];
+    // The law's values enter the scene's data as they are: their central difference is 1 to
+    // rounding (ε p / h with the step h = 1e-2 p: ~1e-14).
+    const double moved = std::string(key) == "stiffness" ? s.stiffness : (std::string(key) == "damping" ? s.damping : s.preload);
+    CHECK(std::abs(moved - 1.0) < 1e-12);
+    CHECK(s.stiffness * s.damping == 0.0);
+    CHECK(s.damping * s.preload == 0.0);
+    CHECK(s.offset == 0.0);
+    CHECK(s.restitution == 0.0);
+    CHECK(d.stiffness.cwiseAbs().maxCoeff() == 0.0);
+    CHECK(d.damping.cwiseAbs().maxCoeff() == 0.0);
+    CHECK(d.frequency == 0.0);
+  }
 }

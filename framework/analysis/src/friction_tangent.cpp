@@ -31,13 +31,20 @@ struct ModeData {
   int stuck = 0;
 };
 
-/// The data D moved by h along dD (M fixed): C, K, the forcing, Ω.
+/// The data D moved by h along dD (M fixed): C, K, the forcing, Ω, the contacts' N, μ_s, μ_k.
 struct MovedData {
   MatrixXd C, K;
   HarmonicForcing f;
+  std::vector<FrictionContact> contacts;
 };
-MovedData moved(const LinearSystem& s, const SystemDerivative& d, double h) {
-  MovedData out{s.damping(), s.stiffness(), s.forcing()};
+MovedData moved(const LinearSystem& s, const std::vector<FrictionContact>& contacts, const SystemDerivative& d,
+                double h) {
+  MovedData out{s.damping(), s.stiffness(), s.forcing(), contacts};
+  for (std::size_t j = 0; j < d.friction.size(); ++j) {
+    out.contacts[j].normal_load += h * d.friction[j].normal_load;
+    out.contacts[j].static_coefficient += h * d.friction[j].static_coefficient;
+    out.contacts[j].kinetic_coefficient += h * d.friction[j].kinetic_coefficient;
+  }
   if (d.damping.size()) out.C += h * d.damping;
   if (d.stiffness.size()) out.K += h * d.stiffness;
   if (d.constant.size()) out.f.constant += h * d.constant;
@@ -73,10 +80,14 @@ class FrictionTangentRecorder final : public FrictionObserver {
       if (d.mass.size() && !d.mass.isZero(0.0))
         throw InvalidInput("linearisation (friction): the parameter moves the mass matrix; continue in Ω, the forcing, "
                            "C or K");
+      if (!d.friction.empty() && d.friction.size() != contacts.size())
+        throw InvalidInput("linearisation (friction): " + std::to_string(d.friction.size()) +
+                           " contact derivatives for " + std::to_string(contacts.size()) + " frictional contacts");
       // The rows are polynomials of degree ≤ 2 in h along dD with M fixed (C, K and f enter
       // linearly, Ω linearly in the oscillator and the surfaces' velocities and quadratically in
-      // their accelerations; M⁻¹ and W_SᵀM⁻¹W_S do not move), so the central difference below is
-      // their exact derivative up to rounding, about ε‖rows‖/h: h moves the data by 1e-3 of its size.
+      // their accelerations, a slip's force μ_k N and a stuck contact's limit μ_s N are bilinear in
+      // (N, μ); M⁻¹ and W_SᵀM⁻¹W_S do not move), so the central difference below is their exact
+      // derivative up to rounding, about ε‖rows‖/h: h moves the data by 1e-3 of its size.
       const HarmonicForcing& f = system.forcing();
       double size = std::max({max_abs(system.damping()), max_abs(system.stiffness()), max_abs(f.constant),
                               max_abs(f.cosine), max_abs(f.sine), std::abs(f.frequency), 1e-300});
@@ -85,10 +96,14 @@ class FrictionTangentRecorder final : public FrictionObserver {
       for (const auto& v : d.harmonic_cosine) move = std::max(move, max_abs(v));
       for (const auto& v : d.harmonic_sine) move = std::max(move, max_abs(v));
       for (const ForcingHarmonic& hh : f.harmonics) size = std::max({size, max_abs(hh.cosine), max_abs(hh.sine)});
+      for (const FrictionContact& c : contacts)
+        size = std::max({size, c.normal_load, c.static_coefficient, c.kinetic_coefficient});
+      for (const FrictionDerivative& c : d.friction)
+        move = std::max({move, std::abs(c.normal_load), std::abs(c.static_coefficient), std::abs(c.kinetic_coefficient)});
       step_ = move > 0.0 ? 1e-3 * size / move : 0.0;
       if (step_ > 0.0) {
-        plus_ = moved(system, d, step_);
-        minus_ = moved(system, d, -step_);
+        plus_ = moved(system, contacts, d, step_);
+        minus_ = moved(system, contacts, d, -step_);
       }
     }
   }
@@ -275,8 +290,8 @@ class FrictionTangentRecorder final : public FrictionObserver {
     ModeData d;
     d.rows = friction_mode_rows(system_.mass(), system_.damping(), system_.stiffness(), system_.forcing(), contacts_, states);
     if (step_ > 0.0) {
-      const FrictionModeRows p = friction_mode_rows(system_.mass(), plus_.C, plus_.K, plus_.f, contacts_, states);
-      const FrictionModeRows m = friction_mode_rows(system_.mass(), minus_.C, minus_.K, minus_.f, contacts_, states);
+      const FrictionModeRows p = friction_mode_rows(system_.mass(), plus_.C, plus_.K, plus_.f, plus_.contacts, states);
+      const FrictionModeRows m = friction_mode_rows(system_.mass(), minus_.C, minus_.K, minus_.f, minus_.contacts, states);
       d.dgenerator = (p.generator - m.generator) / (2.0 * step_);
       d.dguards = (p.guards - m.guards) / (2.0 * step_);
       d.drelative = (p.relative - m.relative) / (2.0 * step_);

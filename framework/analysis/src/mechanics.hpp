@@ -48,7 +48,9 @@
 // joins f (the cos, sin and constant columns of B). Everything above then reads a_free,E for
 // a_free and the rigid stops R for S: the constraint forces, the generator, the resets (an
 // engagement or disengagement has no impulse: R_z is the identity up to the projection of
-// step 3 onto the held rigid stops' manifold).
+// step 3 onto the held rigid stops' manifold). With T = Dual the law's k_j, c_j, F_p,j carry
+// their derivatives (StopDerivative::stiffness, damping, preload), so dÂ_S/dp holds
+// dk_j w_j w_jᵀ, dc_j w_j w_jᵀ and dF_p,j for the engaged stops of S only.
 #include "dual.hpp"
 #include "vibro/contact.hpp"
 #include "vibro/modal.hpp"
@@ -545,6 +547,10 @@ class Mechanics {
   }
 
   void add_stops(const std::vector<Stop>& stops, const SystemDerivative& d) {
+    for (const FrictionDerivative& f : d.friction)
+      if (!f.is_zero())
+        throw InvalidInput("parameter derivative: it moves a frictional contact, and this system has none "
+                           "(friction runs on the friction engine, friction_tangent.hpp)");
     for (std::size_t j = 0; j < m_; ++j) {
       const Stop& s = stops[j];
       const StopDerivative ds = d.stops.empty() ? StopDerivative{} : d.stops[j];
@@ -565,9 +571,12 @@ class Mechanics {
       sc_.push_back(make(s.s_cos(), ds.cosine));
       ss_.push_back(make(s.s_sin(), ds.sine));
       r_.push_back(make(s.restitution, ds.restitution));
-      ks_.push_back(make(s.stiffness, 0.0));
-      cs_.push_back(make(s.damping, 0.0));
-      fp_.push_back(make(s.preload, 0.0));
+      if (ds.moves_law() && !s.is_compliant())
+        throw InvalidInput("parameter derivative: stop " + std::to_string(j) +
+                           " is rigid; only a compliant stop's stiffness, damping and preload have derivatives");
+      ks_.push_back(make(s.stiffness, ds.stiffness));
+      cs_.push_back(make(s.damping, ds.damping));
+      fp_.push_back(make(s.preload, ds.preload));
     }
     bool higher = false;
     for (const Stop& s : stops) higher = higher || s.has_higher_harmonics();

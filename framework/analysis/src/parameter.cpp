@@ -41,7 +41,9 @@ bool SystemDerivative::is_zero() const {
     for (const Eigen::VectorXd& v : *list)
       if (!zero(v)) return false;
   for (const StopDerivative& s : stops)
-    if (s.offset != 0.0 || s.cosine != 0.0 || s.sine != 0.0 || s.restitution != 0.0) return false;
+    if (!s.is_zero()) return false;
+  for (const FrictionDerivative& f : friction)
+    if (!f.is_zero()) return false;
   for (const auto* list : {&stop_harmonic_cosine, &stop_harmonic_sine})
     for (const std::vector<double>& stop : *list)
       for (double v : stop)
@@ -79,8 +81,12 @@ void SystemDerivative::validate(Eigen::Index n, std::size_t m) const {
     throw InvalidInput("parameter derivative: " + std::to_string(stops.size()) + " stop derivatives for " +
                        std::to_string(m) + " stops");
   for (const StopDerivative& s : stops)
-    if (!std::isfinite(s.offset) || !std::isfinite(s.cosine) || !std::isfinite(s.sine) || !std::isfinite(s.restitution))
+    if (!std::isfinite(s.offset) || !std::isfinite(s.cosine) || !std::isfinite(s.sine) || !std::isfinite(s.restitution) ||
+        !std::isfinite(s.stiffness) || !std::isfinite(s.damping) || !std::isfinite(s.preload))
       throw InvalidInput("parameter derivative: a stop derivative is not finite");
+  for (const FrictionDerivative& f : friction)
+    if (!std::isfinite(f.normal_load) || !std::isfinite(f.static_coefficient) || !std::isfinite(f.kinetic_coefficient))
+      throw InvalidInput("parameter derivative: a frictional contact's derivative is not finite");
   for (const auto* list : {&stop_harmonic_cosine, &stop_harmonic_sine}) {
     if (list->size() > m)
       throw InvalidInput("parameter derivative: stop harmonic derivatives for " + std::to_string(list->size()) +
@@ -118,8 +124,17 @@ SystemDerivative SystemDerivative::combined(double a, const SystemDerivative& o,
   for (std::size_t j = 0; j < m; ++j) {
     const StopDerivative x = j < stops.size() ? stops[j] : StopDerivative{};
     const StopDerivative y = j < o.stops.size() ? o.stops[j] : StopDerivative{};
-    out.stops[j] = {a * x.offset + b * y.offset, a * x.cosine + b * y.cosine, a * x.sine + b * y.sine,
-                    a * x.restitution + b * y.restitution};
+    out.stops[j] = {a * x.offset + b * y.offset,       a * x.cosine + b * y.cosine,
+                    a * x.sine + b * y.sine,           a * x.restitution + b * y.restitution,
+                    a * x.stiffness + b * y.stiffness, a * x.damping + b * y.damping,
+                    a * x.preload + b * y.preload};
+  }
+  out.friction.resize(std::max(friction.size(), o.friction.size()));
+  for (std::size_t j = 0; j < out.friction.size(); ++j) {
+    const FrictionDerivative x = j < friction.size() ? friction[j] : FrictionDerivative{};
+    const FrictionDerivative y = j < o.friction.size() ? o.friction[j] : FrictionDerivative{};
+    out.friction[j] = {a * x.normal_load + b * y.normal_load, a * x.static_coefficient + b * y.static_coefficient,
+                       a * x.kinetic_coefficient + b * y.kinetic_coefficient};
   }
   for (auto [mine, theirs, into] : {std::tuple{&stop_harmonic_cosine, &o.stop_harmonic_cosine, &out.stop_harmonic_cosine},
                                     std::tuple{&stop_harmonic_sine, &o.stop_harmonic_sine, &out.stop_harmonic_sine}}) {

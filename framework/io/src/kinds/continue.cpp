@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -31,9 +32,10 @@ struct Data {
   Eigen::MatrixXd M, C, K;
   Eigen::VectorXd F0, Fc, Fs;
   double omega = 0.0;
-  std::vector<std::array<double, 4>> stops;  // s0, sc, ss, r
+  std::vector<std::array<double, 7>> stops;  // s0, sc, ss, r, and a compliant stop's k_s, c_s, F_p
   std::vector<Eigen::VectorXd> Hc, Hs;       // extra harmonics (system.hpp)
   std::vector<Eigen::VectorXd> stop_hc, stop_hs;  // per stop: its higher harmonics' h_cos, h_sin (stops.hpp)
+  std::vector<std::array<double, 3>> friction;    // per frictional contact: N, μ_s, μ_k (friction.hpp)
 };
 
 Data data_of(const Scene& s) {
@@ -41,7 +43,7 @@ Data data_of(const Scene& s) {
   Data d{sys.mass(), sys.damping(), sys.stiffness(), sys.forcing().constant, sys.forcing().cosine, sys.forcing().sine,
          sys.forcing().frequency, {}, {}, {}};
   for (const Stop& st : s.stops) {
-    d.stops.push_back({st.s0(), st.s_cos(), st.s_sin(), st.restitution});
+    d.stops.push_back({st.s0(), st.s_cos(), st.s_sin(), st.restitution, st.stiffness, st.damping, st.preload});
     const auto H = static_cast<Eigen::Index>(st.harmonics.size());
     d.stop_hc.emplace_back(H);
     d.stop_hs.emplace_back(H);
@@ -54,6 +56,7 @@ Data data_of(const Scene& s) {
     d.Hc.push_back(h.cosine);
     d.Hs.push_back(h.sine);
   }
+  for (const FrictionContact& c : s.friction) d.friction.push_back({c.normal_load, c.static_coefficient, c.kinetic_coefficient});
   return d;
 }
 
@@ -74,7 +77,10 @@ double largest(const Data& a, const Data& b, double scale) {
     over(a.Hs[h], b.Hs[h]);
   }
   for (std::size_t j = 0; j < a.stops.size(); ++j)
-    for (int i = 0; i < 4; ++i) m = std::max(m, std::abs(a.stops[j][static_cast<std::size_t>(i)] + scale * b.stops[j][static_cast<std::size_t>(i)]));
+    for (std::size_t i = 0; i < a.stops[j].size(); ++i) m = std::max(m, std::abs(a.stops[j][i] + scale * b.stops[j][i]));
+  for (std::size_t j = 0; j < a.friction.size(); ++j)
+    for (std::size_t i = 0; i < a.friction[j].size(); ++i)
+      m = std::max(m, std::abs(a.friction[j][i] + scale * b.friction[j][i]));
   for (std::size_t j = 0; j < a.stop_hc.size(); ++j)
     if (a.stop_hc[j].size() > 0) {
       over(a.stop_hc[j], b.stop_hc[j]);
@@ -97,9 +103,14 @@ SystemDerivative difference(const Data& plus, const Data& minus, double h) {
     d.harmonic_cosine.push_back((plus.Hc[h] - minus.Hc[h]) * k);
     d.harmonic_sine.push_back((plus.Hs[h] - minus.Hs[h]) * k);
   }
-  for (std::size_t j = 0; j < plus.stops.size(); ++j)
-    d.stops.push_back({(plus.stops[j][0] - minus.stops[j][0]) * k, (plus.stops[j][1] - minus.stops[j][1]) * k,
-                       (plus.stops[j][2] - minus.stops[j][2]) * k, (plus.stops[j][3] - minus.stops[j][3]) * k});
+  for (std::size_t j = 0; j < plus.stops.size(); ++j) {
+    std::array<double, 7> e{};
+    for (std::size_t i = 0; i < e.size(); ++i) e[i] = (plus.stops[j][i] - minus.stops[j][i]) * k;
+    d.stops.push_back({e[0], e[1], e[2], e[3], e[4], e[5], e[6]});
+  }
+  for (std::size_t j = 0; j < plus.friction.size(); ++j)
+    d.friction.push_back({(plus.friction[j][0] - minus.friction[j][0]) * k, (plus.friction[j][1] - minus.friction[j][1]) * k,
+                          (plus.friction[j][2] - minus.friction[j][2]) * k});
   for (std::size_t j = 0; j < plus.stop_hc.size(); ++j) {
     const Eigen::VectorXd c = (plus.stop_hc[j] - minus.stop_hc[j]) * k, s = (plus.stop_hs[j] - minus.stop_hs[j]) * k;
     d.stop_harmonic_cosine.emplace_back(c.data(), c.data() + c.size());
@@ -148,13 +159,14 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
   if (std::regex_match(path, m, normal))
     refuse(doc, path,
            "is a component of a stop's normal, which is not a continuation parameter (the derivatives follow a stop's position, "
-           "amplitude, phase and restitution); continue in one of those, or sweep the normal (run.kind: sweep)");
-  static const std::regex law(R"(stops\[(\d+)\]\.(stiffness|damping|preload))");
-  if (std::regex_match(path, m, law))
+           "amplitude, phase, restitution and a compliant stop's stiffness, damping and preload); continue in one of "
+           "those, or sweep the normal (run.kind: sweep)");
+  static const std::regex surface(R"(friction\[(\d+)\]\.surface\.(amplitude|phase))");
+  if (std::regex_match(path, m, surface))
     refuse(doc, path,
-           "is a compliant stop's stiffness, damping or preload, which are not continuation parameters (the derivatives "
-           "follow the model, the forcing and a stop's position, amplitude, phase and restitution); continue in "
-           "one of those, or sweep it (run.kind: sweep)");
+           "is the motion of a frictional contact's surface, which is not a continuation parameter (the derivatives "
+           "follow a contact's normal_load, static and kinetic coefficients); continue in one of those, or sweep it "
+           "(run.kind: sweep)");
   const double p = doc.get(path);
   const Data d0 = data_of(doc.build_point());
   // The largest step that keeps the scene valid on both sides: affine data make the central
@@ -190,7 +202,9 @@ Entry classify(const SceneDocument& doc, const std::string& path) {
       sum.Hs[q] += minus.Hs[q];
     }
     for (std::size_t j = 0; j < sum.stops.size(); ++j)
-      for (std::size_t i = 0; i < 4; ++i) sum.stops[j][i] += minus.stops[j][i];
+      for (std::size_t i = 0; i < sum.stops[j].size(); ++i) sum.stops[j][i] += minus.stops[j][i];
+    for (std::size_t j = 0; j < sum.friction.size(); ++j)
+      for (std::size_t i = 0; i < sum.friction[j].size(); ++i) sum.friction[j][i] += minus.friction[j][i];
     for (std::size_t j = 0; j < sum.stop_hc.size(); ++j) {
       sum.stop_hc[j] += minus.stop_hc[j];
       sum.stop_hs[j] += minus.stop_hs[j];
