@@ -133,6 +133,9 @@ RunScales run_scales(const SimulatorOptions& o, double omega, double kmax, doubl
   }
   s.L = L;
   s.V = L * omega;
+  // A stop's higher harmonics move it faster than ω times its extent: k Ω per harmonic's amplitude.
+  for (const Stop& st : stops)
+    if (st.has_higher_harmonics()) s.V = std::max(s.V, st.motion_speed(omega));
   s.F = std::max(stiff * L, fmax);
   s.T = 2.0 * std::numbers::pi / omega;
   s.eps_gap = o.trigger * s.L;

@@ -64,7 +64,8 @@ struct EventRules {
 
 /// A run's scales and the absolute tolerances they give (SimulatorOptions documents each):
 /// L = the options' length_scale, or the largest of the stops' offsets and amplitudes, |x0|,
-/// |v0|/ω and f/k (k = max(‖K‖, ‖M‖ω²)); V = Lω; F = max(kL, f); T = 2π/ω.
+/// |v0|/ω and f/k (k = max(‖K‖, ‖M‖ω²)); V = Lω, or a stop's largest speed if its higher harmonics
+/// move it faster (Stop::motion_speed: k Ω per harmonic's amplitude); F = max(kL, f); T = 2π/ω.
 struct RunScales {
   double L = 0.0, V = 0.0, F = 0.0, T = 0.0;
   /// The stops' own scale (largest offset or amplitude; 0 if every stop sits at 0 unmoving) and

@@ -122,10 +122,14 @@ inline constexpr Eigen::Index kSecularFromMasses = 1000;
 /// Buffers of the free chain's size for the basis changes and guard values of an event, so that
 /// no event allocates once they are warm (each use takes the head it needs).
 struct Buffers {
-  explicit Buffers(Eigen::Index n) : y(n), yd(n), u(n), ud(n), udd(n), fu(n), fud(n), z(n), kz(n) {}
-  Eigen::VectorXd y, yd, u, ud, udd, fu, fud, z, kz;
+  explicit Buffers(Eigen::Index n) : y(n), yd(n), u(n), ud(n), udd(n), fu(n), fud(n), z(n), kz(n), ox(n), ov(n) {}
+  Eigen::VectorXd y, yd, u, ud, udd, fu, fud, z, kz, ox, ov;
   ChainModes::Workspace work;
 };
+
+/// The offsets' higher harmonics at t (ModalContactMode::oxc, oxs), position into `x` and rate
+/// into `v` (length N); only for a mode whose oxc is not empty. O(N H).
+void offset_extra(const ModalContactMode& mode, double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v);
 
 /// Full physical state from a mode's homogeneous modal state at t. O(n·n_r).
 void to_physical(const ModalContactMode& mode, double W, double t, const Eigen::Ref<const Eigen::VectorXd>& u,

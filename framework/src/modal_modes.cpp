@@ -11,6 +11,18 @@
 
 namespace vibro {
 
+BandedChain with_stop_orders(BandedChain chain, const std::vector<Stop>& stops) {
+  for (const Stop& s : stops)
+    for (const StopHarmonic& h : s.harmonics) {
+      bool present = false;
+      for (const ForcingHarmonic& fh : chain.forcing.harmonics) present = present || fh.order == h.order;
+      if (!present)
+        chain.forcing.harmonics.push_back(
+            {h.order, Eigen::VectorXd::Zero(chain.dof()), Eigen::VectorXd::Zero(chain.dof())});
+    }
+  return chain;
+}
+
 void ModalGuards::finish(double frequency) {
   abs_P = P.cwiseAbs();
   abs_D = D.cwiseAbs();
@@ -64,6 +76,27 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
   mode->o0 = Eigen::VectorXd::Zero(n);
   mode->oc = Eigen::VectorXd::Zero(n);
   mode->os = Eigen::VectorXd::Zero(n);
+  // Held stops moving with higher harmonics give the offsets harmonics of those orders, on the
+  // drive's slots (with_stop_orders gives the chain one for every order a stop moves at).
+  bool held_harmonics = false;
+  for (int j : set) held_harmonics = held_harmonics || stops[static_cast<std::size_t>(j)].has_higher_harmonics();
+  if (held_harmonics) {
+    mode->oxc = Eigen::MatrixXd::Zero(n, H);
+    mode->oxs = Eigen::MatrixXd::Zero(n, H);
+  }
+  // Row `to` of the offsets' harmonics: row `from`'s (none if from < 0) plus sign × stop s's.
+  auto carry_extra = [&](Eigen::Index to, Eigen::Index from, double sign, const Stop& s) {
+    if (!held_harmonics) return;
+    if (from >= 0) {
+      mode->oxc.row(to) = mode->oxc.row(from);
+      mode->oxs.row(to) = mode->oxs.row(from);
+    }
+    for (std::size_t i = 0; i < s.harmonics.size(); ++i) {
+      const auto h = static_cast<Eigen::Index>(forcing_slot(ch.forcing, s.harmonics[i].order));
+      mode->oxc(to, h) += sign * s.h_cos(i);
+      mode->oxs(to, h) += sign * s.h_sin(i);
+    }
+  };
   // Groups of masses joined by held stops between neighbours: (first, last, fixing stop or -1).
   struct Group {
     Eigen::Index lo, hi;
@@ -137,19 +170,23 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
       if (g.fixer >= 0) {
         const Stop& s = stops[static_cast<std::size_t>(g.fixer)];
         anchor = s.mass;
-        set_o(anchor, (s.kind == Stop::Kind::upper ? 1.0 : -1.0) * stop_motion(s));
+        const double sign = s.kind == Stop::Kind::upper ? 1.0 : -1.0;
+        set_o(anchor, sign * stop_motion(s));
+        carry_extra(anchor, -1, sign, s);
       }
       for (Eigen::Index l = anchor; l < g.hi; ++l) {  // x_mass - x_other = s
         const Stop& s = stops[static_cast<std::size_t>(tie[static_cast<std::size_t>(l)])];
         Harmonic next = get_o(l);
         next += (s.mass == l ? -1.0 : 1.0) * stop_motion(s);
         set_o(l + 1, next);
+        carry_extra(l + 1, l, s.mass == l ? -1.0 : 1.0, s);
       }
       for (Eigen::Index l = anchor - 1; l >= g.lo; --l) {
         const Stop& s = stops[static_cast<std::size_t>(tie[static_cast<std::size_t>(l)])];
         Harmonic next = get_o(l + 1);
         next += (s.mass == l ? 1.0 : -1.0) * stop_motion(s);
         set_o(l, next);
+        carry_extra(l, l + 1, s.mass == l ? 1.0 : -1.0, s);
       }
       if (g.fixer < 0) {
         const auto r = static_cast<Eigen::Index>(mode->first.size());
@@ -183,10 +220,28 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
       red.rayleigh_mass = alpha;
       red.rayleigh_stiffness = beta;
       red.forcing = HarmonicForcing::zero(nr, W);
-      // The held stops move with the first harmonic only, so the extra harmonics force the reduced
-      // chain as Tᵀ f_h.
+      // Each extra harmonic h of rate r forces the reduced chain as Tᵀ(f_h − M o_h'' − C o_h' − K o_h),
+      // o_h the offsets' harmonic of that order (zero unless a held stop moves at it): the first
+      // harmonic's formulas with Ω → r.
       for (const ForcingHarmonic& fh : f.harmonics)
         red.forcing.harmonics.push_back({fh.order, Eigen::VectorXd::Zero(nr), Eigen::VectorXd::Zero(nr)});
+      std::vector<Eigen::VectorXd> Fhc, Fhs;  // per harmonic, when the offsets have harmonics
+      if (held_harmonics) {
+        Eigen::VectorXd Kc, Ks;
+        for (Eigen::Index h = 0; h < H; ++h) {
+          const double r = rates(h);
+          const Eigen::VectorXd oc_h = mode->oxc.col(h), os_h = mode->oxs.col(h);
+          stiffness_times(ch, oc_h, Kc);
+          stiffness_times(ch, os_h, Ks);
+          const auto& fh = f.harmonics[static_cast<std::size_t>(h)];
+          Fhc.push_back((fh.cosine.array() + r * r * m * oc_h.array() - r * (alpha * m * os_h.array() + beta * Ks.array()) -
+                         Kc.array())
+                            .matrix());
+          Fhs.push_back((fh.sine.array() + r * r * m * os_h.array() + r * (alpha * m * oc_h.array() + beta * Kc.array()) -
+                         Ks.array())
+                            .matrix());
+        }
+      }
       for (Eigen::Index r = 0; r < nr; ++r) {
         const Eigen::Index a = mode->first[static_cast<std::size_t>(r)], b = mode->last[static_cast<std::size_t>(r)];
         for (Eigen::Index l = a; l <= b; ++l) {
@@ -196,8 +251,8 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
           red.forcing.cosine(r) += Fc(l);
           red.forcing.sine(r) += Fs(l);
           for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
-            red.forcing.harmonics[h].cosine(r) += f.harmonics[h].cosine(l);
-            red.forcing.harmonics[h].sine(r) += f.harmonics[h].sine(l);
+            red.forcing.harmonics[h].cosine(r) += held_harmonics ? Fhc[h](l) : f.harmonics[h].cosine(l);
+            red.forcing.harmonics[h].sine(r) += held_harmonics ? Fhs[h](l) : f.harmonics[h].sine(l);
           }
         }
         if (r + 1 < nr && b + 1 == mode->first[static_cast<std::size_t>(r + 1)])
@@ -236,21 +291,29 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
   // formed only for the masses a guard needs.
   const ChainModes* md = mode->modes;
   const Eigen::Index nr = mode->size();
-  // The extra harmonics of X_l are φ_l·p_h(t) (the offsets move with the first harmonic only).
+  // The extra harmonics of X_l are φ_l·p_h(t) + o_l,h(t) (the offsets' part: held stops moving
+  // with higher harmonics).
+  auto offset_of = [&](Eigen::Index l) {
+    Periodic o = Periodic::of({mode->o0(l), mode->oc(l), mode->os(l)}, H);
+    if (held_harmonics) {
+      o.c = mode->oxc.row(l).transpose();
+      o.s = mode->oxs.row(l).transpose();
+    }
+    return o;
+  };
   std::map<Eigen::Index, std::pair<Eigen::VectorXd, Periodic>> rows;
   auto add_particular = [&](std::pair<Eigen::VectorXd, Periodic>& entry) {
     entry.second += Harmonic{entry.first.dot(md->particular_constant()), entry.first.dot(md->particular_cosine()),
                              entry.first.dot(md->particular_sine())};
     if (H > 0) {
-      entry.second.c = md->particular_harmonic_cosine().transpose() * entry.first;
-      entry.second.s = md->particular_harmonic_sine().transpose() * entry.first;
+      entry.second.c += md->particular_harmonic_cosine().transpose() * entry.first;
+      entry.second.s += md->particular_harmonic_sine().transpose() * entry.first;
     }
   };
   auto mass_row = [&](Eigen::Index l) -> const std::pair<Eigen::VectorXd, Periodic>& {
     auto it = rows.find(l);
     if (it != rows.end()) return it->second;
-    std::pair<Eigen::VectorXd, Periodic> entry{Eigen::VectorXd::Zero(nr),
-                                               Periodic::of({mode->o0(l), mode->oc(l), mode->os(l)}, H)};
+    std::pair<Eigen::VectorXd, Periodic> entry{Eigen::VectorXd::Zero(nr), offset_of(l)};
     const Eigen::Index r = mode->coordinate[static_cast<std::size_t>(l)];
     if (r >= 0) {
       entry.first = md->phi_row(r);
@@ -283,8 +346,7 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
     const Eigen::MatrixXd phi = md->phi_rows(coordinates);
     for (std::size_t c = 0; c < wanted.size(); ++c) {
       const Eigen::Index l = wanted[c];
-      std::pair<Eigen::VectorXd, Periodic> entry{phi.row(static_cast<Eigen::Index>(c)).transpose(),
-                                                 Periodic::of({mode->o0(l), mode->oc(l), mode->os(l)}, H)};
+      std::pair<Eigen::VectorXd, Periodic> entry{phi.row(static_cast<Eigen::Index>(c)).transpose(), offset_of(l)};
       add_particular(entry);
       rows.emplace(l, std::move(entry));
     }
@@ -318,6 +380,11 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
     const Stop& s = stops[static_cast<std::size_t>(j)];
     const Normal w = normal_of(s);
     Periodic h = Periodic::of(-1.0 * stop_motion(s), H);
+    for (std::size_t i = 0; i < s.harmonics.size(); ++i) {  // − the stop's higher harmonics
+      const auto slot = static_cast<Eigen::Index>(forcing_slot(ch.forcing, s.harmonics[i].order));
+      h.c(slot) -= s.h_cos(i);
+      h.s(slot) -= s.h_sin(i);
+    }
     for (const auto& [l, weight] : {std::pair{w.i, w.wi}, std::pair{w.k, w.wk}}) {
       if (l < 0) continue;
       const auto& [phi, X] = mass_row(l);
@@ -395,6 +462,17 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
   return mode;
 }
 
+void offset_extra(const ModalContactMode& mode, double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> v) {
+  x.setZero();
+  v.setZero();
+  const Eigen::VectorXd& rates = mode.guards.rates;
+  for (Eigen::Index h = 0; h < mode.oxc.cols(); ++h) {
+    const double r = rates(h), c = std::cos(r * t), s = std::sin(r * t);
+    x += mode.oxc.col(h) * c + mode.oxs.col(h) * s;
+    v += r * (mode.oxs.col(h) * c - mode.oxc.col(h) * s);
+  }
+}
+
 /// Full physical state from a mode's homogeneous modal state at t. O(n·n_r).
 void to_physical(const ModalContactMode& mode, double W, double t, const Eigen::Ref<const Eigen::VectorXd>& u,
                  const Eigen::Ref<const Eigen::VectorXd>& ud, Eigen::Ref<Eigen::VectorXd> x,
@@ -407,6 +485,11 @@ void to_physical(const ModalContactMode& mode, double W, double t, const Eigen::
     const Eigen::Index r = mode.coordinate[static_cast<std::size_t>(l)];
     x(l) = mode.o0(l) + mode.oc(l) * c + mode.os(l) * s + (r >= 0 ? y(r) : 0.0);
     v(l) = W * (mode.os(l) * c - mode.oc(l) * s) + (r >= 0 ? yd(r) : 0.0);
+  }
+  if (mode.oxc.size() > 0) {
+    offset_extra(mode, t, b.ox.head(n), b.ov.head(n));
+    x += b.ox.head(n);
+    v += b.ov.head(n);
   }
 }
 
@@ -421,11 +504,13 @@ void to_modal(const ModalContactMode& mode, const Eigen::VectorXd& mass, double 
   if (nr == 0) return;
   const double c = std::cos(W * t), s = std::sin(W * t);
   auto y = b.y.head(nr), yd = b.yd.head(nr);
+  const bool extra = mode.oxc.size() > 0;
+  if (extra) offset_extra(mode, t, b.ox.head(x.size()), b.ov.head(x.size()));
   for (Eigen::Index r = 0; r < nr; ++r) {
     double sy = 0.0, sv = 0.0, sm = 0.0;
     for (Eigen::Index l = mode.first[static_cast<std::size_t>(r)]; l <= mode.last[static_cast<std::size_t>(r)]; ++l) {
-      sy += mass(l) * (x(l) - (mode.o0(l) + mode.oc(l) * c + mode.os(l) * s));
-      sv += mass(l) * (v(l) - W * (mode.os(l) * c - mode.oc(l) * s));
+      sy += mass(l) * (x(l) - (mode.o0(l) + mode.oc(l) * c + mode.os(l) * s) - (extra ? b.ox(l) : 0.0));
+      sv += mass(l) * (v(l) - W * (mode.os(l) * c - mode.oc(l) * s) - (extra ? b.ov(l) : 0.0));
       sm += mass(l);
     }
     y(r) = sy / sm;

@@ -76,10 +76,10 @@ class ChainAlgebra final : public detail::ContactAlgebra {
   }
 
   double gap(int j, double t, const Eigen::VectorXd& x) const override {
-    return w_dot(j, x) - value_at(motion(j), W_, t);
+    return w_dot(j, x) - value_at(motion(j), W_, t) - higher(j, t, 0);
   }
   double gap_rate(int j, double t, const Eigen::VectorXd& v) const {
-    return w_dot(j, v) - value_at(motion(j).derivative(W_), W_, t);
+    return w_dot(j, v) - value_at(motion(j).derivative(W_), W_, t) - higher(j, t, 1);
   }
   void gap_rates(double t, const Eigen::VectorXd& v, Eigen::Ref<Eigen::VectorXd> out) const override {
     for (Eigen::Index j = 0; j < out.size(); ++j) out(j) = gap_rate(static_cast<int>(j), t, v);
@@ -104,7 +104,7 @@ class ChainAlgebra final : public detail::ContactAlgebra {
     auto q = q_.head(k);
     for (Eigen::Index a = 0; a < k; ++a) {
       const int j = candidates[static_cast<std::size_t>(a)];
-      q(a) = w_dot(j, acc_) - value_at(motion(j).derivative(W_).derivative(W_), W_, t);
+      q(a) = w_dot(j, acc_) - value_at(motion(j).derivative(W_).derivative(W_), W_, t) - higher(j, t, 2);
     }
     auto G = G_.topLeftCorner(k, k);
     delassus(candidates, G);
@@ -171,6 +171,11 @@ class ChainAlgebra final : public detail::ContactAlgebra {
     if (w.k >= 0) z(w.k) += scale * w.wk / ch_.mass(w.k);
   }
   Harmonic motion(int j) const { return stop_motion(stops_[static_cast<std::size_t>(j)]); }
+  /// The stop's higher harmonics' part of s_j (derivative 0), s_j' (1) or s_j'' (2): 0 without them.
+  double higher(int j, double t, int derivative) const {
+    const Stop& s = stops_[static_cast<std::size_t>(j)];
+    return s.has_higher_harmonics() ? stop_higher_motion(s, W_, t, derivative) : 0.0;
+  }
 
   const BandedChain& ch_;
   const std::vector<Stop>& stops_;
@@ -239,10 +244,18 @@ ModalChainSimulator::ModalChainSimulator(const ChainModes& modes, std::vector<St
       throw InvalidInput(label + ": restitution = " + number_text(s.restitution) + ": must be in [0, 1]");
     if (s.amplitude > 0.0 && !(W > 0.0))
       throw InvalidInput(label + ": a moving stop needs forcing.frequency > 0");
-    if (s.has_higher_harmonics())
-      throw InvalidInput(label + ": a stop moving with more than one harmonic (order " +
-                         std::to_string(s.harmonics.front().order) +
-                         ") is handled by the dense engine only (solver.engine: dense or auto)");
+    for (const StopHarmonic& h : s.harmonics) {
+      if (h.order < 2 || !std::isfinite(h.cosine) || !std::isfinite(h.sine))
+        throw InvalidInput(label + ": a harmonic of order " + std::to_string(h.order) + " (cosine " +
+                           number_text(h.cosine) + ", sine " + number_text(h.sine) +
+                           "): the order must be ≥ 2 and the amplitudes finite");
+      if (!(W > 0.0)) throw InvalidInput(label + ": a moving stop needs forcing.frequency > 0");
+      bool slot = false;
+      for (const ForcingHarmonic& fh : modes.chain().forcing.harmonics) slot = slot || fh.order == h.order;
+      if (!slot)
+        throw InvalidInput(label + ": moves at order " + std::to_string(h.order) +
+                           ", which the modes' forcing lacks: build the modes from with_stop_orders(chain, stops)");
+    }
     if (s.is_compliant())
       throw InvalidInput(label + ": a compliant stop (law: compliant) is handled by the dense engine only "
                          "(solver.engine: dense or auto)");

@@ -70,6 +70,11 @@ void ModalSegmentState::rows(double t, const std::vector<Eigen::Index>& masses, 
     const Eigen::Index l = masses[static_cast<std::size_t>(i)];
     x(i) = md.o0(l) + md.oc(l) * c + md.os(l) * s;
     v(i) = W * (md.os(l) * c - md.oc(l) * s);
+    for (Eigen::Index h = 0; h < md.oxc.cols(); ++h) {  // held stops' higher harmonics
+      const double r = md.guards.rates(h), ch = std::cos(r * t), sh = std::sin(r * t);
+      x(i) += md.oxc(l, h) * ch + md.oxs(l, h) * sh;
+      v(i) += r * (md.oxs(l, h) * ch - md.oxc(l, h) * sh);
+    }
     if (md.coordinate[static_cast<std::size_t>(l)] >= 0) {
       x(i) += phi.row(next).dot(q);
       v(i) += phi.row(next).dot(qd);
@@ -214,19 +219,25 @@ void ModalSegmentView::plane_crossings(const Hyperplane& plane, double trigger, 
   const Eigen::Index H = g.harmonics();
   g.xc = Eigen::MatrixXd::Zero(2, H);
   g.xs = Eigen::MatrixXd::Zero(2, H);
+  if (md.oxc.size() > 0)  // the offsets' higher harmonics (held stops moving with them)
+    for (Eigen::Index l = 0; l < n; ++l)
+      if (plane.normal(l) != 0.0) {
+        g.xc.row(0) += plane.normal(l) * md.oxc.row(l);
+        g.xs.row(0) += plane.normal(l) * md.oxs.row(l);
+      }
   if (nr > 0 && !coordinates.empty()) {
     const ChainModes& m = *md.modes;
     const Eigen::MatrixXd phi = m.phi_rows(coordinates);
     for (Eigen::Index k = 0; k < phi.rows(); ++k) g.P.row(0) += weights[static_cast<std::size_t>(k)] * phi.row(k);
     offset += Harmonic{g.P.row(0).dot(m.particular_constant()), g.P.row(0).dot(m.particular_cosine()),
                        g.P.row(0).dot(m.particular_sine())};
-    if (H > 0) {  // the extra harmonics of φ·p(t) (the offsets move with the first harmonic only)
-      g.xc.row(0) = g.P.row(0) * m.particular_harmonic_cosine();
-      g.xs.row(0) = g.P.row(0) * m.particular_harmonic_sine();
-      g.xc.row(1) = -g.xc.row(0);
-      g.xs.row(1) = -g.xs.row(0);
+    if (H > 0) {  // the extra harmonics of φ·p(t)
+      g.xc.row(0) += g.P.row(0) * m.particular_harmonic_cosine();
+      g.xs.row(0) += g.P.row(0) * m.particular_harmonic_sine();
     }
   }
+  g.xc.row(1) = -g.xc.row(0);
+  g.xs.row(1) = -g.xs.row(0);
   g.P.row(1) = -g.P.row(0);
   g.h0 = Eigen::Vector2d(offset.c0, -offset.c0);
   g.hc = Eigen::Vector2d(offset.cc, -offset.cc);

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
+#include <numbers>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -11,29 +13,123 @@
 namespace vibro {
 namespace {
 
+/// α s_a(t) + β s_b(t) as a trigonometric polynomial in θ = Ωt: c0 + Σ_k (c_k cos kθ + d_k sin kθ),
+/// one term per order k present (the first harmonic included).
+struct TrigSum {
+  double c0 = 0.0;
+  std::map<int, std::pair<double, double>> terms;  // order: (c_k, d_k)
+  /// f(θ) (derivative 0), f'(θ) (1) or f''(θ) (2).
+  double at(double theta, int derivative) const {
+    double out = derivative == 0 ? c0 : 0.0;
+    for (const auto& [k, cd] : terms) {
+      const double w = static_cast<double>(k), c = std::cos(w * theta), s = std::sin(w * theta);
+      switch (derivative) {
+        case 0: out += cd.first * c + cd.second * s; break;
+        case 1: out += w * (cd.second * c - cd.first * s); break;
+        default: out -= w * w * (cd.first * c + cd.second * s); break;
+      }
+    }
+    return out;
+  }
+};
+
+/// The least value of f over a period [0, 2π), decided against 0 with a certificate: on an interval
+/// of width h between samples, f ≥ min(f(a), f(b)) − M₂h²/8 with M₂ = Σ_k k² √(c_k² + d_k²) ≥ |f''|
+/// (the linear interpolant's error bound), less a rounding margin for the evaluations. Intervals
+/// whose bound is not positive are halved until every one is certified positive (returns a
+/// positive value: the least sample, polished by Newton's method on f') or a sample is ≤ 0 (returns
+/// that sample's value, polished likewise: the pair closes). An interval still undecided at width
+/// 2π·1e-12 holds a minimum within rounding of 0, counted as closing (0 returned at worst).
+double least_value(const TrigSum& f) {
+  double m2 = 0.0, size = std::abs(f.c0);
+  int top = 1;
+  for (const auto& [k, cd] : f.terms) {
+    const double r = std::hypot(cd.first, cd.second);
+    m2 += static_cast<double>(k) * static_cast<double>(k) * r;
+    size += r;
+    top = std::max(top, k);
+  }
+  const double rounding = 16.0 * std::numeric_limits<double>::epsilon() * size;
+  const double period = 2.0 * std::numbers::pi;
+  double best = std::numeric_limits<double>::infinity(), best_theta = 0.0;
+  auto sample = [&](double theta) {
+    const double v = f.at(theta, 0);
+    if (v < best) {
+      best = v;
+      best_theta = theta;
+    }
+    return v;
+  };
+  struct Piece {
+    double a, b, fa, fb;
+  };
+  std::vector<Piece> open;
+  const int first = 8 * top;
+  double previous = sample(0.0);
+  for (int i = 1; i <= first; ++i) {
+    const double a = period * (i - 1) / first, b = period * i / first;
+    const double fb = i == first ? f.at(0.0, 0) : sample(b);
+    open.push_back({a, b, previous, fb});
+    previous = fb;
+  }
+  bool closes = best <= 0.0;
+  while (!closes && !open.empty()) {
+    const Piece p = open.back();
+    open.pop_back();
+    const double h = p.b - p.a;
+    if (std::min(p.fa, p.fb) - m2 * h * h / 8.0 - rounding > 0.0) continue;  // certified positive
+    if (h < period * 1e-12) {
+      closes = true;  // a minimum within rounding of 0
+      best = std::min(best, 0.0);
+      break;
+    }
+    const double mid = 0.5 * (p.a + p.b), fm = sample(mid);
+    if (fm <= 0.0) {
+      closes = true;
+      break;
+    }
+    open.push_back({p.a, mid, p.fa, fm});
+    open.push_back({mid, p.b, fm, p.fb});
+  }
+  // Polish the least sample towards its local minimum (for the value reported).
+  double theta = best_theta;
+  for (int i = 0; i < 50; ++i) {
+    const double d1 = f.at(theta, 1), d2 = f.at(theta, 2);
+    if (!(d2 > 0.0)) break;
+    const double step = d1 / d2;
+    theta -= step;
+    const double v = f.at(theta, 0);
+    if (v < best) best = v;
+    if (std::abs(step) <= 1e-15 * period) break;
+  }
+  return closes ? std::min(best, 0.0) : best;
+}
+
 /// The least clearance min_t (α s_a(t) + β s_b(t)) between two stops on opposite sides of one
-/// direction (α, β > 0 scale each to the unit normal): s(t) = s0 + s_c cos Ωt + s_s sin Ωt, so
-/// the sum's least value is its mean minus the amplitude of the summed harmonic. Exact: two
-/// stops that move together (fixed to one shaken rig) keep their clearance however far they
-/// move, while the amplitudes summed would refuse them. With higher harmonics the amplitude of
-/// each order's summed harmonic is subtracted as well: a lower bound of the least clearance
-/// (reached when the harmonics peak together), still exact for two stops that move together.
+/// direction (α, β > 0 scale each to the unit normal). With the first harmonic only, s(t) = s0 +
+/// s_c cos Ωt + s_s sin Ωt and the sum's least value is its mean minus the amplitude of the summed
+/// harmonic, exactly: two stops that move together (fixed to one shaken rig) keep their clearance
+/// however far they move, while the amplitudes summed would refuse them. With higher harmonics the
+/// sum is a trigonometric polynomial whose least value over a period is decided against 0 by the
+/// certified search of least_value: a pair is refused exactly when its clearance reaches 0.
 double least_room(const Stop& a, const Stop& b, double alpha, double beta) {
-  double room = alpha * a.s0() + beta * b.s0() -
-                std::hypot(alpha * a.s_cos() + beta * b.s_cos(), alpha * a.s_sin() + beta * b.s_sin());
-  std::map<int, std::pair<double, double>> orders;  // order: the summed (cosine, sine)
+  if (!a.has_higher_harmonics() && !b.has_higher_harmonics())
+    return alpha * a.s0() + beta * b.s0() -
+           std::hypot(alpha * a.s_cos() + beta * b.s_cos(), alpha * a.s_sin() + beta * b.s_sin());
+  TrigSum f;
+  f.c0 = alpha * a.s0() + beta * b.s0();
+  f.terms[1] = {alpha * a.s_cos() + beta * b.s_cos(), alpha * a.s_sin() + beta * b.s_sin()};
   for (std::size_t h = 0; h < a.harmonics.size(); ++h) {
-    std::pair<double, double>& sum = orders[a.harmonics[h].order];
+    std::pair<double, double>& sum = f.terms[a.harmonics[h].order];
     sum.first += alpha * a.h_cos(h);
     sum.second += alpha * a.h_sin(h);
   }
   for (std::size_t h = 0; h < b.harmonics.size(); ++h) {
-    std::pair<double, double>& sum = orders[b.harmonics[h].order];
+    std::pair<double, double>& sum = f.terms[b.harmonics[h].order];
     sum.first += beta * b.h_cos(h);
     sum.second += beta * b.h_sin(h);
   }
-  for (const auto& entry : orders) room -= std::hypot(entry.second.first, entry.second.second);
-  return room;
+  return least_value(f);
 }
 
 std::string label(const Stop& stop, std::size_t j) {
@@ -217,6 +313,12 @@ double Stop::motion_extent() const {
   return e;
 }
 
+double Stop::motion_speed(double frequency) const {
+  double e = amplitude;
+  for (const StopHarmonic& h : harmonics) e += static_cast<double>(h.order) * std::hypot(h.cosine, h.sine);
+  return frequency * e;
+}
+
 double stop_higher_motion(const Stop& stop, double frequency, double t, int derivative) {
   double out = 0.0;
   for (std::size_t h = 0; h < stop.harmonics.size(); ++h) {
@@ -247,15 +349,6 @@ std::size_t forcing_slot(const HarmonicForcing& forcing, int order) {
     if (forcing.harmonics[h].order == order) return h;
   throw std::logic_error("forcing_slot: the forcing has no harmonic of order " + std::to_string(order) +
                          " (ImpactSystem adds one for every order a stop moves at)");
-}
-
-void refuse_higher_harmonic_stops(const std::vector<Stop>& stops, const std::string& engine) {
-  for (std::size_t j = 0; j < stops.size(); ++j)
-    if (stops[j].has_higher_harmonics())
-      throw InvalidInput(engine + " does not support stops moving with more than one harmonic: stops[" +
-                         std::to_string(j) + "]" + (stops[j].name.empty() ? "" : " (" + stops[j].name + ")") +
-                         " moves at order " + std::to_string(stops[j].harmonics.front().order) +
-                         " (the dense engine runs them)");
 }
 
 std::vector<Stop> validated_stops(std::vector<Stop> stops, Eigen::Index n, double frequency) {

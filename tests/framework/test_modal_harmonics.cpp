@@ -5,6 +5,7 @@
 // chain of 2000 masses, what each harmonic adds to an evaluation, and the analysis layer's
 // parameter derivatives along a harmonic's amplitude against the dense engine's.
 #include "support/chains.hpp"
+#include "support/engine_agreement.hpp"
 #include "support/reference_hybrid.hpp"
 #include "vibro/engine.hpp"
 #include "vibro/modal.hpp"
@@ -108,58 +109,12 @@ struct ChainSteadyState {
   }
 };
 
-double relative(const VectorXd& a, const VectorXd& b) {
-  return (a - b).cwiseAbs().maxCoeff() / std::max(1.0, b.cwiseAbs().maxCoeff());
-}
 
-struct Agreement {
-  double event_time = 0.0, event_rate = 0.0, event_force = 0.0, state = 0.0;
-  long impacts = 0, sticks = 0, chatters = 0, releases = 0;
-  std::size_t events = 0;
-};
+using vibro::test::Agreement;
 
-/// Both engines from rest over `periods`: events one to one (kind, stop; time of T, rates of V,
-/// forces of F), the final state relative.
 Agreement compare(const BandedChain& chain, const std::vector<Stop>& stops, double periods,
                   const vibro::ModalSimulatorOptions& options = {}) {
-  const double T = 2.0 * std::numbers::pi / chain.forcing.frequency, t_end = periods * T;
-  const VectorXd zero = VectorXd::Zero(chain.dof());
-  const vibro::ImpactSystem scene(chain.dense(), stops);
-  REQUIRE(scene.system().forcing().harmonics.size() == chain.forcing.harmonics.size());
-  vibro::Simulator dense(scene);
-  vibro::EventLog dense_log;
-  const auto ds = dense.run(0.0, zero, zero, t_end, {&dense_log});
-  REQUIRE(ds.status == vibro::RunStatus::completed);
-  const ChainModes modes(chain);
-  ModalChainSimulator modal(modes, stops, options);
-  vibro::EventLog modal_log;
-  const auto ms = modal.run(0.0, zero, zero, t_end, {&modal_log});
-  INFO(ms.message);
-  REQUIRE(ms.status == vibro::RunStatus::completed);
-  CHECK(ms.impacts == ds.impacts);
-  CHECK(ms.sticks == ds.sticks);
-  CHECK(ms.releases == ds.releases);
-  CHECK(ms.chatters == ds.chatters);
-  REQUIRE(modal_log.events.size() == dense_log.events.size());
-  Agreement out;
-  for (std::size_t e = 0; e < dense_log.events.size(); ++e) {
-    const auto& a = dense_log.events[e];
-    const auto& b = modal_log.events[e];
-    INFO("event " << e << " at t = " << a.t);
-    REQUIRE(a.kind == b.kind);
-    REQUIRE(a.stop == b.stop);
-    out.event_time = std::max(out.event_time, std::abs(a.t - b.t) / T);
-    out.event_rate = std::max({out.event_rate, std::abs(a.v_before - b.v_before) / ms.velocity_scale,
-                               std::abs(a.v_after - b.v_after) / ms.velocity_scale});
-    out.event_force = std::max(out.event_force, std::abs(a.force - b.force) / ms.force_scale);
-  }
-  out.state = std::max(relative(ms.x, ds.x), relative(ms.v, ds.v));
-  out.impacts = ds.impacts;
-  out.sticks = ds.sticks;
-  out.chatters = ds.chatters;
-  out.releases = ds.releases;
-  out.events = dense_log.events.size();
-  return out;
+  return vibro::test::compare_engines(chain, stops, periods, options);
 }
 
 }  // namespace

@@ -240,3 +240,62 @@ TEST_CASE("stop harmonics: validation, forcing slots, bounds of the motion", "[b
     CHECK(std::abs(vibro::stop_motion(st, 1.3, t, 2) + tab.ddp(t)) <= 1e-14);
   }
 }
+
+TEST_CASE("stop harmonics: opposite stops are refused exactly when their clearance reaches zero",
+          "[base][stop harmonics]") {
+  // An upper stop at 0.1 moving with 0.12 cos Ωt + 0.12 cos 2Ωt above a fixed lower stop at −d:
+  // the clearance 0.1 + d + 0.12 (cos θ + cos 2θ) = 0.1 + d + 0.12 (2c² + c − 1), c = cos θ, is
+  // least at c = −1/4, where it is 0.1 + d − 0.135 (written out here). Summing the harmonics'
+  // amplitudes would bound it by 0.1 + d − 0.24 and refuse every d ≤ 0.14.
+  const LinearSystem sys = falling(1.0, 0.8);
+  const Stop up = Stop::upper(0, 0.1, 0.5).moving(0.12, 0.0).with_harmonics({{2, 0.12, 0.0}});
+  auto outcome = [&](const Stop& a, const Stop& b) {
+    try {
+      ImpactSystem scene(sys, {a, b});
+    } catch (const vibro::InvalidInput& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  CHECK(outcome(up, Stop::lower(0, -0.1, 0.5)) == "accepted");  // least 0.065, the summed bound −0.04
+  CHECK_THAT(outcome(up, Stop::lower(0, 0.0, 0.5)),
+             Contains("leave no room") && Contains("least clearance while they move -0.034999"));
+  // Within 1e-9 of touching, on either side (the search's certificate is M₂h²/8 + rounding).
+  CHECK(outcome(up, Stop::lower(0, -(0.035 + 1e-9), 0.5)) == "accepted");
+  CHECK_THAT(outcome(up, Stop::lower(0, -(0.035 - 1e-9), 0.5)), Contains("leave no room"));
+  // The same through a general normal n = 2 (compared on unit normals: the stop's values halve).
+  const Stop general = Stop::general(VectorXd::Constant(1, 2.0), 0.2, 0.5).moving(0.24, 0.0).with_harmonics({{2, 0.24, 0.0}});
+  CHECK(outcome(general, Stop::lower(0, -0.1, 0.5)) == "accepted");
+  CHECK_THAT(outcome(general, Stop::lower(0, 0.0, 0.5)), Contains("leave no room"));
+  // With sines and a third order: the upper stop at 0.3 − 0.1 sin Ωt + 0.15 sin 2Ωt + 0.12 cos 3Ωt
+  // (its summed amplitudes reach −0.07) above a fixed lower stop at q: room exactly while q is
+  // below the upper stop's least position, found by a fine scan here (10⁶ points; the slope is
+  // ≤ 0.76, so the scan is within 2.4e-6 of it).
+  const Stop wavy = Stop::upper(0, 0.3, 0.5).moving(0.1, std::numbers::pi / 2).with_harmonics({{2, 0.0, 0.15}, {3, 0.12, 0.0}});
+  double least = 1.0;
+  for (int i = 0; i < 1000000; ++i) {
+    const double th = 2.0 * std::numbers::pi * i / 1e6;
+    least = std::min(least, 0.3 + 0.1 * std::cos(th + std::numbers::pi / 2) + 0.15 * std::sin(2 * th) + 0.12 * std::cos(3 * th));
+  }
+  REQUIRE(least > 0.0);
+  CHECK(outcome(wavy, Stop::lower(0, least - 1e-5, 0.5)) == "accepted");
+  CHECK_THAT(outcome(wavy, Stop::lower(0, least + 1e-5, 0.5)), Contains("leave no room"));
+}
+
+TEST_CASE("stop harmonics: the run's velocity scale includes a stop's harmonics' speeds", "[base][stop harmonics]") {
+  // V = L Ω without higher harmonics; a stop moving with 0.02 cos 5Ωt reaches the speed 5 Ω 0.02
+  // (+ Ω · its first harmonic's amplitude 0.01), above L Ω for L = 0.03 (its extent).
+  const double W = 0.8;
+  const LinearSystem sys = falling(0.0, W);
+  const VectorXd x0 = VectorXd::Constant(1, 0.01), v0 = VectorXd::Zero(1);
+  const Stop plain = Stop::lower(0, 0.0, 0.5).moving(0.01, 0.0);
+  const ImpactSystem slow(sys, {plain});
+  vibro::Simulator a(slow);
+  const auto sa = a.run(0.0, x0, v0, 1.0);
+  CHECK(sa.velocity_scale == sa.length_scale * W);
+  const ImpactSystem fast(sys, {plain.with_harmonics({{5, 0.02, 0.0}})});
+  vibro::Simulator b(fast);
+  const auto sb = b.run(0.0, x0 + VectorXd::Constant(1, 0.03), v0, 1.0);
+  CHECK(sb.length_scale == 0.04);  // |x0|
+  CHECK(std::abs(sb.velocity_scale - W * (0.01 + 5 * 0.02)) <= 1e-15);
+}

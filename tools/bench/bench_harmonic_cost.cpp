@@ -9,6 +9,10 @@
 /// whatever the drive) plus ChainModes::add_particular (per harmonic one cosine and sine and two
 /// n-vector updates, modal.hpp). Chains of n masses (uniform, k = 1, c = 0.01 k, both walls),
 /// the first harmonic on mass 0 and H extra harmonics of orders 2 … H + 1 on every mass.
+/// A stop's gap g = wᵀx − s(t) (stops.hpp, stop_gap) with H higher harmonics of its own motion
+/// (orders 2 … H + 1 beside its first harmonic): per harmonic one cosine and sine of kΩt; the
+/// engines evaluate it where they check a state against the stops (each order a stop moves at
+/// is also a harmonic slot of the drive, priced by the rows above when the drive lacks it).
 /// Each (engine, n, H) is timed over `--evaluations` evaluations at times spread over ten
 /// periods (thread CPU time); the variants of one engine and n alternate round after round
 /// (`--rounds`, default 5) and the median per variant is printed in ns per evaluation, with
@@ -16,6 +20,7 @@
 ///     build/release/tools/bench/bench_harmonic_cost [--evaluations 20000] [--rounds 5]
 #include "vibro/flow.hpp"
 #include "vibro/modal.hpp"
+#include "vibro/stops.hpp"
 #include "vibro/system.hpp"
 
 #include <Eigen/Dense>
@@ -145,6 +150,22 @@ int main(int argc, char** argv) {
       });
     const std::vector<double> ns = timed(variants, std::max(1, evaluations / (n / 8)), rounds);
     fmt::print("{:<28}", fmt::format("modal, n = {}", n));
+    for (double t : ns) fmt::print(" {:>9.1f}", t);
+    fmt::print(" {:>13.1f}\n", slope(H, ns));
+  }
+  {  // a stop's gap with H harmonics of its own motion (H+0: the first harmonic only)
+    std::vector<vibro::Stop> stops;
+    for (int h : kExtra) {
+      std::vector<vibro::StopHarmonic> higher;
+      for (int k = 2; k <= h + 1; ++k) higher.push_back({k, 0.01 / k, 0.005 / k});
+      stops.push_back(vibro::Stop::upper(0, 0.5, 0.8).moving(0.05, 0.3).with_harmonics(higher));
+    }
+    const Eigen::VectorXd x = Eigen::VectorXd::Constant(2, 0.1);
+    std::vector<std::function<double(int)>> variants;
+    for (std::size_t v = 0; v < stops.size(); ++v)
+      variants.emplace_back([&, v](int i) { return vibro::stop_gap(stops[v], kOmega, time_of(i), x); });
+    const std::vector<double> ns = timed(variants, 10 * evaluations, rounds);
+    fmt::print("{:<28}", "stop gap (stop_gap)");
     for (double t : ns) fmt::print(" {:>9.1f}", t);
     fmt::print(" {:>13.1f}\n", slope(H, ns));
   }

@@ -50,7 +50,8 @@ class DenseFamilyEngine final : public FamilyEngine {
 class ModalFamilyEngine final : public FamilyEngine {
  public:
   ModalFamilyEngine(BandedChain chain, std::vector<Stop> stops, SystemDerivative d, const ModalSimulatorOptions& o)
-      : FamilyEngine(std::move(d)), dof_(chain.dof()), mechanics_(chain, stops), engine_(std::move(chain), std::move(stops), o) {
+      : FamilyEngine(std::move(d)), dof_(chain.dof()), mechanics_(with_stop_orders(chain, stops), stops),
+        engine_(std::move(chain), std::move(stops), o) {
     derivative.validate(dof(), stop_count());
     if (detail::Mechanics<double>::moves_matrices(derivative))
       throw InvalidInput("continuation on the modal engine: the parameter moves the mass, damping or stiffness "

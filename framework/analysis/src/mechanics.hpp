@@ -229,6 +229,16 @@ class Mechanics {
   const VecT<T>& harmonic_amplitude(std::size_t h, int part) const { return part == 0 ? Hc_[h] : Hs_[h]; }
   /// The augmented size 2n + 3 + 2H.
   Eigen::Index augmented() const { return augmented_size(n_, orders_.size()); }
+  /// Stop j's part of extra harmonic h's amplitude in s_j(t): cosine (part 0) or sine (part 1);
+  /// 0 when the stop does not move at that harmonic's order.
+  T stop_harmonic_amplitude(int j, std::size_t h, int part) const {
+    const auto J = static_cast<std::size_t>(j);
+    T out = make(0.0, 0.0);
+    if (stop_slots_.empty()) return out;
+    for (std::size_t i = 0; i < stop_slots_[J].size(); ++i)
+      if (stop_slots_[J][i] == h) out = out + (part == 0 ? hc_[J][i] : hs_[J][i]);
+    return out;
+  }
 
   /// w_jᵀ y.
   T normal_dot(int j, const VecT<T>& y) const {

@@ -251,19 +251,42 @@ struct ModalTangent::Record {
       }
     }
     const VecD zero = VecD::Zero(n);
-    // Amplitudes: constant, cosine, sine, then each extra harmonic's cosine and sine, which only
-    // the drive carries (the held stops move with the first harmonic): M⁻¹ F_h.
+    // Amplitudes: constant, cosine, sine, then each extra harmonic's cosine and sine: M⁻¹ F_h, and
+    // for held stops moving at that harmonic's rate r the first harmonic's terms with Ω → r.
     const auto H = static_cast<Index>(m.harmonics());
     const Index K = 3 + 2 * H;
     std::vector<VecD> a{m.acceleration_under(m.forcing_amplitude(0), o[0], zero),
                         VecD(m.acceleration_under(m.forcing_amplitude(1), o[1], VecD(W * o[2])) + W * W * o[1]),
                         VecD(m.acceleration_under(m.forcing_amplitude(2), o[2], VecD(-W * o[1])) + W * W * o[2])};
-    for (int part = 0; part < 2; ++part)
+    std::vector<VecD> oh(static_cast<std::size_t>(2 * H), zero);  // o_h's cosine (h), sine (H + h)
+    if (k > 0) {
+      const MatD normals = m.normals(md.stuck);
+      const MatD Q = m.mass_inverse(normals);
+      const Eigen::PartialPivLU<MatD> G(MatD(normals.transpose() * Q));
       for (Index h = 0; h < H; ++h)
-        a.push_back(m.acceleration_under(m.harmonic_amplitude(static_cast<std::size_t>(h), part), zero, zero));
+        for (int part = 0; part < 2; ++part) {
+          VecD s(k);
+          bool moving = false;
+          for (Index b = 0; b < k; ++b) {
+            s(b) = m.stop_harmonic_amplitude(md.stuck[static_cast<std::size_t>(b)], static_cast<std::size_t>(h), part);
+            moving = moving || s(b).v != 0.0 || s(b).d != 0.0;
+          }
+          if (moving) oh[static_cast<std::size_t>(part * H + h)] = Q * G.solve(s);
+        }
+    }
+    for (int part = 0; part < 2; ++part)
+      for (Index h = 0; h < H; ++h) {
+        const Dual r = m.harmonic_rate(static_cast<std::size_t>(h));
+        const VecD& mine = oh[static_cast<std::size_t>(part * H + h)];
+        const VecD& other = oh[static_cast<std::size_t>((1 - part) * H + h)];
+        // cosine: M⁻¹(F_hc − C r o_hs − K o_hc) + r² o_hc; sine: M⁻¹(F_hs + C r o_hc − K o_hs) + r² o_hs.
+        a.push_back(VecD(m.acceleration_under(m.harmonic_amplitude(static_cast<std::size_t>(h), part), mine,
+                                              VecD((part == 0 ? r : -r) * other)) +
+                         r * r * mine));
+      }
     Particular out;
-    out.hc.assign(static_cast<std::size_t>(H), zero);
-    out.hs.assign(static_cast<std::size_t>(H), zero);
+    out.hc.assign(oh.begin(), oh.begin() + H);
+    out.hs.assign(oh.begin() + H, oh.end());
     for (Index h = 0; h < H; ++h) out.rates.push_back(m.harmonic_rate(static_cast<std::size_t>(h)));
     std::vector<VecD*> amplitude{&out.a0, &out.ac, &out.as};
     for (auto* list : {&out.hc, &out.hs})

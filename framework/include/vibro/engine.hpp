@@ -50,11 +50,13 @@ class DenseEngine final : public Engine {
   Simulator sim_;
 };
 
-/// The modal chain engine on its own modes (set up in the constructor, O(N²) with LAPACK).
+/// The modal chain engine on its own modes (set up in the constructor, O(N²) with LAPACK), built
+/// from with_stop_orders(chain, stops) (a slot for every order a stop moves at).
 class ModalEngine final : public Engine {
  public:
   ModalEngine(BandedChain chain, std::vector<Stop> stops, const ModalSimulatorOptions& options)
-      : modes_(std::make_unique<ChainModes>(std::move(chain))), sim_(*modes_, std::move(stops), options) {}
+      : modes_(std::make_unique<ChainModes>(with_stop_orders(std::move(chain), stops))),
+        sim_(*modes_, std::move(stops), options) {}
   RunSummary run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t_end,
                  const std::vector<Observer*>& observers = {}) override {
     return sim_.run(t0, x0, v0, t_end, observers);  // the RunSummary part of the ModalRunSummary

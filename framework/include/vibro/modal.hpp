@@ -433,6 +433,10 @@ struct ModalContactMode {
   std::vector<Eigen::Index> coordinate;
   std::vector<Eigen::Index> first, last;  ///< per reduced coordinate: its masses first..last
   Eigen::VectorXd o0, oc, os;            ///< o_l(t) = o0 + oc cos Ωt + os sin Ωt (empty: all 0)
+  /// The offsets' higher harmonics when a held stop moves with some: o_l(t) gains
+  /// Σ_h (oxc(l, h) cos r_h t + oxs(l, h) sin r_h t), r_h = guards.rates(h) (N × H; empty
+  /// otherwise, the common case, which then costs nothing).
+  Eigen::MatrixXd oxc, oxs;
   /// Guards of the set (gaps of the stops not held, then -λ_j of the held stops; see the header).
   ModalGuards guards;
   std::vector<int> watched;             ///< stop of each row
@@ -511,10 +515,20 @@ inline constexpr const char* kModalStopsOnly =
     "the modal engine takes stops on one mass (upper, lower) or between two masses; the dense "
     "engine takes any normal (solver.engine: dense)";
 
+/// The chain with a zero forcing harmonic of every order ≥ 2 that a stop moves at and its drive
+/// lacks (appended in the order the stops name them), as ImpactSystem gives its system: the
+/// modes of a chain whose stops move with higher harmonics are built from it, so that each
+/// order's rate and particular solution have a slot (ModalChainSimulator checks it). The chain
+/// itself when nothing is missing.
+BandedChain with_stop_orders(BandedChain chain, const std::vector<Stop>& stops);
+
 /// Free flight, impacts, chatter and sticking of a proportionally damped chain with stops, in
 /// modal coordinates. Stops are validated here (mass indices, r ∈ [0, 1], finite values, moving
 /// stops need Ω > 0; a general normal is refused with kModalStopsOnly); compliant stops (stops.hpp) are refused: the dense engine runs them. Not thread-safe: one simulator per thread (they may share one const
-/// ChainModes).
+/// ChainModes). A stop may move with higher harmonics (Stop::harmonics): its motion enters the
+/// guards, the held sets' offsets and the crossing search's bounds as the drive's extra
+/// harmonics do; the modes must then come from with_stop_orders(chain, stops) (InvalidInput
+/// naming the stop and the order otherwise).
 class ModalChainSimulator {
  public:
   ModalChainSimulator(const ChainModes& modes, std::vector<Stop> stops,

@@ -118,6 +118,9 @@ struct Stop {
   /// A bound on |p(t) − position|: amplitude + Σ_h hypot(cosine_h, sine_h) (the amplitude
   /// itself when there are no higher harmonics).
   double motion_extent() const;
+  /// A bound on |p'(t)| at forcing frequency Ω: Ω (amplitude + Σ_h k_h hypot(cosine_h, sine_h))
+  /// (Ω · amplitude without higher harmonics).
+  double motion_speed(double frequency) const;
 };
 
 /// The part of the canonical offset s_j(t) (derivative 0), its rate s_j'(t) (1) or its
@@ -132,10 +135,6 @@ double stop_motion(const Stop& stop, double frequency, double t, int derivative)
 /// The index h in forcing.harmonics of the harmonic of `order` (≥ 2); throws std::logic_error
 /// when the forcing has none (ImpactSystem adds one for every order a stop moves at).
 std::size_t forcing_slot(const HarmonicForcing& forcing, int order);
-
-/// Throws InvalidInput "<engine> does not support stops moving with more than one harmonic:
-/// stops[j] (name) moves at order k" when a stop has a higher harmonic.
-void refuse_higher_harmonic_stops(const std::vector<Stop>& stops, const std::string& engine);
 
 /// The checks of ImpactSystem's constructor, without a LinearSystem and without the n × m matrix
 /// of normals: O(m log m) for m stops on n degrees of freedom, forcing frequency Ω. Gives unnamed
@@ -166,8 +165,9 @@ class ImpactSystem {
   /// Throws InvalidInput naming the stop (index and name) when a mass index is out of range,
   /// r ∉ [0, 1], a value is not finite, a general normal has the wrong length or is zero, two
   /// stops are the same constraint (parallel normals on the same side), or two opposing stops
-  /// (an upper and a lower stop on one mass, antiparallel normals) leave no room (clearance ≤ 0,
-  /// including the stops' motion). A compliant stop needs k_s > 0, c_s ≥ 0 and F_p ≥ 0, finite;
+  /// (an upper and a lower stop on one mass, antiparallel normals) leave no room (their least
+  /// clearance over a period ≤ 0, including the stops' motion: exact for the first harmonic, a
+  /// certified search of the trigonometric polynomial with higher harmonics). A compliant stop needs k_s > 0, c_s ≥ 0 and F_p ≥ 0, finite;
   /// it may share its normal with a rigid stop (a two-stage stop) and is exempt from the
   /// clearance check.
   ImpactSystem(LinearSystem system, std::vector<Stop> stops);

@@ -572,14 +572,6 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
   int general_stop = -1;  // the first stop along a general normal, which the modal engine refuses
   for (std::size_t j = 0; j < p.stops.size() && general_stop < 0; ++j)
     if (p.stops[j].kind == Stop::Kind::normal) general_stop = static_cast<int>(j);
-  int harmonic_stop = -1;  // the first stop moving with a harmonic of order ≥ 2 (not on the modal engine)
-  for (std::size_t j = 0; j < p.stops.size() && harmonic_stop < 0; ++j)
-    if (p.stops[j].has_higher_harmonics()) harmonic_stop = static_cast<int>(j);
-  const std::string harmonic_why =
-      harmonic_stop < 0 ? std::string()
-                        : "stops[" + std::to_string(harmonic_stop) + "] moves with more than one harmonic (order " +
-                              std::to_string(p.stops[static_cast<std::size_t>(harmonic_stop)].harmonics.front().order) +
-                              "), which the dense engine handles";
   if (resolve_taylor_engine(r, root, p)) {
     // nonlinear forces (or solver.engine: taylor): the Taylor engine, scene_forces.cpp
   } else if (engine_choice == EngineChoice::modal) {
@@ -592,7 +584,6 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     if (!floating.empty()) refuse(floating + " tied to no wall by springs: a rigid-body mode (give the chain a wall spring)");
     if (compliant) refuse("it has compliant stops (law: compliant), which the dense engine handles");
     if (general_stop >= 0) refuse("stops[" + std::to_string(general_stop) + "] has a general normal: " + kModalStopsOnly);
-    if (harmonic_stop >= 0) refuse(harmonic_why);
     engine = EngineKind::modal;
     reason = "solver.engine: modal";
   } else if (engine_choice == EngineChoice::dense) {
@@ -601,8 +592,6 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     reason = "auto: compliant stops (the dense engine handles them)";
   } else if (general_stop >= 0) {
     reason = "auto: stops[" + std::to_string(general_stop) + "] has a general normal (" + kModalStopsOnly + ")";
-  } else if (harmonic_stop >= 0) {
-    reason = "auto: " + harmonic_why;
   } else if (!chain_links) {
     reason = "auto: model.matrices (the modal engine needs model.chain)";
   } else if (!banded) {

@@ -1,0 +1,72 @@
+#pragma once
+/// \file engine_agreement.hpp
+/// The modal chain engine against the dense Simulator on one chain with stops, from rest (tests only).
+#include "vibro/modal.hpp"
+#include "vibro/observers.hpp"
+#include "vibro/simulator.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+namespace vibro::test {
+
+struct Agreement {
+  double event_time = 0.0, event_rate = 0.0, event_force = 0.0, state = 0.0;
+  long impacts = 0, sticks = 0, chatters = 0, releases = 0;
+  std::size_t events = 0;
+};
+
+/// Both engines from rest over `periods`: events one to one (kind, stop; time of T, rates of V,
+/// forces of F), the final state relative. The modal engine's modes come from
+/// with_stop_orders(chain, stops), whose harmonics are those ImpactSystem gives the dense system.
+inline Agreement compare_engines(const BandedChain& chain, const std::vector<Stop>& stops, double periods,
+                                 const ModalSimulatorOptions& options = {}) {
+  const double T = 2.0 * std::numbers::pi / chain.forcing.frequency, t_end = periods * T;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(chain.dof());
+  const ImpactSystem scene(chain.dense(), stops);
+  const BandedChain slots = with_stop_orders(chain, stops);
+  REQUIRE(scene.system().forcing().harmonics.size() == slots.forcing.harmonics.size());
+  Simulator dense(scene);
+  EventLog dense_log;
+  const auto ds = dense.run(0.0, zero, zero, t_end, {&dense_log});
+  REQUIRE(ds.status == RunStatus::completed);
+  const ChainModes modes(slots);
+  ModalChainSimulator modal(modes, stops, options);
+  EventLog modal_log;
+  const auto ms = modal.run(0.0, zero, zero, t_end, {&modal_log});
+  INFO(ms.message);
+  REQUIRE(ms.status == RunStatus::completed);
+  CHECK(ms.impacts == ds.impacts);
+  CHECK(ms.sticks == ds.sticks);
+  CHECK(ms.releases == ds.releases);
+  CHECK(ms.chatters == ds.chatters);
+  REQUIRE(modal_log.events.size() == dense_log.events.size());
+  Agreement out;
+  for (std::size_t e = 0; e < dense_log.events.size(); ++e) {
+    const auto& a = dense_log.events[e];
+    const auto& b = modal_log.events[e];
+    INFO("event " << e << " at t = " << a.t);
+    REQUIRE(a.kind == b.kind);
+    REQUIRE(a.stop == b.stop);
+    out.event_time = std::max(out.event_time, std::abs(a.t - b.t) / T);
+    out.event_rate = std::max({out.event_rate, std::abs(a.v_before - b.v_before) / ms.velocity_scale,
+                               std::abs(a.v_after - b.v_after) / ms.velocity_scale});
+    out.event_force = std::max(out.event_force, std::abs(a.force - b.force) / ms.force_scale);
+  }
+  auto relative = [](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+    return (a - b).cwiseAbs().maxCoeff() / std::max(1.0, b.cwiseAbs().maxCoeff());
+  };
+  out.state = std::max(relative(ms.x, ds.x), relative(ms.v, ds.v));
+  out.impacts = ds.impacts;
+  out.sticks = ds.sticks;
+  out.chatters = ds.chatters;
+  out.releases = ds.releases;
+  out.events = dense_log.events.size();
+  return out;
+}
+
+}  // namespace vibro::test
