@@ -5,6 +5,7 @@
 // and the refusals (non-proportional damping, rigid-body modes, unsupported contact sets).
 #include "support/chains.hpp"
 #include "support/end_states.hpp"
+#include "support/engine_agreement.hpp"
 #include "vibro/flow.hpp"
 #include "vibro/observers.hpp"
 #include "vibro/modal.hpp"
@@ -273,19 +274,12 @@ Agreement compare_sticking(const BandedChain& chain, const std::vector<Stop>& st
   CHECK(ms.sticks == ds.sticks);
   CHECK(ms.releases == ds.releases);
   CHECK(ms.chatters == ds.chatters);
-  REQUIRE(modal_log.events.size() == dense_log.events.size());
   Agreement out;
-  for (std::size_t e = 0; e < dense_log.events.size(); ++e) {
-    const auto& a = dense_log.events[e];
-    const auto& b = modal_log.events[e];
-    INFO("event " << e << " at t = " << a.t);
-    REQUIRE(a.kind == b.kind);
-    REQUIRE(a.stop == b.stop);
-    out.event_time = std::max(out.event_time, std::abs(a.t - b.t) / T);
-    out.event_rate = std::max({out.event_rate, std::abs(a.v_before - b.v_before) / ms.velocity_scale,
-                               std::abs(a.v_after - b.v_after) / ms.velocity_scale});
-    out.event_force = std::max(out.event_force, std::abs(a.force - b.force) / ms.force_scale);
-  }
+  const vibro::test::EventAgreement events =
+      vibro::test::compare_event_logs(dense_log, modal_log, T, ms.velocity_scale, ms.force_scale);
+  out.event_time = events.time;
+  out.event_rate = events.rate;
+  out.event_force = events.force;
   REQUIRE(modal_contacts.intervals.size() == dense_contacts.intervals.size());
   for (std::size_t i = 0; i < dense_contacts.intervals.size(); ++i)
     out.force_min = std::max(out.force_min, std::abs(dense_contacts.intervals[i].force_min -

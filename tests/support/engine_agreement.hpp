@@ -20,6 +20,28 @@ struct Agreement {
   std::size_t events = 0;
 };
 
+/// The largest differences of two engines' event logs, event by event (same kinds and stops
+/// required): times of T, rates (before and after) of V, forces of F.
+struct EventAgreement {
+  double time = 0.0, rate = 0.0, force = 0.0;
+};
+
+inline EventAgreement compare_event_logs(const EventLog& dense, const EventLog& modal, double T, double V, double F) {
+  REQUIRE(modal.events.size() == dense.events.size());
+  EventAgreement out;
+  for (std::size_t e = 0; e < dense.events.size(); ++e) {
+    const auto& a = dense.events[e];
+    const auto& b = modal.events[e];
+    INFO("event " << e << " at t = " << a.t);
+    REQUIRE(a.kind == b.kind);
+    REQUIRE(a.stop == b.stop);
+    out.time = std::max(out.time, std::abs(a.t - b.t) / T);
+    out.rate = std::max({out.rate, std::abs(a.v_before - b.v_before) / V, std::abs(a.v_after - b.v_after) / V});
+    out.force = std::max(out.force, std::abs(a.force - b.force) / F);
+  }
+  return out;
+}
+
 /// Both engines from rest over `periods`: events one to one (kind, stop; time of T, rates of V,
 /// forces of F), the final state relative. The modal engine's modes come from
 /// with_stop_orders(chain, stops), whose harmonics are those ImpactSystem gives the dense system.
@@ -44,19 +66,11 @@ inline Agreement compare_engines(const BandedChain& chain, const std::vector<Sto
   CHECK(ms.sticks == ds.sticks);
   CHECK(ms.releases == ds.releases);
   CHECK(ms.chatters == ds.chatters);
-  REQUIRE(modal_log.events.size() == dense_log.events.size());
   Agreement out;
-  for (std::size_t e = 0; e < dense_log.events.size(); ++e) {
-    const auto& a = dense_log.events[e];
-    const auto& b = modal_log.events[e];
-    INFO("event " << e << " at t = " << a.t);
-    REQUIRE(a.kind == b.kind);
-    REQUIRE(a.stop == b.stop);
-    out.event_time = std::max(out.event_time, std::abs(a.t - b.t) / T);
-    out.event_rate = std::max({out.event_rate, std::abs(a.v_before - b.v_before) / ms.velocity_scale,
-                               std::abs(a.v_after - b.v_after) / ms.velocity_scale});
-    out.event_force = std::max(out.event_force, std::abs(a.force - b.force) / ms.force_scale);
-  }
+  const EventAgreement events = compare_event_logs(dense_log, modal_log, T, ms.velocity_scale, ms.force_scale);
+  out.event_time = events.time;
+  out.event_rate = events.rate;
+  out.event_force = events.force;
   auto relative = [](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
     return (a - b).cwiseAbs().maxCoeff() / std::max(1.0, b.cwiseAbs().maxCoeff());
   };
