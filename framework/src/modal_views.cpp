@@ -236,8 +236,10 @@ void ModalSegmentView::plane_crossings(const Hyperplane& plane, double trigger, 
       g.xs.row(0) += g.P.row(0) * m.particular_harmonic_sine();
     }
   }
-  g.xc.row(1) = -g.xc.row(0);
-  g.xs.row(1) = -g.xs.row(0);
+  if (H > 0) {  // (a row of a 2×0 matrix would offset a null pointer)
+    g.xc.row(1) = -g.xc.row(0);
+    g.xs.row(1) = -g.xs.row(0);
+  }
   g.P.row(1) = -g.P.row(0);
   g.h0 = Eigen::Vector2d(offset.c0, -offset.c0);
   g.hc = Eigen::Vector2d(offset.cc, -offset.cc);
