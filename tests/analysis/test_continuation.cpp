@@ -505,6 +505,96 @@ TEST_CASE("continuation: a fold of the orbits with the impact just beside the gr
   CHECK(fold->point.signature.impacts[0] == 3);
 }
 
+TEST_CASE("continuation: a branch switched onto at a period doubling goes on through a grazing whose "
+          "impacting orbits leave it at a small angle to the part followed (the three-mass clearance "
+          "chain's doubled branch at Ω ≈ 0.5673813)",
+          "[continuation][three-mass][grazing][doubling]") {
+  // The period-1 orbit with 15 impacts on the clearance doubles at Ω = 0.5673807122 (the scene's
+  // located doubling, its orbit kept to 17 digits). On the doubled branch one half has lost the
+  // last impact (29 per 2T), stable; up in Ω that half grazes the clearance again at 0.5673813049,
+  // where the orbits with 30 impacts turn back down in Ω, unstable, 3° from the part followed
+  // (a non-smooth fold), back to the doubling. The corner's predictor along their tangent
+  // kept the gap maximum at the grazing to first order only, short of the stop: its corrector
+  // landed on the part already followed, and the branch ended with "step below min_step
+  // (corrector stalled …)" at 0.5673813048.
+  const double p0 = 0.5673807121760062, t0 = 7.345573247940974;
+  VectorXd x(3), v(3);
+  x << -0.39808954122032075, -0.6266651439329597, -0.6317415612247173;
+  v << -0.05842049422928531, 0.02880638994258305, -0.07223308238207306;
+  vibro::ContinuationOptions o;
+  o.p_min = 0.566;
+  o.p_max = 0.569;
+  o.phase = 4.167736580757769;
+  o.step = 0.01;
+  o.max_step = 0.02;
+  o.parameter_scale = 0.4;  // the scene's range [0.3, 0.7]
+  o.max_doublings = 1;
+  o.switch_at_start = true;
+  const vibro::ContinuationResult r = vibro::continue_orbits(clearance_chain_at, p0, t0, x, v, o);
+  REQUIRE(r.branches.size() == 2);
+  const vibro::Branch& b = r.branches[1];
+  INFO("doubled branch: " << b.end);
+  CHECK(b.k == 2);
+  CHECK(b.end.find("step below min_step") == std::string::npos);
+  // It comes back to the doubling: onto the period-1 orbits, or onto its own orbits shifted by a
+  // period (the part of the doubled branch between the doubling and the first point switched onto).
+  CHECK((b.end.find("merged into the period-1T branch") != std::string::npos ||
+         b.end.find("closes on itself") != std::string::npos));
+  const vibro::Bifurcation* graze = find(r, vibro::BifurcationKind::grazing, 0.5673813049, 1);
+  REQUIRE(graze != nullptr);
+  CHECK(graze->stop == 0);
+  CHECK(graze->smooth);
+  CHECK(std::abs(graze->p - 0.5673813049) < 1e-9);
+  // Both parts of the corner: stable orbits with 29 impacts, unstable ones with 30 beyond it.
+  bool stable_29 = false, unstable_30 = false;
+  for (const vibro::BranchPoint& q : b.points) {
+    stable_29 |= q.signature.impacts[0] == 29 && q.multipliers.stable;
+    unstable_30 |= q.signature.impacts[0] == 30 && !q.multipliers.stable && q.tangent_p < 0.0;
+  }
+  CHECK(stable_29);
+  CHECK(unstable_30);
+}
+
+TEST_CASE("continuation: a period doubling between a stable impacting orbit and the grazing that ends "
+          "the impact is located where a corrector fails on the chord of its bracket (the three-mass "
+          "clearance chain at Ω ≈ 0.5677196 and 0.5677131)",
+          "[continuation][three-mass][doubling]") {
+  // Down in Ω from this point (one of the scene's branch points, 22 impacts on the clearance, kept
+  // to 17 digits) the orbits lose their last slow impacts one by one at grazings; between each
+  // stable impacting stretch and its grazing a multiplier passes −1 (it tends to −∞ as the
+  // impact's speed goes to 0), within 3e-8 of the grazing in Ω. Inside the bracket the branch
+  // bends sharply and the corrector from the chord through the bracket's first end failed: the
+  // first two of these doublings were reported unlocated, with brackets of 1.2e-8 and 2.1e-8.
+  // From the nearer bracket end's orbit the Illinois iteration goes on. Their values, by shooting
+  // at Ω ± 1e-11 (tools/figures/clearance_doublings.py's finite-difference check brackets them
+  // too): the multiplier nearest −1 changes side between 0.56771961985 and …962, and between
+  // 0.56771306634 and …636.
+  const double p0 = 0.5677220428099354, t0 = 7.341156880450848;
+  VectorXd x(3), v(3);
+  x << -0.3978014335809019, -0.6273726319881558, -0.6324051109355068;
+  v << -0.05868336418823873, 0.02830317529996571, -0.07219518143220434;
+  vibro::ContinuationOptions o;
+  o.p_min = 0.5677;
+  o.p_max = 0.56773;
+  o.phase = 4.167736580757769;
+  o.direction = -1;
+  o.step = 0.01;
+  o.max_step = 0.02;
+  o.max_doublings = 0;
+  const vibro::ContinuationResult r = vibro::continue_orbits(clearance_chain_at, p0, t0, x, v, o);
+  REQUIRE_FALSE(r.branches.empty());
+  INFO("branch: " << r.branches[0].end);
+  for (const double expected : {0.5677196199, 0.5677130664}) {
+    const vibro::Bifurcation* pd = find(r, vibro::BifurcationKind::period_doubling, expected);
+    REQUIRE(pd != nullptr);
+    INFO("doubling near " << expected << " at " << pd->p << " (" << pd->note << ")");
+    CHECK(pd->smooth);
+    // Located to the options' tolerance (1e-10) around the value the shooting brackets (±1e-11).
+    CHECK(std::abs(pd->p - expected) < 1e-10);
+    CHECK(pd->p_high - pd->p_low <= 1e-10);
+  }
+}
+
 TEST_CASE("continuation: a grazing corner reached by short steps is located from the side without the "
           "impact although it lies far beyond the two points in Ω (the three-mass chain at Ω ≈ 0.17979)",
           "[continuation][three-mass][grazing]") {

@@ -4,7 +4,11 @@
 ///  * Illinois (modified regula falsi) on the arclength σ between a and b, each point in the
 ///    hyperplane a + σ t_a normal to t_a: σ ← σ_hi − f_hi (σ_hi − σ_lo)/(f_hi − f_lo), the end
 ///    kept twice in a row having its f halved; to |Δσ| P ≤ locate_tolerance (at a fold p is
-///    stationary in σ while the test function is not, so σ is what converges);
+///    stationary in σ while the test function is not, so σ is what converges). A trial whose
+///    corrector fails from the chord through a is tried from the nearer bracket end's orbit, then
+///    the farther's, then moved towards the nearer end; and a point found is kept as located only
+///    where its test function is small against the function's change over the tolerance around
+///    it (small_against_scale: a sign change at a jump of the function is bracketed, not located);
 ///  * one-sided secant in p from the side where the test function is smooth (grazing, rising:
 ///    on the other side the map's derivative blows up), each point by Newton at fixed p; the
 ///    zero may lie beyond the good point, at a corner where both parts of the branch reach it
@@ -46,6 +50,26 @@ std::optional<Node> BranchRunner::illinois(const Node& a, const Node& b, const T
     Node m;
     m.e = c_.correct(ya + s * a.t, a.t);
     if (count) ++*count;
+    // A corrector that fails from the chord through a (near a grazing the branch bends away from
+    // it within the bracket) is tried again from the nearer bracket end's orbit carried to the
+    // hyperplane along t_a, then from the farther end's; failing those, the trial moves half way
+    // towards the nearer end (up to four times), so that the bracket still closes where the orbits
+    // exist.
+    for (int shrink = 0; !m.e.ok && shrink <= 4; ++shrink) {
+      if (shrink > 0) {
+        const double s_near = s - s_lo <= s_hi - s ? s_lo : s_hi;
+        s = s_near + 0.5 * (s - s_near);
+        m.e = c_.correct(ya + s * a.t, a.t);
+        if (count) ++*count;
+      }
+      const bool lo_nearer = s - s_lo <= s_hi - s;
+      for (const Node* end : {lo_nearer ? &lo : &hi, lo_nearer ? &hi : &lo}) {
+        if (m.e.ok) break;
+        const double s_end = end == &lo ? s_lo : s_hi;
+        m.e = c_.correct(c_.scaled(end->e) + (s - s_end) * a.t, a.t);
+        if (count) ++*count;
+      }
+    }
     if (!m.e.ok) return std::nullopt;
     m.t = c_.tangent(m.e, a.t);
     m.b = c_.point(m.e, m.t, 0);
@@ -276,6 +300,38 @@ std::optional<Node> BranchRunner::bisect(const Node& a, const Node& b,
   return lo;
 }
 
+/// Whether the zero Illinois found at `at` (between a and b, in the hyperplanes normal to a's
+/// tangent) is a zero of f within the tolerance: f at `at` small against f's change over the
+/// tolerance around it. The points at σ ± δ (δ the tolerance in p, times 10, so that f's change
+/// there stands above its rounding) must have f of opposite signs, and |f(at)| at most a tenth of
+/// half their difference (the linear model through them puts the zero within 2 × the tolerance of
+/// the point). A sign change of f that is a jump (the test function discontinuous inside the
+/// bracket) leaves |f| there as large as the jump, and fails. `why` says what failed, or that the
+/// check could not be made (a corrector failed at σ ± δ: the location is then kept, so noted).
+bool BranchRunner::small_against_scale(const Node& a, const Node& at, const TestFunction& f, int* count,
+                                       std::string* why) {
+  const double delta = 10.0 * o_.locate_tolerance / c_.P;
+  const VectorXd y = c_.scaled(at.e);
+  double side[2];
+  for (int i = 0; i < 2; ++i) {
+    Node m;
+    m.e = c_.correct(y + (i == 0 ? -delta : delta) * a.t, a.t);
+    if (count) ++*count;
+    if (!m.e.ok) {  // not checked (noted with the point): Illinois's location stands
+      *why = "its test function's change around the point could not be checked (no orbit found 10 × the tolerance away)";
+      return true;
+    }
+    m.t = c_.tangent(m.e, a.t);
+    m.b = c_.point(m.e, m.t, 0);
+    side[i] = f(m);
+  }
+  const double f0 = f(at), change = 0.5 * std::abs(side[1] - side[0]);
+  if (std::isfinite(f0) && side[0] * side[1] < 0.0 && std::abs(f0) <= 0.1 * change) return true;
+  *why = "its test function at the point found (" + number_text(f0) + ") is not small against its change over " +
+         "10 × the tolerance around it (" + number_text(side[0]) + " … " + number_text(side[1]) + ")";
+  return false;
+}
+
 void BranchRunner::record(BifurcationKind kind, int stop, const Node& a, const Node& b, int branch_index,
                           const TestFunction& f, Mode mode, const std::function<bool(const Node&)>& same_as_a,
                           const std::string& note) {
@@ -317,6 +373,15 @@ void BranchRunner::record(BifurcationKind kind, int stop, const Node& a, const N
     at = bisect(a, b, same_as_a, &count);
   } else {
     at = illinois(a, b, f, true, &count, same_as_a);
+    if (at && located_smooth_) {
+      std::string why;
+      if (!small_against_scale(a, *at, f, &count, &why)) {
+        located_smooth_ = false;
+        bif.note += (bif.note.empty() ? "" : "; ") + why + ": bracketed, not located";
+      } else if (!why.empty()) {
+        bif.note += (bif.note.empty() ? "" : "; ") + why;
+      }
+    }
   }
   bif.evaluations = count;
   if (!at) {

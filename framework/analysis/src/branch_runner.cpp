@@ -100,6 +100,11 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
         else if (!single_change(cur.b.signature, jumped->b.signature))
           jumped = nearest_across(cur, std::move(*jumped), crossing_step * c_.P);
       }
+      // Before the branch is given up at a grazing, the corner's steps once more from predictors
+      // lifted onto the impacting side (grazing_corner.cpp): where the part with the impact leaves
+      // the corner at a small angle to the part followed, the steps along the tangent land on the
+      // latter. (Only here, at the end: elsewhere the branch goes on as the steps above find it.)
+      if (!jumped && h < o_.min_step && near_nonsmooth(cur)) jumped = corner(cur, true);
       if (!jumped) {
         if (h < o_.min_step) {
           branch.end = "step below min_step at p = " + number_text(cur.e.p) + " (" + next.e.why + ")";

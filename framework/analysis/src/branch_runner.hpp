@@ -58,7 +58,9 @@ class BranchRunner {
   std::optional<Node> jump(const Node& cur, double last_dp, const std::vector<VectorXd>& trail);
   static bool lands_back(const std::vector<VectorXd>& trail, const VectorXd& y);
   bool back_to_change(const std::vector<VectorXd>& trail, const VectorXd& y) const;
-  std::optional<Node> corner(const Node& cur);  // grazing_corner.cpp
+  /// The first orbit with the impact a grazing of cur's adds, by steps along corner_tangent
+  /// (lifted: from predictors raised onto the impacting side to second order).
+  std::optional<Node> corner(const Node& cur, bool lifted = false);  // grazing_corner.cpp
   /// The unit tangent (scaled) of the branch of orbits with the impact a grazing of cur's adds,
   /// at cur (an orbit at or near the grazing), oriented into the impacting side, and the stop.
   std::optional<std::pair<VectorXd, int>> corner_tangent(const Node& cur);  // grazing_corner.cpp
@@ -88,6 +90,7 @@ class BranchRunner {
                                     const std::function<bool(const Node&)>& on_good, int* count);
   std::optional<Node> bisect(const Node& a, const Node& b, const std::function<bool(const Node&)>& same_as_a,
                              int* count);
+  bool small_against_scale(const Node& a, const Node& at, const TestFunction& f, int* count, std::string* why);
   void record(BifurcationKind kind, int stop, const Node& a, const Node& b, int branch_index,
               const TestFunction& f, Mode mode, const std::function<bool(const Node&)>& same_as_a,
               const std::string& note);
@@ -103,7 +106,11 @@ class BranchRunner {
   double located_p_ = kNaN;  ///< one-sided location: the extrapolated zero
   double bracket_low_ = 0.0, bracket_high_ = 0.0;
   bool located_smooth_ = true;
-  bool one_sided_solved_ = true;  ///< one_sided: its zero solved, not only the end of the good side found
+  bool one_sided_solved_ = true;
+  // corner_tangent's second-order data (grazing_corner.cpp): the scaled shift raising the gap
+  // maximum by one length unit, the impact speed per unit step, |g''| at the grazing.
+  VectorXd corner_rise_;
+  double corner_u_ = 0.0, corner_g2_ = 0.0;  ///< one_sided: its zero solved, not only the end of the good side found
 };
 
 }  // namespace vibro::detail

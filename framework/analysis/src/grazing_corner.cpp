@@ -17,7 +17,11 @@
 /// whether these orbits are stable or not (the derivative of P_u blows up like 1/u along it, its
 /// points do not). The arclength steps stall against the grazing because Newton from the side
 /// without the impact cannot see it; a predictor along this tangent starts the corrector on the
-/// side with the impact, where it converges. The branch may leave the corner on either side in p:
+/// side with the impact, where it converges. Where the orbits with the impact leave the corner at a
+/// small angle to the part followed, the first-order predictor's orbit falls short of the stop and
+/// its corrector lands on the part followed; before the branch is given up there, the predictors
+/// are lifted onto the impacting side to second order (the gap maximum raised to u²/(2|g''|)).
+/// The branch may leave the corner on either side in p:
 /// on the far one (the orbit persists with one more impact) or back on the near one (the grazing is
 /// a non-smooth fold, the orbits with the impact coexisting with those without).
 #include "branch_runner.hpp"
@@ -26,6 +30,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <tuple>
 #include <utility>
 
@@ -84,20 +89,44 @@ std::optional<std::pair<VectorXd, int>> BranchRunner::corner_tangent(const Node&
   if (t(N + 1) < 0.0) t = -t;
   VectorXd along = t.head(N + 1);
   if (!(along.norm() > 0.0)) return std::nullopt;
+  // The second-order part of the grazing condition ĝ = u²/(2|g''|): a step of h along the tangent
+  // raises the gap maximum by (u h)²/(2|g''|), u the impact speed per unit step; `rise` is the
+  // scaled shift that raises ĝ by one length unit (along its gradient).
+  const double g2 = std::abs(w.dot(m1.rate_end.tail(n)));
+  const Eigen::RowVectorXd grad = row.head(N + 1);
+  corner_rise_ = grad.squaredNorm() > 0.0 ? VectorXd(grad.transpose() / grad.squaredNorm()) : VectorXd();
+  corner_u_ = t(N + 1) / along.norm() * c_.V;
+  corner_g2_ = g2;
   along.normalize();
   return std::pair{along, j};
 }
 
-std::optional<Node> BranchRunner::corner(const Node& cur) {
+std::optional<Node> BranchRunner::corner(const Node& cur, bool lifted) {
   const std::optional<std::pair<VectorXd, int>> tangent = corner_tangent(cur);
   if (!tangent) return std::nullopt;
   const auto& [along, j] = *tangent;
   const Index N = 2 * c_.n_;
+  const auto stop = static_cast<std::size_t>(j);
   // Steps along it, shortest first: the first that lands on an orbit with the new impact.
+  // Lifted, each predictor is raised onto the impacting side: the tangent keeps the gap maximum
+  // at its value to first order only, and where the part with the impact leaves the corner at a
+  // small angle to the part already followed (the clearance chain's doubled branch at
+  // Ω ≈ 0.5673813: 3°), the predictor's second-order error leaves its orbit short of the stop,
+  // without the impact, and the corrector lands on the part followed. The lift raises the gap
+  // maximum from cur's value to (u h)²/(2|g''|), its value on the orbits with the impact (u the
+  // impact's speed per unit step), along the gap maximum's gradient.
+  double gap = -std::numeric_limits<double>::infinity();  // cur's, at the stop (≤ 0)
+  for (const GapPeak& q : cur.e.map.gap_peaks)
+    if (q.stop == j) gap = std::max(gap, q.value);
+  if (lifted && (corner_rise_.size() == 0 || !(corner_g2_ > 0.0) || !std::isfinite(gap))) return std::nullopt;
   const VectorXd y = c_.scaled(cur.e);
-  const int before = cur.b.signature.impacts[static_cast<std::size_t>(j)];
+  const int before = cur.b.signature.impacts[stop];
   for (double h = 1e-3 * o_.max_step; h <= o_.max_step; h *= 2.0) {
-    const VectorXd y_pred = y + h * along;
+    VectorXd y_pred = y + h * along;
+    if (lifted) {
+      const double u = corner_u_ * h;
+      y_pred += corner_rise_ * (u * u / (2.0 * corner_g2_) - gap);
+    }
     int iterations = 0;
     Node next;
     next.e = c_.correct(y_pred, along, &iterations);
@@ -105,7 +134,7 @@ std::optional<Node> BranchRunner::corner(const Node& cur) {
     next.t = c_.tangent(next.e, along);
     next.b = c_.point(next.e, next.t, iterations);
     next.b.tangent_p = next.t(N);
-    if (next.b.signature.impacts[static_cast<std::size_t>(j)] <= before) continue;
+    if (next.b.signature.impacts[stop] <= before) continue;
     if (c_.k > o_.period && c_.closes_after(next.e, c_.k / 2)) continue;
     return next;
   }
