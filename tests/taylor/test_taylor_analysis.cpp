@@ -35,6 +35,17 @@ std::string duffing(double omega, double beta = 0.5, const std::string& extra = 
          "initial: {x: [0], v: [0]}\n" + extra;
 }
 
+/// The seed paper's two-mass oscillator at its sticking orbit (Wagg 2004, fig. 2; Ω = 0.255,
+/// experiments/wagg2004/fig2_sticking_orbit.yaml), with `extra` scene text appended.
+std::string two_mass(const std::string& extra = "") {
+  return "model:\n  chain:\n    masses: [1, 1]\n    springs: [1]\n    dampers: [0.1]\n"
+         "    left_wall: {spring: 1, damper: 0.1}\n"
+         "forcing:\n  frequency: 0.255\n  cosine: [0.5, 0]\n"
+         "stops:\n  - {mass: 0, side: lower, position: -0.3, restitution: 0.7, name: s1}\n"
+         "  - {mass: 1, side: upper, position: 0.1, restitution: 0.7, name: s2}\n"
+         "initial: {x: [0, 0], v: [0, 0]}\n" + extra;
+}
+
 VectorXd stacked(const VectorXd& x, const VectorXd& v) {
   VectorXd z(x.size() + v.size());
   z << x, v;
@@ -380,14 +391,7 @@ TEST_CASE("Taylor engine: the period doublings of a Duffing impact oscillator's 
 // leaves a factor 100 without admitting a wrong term (a missing nonlinear part of a held
 // segment, a wrong saltation, would be O(1)).
 TEST_CASE("Taylor engine: the seed paper's sticking orbit has the dense engine's multipliers", "[taylor][analysis]") {
-  const std::string text =
-      "model:\n  chain:\n    masses: [1, 1]\n    springs: [1]\n    dampers: [0.1]\n"
-      "    left_wall: {spring: 1, damper: 0.1}\n"
-      "forcing:\n  frequency: 0.255\n  cosine: [0.5, 0]\n"
-      "stops:\n  - {mass: 0, side: lower, position: -0.3, restitution: 0.7, name: s1}\n"
-      "  - {mass: 1, side: upper, position: 0.1, restitution: 0.7, name: s2}\n"
-      "initial: {x: [0, 0], v: [0, 0]}\n";
-  const vibro::io::Scene scene = vibro::io::SceneDocument::parse(text).build();
+  const vibro::io::Scene scene = vibro::io::SceneDocument::parse(two_mass()).build();
   const vibro::ImpactSystem sys = scene.impact_system();
   const double T = scene.period();
   vibro::Simulator warm_sim(sys, scene.solver);  // the transient on the dense engine
@@ -422,16 +426,10 @@ namespace {
 /// The seed paper's two-mass oscillator (above) with cubic springs, on mass 0 (which enters the
 /// contact force of its stop) and between the masses (which couples the free mass to the held
 /// one): while a stop holds, the other mass moves under nonlinear forces.
-std::string sticking_duffing(double omega, double beta = 0.3) {
-  return "model:\n  chain:\n    masses: [1, 1]\n    springs: [1]\n    dampers: [0.1]\n"
-         "    left_wall: {spring: 1, damper: 0.1}\n"
-         "forcing:\n  frequency: " + std::to_string(omega) + "\n  cosine: [0.5, 0]\n"
-         "stops:\n  - {mass: 0, side: lower, position: -0.3, restitution: 0.7, name: s1}\n"
-         "  - {mass: 1, side: upper, position: 0.1, restitution: 0.7, name: s2}\n"
-         "parameters: {beta: " + std::to_string(beta) + "}\n"
-         "forces:\n  - {cubic_spring: {mass: 0, coefficient: beta}}\n"
-         "  - {cubic_spring: {between: [0, 1], coefficient: beta}}\n"
-         "initial: {x: [0, 0], v: [0, 0]}\n";
+std::string sticking_duffing(double beta = 0.3) {
+  return two_mass("parameters: {beta: " + std::to_string(beta) + "}\n"
+                  "forces:\n  - {cubic_spring: {mass: 0, coefficient: beta}}\n"
+                  "  - {cubic_spring: {between: [0, 1], coefficient: beta}}\n");
 }
 
 /// Central differences of f with steps h and h/2 combined by Richardson's rule: the h² terms
@@ -454,7 +452,7 @@ VectorXd richardson(const F& f, double h) {
 // ε_run/h ~ 1e-10: 1e-8 of the sizes bounds both, which a wrong held-flow Jacobian, saltation or
 // release guard (O(1) terms) cannot meet.
 TEST_CASE("Taylor engine: the period map through sticking against central differences", "[taylor][analysis]") {
-  const std::string text = sticking_duffing(0.255);
+  const std::string text = sticking_duffing();
   const vibro::io::Scene scene = vibro::io::SceneDocument::parse(text).build();
   const vibro::ImpactSystem sys = scene.impact_system();
   const double T = scene.period();
