@@ -166,6 +166,7 @@ struct Mode {
   MatrixXd dforce_rows;     // dL/dp
   MatrixXd basis;           // tangent space of the manifold, 2n × d
   Eigen::MatrixXcd dmodal;  // V⁻¹ dÂ_S V (parameter runs on the spectral path; empty until used)
+  MatrixXd projection;      // nonlinear forces with held stops: I − M⁻¹W G⁻¹Wᵀ (a_S's part M⁻¹F)
   std::shared_ptr<const LinearFlow> flow;  // shared with a set-up or product under run_bounded
   std::unique_ptr<Functionals> rows;  // features: gaps, gap rates, forces, force rates
 };
@@ -199,11 +200,6 @@ class TangentRecorder final : public Observer {
   void segment(const SegmentView& view) override {
     const double tb = view.t_begin(), te = view.t_end();
     const ContactSet& S = mode_key(view);
-    // (A run that carries nothing — shooting's probe of the events — passes through.)
-    if (nonlinear_ && !S.empty() && (carries() || mechp_ || options_.features))
-      throw InvalidInput("linearisation: stop " + std::to_string(S.front()) + " is held (sticking) from t = " +
-                         number_text(tb) + "; with nonlinear forces the tangent map handles impacts in free "
-                         "flight only (the held flow's variational equations are not derived)");
     VectorXd xb(n_), vb(n_);
     view.state(tb, xb, vb);
     if (first_) {
@@ -304,6 +300,10 @@ class TangentRecorder final : public Observer {
       m->dforce_rows = m->held.empty() ? MatrixXd(0, mech_.augmented()) : derivative(mechp_->force_rows(S));
     }
     m->basis = tangent_basis(mech_.normals(m->held), n_);
+    if (nonlinear_ && !m->held.empty()) {
+      const MatrixXd W = mech_.normals(m->held), QW = mech_.mass_inverse(W);
+      m->projection = MatrixXd::Identity(n_, n_) - QW * (W.transpose() * QW).llt().solve(W.transpose());
+    }
     m->flow = bounded([g = m->generator, n = n_, w = value_of_omega(), o = solver_.flow] {
       return std::shared_ptr<const LinearFlow>(std::make_shared<LinearFlow>(g, n, w, o));
     });
@@ -331,7 +331,10 @@ class TangentRecorder final : public Observer {
   VectorXd rate(const Mode& mode, double t, const VectorXd& x, const VectorXd& v) const {
     const VectorXd z = mode.flow->augment(t, x, v);
     VectorXd f = (mode.generator * z).head(2 * n_);
-    if (nonlinear_) f.tail(n_) += nonlinear_->acceleration(t, x, v);  // free flight only (see segment())
+    if (nonlinear_) {
+      const VectorXd a = nonlinear_->acceleration(t, x, v);
+      f.tail(n_) += mode.projection.size() ? VectorXd(mode.projection * a) : a;
+    }
     return f;
   }
 
@@ -428,7 +431,7 @@ class TangentRecorder final : public Observer {
     const Index dim = mode.basis.cols();
     if (nonlinear_) {
       if (tau > 0.0 && (carries() || mechp_)) {
-        const MatrixXd T = nonlinear_->transition(tb, zb.head(n_), zb.segment(n_, n_), tb + tau);
+        const MatrixXd T = nonlinear_->transition(mode.held, tb, zb.head(n_), zb.segment(n_, n_), tb + tau);
         if (mechp_) zeta_ = T.leftCols(N2) * zeta_ + T.col(N2);
         if (carries()) K_ = T.leftCols(N2) * K_;
       }
@@ -515,10 +518,17 @@ class TangentRecorder final : public Observer {
     } else if (guard >= 0) {
       const ContactSet& S = before.held;
       const auto a = static_cast<Index>(std::lower_bound(S.begin(), S.end(), guard) - S.begin());
-      const VectorXd z = before.flow->augment(t, x, vm);
-      hz = -before.force_rows.row(a).head(N2).transpose();
-      hdot = -before.force_rows.row(a).dot(before.generator * z);
-      if (mechp_) hp = -before.dforce_rows.row(a).dot(z);
+      if (nonlinear_) {  // λ_a with the forces' part (nonlinear_part.hpp)
+        const detail::NonlinearPart::HeldForce lambda = nonlinear_->held_force(S, static_cast<int>(a), t, x, vm);
+        hz = -lambda.gradient;
+        hdot = -lambda.rate;
+        hp = -lambda.dp;
+      } else {
+        const VectorXd z = before.flow->augment(t, x, vm);
+        hz = -before.force_rows.row(a).head(N2).transpose();
+        hdot = -before.force_rows.row(a).dot(before.generator * z);
+        if (mechp_) hp = -before.dforce_rows.row(a).dot(z);
+      }
     }
     out.rate = hdot;
     out.S = Rz;
@@ -650,13 +660,14 @@ class TangentRecorder final : public Observer {
   // ---- features ------------------------------------------------------------------------
 
   void features(Mode& mode, double tb, double te, const VectorXd& zb) {
-    if (nonlinear_) {  // free flight only (segment()): the gaps' peaks from the Taylor steps
+    if (nonlinear_) {  // the gaps' peaks and the held forces' minima from the Taylor steps
       std::vector<int> free;
       for (int j = 0; j < static_cast<int>(system_.stop_count()); ++j)
         if (!contains(mode.set, j)) free.push_back(j);
       const double tau = te - tb;
       const VectorXd x = zb.head(n_), v = zb.segment(n_, n_);
-      const std::vector<GapPeak> peaks = nonlinear_->gap_peaks(tb, x, v, te, free);
+      for (const ForceDip& dip : nonlinear_->force_minima(mode.held, tb, x, v, te)) out_.force_dips.push_back(dip);
+      const std::vector<GapPeak> peaks = nonlinear_->gap_peaks(mode.held, tb, x, v, te, free);
       for (const GapPeak& pk : peaks) {
         const double g_start = mech_.gap(pk.stop, x, tb);
         const double size = std::max(std::abs(g_start), std::abs(pk.value));
@@ -695,6 +706,20 @@ class TangentRecorder final : public Observer {
   void past_release(const ContactSet& released) {
     if (!options_.features || released.empty() || !last_mode_ || options_.past_release_window <= 0.0) return;
     const Mode& mode = *last_mode_;
+    if (nonlinear_) {  // the held flow continued by the Taylor steps: its first minimum after te_
+      const double omega = mech_.frequency();
+      const double T = omega > 0.0 ? 2.0 * std::numbers::pi / omega : 1.0;
+      const std::vector<ForceDip> dips = nonlinear_->force_minima(mode.held, last_tb_, last_zb_.head(n_),
+                                                                  last_zb_.segment(n_, n_),
+                                                                  te_ + options_.past_release_window * T);
+      for (int j : released)
+        for (const ForceDip& d : dips)
+          if (d.stop == j && d.t > te_) {
+            out_.force_dips.push_back({j, d.t, d.value, true});
+            break;
+          }
+      return;
+    }
     const Segment seg(*mode.rows, last_tb_, last_zb_);
     const Index ms = static_cast<Index>(system_.stop_count());
     const Index h = static_cast<Index>(mode.held.size());

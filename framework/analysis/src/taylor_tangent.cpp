@@ -17,6 +17,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -77,20 +78,40 @@ std::string substitute(const std::string& text, const std::map<std::string, std:
 
 using taylor::harmonic_series;
 
+/// A linear combination Σ c_i (text_i) as expression text ("" when every term vanishes).
+std::string combination(const std::vector<std::pair<double, std::string>>& terms) {
+  std::string out;
+  for (const auto& [c, text] : terms) {
+    if (c == 0.0 || text.empty()) continue;
+    if (!out.empty()) out += " + ";
+    out += exact(c) + "*(" + text + ")";
+  }
+  return out;
+}
+
 /// The nonlinear part from Taylor systems:
 ///  * `forces_`: M and the forces only (no C, K, drive): its rate's velocity part is M⁻¹F;
-///  * `driven_`: M, C, K, the forces and the drive written as expressions of t. Its variational
-///    steps give the free flow's tangent map (the engine supplies its drive as a closed-form
-///    series instead; both are the same function, their coefficients agree to rounding);
-///  * `lifted_` (with a parameter derivative dD/dp): the same system with one more coordinate s,
-///    s' = 0, s(t0) = 0, along which every moving datum is written as D + s dD/dp — Ω, the drive's
-///    amplitudes, the named parameters of the forces, C and K (as the forces −s (dC v + dK x)).
-///    ∂z(t1)/∂s(t0) is then the parameter column of the variational equations,
-///    ζ' = (∂f/∂z) ζ + ∂f/∂p, with no other machinery. A moving M is refused (InvalidInput).
+///  * per held set S (none: free flight; Flow), M, C, K, the forces and the drive written as
+///    expressions of t, with S's constraint forces: with W the held normals, G = WᵀM⁻¹W and
+///    r = f(t) − C v − K x + F the free force,
+///
+///        M x'' = Π r + W G⁻¹ s̈(t),   Π = I − W G⁻¹WᵀM⁻¹,
+///        λ = G⁻¹WᵀM⁻¹ r − G⁻¹ s̈(t)   (one guard per held stop),
+///
+///    which is a = a_free − M⁻¹W λ with λ = G⁻¹(Wᵀa_free − s̈) (taylor_step.hpp, StepTerms),
+///    written on the whole state space (C and K enter as ΠC, ΠK). Its variational steps give the
+///    flow's tangent map and λ's gradient (the engine supplies the drive and s̈ as closed-form
+///    series instead; both are the same functions, their coefficients agree to rounding);
+///  * with a parameter derivative dD/dp, per held set, the same system with one more coordinate
+///    s, s' = 0, s(t0) = 0, along which every moving datum is written as D + s dD/dp — Ω, the
+///    drive's amplitudes, the stops' motion, the named parameters of the forces, C and K (as the
+///    forces −s (dC v + dK x)). ∂z(t1)/∂s(t0) is then the parameter column of the variational
+///    equations, ζ' = (∂f/∂z) ζ + ∂f/∂p, and ∂λ/∂s its force's, with no other machinery. A moving
+///    M is refused (InvalidInput).
 class TaylorPart final : public detail::NonlinearPart {
  public:
   TaylorPart(const ImpactSystem& scene, const NonlinearForces& forces, const SystemDerivative* d)
-      : scene_(scene), n_(scene.dof()) {
+      : scene_(scene), n_(scene.dof()), tolerance_(forces.tolerance) {
     const LinearSystem& sys = scene.system();
     const HarmonicForcing& f = sys.forcing();
     taylor::TaylorSystemSpec spec;
@@ -99,16 +120,9 @@ class TaylorPart final : public detail::NonlinearPart {
     spec.parameters = forces.parameters;
     spec.forces = forces.forces;
     forces_ = std::make_unique<taylor::TaylorSystem>(spec);
-    const taylor::TaylorSettings plain{.tolerance = forces.tolerance};
-    const taylor::TaylorSettings variational{.tolerance = forces.tolerance, .variational = true};
-    rate_step_ = std::make_unique<taylor::TaylorStep>(*forces_, plain);
-
-    spec.damping = sys.damping();
-    spec.stiffness = sys.stiffness();
-    spec.forces = with_drive(forces.forces, sys, nullptr, "Omega", "");
-    driven_ = std::make_unique<taylor::TaylorSystem>(spec);
-    flow_step_ = std::make_unique<taylor::TaylorStep>(*driven_, variational);
-    plain_step_ = std::make_unique<taylor::TaylorStep>(*driven_, plain);
+    rate_step_ = std::make_unique<taylor::TaylorStep>(*forces_, taylor::TaylorSettings{.tolerance = tolerance_});
+    base_ = spec;
+    driven_ = with_drive(forces.forces, sys, nullptr, "Omega", "");
 
     if (d) {
       if (d->mass.size() && !d->mass.isZero(0.0))
@@ -118,34 +132,24 @@ class TaylorPart final : public detail::NonlinearPart {
         throw InvalidInput("linearisation: the derivative has " + std::to_string(d->force_parameters.size()) +
                            " entries for the forces' parameters, the forces have " +
                            std::to_string(forces.parameters.size()));
+      derivative_ = *d;
       const std::string s = "x" + std::to_string(n_);
       std::map<std::string, std::string> with;
-      const std::string omega = d->frequency != 0.0 ? moving(f.frequency, d->frequency, s) : "Omega";
-      if (d->frequency != 0.0) with["Omega"] = omega;
+      omega_ = d->frequency != 0.0 ? moving(f.frequency, d->frequency, s) : "Omega";
+      if (d->frequency != 0.0) with["Omega"] = omega_;
       for (std::size_t j = 0; j < forces.parameters.size(); ++j) {
         const double dj = d->force_parameters.size() ? d->force_parameters(static_cast<Index>(j)) : 0.0;
         if (dj != 0.0) with[forces.parameters[j].first] = moving(forces.parameters[j].second, dj, s);
       }
       std::vector<std::string> user(static_cast<std::size_t>(n_));
       for (std::size_t i = 0; i < forces.forces.size(); ++i) user[i] = substitute(forces.forces[i], with);
-      taylor::TaylorSystemSpec lifted = spec;
-      const Index m = n_ + 1;
-      lifted.mass = MatrixXd::Identity(m, m);
-      lifted.mass.topLeftCorner(n_, n_) = sys.mass();
-      lifted.damping = MatrixXd::Zero(m, m);
-      lifted.damping.topLeftCorner(n_, n_) = sys.damping();
-      lifted.stiffness = MatrixXd::Zero(m, m);
-      lifted.stiffness.topLeftCorner(n_, n_) = sys.stiffness();
-      lifted.forces = with_drive(user, sys, d, omega, s);
-      lifted.forces.emplace_back();
-      lifted_ = std::make_unique<taylor::TaylorSystem>(lifted);
-      lifted_step_ = std::make_unique<taylor::TaylorStep>(*lifted_, variational);
-      lifted_z_.resize(2 * m);
-      lifted_end_.resize(2 * m);
+      lifted_driven_ = with_drive(user, sys, &*derivative_, omega_, s);
     }
     z_.resize(2 * n_);
     out_.resize(2 * n_);
     end_.resize(2 * n_);
+    lifted_z_.resize(2 * (n_ + 1));
+    lifted_end_.resize(2 * (n_ + 1));
   }
 
   VectorXd acceleration(double t, const VectorXd& x, const VectorXd& v) override {
@@ -156,18 +160,16 @@ class TaylorPart final : public detail::NonlinearPart {
     return out_.tail(n_);
   }
 
-  MatrixXd transition(double t0, const VectorXd& x, const VectorXd& v, double t1) override {
+  MatrixXd transition(const ContactSet& held, double t0, const VectorXd& x, const VectorXd& v, double t1) override {
+    Flow& flow = flow_for(held);
     MatrixXd phi;
-    if (!lifted_) {
+    if (!flow.lifted) {
       z_ << x, v;
-      check(taylor::advance(*flow_step_, t0, z_, t1, end_, &phi), *flow_step_, t0);
+      check(taylor::advance(*flow.variational, t0, z_, t1, end_, &phi), *flow.variational, t0);
     } else {
-      const Index m = n_ + 1;
-      lifted_z_.setZero();
-      lifted_z_.head(n_) = x;
-      lifted_z_.segment(m, n_) = v;
       MatrixXd big;
-      check(taylor::advance(*lifted_step_, t0, lifted_z_, t1, lifted_end_, &big), *lifted_step_, t0);
+      lift(x, v);
+      check(taylor::advance(*flow.lifted, t0, lifted_z_, t1, lifted_end_, &big), *flow.lifted, t0);
       // rows and columns of (x, v) in the lifted state, then the column of s
       phi.resize(2 * n_, 2 * n_ + 1);
       for (Index i = 0; i < 2 * n_; ++i) {
@@ -182,22 +184,215 @@ class TaylorPart final : public detail::NonlinearPart {
     return phi;
   }
 
-  /// Interior local maxima of the gaps of `stops` over (t0, t1) of the free flow from (t0, x, v):
-  /// per Taylor step, the roots where g' = wᵀv − s'(t) falls through zero, isolated by the
-  /// certified root search (guard_roots.hpp; the bound is the polynomial's evaluation rounding
-  /// plus the step's remainder), alternating with the minima so that it moves from extremum to
-  /// extremum, as the engine finds a held stop's force minima.
-  std::vector<GapPeak> gap_peaks(double t0, const VectorXd& x, const VectorXd& v, double t1,
+  HeldForce held_force(const ContactSet& held, int a, double t, const VectorXd& x, const VectorXd& v) override {
+    Flow& flow = flow_for(held);
+    z_ << x, v;
+    check(flow.variational->expand(t, z_), *flow.variational, t);
+    HeldForce out;
+    out.gradient.resize(2 * n_);
+    for (Index d = 0; d < 2 * n_; ++d) out.gradient(d) = flow.variational->guard_gradient(a, static_cast<int>(d));
+    out.rate = flow.variational->guard_coefficients(a)[1];
+    if (flow.lifted) {
+      lift(x, v);
+      check(flow.lifted->expand(t, lifted_z_), *flow.lifted, t);
+      out.dp = flow.lifted->guard_gradient(a, static_cast<int>(n_));
+    }
+    if (!out.gradient.allFinite() || !std::isfinite(out.rate) || !std::isfinite(out.dp))
+      throw InvalidInput("linearisation: the contact force of stop " + std::to_string(held[static_cast<std::size_t>(a)]) +
+                         " at t = " + number_text(t) + " has a derivative that is not finite");
+    return out;
+  }
+
+  /// Interior local maxima of the gaps of `stops` over (t0, t1) of the flow from (t0, x, v)
+  /// with `held` held (maxima(): the gaps' series from the steps' state and the stops' motion).
+  std::vector<GapPeak> gap_peaks(const ContactSet& held, double t0, const VectorXd& x, const VectorXd& v, double t1,
                                  const std::vector<int>& stops) override {
     std::vector<GapPeak> out;
-    if (stops.empty() || !(t1 > t0)) return out;
-    taylor::TaylorStep& step = *plain_step_;
+    if (stops.empty()) return out;
+    const MatrixXd& W = scene_.normals();
+    const double omega = scene_.system().forcing().frequency;
+    taylor::TaylorStep& step = *flow_for(held).plain;
     const int p = step.order();
     const auto width = static_cast<std::size_t>(p) + 1;
-    std::vector<double> g(width + 1), dg(width), shifted(width), cs(width + 1), sn(width + 1), hc(width), hs(width);
+    std::vector<double> cs(width + 1), sn(width + 1), hc(width), hs(width);
+    double at_t = std::numeric_limits<double>::quiet_NaN();
+    auto fill = [&](int row, double t, double* g) {
+      if (t != at_t) {
+        harmonic_series(omega, t, p, cs.data(), sn.data());
+        at_t = t;
+      }
+      const int j = stops[static_cast<std::size_t>(row)];
+      const Stop& st = scene_.stops()[static_cast<std::size_t>(j)];
+      for (int k = 0; k <= p; ++k) {
+        double sum = 0.0;
+        for (Index l = 0; l < n_; ++l)
+          if (W(l, j) != 0.0) sum += W(l, j) * step.state_coefficients(static_cast<int>(l))[k];
+        const auto kk = static_cast<std::size_t>(k);
+        g[kk] = sum - ((k == 0 ? st.s0() : 0.0) + st.s_cos() * cs[kk] + st.s_sin() * sn[kk]);
+      }
+      for (std::size_t q = 0; q < st.harmonics.size(); ++q) {  // the motion's harmonics of order ≥ 2
+        harmonic_series(st.harmonics[q].rate(omega), t, p, hc.data(), hs.data());
+        for (std::size_t k = 0; k < width; ++k) g[k] -= st.h_cos(q) * hc[k] + st.h_sin(q) * hs[k];
+      }
+    };
+    maxima(step, t0, x, v, t1, static_cast<int>(stops.size()), fill,
+           [&](int row, double t, double value) { out.push_back({stops[static_cast<std::size_t>(row)], t, value}); });
+    return out;
+  }
+
+  /// The held stops' force minima: the maxima of −λ_a, λ_a's series the held system's guards.
+  std::vector<ForceDip> force_minima(const ContactSet& held, double t0, const VectorXd& x, const VectorXd& v,
+                                     double t1) override {
+    std::vector<ForceDip> out;
+    if (held.empty()) return out;
+    taylor::TaylorStep& step = *flow_for(held).plain;
+    const auto width = static_cast<std::size_t>(step.order()) + 1;
+    auto fill = [&](int row, double /*t*/, double* g) {
+      const double* lambda = step.guard_coefficients(row);
+      for (std::size_t k = 0; k < width; ++k) g[k] = -lambda[k];
+    };
+    maxima(step, t0, x, v, t1, static_cast<int>(held.size()), fill, [&](int row, double t, double value) {
+      out.push_back({held[static_cast<std::size_t>(row)], t, -value, false});
+    });
+    return out;
+  }
+
+ private:
+  /// The systems of one held set (Flow: none for free flight), built on first use.
+  struct Flow {
+    std::unique_ptr<taylor::TaylorSystem> system, lifted_system;
+    std::unique_ptr<taylor::TaylorStep> variational, plain, lifted;
+  };
+
+  Flow& flow_for(const ContactSet& held) {
+    const auto it = flows_.find(held);
+    if (it != flows_.end()) return *it->second;
+    const LinearSystem& sys = scene_.system();
+    const auto k = static_cast<Index>(held.size());
+    MatrixXd W(n_, k);
+    for (Index a = 0; a < k; ++a) W.col(a) = scene_.normals().col(held[static_cast<std::size_t>(a)]);
+    MatrixXd Pi = MatrixXd::Identity(n_, n_), R(k, n_), Ginv(k, k), WG(n_, k);
+    if (k > 0) {
+      const Eigen::LLT<MatrixXd> mass(sys.mass());
+      const MatrixXd minv_w = mass.solve(W);
+      Ginv = (W.transpose() * minv_w).llt().solve(MatrixXd::Identity(k, k));
+      R = Ginv * minv_w.transpose();  // G⁻¹WᵀM⁻¹ (M symmetric)
+      Pi -= W * R;
+      WG = W * Ginv;
+    }
+    auto f = std::make_unique<Flow>();
+    const taylor::TaylorSettings plain{.tolerance = tolerance_};
+    const taylor::TaylorSettings variational{.tolerance = tolerance_, .variational = true};
+    taylor::TaylorSystemSpec spec = base_;
+    spec.damping = Pi * sys.damping();
+    spec.stiffness = Pi * sys.stiffness();
+    constrained(spec, held, Pi, R, Ginv, WG, driven_, nullptr, "Omega", "");
+    f->system = std::make_unique<taylor::TaylorSystem>(spec);
+    f->variational = std::make_unique<taylor::TaylorStep>(*f->system, variational);
+    f->plain = std::make_unique<taylor::TaylorStep>(*f->system, plain);
+    if (derivative_) {
+      const Index m = n_ + 1;
+      taylor::TaylorSystemSpec lifted = base_;
+      lifted.mass = MatrixXd::Identity(m, m);
+      lifted.mass.topLeftCorner(n_, n_) = sys.mass();
+      lifted.damping = MatrixXd::Zero(m, m);
+      lifted.damping.topLeftCorner(n_, n_) = spec.damping;
+      lifted.stiffness = MatrixXd::Zero(m, m);
+      lifted.stiffness.topLeftCorner(n_, n_) = spec.stiffness;
+      constrained(lifted, held, Pi, R, Ginv, WG, lifted_driven_, &*derivative_, omega_, "x" + std::to_string(n_));
+      lifted.forces.emplace_back();
+      f->lifted_system = std::make_unique<taylor::TaylorSystem>(lifted);
+      f->lifted = std::make_unique<taylor::TaylorStep>(*f->lifted_system, variational);
+    }
+    return *flows_.emplace(held, std::move(f)).first->second;
+  }
+
+  /// The held set's forces Π r + W G⁻¹ s̈ (n entries) and guards λ = G⁻¹WᵀM⁻¹ r − G⁻¹ s̈ of `spec`,
+  /// r the free force: `driven` (the forces and the drive, along a derivative −s (dC v + dK x)
+  /// too) minus C v + K x written out.
+  void constrained(taylor::TaylorSystemSpec& spec, const ContactSet& held, const MatrixXd& Pi, const MatrixXd& R,
+                   const MatrixXd& Ginv, const MatrixXd& WG, const std::vector<std::string>& driven,
+                   const SystemDerivative* d, const std::string& omega, const std::string& s) const {
+    const auto k = static_cast<Index>(held.size());
+    if (k == 0) {
+      spec.forces = driven;
+      return;
+    }
+    std::vector<std::string> acc(static_cast<std::size_t>(k));
+    for (Index a = 0; a < k; ++a) acc[static_cast<std::size_t>(a)] = stop_acceleration(held[static_cast<std::size_t>(a)], d, omega, s);
+    const LinearSystem& sys = scene_.system();
+    std::vector<std::string> free(static_cast<std::size_t>(n_));
+    for (Index i = 0; i < n_; ++i) {
+      std::vector<std::pair<double, std::string>> terms{{1.0, driven[static_cast<std::size_t>(i)]}};
+      for (Index j = 0; j < n_; ++j) {
+        terms.emplace_back(-sys.damping()(i, j), "v" + std::to_string(j));
+        terms.emplace_back(-sys.stiffness()(i, j), "x" + std::to_string(j));
+      }
+      free[static_cast<std::size_t>(i)] = combination(terms);
+    }
+    spec.forces.assign(static_cast<std::size_t>(n_), "");
+    for (Index i = 0; i < n_; ++i) {
+      std::vector<std::pair<double, std::string>> terms;
+      for (Index l = 0; l < n_; ++l) terms.emplace_back(Pi(i, l), driven[static_cast<std::size_t>(l)]);
+      for (Index a = 0; a < k; ++a) terms.emplace_back(WG(i, a), acc[static_cast<std::size_t>(a)]);
+      spec.forces[static_cast<std::size_t>(i)] = combination(terms);
+    }
+    spec.guards.clear();
+    for (Index a = 0; a < k; ++a) {
+      std::vector<std::pair<double, std::string>> terms;
+      for (Index l = 0; l < n_; ++l) terms.emplace_back(R(a, l), free[static_cast<std::size_t>(l)]);
+      for (Index b = 0; b < k; ++b) terms.emplace_back(-Ginv(a, b), acc[static_cast<std::size_t>(b)]);
+      const std::string text = combination(terms);
+      spec.guards.push_back(text.empty() ? "0" : text);
+    }
+  }
+
+  /// Stop j's acceleration s̈_j(t) as an expression of t ("" for a fixed stop); along a
+  /// derivative d (coordinate s) its amplitudes and Ω move.
+  std::string stop_acceleration(int j, const SystemDerivative* d, const std::string& omega, const std::string& s) const {
+    const Stop& st = scene_.stops()[static_cast<std::size_t>(j)];
+    const auto ju = static_cast<std::size_t>(j);
+    const StopDerivative sd = d && ju < d->stops.size() ? d->stops[ju] : StopDerivative{};
+    std::string out;
+    auto harmonic = [&](const std::string& rate, double c, double dc, double sn, double ds) {
+      if (c == 0.0 && dc == 0.0 && sn == 0.0 && ds == 0.0) return;
+      if (!out.empty()) out += " + ";
+      out += "-(" + rate + ")*(" + rate + ")*(" + moving(c, dc, s) + "*cos(" + rate + "*t) + " + moving(sn, ds, s) +
+             "*sin(" + rate + "*t))";
+    };
+    harmonic("(" + omega + ")", st.s_cos(), sd.cosine, st.s_sin(), sd.sine);
+    for (std::size_t q = 0; q < st.harmonics.size(); ++q) {
+      auto at = [&](const std::vector<std::vector<double>>& v) {
+        return d && ju < v.size() && q < v[ju].size() ? v[ju][q] : 0.0;
+      };
+      harmonic("(" + std::to_string(st.harmonics[q].order) + "*" + omega + ")", st.h_cos(q),
+               d ? at(d->stop_harmonic_cosine) : 0.0, st.h_sin(q), d ? at(d->stop_harmonic_sine) : 0.0);
+    }
+    return out;
+  }
+
+  /// lifted_z_ ← (x, 0, v, 0).
+  void lift(const VectorXd& x, const VectorXd& v) {
+    const Index m = n_ + 1;
+    lifted_z_.setZero();
+    lifted_z_.head(n_) = x;
+    lifted_z_.segment(m, n_) = v;
+  }
+
+  /// The interior local maxima over (t0, t1) of `rows` series along the flow of `step` from
+  /// (t0, x, v): per Taylor step, `fill(row, t, g)` writes a row's coefficients at the step's
+  /// start t, and the roots where g' falls through zero are isolated by the certified root
+  /// search (guard_roots.hpp; the bound is the polynomial's evaluation rounding plus the step's
+  /// remainder), alternating with the minima so that it moves from extremum to extremum, as the
+  /// engine finds a held stop's force minima. `found(row, t, g(t))` for each.
+  template <class Fill, class Found>
+  void maxima(taylor::TaylorStep& step, double t0, const VectorXd& x, const VectorXd& v, double t1, int rows,
+              Fill fill, Found found) {
+    if (rows == 0 || !(t1 > t0)) return;
+    const int p = step.order();
+    const auto width = static_cast<std::size_t>(p) + 1;
+    std::vector<double> g(width + 1), dg(width), shifted(width);
     taylor::GuardRootFinder finder(p);
-    const MatrixXd W = scene_.normals();
-    const double omega = scene_.system().forcing().frequency;
     z_ << x, v;
     double t = t0, carry = 0.0;
     while (true) {
@@ -205,20 +400,8 @@ class TaylorPart final : public detail::NonlinearPart {
       if (!(remaining > 0.0)) break;
       check(step.expand(t, z_), step, t);
       const double h = std::min(step.step_size(), remaining);
-      harmonic_series(omega, t, p, cs.data(), sn.data());
-      for (int j : stops) {
-        const Stop& st = scene_.stops()[static_cast<std::size_t>(j)];
-        for (int k = 0; k <= p; ++k) {
-          double s = 0.0;
-          for (Index l = 0; l < n_; ++l)
-            if (W(l, j) != 0.0) s += W(l, j) * step.state_coefficients(static_cast<int>(l))[k];
-          const auto kk = static_cast<std::size_t>(k);
-          g[kk] = s - ((k == 0 ? st.s0() : 0.0) + st.s_cos() * cs[kk] + st.s_sin() * sn[kk]);
-        }
-        for (std::size_t q = 0; q < st.harmonics.size(); ++q) {  // the motion's harmonics of order ≥ 2
-          harmonic_series(st.harmonics[q].rate(omega), t, p, hc.data(), hs.data());
-          for (std::size_t k = 0; k < width; ++k) g[k] -= st.h_cos(q) * hc[k] + st.h_sin(q) * hs[k];
-        }
+      for (int row = 0; row < rows; ++row) {
+        fill(row, t, g.data());
         for (int k = 0; k < p; ++k) dg[static_cast<std::size_t>(k)] = (k + 1) * g[static_cast<std::size_t>(k) + 1];
         dg[static_cast<std::size_t>(p)] = 0.0;
         const double tail = step.remainder(dg.data(), h);
@@ -235,7 +418,7 @@ class TaylorPart final : public detail::NonlinearPart {
           if (c.kind == taylor::CrossingKind::none) break;
           const double at = lo + (c.kind == taylor::CrossingKind::crossing ? c.tau : c.upper);
           if (c.kind == taylor::CrossingKind::crossing && sign < 0.0 && at > 0.0 && at < h)
-            out.push_back({j, t + at, taylor::horner_compensated(g.data(), p, at)});
+            found(row, t + at, taylor::horner_compensated(g.data(), p, at));
           if (c.kind == taylor::CrossingKind::crossing) sign = -sign;
           lo = std::max(at, lo) + 4.0 * std::numeric_limits<double>::epsilon() * std::max(h, 1.0);
         }
@@ -246,10 +429,8 @@ class TaylorPart final : public detail::NonlinearPart {
       carry = (sum - t) - y;
       t = sum;
     }
-    return out;
   }
 
- private:
   /// The forces of each coordinate with the drive f_i(t) added as expressions; along a
   /// derivative d (lifted system, coordinate s), every amplitude moves and C, K enter as forces.
   std::vector<std::string> with_drive(const std::vector<std::string>& user, const LinearSystem& sys,
@@ -299,8 +480,14 @@ class TaylorPart final : public detail::NonlinearPart {
 
   const ImpactSystem& scene_;
   Index n_;
-  std::unique_ptr<taylor::TaylorSystem> forces_, driven_, lifted_;
-  std::unique_ptr<taylor::TaylorStep> rate_step_, flow_step_, plain_step_, lifted_step_;
+  double tolerance_;
+  taylor::TaylorSystemSpec base_;  // M, Ω and the forces' parameters
+  std::vector<std::string> driven_, lifted_driven_;
+  std::optional<SystemDerivative> derivative_;
+  std::string omega_ = "Omega";
+  std::unique_ptr<taylor::TaylorSystem> forces_;
+  std::unique_ptr<taylor::TaylorStep> rate_step_;
+  std::map<ContactSet, std::unique_ptr<Flow>> flows_;
   VectorXd z_, out_, end_, lifted_z_, lifted_end_;
 };
 

@@ -655,6 +655,11 @@ void TaylorStep::transition(double tau, Eigen::Ref<Eigen::MatrixXd> out) const {
 
 double TaylorStep::guard_remainder(int g, double tau_max) const { return remainder(guard_coefficients(g), tau_max); }
 
+double TaylorStep::guard_gradient(int g, int d) const {
+  if (!settings_.variational) throw std::logic_error("TaylorStep::guard_gradient needs variational equations");
+  return dc_[(static_cast<std::size_t>(system_->guard_nodes()[g]) * dim_ + static_cast<std::size_t>(d)) * (p_ + 1)];
+}
+
 double TaylorStep::remainder(const double* a, double tau_max) const {
   double rounding = 0.0, truncation = 0.0;
   remainder_parts(a, tau_max, &rounding, &truncation);

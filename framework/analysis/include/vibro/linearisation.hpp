@@ -193,12 +193,17 @@ TangentMap linearise(const ImpactSystem& system, const SimulatorOptions& solver,
 /// is the derivative of the flow to the series' tolerance (rounding by default). At an impact the
 /// saltation matrix is the one above, S = R_z + (f⁺ − R_z f⁻ − R_t) h_zᵀ / ḣ⁻, with the reset R
 /// of the linear engines (the Newton law depends on M, the normals and the restitutions, not on
-/// the forces) and the vector fields f∓ = (v, a_lin + M⁻¹F) of the nonlinear system.
+/// the forces) and the vector fields f∓ = (v, a_lin + M⁻¹F) of the nonlinear system. With stops
+/// held (sticking, a chatter caught by its rule) the segment's flow is the held one, a = a_free −
+/// M⁻¹W λ, λ = G⁻¹(Wᵀa_free − s̈) with the forces in a_free, written on the whole state space as
+/// the linear engines' Â_S is; its variational equations give the segment's map, f∓ carry the
+/// projected forces (I − M⁻¹W G⁻¹Wᵀ) M⁻¹F, and a release's guard −λ_a its gradient, rate and
+/// parameter derivative from the same series. A parameter derivative (`options.parameter`) is a
+/// variational equation of a lifted system (taylor_tangent.cpp); `options.features` come from the
+/// Taylor steps (the gaps' peaks, the held forces' minima).
 ///
-/// Supported: impacts in free flight (single and simultaneous). Refused with InvalidInput (not
-/// derived for nonlinear forces): a stop held (sticking, a chatter caught by its rule) anywhere
-/// along the run, a parameter derivative (`options.parameter`), `options.features`, compliant
-/// stops. Throws as TaylorSimulator does for bad forces.
+/// Refused with InvalidInput: compliant stops, a parameter that moves M. Throws as
+/// TaylorSimulator does for bad forces.
 TangentMap linearise(const ImpactSystem& system, const NonlinearForces& forces, const SimulatorOptions& solver,
                      double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
                      const LinearisationOptions& options = {});

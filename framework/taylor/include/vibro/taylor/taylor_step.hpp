@@ -186,6 +186,9 @@ class TaylorStep {
   const double* guard_coefficients(int g) const;
   /// Bound on |g(z(t₀ + τ)) − G(τ)| over [0, min(h, tau_max)] (truncation and rounding).
   double guard_remainder(int g, double tau_max = std::numeric_limits<double>::infinity()) const;
+  /// ∂g/∂z_d at the step's start (z_d the state's d-th entry): guard g's gradient, from the
+  /// forward-mode tangents (needs `variational`).
+  double guard_gradient(int g, int d) const;
 
   /// Ω and the named parameters (initially the system's values).
   void set_parameter(int j, double value) { parameters_[j] = value; }
