@@ -150,7 +150,11 @@ void guard_at(const ModalContactMode& mode, double W, double t0, const Eigen::Re
               const Eigen::Ref<const Eigen::VectorXd>& ud0, double tau, Eigen::Index row, double* value, double* slope,
               Buffers& b, double* curvature = nullptr);
 
-/// Builds the modal form of contact set `set` (modal.hpp, ModalContactMode), or returns null and
+/// The chain with the engaged compliant stops `engaged` (stops on one mass or between
+/// neighbours, c_s = β k_s): K + Σ k_s w wᵀ, and f + Σ w (k_s s + c_s s' − F_p) (stops.hpp).
+BandedChain engaged_chain(const BandedChain& chain, const std::vector<Stop>& stops, const ContactSet& engaged);
+
+/// Builds the modal form of contact set `set` (held rigid stops and engaged compliant ones) (modal.hpp, ModalContactMode), or returns null and
 /// says why in `why_not` when the set is one the modal engine cannot reduce (modal_modes.cpp).
 std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::vector<Stop>& stops,
                                              const ContactSet& set, std::string* why_not,

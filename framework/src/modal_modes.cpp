@@ -59,11 +59,17 @@ namespace detail {
 
 /// Builds the modal form of contact set `set` (modal.hpp, ModalContactMode), or returns null and
 /// says why in `why_not` when the set is one the modal engine cannot reduce.
-std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::vector<Stop>& stops,
-                                             const ContactSet& set, std::string* why_not, TridiagonalSolver route) {
+namespace {
+
+/// The modal form of the held rigid stops `set` on the chain of `free` (the free chain, or the
+/// chain with the engaged compliant stops `engaged`, whose guards are −g_j).
+std::unique_ptr<ModalContactMode> build_reduction(const ChainModes& free, const std::vector<Stop>& stops,
+                                                  const ContactSet& set, const ContactSet& engaged,
+                                                  std::string* why_not, TridiagonalSolver route) {
   const auto start = std::chrono::steady_clock::now();
   auto mode = std::make_unique<ModalContactMode>();
   mode->stuck = set;
+  mode->engaged = engaged;
   const BandedChain& ch = free.chain();
   const Eigen::Index n = free.dof();
   const double W = free.frequency();
@@ -354,9 +360,10 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
 
   const auto m = static_cast<Eigen::Index>(stops.size());
   const auto held = static_cast<Eigen::Index>(set.size());
+  const auto engaged_count = static_cast<Eigen::Index>(engaged.size());
   ModalGuards& g = mode->guards;
   g.P = Eigen::MatrixXd::Zero(m, nr);
-  g.D = Eigen::MatrixXd::Zero(held, nr);
+  g.D = Eigen::MatrixXd::Zero(held + engaged_count, nr);
   g.h0 = Eigen::VectorXd::Zero(m);
   g.hc = Eigen::VectorXd::Zero(m);
   g.hs = Eigen::VectorXd::Zero(m);
@@ -372,11 +379,8 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
       g.xs.row(row) = h.s.transpose();
     }
   };
-  // Gaps of the stops not held: g_j = w_jᵀ x - s_j(t).
-  for (int j = 0; j < static_cast<int>(m); ++j) {
-    if (contains(set, j)) continue;
-    const auto row = static_cast<Eigen::Index>(mode->watched.size());
-    mode->watched.push_back(j);
+  // Row `row` = sign × the gap g_j = w_jᵀ x - s_j(t).
+  auto gap_row = [&](int j, Eigen::Index row, double sign) {
     const Stop& s = stops[static_cast<std::size_t>(j)];
     const Normal w = normal_of(s);
     Periodic h = Periodic::of(-1.0 * stop_motion(s), H);
@@ -388,13 +392,26 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
     for (const auto& [l, weight] : {std::pair{w.i, w.wi}, std::pair{w.k, w.wk}}) {
       if (l < 0) continue;
       const auto& [phi, X] = mass_row(l);
-      g.P.row(row) += weight * phi.transpose();
+      if (nr > 0) g.P.row(row) += (sign * weight) * phi.transpose();
       h += weight * X;
     }
-    set_harmonic(row, h);
+    set_harmonic(row, sign * h);
+  };
+  // Gaps of the stops neither held nor engaged.
+  for (int j = 0; j < static_cast<int>(m); ++j) {
+    if (contains(set, j) || contains(engaged, j)) continue;
+    const auto row = static_cast<Eigen::Index>(mode->watched.size());
+    mode->watched.push_back(j);
+    gap_row(j, row, 1.0);
   }
   mode->gap_rows = static_cast<Eigen::Index>(mode->watched.size());
   mode->watched.insert(mode->watched.end(), set.begin(), set.end());
+  mode->engaged_rows_from = static_cast<Eigen::Index>(mode->watched.size());
+  // −g_j of the engaged compliant stops: it rises through 0 when the gap reopens (D rows 0).
+  for (int j : engaged) {
+    mode->watched.push_back(j);
+    gap_row(j, static_cast<Eigen::Index>(mode->watched.size()) - 1, -1.0);
+  }
   // Contact forces of the held stops, group by group. With the residual of mass l
   //     ρ_l = m_l x_l'' + (C x')_l + (K x)_l - f_l(t) = -Σ_j W_lj λ_j   (M x'' + C x' + K x = f - W λ),
   // the held stops S_G of group G satisfy W_G λ_G = -ρ_G, |G| equations for |S_G| unknowns, of
@@ -458,7 +475,67 @@ std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::
   g.finish(W);
   mode->build_seconds = seconds_since(start);
   mode->bytes = (mode->owned ? mode->owned->bytes() : 0) +
-                sizeof(double) * static_cast<std::size_t>(2 * (m + held) * nr + 4 * n);
+                sizeof(double) * static_cast<std::size_t>(2 * (m + held + engaged_count) * nr + 4 * n);
+  return mode;
+}
+
+}  // namespace
+
+BandedChain engaged_chain(const BandedChain& chain, const std::vector<Stop>& stops, const ContactSet& engaged) {
+  BandedChain out = chain;
+  const double W = chain.forcing.frequency;
+  HarmonicForcing& f = out.forcing;
+  for (int j : engaged) {
+    const Stop& s = stops[static_cast<std::size_t>(j)];
+    const Normal w = normal_of(s);
+    const double k = s.stiffness, c = s.damping;
+    // K + k_s w wᵀ on the band: w has one entry, or two on neighbours (checked by the simulator).
+    out.stiffness_diagonal(w.i) += k * w.wi * w.wi;
+    if (w.k >= 0) {
+      out.stiffness_diagonal(w.k) += k * w.wk * w.wk;
+      out.stiffness_off(std::min(w.i, w.k)) += k * w.wi * w.wk;
+    }
+    // f + w (k_s s + c_s s' − F_p), as the dense engine's engaged mode (contact.cpp).
+    auto add = [&](Eigen::VectorXd& v, double amount) {
+      v(w.i) += amount * w.wi;
+      if (w.k >= 0) v(w.k) += amount * w.wk;
+    };
+    add(f.constant, k * s.s0() - s.preload);
+    add(f.cosine, k * s.s_cos() + c * W * s.s_sin());
+    add(f.sine, k * s.s_sin() - c * W * s.s_cos());
+    for (std::size_t i = 0; i < s.harmonics.size(); ++i) {
+      ForcingHarmonic& fh = f.harmonics[forcing_slot(f, s.harmonics[i].order)];
+      const double r = fh.rate(W), hc = s.h_cos(i), hs = s.h_sin(i);
+      add(fh.cosine, k * hc + c * r * hs);
+      add(fh.sine, k * hs - c * r * hc);
+    }
+  }
+  return out;
+}
+
+std::unique_ptr<ModalContactMode> build_mode(const ChainModes& free, const std::vector<Stop>& stops,
+                                             const ContactSet& set, std::string* why_not, TridiagonalSolver route) {
+  ContactSet held, engaged;
+  for (int j : set) (stops[static_cast<std::size_t>(j)].is_compliant() ? engaged : held).push_back(j);
+  if (engaged.empty()) return build_reduction(free, stops, set, engaged, why_not, route);
+  // Engaged compliant stops: the chain with their springs and dashpots (still tridiagonal and,
+  // with c_s = β k_s, still C = αM + βK) and their forces, in modal form by its own tridiagonal
+  // eigenproblem; the held rigid stops then reduce it as they reduce the free chain.
+  const auto start = std::chrono::steady_clock::now();
+  std::unique_ptr<ChainModes> base;
+  try {
+    const TridiagonalSolver solver =
+        route == TridiagonalSolver::eigen || route == TridiagonalSolver::lapack ? route : free.solver();
+    base = std::make_unique<ChainModes>(engaged_chain(free.chain(), stops, engaged), solver);
+  } catch (const InvalidInput& e) {
+    *why_not = "the chain with the engaged compliant stops cannot be put in modal form: " + std::string(e.what());
+    return nullptr;
+  }
+  auto mode = build_reduction(*base, stops, held, engaged, why_not, route);
+  if (!mode) return nullptr;
+  mode->bytes += base->bytes();
+  mode->engaged_base = std::move(base);
+  mode->build_seconds = seconds_since(start);
   return mode;
 }
 

@@ -84,11 +84,26 @@ class ChainAlgebra final : public detail::ContactAlgebra {
   void gap_rates(double t, const Eigen::VectorXd& v, Eigen::Ref<Eigen::VectorXd> out) const override {
     for (Eigen::Index j = 0; j < out.size(); ++j) out(j) = gap_rate(static_cast<int>(j), t, v);
   }
+  /// The engaged compliant stops whose forces act alongside (nullptr or empty: none); the held
+  /// rigid stops' contact sets are then keyed with them (mode_key).
+  void set_engaged(const ContactSet* engaged) { engaged_ = engaged; }
+  /// The contact set of the held rigid stops `held` with the engaged compliant ones (sorted union).
+  const ContactSet& mode_key(const ContactSet& held) {
+    if (!engaged_ || engaged_->empty()) return held;
+    key_.clear();
+    std::set_union(held.begin(), held.end(), engaged_->begin(), engaged_->end(), std::back_inserter(key_));
+    return key_;
+  }
+  /// N = k_s g + c_s g' + F_p of compliant stop j at (t, x, v) (stops.hpp).
+  double compliant_force(int j, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) const {
+    const Stop& s = stops_[static_cast<std::size_t>(j)];
+    return s.stiffness * gap(j, t, x) + s.damping * gap_rate(j, t, v) + s.preload;
+  }
   void settle(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v, const ContactSet& candidates,
               ContactSet& held, Eigen::Ref<Eigen::VectorXd> forces) override {
     held.clear();
     if (candidates.empty()) return;
-    // Free acceleration M⁻¹(f - C v - K x), C = αM + βK: O(n).
+    // Free acceleration M⁻¹(f - C v - K x - Σ_engaged w N), C = αM + βK: O(n).
     stiffness_times(ch_, x, kx_);
     stiffness_times(ch_, v, kv_);
     const HarmonicForcing& f = ch_.forcing;
@@ -98,6 +113,8 @@ class ChainAlgebra final : public detail::ContactAlgebra {
       const double r = h.rate(W_);
       acc_ += h.cosine * std::cos(r * t) + h.sine * std::sin(r * t);
     }
+    if (engaged_)
+      for (int j : *engaged_) add_w(j, -compliant_force(j, t, x, v), acc_);
     acc_.array() /= ch_.mass.array();
     acc_ -= ch_.rayleigh_mass * v;
     const auto k = static_cast<Eigen::Index>(candidates.size());
@@ -127,12 +144,12 @@ class ChainAlgebra final : public detail::ContactAlgebra {
   void shift(const ContactSet& set, Eigen::Index a, double s, Eigen::VectorXd& z) const override {
     add_minv_w(set[static_cast<std::size_t>(a)], -s, z);
   }
-  bool accept(const ContactSet& held, std::string* why) override { return mode_of_(held, why) != nullptr; }
+  bool accept(const ContactSet& held, std::string* why) override { return mode_of_(mode_key(held), why) != nullptr; }
   double chatter_alpha(int j) const override { return alpha_(j); }
   void force_rates(const ContactSet& held, int j, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v,
                    double* slope, double* curvature) override {
     std::string why;
-    const ModalContactMode* mode = mode_of_(held, &why);
+    const ModalContactMode* mode = mode_of_(mode_key(held), &why);
     if (!mode) throw std::logic_error("force_rates: the held set was not accepted: " + why);
     auto u = b_.fu.head(mode->size()), ud = b_.fud.head(mode->size());
     to_modal(*mode, ch_.mass, W_, t, x, v, u, ud, b_);
@@ -170,6 +187,11 @@ class ChainAlgebra final : public detail::ContactAlgebra {
     z(w.i) += scale * w.wi / ch_.mass(w.i);
     if (w.k >= 0) z(w.k) += scale * w.wk / ch_.mass(w.k);
   }
+  void add_w(int j, double scale, Eigen::VectorXd& z) const {  // z += scale w_j
+    const Normal& w = normal_[static_cast<std::size_t>(j)];
+    z(w.i) += scale * w.wi;
+    if (w.k >= 0) z(w.k) += scale * w.wk;
+  }
   Harmonic motion(int j) const { return stop_motion(stops_[static_cast<std::size_t>(j)]); }
   /// The stop's higher harmonics' part of s_j (derivative 0), s_j' (1) or s_j'' (2): 0 without them.
   double higher(int j, double t, int derivative) const {
@@ -186,12 +208,33 @@ class ChainAlgebra final : public detail::ContactAlgebra {
   Eigen::VectorXd G_diag_, alpha_, beta_, kx_, kv_, acc_, q_;
   Eigen::MatrixXd G_;
   LcpWorkspace lcp_;
+  const ContactSet* engaged_ = nullptr;
+  ContactSet key_;
 };
 
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
 // Options, cache, construction
+
+std::string compliant_refusal(const Stop& s, const BandedChain& chain) {
+  if (!(s.stiffness > 0.0) || !std::isfinite(s.stiffness) || !(s.damping >= 0.0) || !std::isfinite(s.damping) ||
+      !(s.preload >= 0.0) || !std::isfinite(s.preload))
+    return "a compliant stop needs finite k_s > 0, c_s ≥ 0 and F_p ≥ 0 (stiffness " + number_text(s.stiffness) +
+           ", damping " + number_text(s.damping) + ", preload " + number_text(s.preload) + ")";
+  if (s.kind == Stop::Kind::between && std::abs(s.mass - s.other) != 1)
+    return "a compliant stop between masses " + std::to_string(s.mass) + " and " + std::to_string(s.other) +
+           ", which are not neighbours, would break the chain's tridiagonal stiffness: the modal engine takes "
+           "compliant stops on one mass or between neighbouring masses (the dense engine takes any)";
+  // The engaged chain's damping C + c_s w wᵀ stays αM + β(K + k_s w wᵀ) only when c_s = β k_s
+  // (to 1e-12 relative, the tolerance BandedChain::from_links allows the chain's own dampers).
+  const double beta = chain.rayleigh_stiffness, expected = beta * s.stiffness;
+  if (std::abs(s.damping - expected) > 1e-12 * std::max(s.damping, expected))
+    return "a compliant stop's damping c_s = " + number_text(s.damping) + " is not β k_s = " + number_text(expected) +
+           " (β = " + number_text(beta) + ", the chain's C = αM + βK): the modal engine needs the engaged chain's "
+           "damping proportional too; the dense engine takes any c_s";
+  return "";
+}
 
 void ModalSimulatorOptions::validate() const {
   SimulatorOptions::validate();  // the shared fields, by the dense engine's rules
@@ -256,9 +299,10 @@ ModalChainSimulator::ModalChainSimulator(const ChainModes& modes, std::vector<St
         throw InvalidInput(label + ": moves at order " + std::to_string(h.order) +
                            ", which the modes' forcing lacks: build the modes from with_stop_orders(chain, stops)");
     }
-    if (s.is_compliant())
-      throw InvalidInput(label + ": a compliant stop (law: compliant) is handled by the dense engine only "
-                         "(solver.engine: dense or auto)");
+    if (s.is_compliant()) {
+      const std::string why = compliant_refusal(s, modes.chain());
+      if (!why.empty()) throw InvalidInput(label + ": " + why);
+    }
     if (s.name.empty()) {
       s.name = s.kind == Stop::Kind::upper ? "upper" : (s.kind == Stop::Kind::lower ? "lower" : "between");
       s.name += " x" + std::to_string(s.mass);
@@ -376,6 +420,24 @@ class ModalChainSimulator::Loop {
     };
     visit_ = [this](const ContactSet& set) { sets_seen_.insert(set); };
     mode_ = sim_.cache_->modes.at(ContactSet{}).mode.get();
+    // Compliant stops (stops.hpp): those penetrated at t0 start engaged (CompliantStopLaw).
+    engaged_.clear();
+    compliant_ = has_compliant(sim_.stops_);
+    if (compliant_) {
+      const auto m = sim_.stops_.size();
+      for (ContactSet* set : {&engaged_, &rigid_impacts_, &rigid_releases_}) set->reserve(m);
+      for (std::size_t j = 0; j < m; ++j)
+        if (sim_.stops_[j].is_compliant() &&
+            CompliantStopLaw::engaged_at_start(algebra_->gap(static_cast<int>(j), st.t, st.x)))
+          engaged_.push_back(static_cast<int>(j));
+      algebra_->set_engaged(&engaged_);
+      if (!engaged_.empty()) {
+        std::string why;
+        mode_ = sim_.mode_for(engaged_, &why, summary_);
+        if (!mode_) throw InvalidInput("the compliant stops engaged at t0: " + why);
+        sets_seen_.insert(engaged_);
+      }
+    }
     sim_.seg_t0_ = st.t;
     sim_.nr_ = mode_->size();
     to_modal(*mode_, ch_.mass, W_, st.t, st.x, st.v, u0(), ud0(), buffers_);
@@ -399,7 +461,8 @@ class ModalChainSimulator::Loop {
     const ModalGuards& guards = mode_->guards;
     const Eigen::Index rows = guards.rows();
     base_.resize(rows);
-    for (Eigen::Index i = 0; i < rows; ++i) base_(i) = i < mode_->gap_rows ? eps_gap_ : eps_force_;
+    for (Eigen::Index i = 0; i < rows; ++i)  // gaps (and engaged compliant stops' -g) against ε·L
+      base_(i) = i < mode_->gap_rows || i >= mode_->engaged_rows_from ? eps_gap_ : eps_force_;
     source_.retarget(mode_->modes, guards, W_, st.t, u0(), ud0());
     // A guard that starts inside its band while moving away (just after an impact or a release)
     // is re-armed above where it starts, so rounding cannot re-fire it.
@@ -430,11 +493,51 @@ class ModalChainSimulator::Loop {
     const SegmentSample& at = finder_.crossing_sample();
     return {at.h, at.d, finder_.triggers(), mode_->gap_rows, mode_->watched};
   }
+  /// Compliant stops' switches (engage, disengage: the state unchanged, the contact set changes)
+  /// come first, then the rigid stops' impacts and releases, resolved with the new engaged set's
+  /// forces acting; held rigid stops are settled again after a switch, as the dense engine does.
   bool event(detail::RunState& st, const ContactSet& impacting, const ContactSet& releasing, std::string* why) {
-    if (st.stuck.empty() && releasing.empty() && impacting.size() == 1 && free_impact(st.t, impacting))
+    if (!compliant_) {
+      if (st.stuck.empty() && releasing.empty() && impacting.size() == 1 && free_impact(st.t, impacting))
+        return true;
+      to_physical(*mode_, W_, st.t, u0(), ud0(), st.x, st.v, buffers_);
+      return resolve(st, impacting, releasing, {}, why);
+    }
+    rigid_impacts_.clear();
+    rigid_releases_.clear();
+    bool physical = false, switched = false;
+    for (const auto* list : {&impacting, &releasing}) {
+      const bool engage = list == &impacting;
+      for (int j : *list) {
+        if (!sim_.stops_[static_cast<std::size_t>(j)].is_compliant()) {
+          (engage ? rigid_impacts_ : rigid_releases_).push_back(j);
+          continue;
+        }
+        const auto at = std::lower_bound(engaged_.begin(), engaged_.end(), j);
+        const bool is_engaged = at != engaged_.end() && *at == j;
+        if (engage == is_engaged) continue;  // already in that state
+        if (!physical) {
+          to_physical(*mode_, W_, st.t, u0(), ud0(), st.x, st.v, buffers_);
+          physical = true;
+        }
+        if (engage) engaged_.insert(at, j);
+        else engaged_.erase(at);
+        const double rate = algebra_->gap_rate(j, st.t, st.v);
+        emit_({st.t, j, engage ? EventKind::engage : EventKind::disengage, rate, rate,
+               engage ? algebra_->compliant_force(j, st.t, st.x, st.v) : 0.0});
+        switched = true;
+      }
+    }
+    if (!switched && st.stuck.empty() && rigid_releases_.empty() && rigid_impacts_.size() == 1 &&
+        free_impact(st.t, rigid_impacts_))
       return true;
-    to_physical(*mode_, W_, st.t, u0(), ud0(), st.x, st.v, buffers_);
-    return resolve(st, impacting, releasing, {}, why);
+    if (!physical) to_physical(*mode_, W_, st.t, u0(), ud0(), st.x, st.v, buffers_);
+    if (rigid_impacts_.empty() && rigid_releases_.empty() && !(switched && !st.stuck.empty())) {
+      if (!switched) return true;
+      ++summary_.general_events;
+      return enter(st, why);
+    }
+    return resolve(st, rigid_impacts_, rigid_releases_, {}, why);
   }
   bool stop_requested(std::string* why) const {
     const long cap = sim_.options_.stop_after_impacts;
@@ -468,10 +571,11 @@ class ModalChainSimulator::Loop {
   }
   /// Enters the mode of `stuck` from the physical state (x, v) at t. False if unsupported.
   bool enter(const detail::RunState& st, std::string* why) {
-    const ModalContactMode* next = sim_.mode_for(st.stuck, why, summary_);
+    const ContactSet& key = algebra_->mode_key(st.stuck);
+    const ModalContactMode* next = sim_.mode_for(key, why, summary_);
     if (!next) return false;
     mode_ = next;
-    sets_seen_.insert(st.stuck);
+    sets_seen_.insert(key);
     sim_.nr_ = mode_->size();
     to_modal(*mode_, ch_.mass, W_, st.t, st.x, st.v, u0(), ud0(), buffers_);
     sim_.seg_t0_ = st.t;
@@ -492,8 +596,10 @@ class ModalChainSimulator::Loop {
     bool slow = false;
     if (r > 0.0 && r < 1.0) {
       // Free gap acceleration (the acceleration LCP of one stop holds iff it is > 0).
+      // The current set's modes: the free chain's, or with engaged compliant stops the engaged chain's.
+      const ChainModes& md = *mode_->modes;
       auto udd = buffers_.udd.head(sim_.nr_);
-      udd = -(2.0 * md_.decay().cwiseProduct(ud0()) + md_.omega_squared().cwiseProduct(u0()));
+      udd = -(2.0 * md.decay().cwiseProduct(ud0()) + md.omega_squared().cwiseProduct(u0()));
       const double c = std::cos(W_ * t), s = std::sin(W_ * t);
       double accel = guards.P.row(row).dot(udd) - W_ * W_ * (guards.hc(row) * c + guards.hs(row) * s);
       if (guards.harmonics() > 0) {
@@ -537,6 +643,8 @@ class ModalChainSimulator::Loop {
   std::set<ContactSet> sets_seen_;  // impact and contact sets visited (contact_sets_built)
   const ModalContactMode* mode_ = nullptr;
   Eigen::VectorXd base_;
+  bool compliant_ = false;                                // the scene has compliant stops
+  ContactSet engaged_, rigid_impacts_, rigid_releases_;  // engaged compliant stops; scratch
 };
 
 ModalRunSummary ModalChainSimulator::run(double t0, const Eigen::VectorXd& x0,

@@ -101,3 +101,37 @@ stops:
     CHECK(d.frequency == 0.0);
   }
 }
+
+// The modal engine's share of compliant stops (docs/scenes.md, solver.engine): a long chain
+// (64 masses, C = βK, β = 0.05) with compliant stops on one mass and between neighbours whose
+// dashpots are β k_s runs on the modal engine under auto; a dashpot that is not β k_s, or a run
+// kind that needs the tangent map (orbit), sends auto to the dense engine and says why.
+TEST_CASE("auto runs proportional compliant stops of a long chain on the modal engine", "[compliant][modal]") {
+  auto scene = [](const std::string& damping, const std::string& run) {
+    std::string masses, springs, dampers, cosine;
+    for (int i = 0; i < 64; ++i) {
+      masses += std::string(i ? ", " : "") + "1";
+      cosine += std::string(i ? ", " : "") + (i ? "0" : "1");
+      if (i < 63) {
+        springs += std::string(i ? ", " : "") + "1";
+        dampers += std::string(i ? ", " : "") + "0.05";
+      }
+    }
+    const std::string text = "model:\n  chain:\n    masses: [" + masses + "]\n    springs: [" + springs +
+                             "]\n    dampers: [" + dampers + "]\n    left_wall: {spring: 1, damper: 0.05}\n" +
+                             "forcing:\n  frequency: 0.3\n  cosine: [" + cosine + "]\nstops:\n" +
+                             "  - {mass: 0, side: upper, position: 0.5, law: compliant, stiffness: 4, damping: 0.2, "
+                             "preload: 0.1}\n" +
+                             "  - {between: [10, 11], gap: 0.2, law: compliant, stiffness: 2, damping: " + damping +
+                             "}\n" + run;
+    return vibro::io::SceneDocument::parse(text, "long.yaml").build();
+  };
+  const vibro::io::Scene proportional = scene("0.1", "");
+  CHECK(proportional.engine == vibro::io::EngineKind::modal);
+  const vibro::io::Scene other = scene("0.3", "");
+  CHECK(other.engine == vibro::io::EngineKind::dense);
+  CHECK_THAT(other.engine_reason, Catch::Contains("stops[1]") && Catch::Contains("is not β k_s = 0.1"));
+  const vibro::io::Scene orbit = scene("0.1", "run:\n  kind: orbit\n");
+  CHECK(orbit.engine == vibro::io::EngineKind::dense);
+  CHECK_THAT(orbit.engine_reason, Catch::Contains("stops[0]") && Catch::Contains("tangent map"));
+}

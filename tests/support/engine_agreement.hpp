@@ -17,6 +17,7 @@ namespace vibro::test {
 struct Agreement {
   double event_time = 0.0, event_rate = 0.0, event_force = 0.0, state = 0.0;
   long impacts = 0, sticks = 0, chatters = 0, releases = 0;
+  long switches = 0;  ///< compliant stops' engagements and disengagements
   std::size_t events = 0;
 };
 
@@ -80,6 +81,8 @@ inline Agreement compare_engines(const BandedChain& chain, const std::vector<Sto
   out.chatters = ds.chatters;
   out.releases = ds.releases;
   out.events = dense_log.events.size();
+  for (const Event& e : dense_log.events)
+    out.switches += e.kind == EventKind::engage || e.kind == EventKind::disengage ? 1 : 0;
   return out;
 }
 

@@ -704,6 +704,11 @@ ModalTangent::ModalTangent(ModalEngine& engine, double t0, const VectorXd& x0, c
                            const LinearisationOptions& options, bool modal_events)
     : sim_(&engine.simulator()), n_(engine.simulator().modes().dof()) {
   ModalChainSimulator& sim = engine.simulator();
+  for (std::size_t j = 0; j < sim.stops().size(); ++j)
+    if (sim.stops()[j].is_compliant())
+      throw InvalidInput("modal tangent: stops[" + std::to_string(j) + "] is compliant; the modal engine's tangent map "
+                         "(shooting, multipliers, continuation, Lyapunov exponents) takes rigid stops only: "
+                         "use solver.engine: dense for the analysis of compliant stops");
   record_ = std::make_unique<Record>(sim.modes().chain(), sim.stops());
   record_->mass_of_chain = sim.modes().chain().mass;
   record_->free = &sim.modes();

@@ -426,7 +426,11 @@ class ModalGuardSource final : public GuardSource {
 /// the masses left free by the stuck stops, with every guard of that set written in its modes.
 /// Built by ModalChainSimulator on first visit (see the header comment); read-only afterwards.
 struct ModalContactMode {
-  ContactSet stuck;                     ///< sorted stop indices held
+  ContactSet stuck;                     ///< sorted rigid stop indices held
+  ContactSet engaged;                   ///< sorted compliant stop indices engaged (see "Compliant stops")
+  /// The chain with the engaged compliant stops' springs, dashpots and forces (null when none
+  /// is engaged): the base the held stops reduce, in place of the free chain.
+  std::unique_ptr<ChainModes> engaged_base;
   std::unique_ptr<ChainModes> owned;    ///< the reduced chain's modes (null for the free set)
   const ChainModes* modes = nullptr;    ///< where the state lives; null when no mass is free
   /// Per mass l: its reduced coordinate r (x_l = y_r + o_l(t)), or -1 if prescribed (x_l = o_l(t)).
@@ -437,10 +441,13 @@ struct ModalContactMode {
   /// Σ_h (oxc(l, h) cos r_h t + oxs(l, h) sin r_h t), r_h = guards.rates(h) (N × H; empty
   /// otherwise, the common case, which then costs nothing).
   Eigen::MatrixXd oxc, oxs;
-  /// Guards of the set (gaps of the stops not held, then -λ_j of the held stops; see the header).
+  /// Guards of the set (gaps of the stops neither held nor engaged, then -λ_j of the held stops,
+  /// then −g_j of the engaged ones; see the header).
   ModalGuards guards;
   std::vector<int> watched;             ///< stop of each row
   Eigen::Index gap_rows = 0;
+  /// Rows from here on are −g of the engaged compliant stops (their D rows are 0).
+  Eigen::Index engaged_rows_from = 0;
   double build_seconds = 0.0;
   std::size_t bytes = 0;
 
@@ -515,6 +522,12 @@ inline constexpr const char* kModalStopsOnly =
     "the modal engine takes stops on one mass (upper, lower) or between two masses; the dense "
     "engine takes any normal (solver.engine: dense)";
 
+/// Why the modal engine cannot run compliant stop `s` on `chain` (empty: it can). It takes a
+/// compliant stop on one mass or between neighbouring masses (k_s then stays on K's band) whose
+/// dashpot keeps the damping proportional, c_s = β k_s with the chain's C = αM + βK (to 1e-12
+/// relative): each engaged set is then a chain again (see "Compliant stops" above).
+std::string compliant_refusal(const Stop& s, const BandedChain& chain);
+
 /// The chain with a zero forcing harmonic of every order ≥ 2 that a stop moves at and its drive
 /// lacks (appended in the order the stops name them), as ImpactSystem gives its system: the
 /// modes of a chain whose stops move with higher harmonics are built from it, so that each
@@ -524,7 +537,8 @@ BandedChain with_stop_orders(BandedChain chain, const std::vector<Stop>& stops);
 
 /// Free flight, impacts, chatter and sticking of a proportionally damped chain with stops, in
 /// modal coordinates. Stops are validated here (mass indices, r ∈ [0, 1], finite values, moving
-/// stops need Ω > 0; a general normal is refused with kModalStopsOnly); compliant stops (stops.hpp) are refused: the dense engine runs them. Not thread-safe: one simulator per thread (they may share one const
+/// stops need Ω > 0; a general normal is refused with kModalStopsOnly; a compliant stop
+/// compliant_refusal refuses, with its reason). Not thread-safe: one simulator per thread (they may share one const
 /// ChainModes). A stop may move with higher harmonics (Stop::harmonics): its motion enters the
 /// guards, the held sets' offsets and the crossing search's bounds as the drive's extra
 /// harmonics do; the modes must then come from with_stop_orders(chain, stops) (InvalidInput

@@ -568,7 +568,28 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     }
   }
   const YAML::Node engine_node = root["solver"] ? root["solver"]["engine"] : YAML::Node();
-  const bool compliant = has_compliant(p.stops);
+  // The first compliant stop the modal engine cannot run (compliant_refusal: a non-neighbour
+  // pair, or c_s ≠ β k_s), its reason and where it is written (its law: key).
+  int refused_stop = -1;
+  std::string refused_why;
+  YAML::Node refused_at;
+  // Shooting, continuation and Lyapunov exponents need the tangent map, whose modal form
+  // (modal_tangent.hpp) takes rigid stops only.
+  const bool tangent_run = p.run.kind == RunSpec::Kind::orbit || p.run.kind == RunSpec::Kind::continuation ||
+                           p.run.kind == RunSpec::Kind::lyapunov;
+  if (banded)
+    for (std::size_t j = 0; j < p.stops.size() && refused_stop < 0; ++j) {
+      if (!p.stops[j].is_compliant()) continue;
+      std::string why = compliant_refusal(p.stops[j], *banded);
+      if (why.empty() && tangent_run)
+        why = "the modal engine's tangent map (shooting, continuation, Lyapunov exponents) takes rigid stops only";
+      if (!why.empty()) {
+        refused_stop = static_cast<int>(j);
+        refused_why = std::move(why);
+        const YAML::Node list = root["stops"];
+        if (list && list.IsSequence() && j < list.size()) refused_at = list[j]["law"] ? list[j]["law"] : list[j];
+      }
+    }
   int general_stop = -1;  // the first stop along a general normal, which the modal engine refuses
   for (std::size_t j = 0; j < p.stops.size() && general_stop < 0; ++j)
     if (p.stops[j].kind == Stop::Kind::normal) general_stop = static_cast<int>(j);
@@ -582,14 +603,17 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     if (!chain_links) refuse("it needs model.chain (M diagonal, K tridiagonal), this scene gives model.matrices");
     if (!banded) refuse(not_banded);
     if (!floating.empty()) refuse(floating + " tied to no wall by springs: a rigid-body mode (give the chain a wall spring)");
-    if (compliant) refuse("it has compliant stops (law: compliant), which the dense engine handles");
+    if (refused_stop >= 0) {
+      const std::string path = "stops[" + std::to_string(refused_stop) + "]";
+      r.fail(refused_at ? refused_at : engine_node, refused_at ? path + ".law" : std::string("solver.engine"),
+             "the modal engine (solver.engine: modal) cannot run " + path + ": " + refused_why +
+                 " (use solver.engine: dense or auto)");
+    }
     if (general_stop >= 0) refuse("stops[" + std::to_string(general_stop) + "] has a general normal: " + kModalStopsOnly);
     engine = EngineKind::modal;
     reason = "solver.engine: modal";
   } else if (engine_choice == EngineChoice::dense) {
     reason = "solver.engine: dense";
-  } else if (compliant) {
-    reason = "auto: compliant stops (the dense engine handles them)";
   } else if (general_stop >= 0) {
     reason = "auto: stops[" + std::to_string(general_stop) + "] has a general normal (" + kModalStopsOnly + ")";
   } else if (!chain_links) {
@@ -598,6 +622,8 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
     reason = "auto: the chain's damping is not proportional (" + not_banded + ")";
   } else if (!floating.empty()) {
     reason = "auto: " + floating + " tied to no wall (a rigid-body mode; the modal engine needs none)";
+  } else if (refused_stop >= 0) {
+    reason = "auto: stops[" + std::to_string(refused_stop) + "]: " + refused_why;
   } else if (n < kModalAutomaticMinimumDof) {
     reason = "auto: " + std::to_string(n) + " masses (< " + std::to_string(kModalAutomaticMinimumDof) +
              ": the dense engine is cheap and handles every contact set)";

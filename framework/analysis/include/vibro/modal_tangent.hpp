@@ -68,7 +68,8 @@ namespace vibro {
 class ModalTangent {
  public:
   /// Runs `engine` from (t0, x0, v0) to t1 and records the tangent map. Throws InvalidInput as
-  /// the engine's run does (sizes, an inadmissible start). If the run does not complete, map()
+  /// the engine's run does (sizes, an inadmissible start), and for a compliant stop (the map
+  /// takes rigid stops only; the dense linearisation takes compliant ones). If the run does not complete, map()
   /// says so in its summary and apply() throws std::logic_error.
   /// `modal_events` false takes every event through physical coordinates (the general path; for
   /// tests of the free-flight fast path, see below).
