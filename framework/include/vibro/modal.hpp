@@ -69,6 +69,15 @@
 ///    a few MB per set instead of 0.8 GB), and a basis change is two O(N²) products. Default
 ///    from 1000 masses. The same eigenvalues and reduced coordinates as the tridiagonal route to
 ///    rounding (tests/framework/test_modal.cpp).
+/// **Compliant stops** (stops.hpp, law = compliant): an engaged stop adds k_s w wᵀ to K, c_s w wᵀ
+/// to C and w (k_s s + c_s s' − F_p) to f. On one mass or between neighbours, k_s w wᵀ stays on
+/// K's band, and with c_s = β k_s the damping stays C = αM + βK: the engaged set's chain is a
+/// chain again (compliant_refusal says why another stop is refused). Its modes are built on the
+/// set's first visit by its own tridiagonal eigenproblem, and held rigid stops reduce it as they
+/// reduce the free chain (a two-stage stop: a rigid stop held while a spring is engaged). A
+/// contact set is keyed by its held and engaged stops; its guards are the gaps of the others,
+/// −λ of the held ones and −g of the engaged ones (rising through 0 when the gap reopens),
+/// searched as every guard is; a switch leaves the state as it is and enters the next set.
 /// A stop between masses that are not neighbours, or two held stops fixing one group (redundant
 /// forces), would break the tridiagonal form: the run then ends with RunStatus::unsupported
 /// and says which stops (the dense Simulator handles those).
