@@ -468,7 +468,7 @@ std::unique_ptr<ModalContactMode> build_reduction(const ChainModes& free, const 
           h += p * hg[static_cast<std::size_t>(a)];
         }
         set_harmonic(row, h);
-        g.D.row(a_idx) = beta * g.P.row(row);
+        if (nr > 0) g.D.row(a_idx) = beta * g.P.row(row);  // (no free mass: D has no columns)
       }
     }
   }
