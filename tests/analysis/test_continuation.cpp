@@ -562,10 +562,12 @@ TEST_CASE("continuation: a period doubling between a stable impacting orbit and 
   // Down in Ω from this point (one of the scene's branch points, 22 impacts on the clearance, kept
   // to 17 digits) the orbits lose their last slow impacts one by one at grazings; between each
   // stable impacting stretch and its grazing a multiplier passes −1 (it tends to −∞ as the
-  // impact's speed goes to 0), within 3e-8 of the grazing in Ω. Inside the bracket the branch
-  // bends sharply and the corrector from the chord through the bracket's first end failed: the
-  // first two of these doublings were reported unlocated, with brackets of 1.2e-8 and 2.1e-8.
-  // From the nearer bracket end's orbit the Illinois iteration goes on. Their values, by shooting
+  // impact's speed goes to 0), within 5e-8 of the grazing in Ω. In the scene's own run (from
+  // Ω = 0.7, tools/bench/clearance_doublings.sh) the corrector from the chord through a bracket's
+  // first end failed there and these two were reported unlocated (brackets 1.2e-8 and 2.1e-8);
+  // the Illinois iteration now retries from the bracket ends' orbits. From this point the chord's
+  // corrector does not fail (this case passes without the retry too): it checks the location
+  // against the values independently found. Their values, by shooting
   // at Ω ± 1e-11 (tools/figures/clearance_doublings.py's finite-difference check brackets them
   // too): the multiplier nearest −1 changes side between 0.56771961985 and …962, and between
   // 0.56771306634 and …636.
