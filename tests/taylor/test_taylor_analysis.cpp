@@ -515,7 +515,9 @@ TEST_CASE("Taylor engine: the period map through sticking against central differ
        << r.multipliers.values.transpose());
 
   const vibro::io::SceneDocument doc = vibro::io::SceneDocument::parse(text);
-  for (const auto& [path, value] : {std::pair<std::string, double>{"forcing.frequency", 0.255}, {"parameters.beta", 0.3}}) {
+  for (const auto& [key, at] : {std::pair<std::string, double>{"forcing.frequency", 0.255}, {"parameters.beta", 0.3}}) {
+    const std::string path = key;  // copies: clang before 16 cannot capture a structured binding in a lambda
+    const double value = at;
     vibro::LinearisationOptions o;
     o.parameter = vibro::io::parameter_derivative(doc, path);
     const vibro::TangentMap mp = vibro::linearise(sys, scene.forces, scene.solver, r.t0, r.x, r.v, t1, o);
