@@ -77,6 +77,17 @@ TEST_CASE("a run too large for memory is refused before anything is allocated, w
                Contains("huge.yaml: parsing the scene file (1 TB, about 400 bytes of YAML tree per byte) needs about "
                         "400 TB"));
   }
+  SECTION("a filled list of 2·10⁷ masses: refused where the masses are read, before the chain is built") {
+    // Every engine holds n × n modes or matrices (at least 25 bytes · n² = 10 PB here), so the
+    // reader refuses the chain at its masses' line; building its links and walls first took ~200
+    // bytes and ~1.7 µs per mass (a 10⁸-mass list: 21 GB and 3.7 minutes before any check).
+    const std::string e = what_of([] {
+      (void)SceneDocument::parse("model:\n  chain:\n    masses: {fill: 1, count: 2e7}\n", "big.yaml").build();
+    });
+    CHECK_THAT(e, Contains("big.yaml:3:") && Contains("model.chain.masses") &&
+                      Contains("a chain of 20000000 masses (every engine holds n × n modes or matrices) needs about 1e+04 TB") &&
+                      Contains("of memory is available"));
+  }
   SECTION("an ordinary scene fits") {
     CHECK_NOTHROW(check_run_resources(build(one_mass("1")), 2));
   }

@@ -2,7 +2,9 @@
 // loader accepts; what one input does, and why it costs a few milliseconds, is docs/fuzzing.md's
 // table. In short:
 //  0. grids are cut to kRunGridPoints points per axis (fuzz_input.hpp), scenes of more than 16
-//     degrees of freedom or stops skipped;
+//     degrees of freedom or stops skipped, and phases 2 and 3 skipped for a scene whose run would
+//     need more than kRunKindMemory by the product's own estimate (libFuzzer's memory limit is
+//     below the machine's, which the product checks against);
 //  1. the scene's engine runs a capped copy of the scene (at most 2 periods, no transient, ≤ 100
 //     samples per period, 2000 events per window, a sweep's first point), interrupted through
 //     SimulatorOptions::interrupt after kShortRun of wall time as Ctrl-C would (a stiff scene may
@@ -85,6 +87,13 @@ constexpr double kShortRun = 0.05;
 constexpr double kEarly[] = {0.0, 0.001, 0.005, 0.02};
 /// The late flag (phase 3), and the time any run kind has to end once its flag is raised.
 constexpr double kLate = 1.0, kGrace = 25.0;
+
+/// The largest memory estimate (io::estimate_run_memory) of a run kind phases 2 and 3 run. The
+/// product compares its estimate with the machine's memory (check_run_resources), which libFuzzer's
+/// -rss_limit_mb (4 GB) undercuts: a scene that rightly runs in 5 GB (10⁸ listed sample times) would
+/// be reported as out-of-memory here. Such a scene runs phase 1 only (capped), not the run kind.
+/// The estimate counts the big allocations only, hence the margin below the limit.
+constexpr double kRunKindMemory = 1e9;
 
 /// FNV-1a of the input: the choices above follow from its bytes alone, so an input does the same
 /// each time it runs (a finding reproduces from its file).
@@ -182,8 +191,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     io::Scene scene = doc->build();
     if (scene.dof() > 16 || scene.stops.size() > 16) return 0;
-    whole.emplace(scene);  // the run kind's own run (below), before the limits
-    whole_doc.emplace(*doc);
+    double run_kind_bytes = 0.0;
+    for (const io::MemoryNeed& need : io::estimate_run_memory(scene, 1)) run_kind_bytes += need.bytes;
+    if (run_kind_bytes <= kRunKindMemory) {
+      whole.emplace(scene);  // the run kind's own run (below), before the limits
+      whole_doc.emplace(*doc);
+    }
     times.kind = static_cast<int>(scene.run.kind);
     times.lap(0);
     // Phase 1: the capped run.

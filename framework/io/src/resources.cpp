@@ -87,6 +87,8 @@ void require_memory(double bytes, const std::string& what) {
                         " of memory is available");
 }
 
+double least_engine_bytes(double n) { return std::min(kModalBytesPerDof2, kDenseBytesPerDof2) * n * n; }
+
 std::vector<MemoryNeed> estimate_run_memory(const Scene& scene, int threads) {
   std::vector<MemoryNeed> needs;
   const double n = static_cast<double>(scene.dof());

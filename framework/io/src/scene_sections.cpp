@@ -2,6 +2,7 @@
 // section copies one of them and adds one call to SceneDocument::build_checked (scene.cpp).
 #include "scene_sections.hpp"
 
+#include "vibro/io/resources.hpp"
 #include "vibro/modal.hpp"
 
 #include <algorithm>
@@ -32,6 +33,12 @@ void read_model(Reader& r, const YAML::Node& root, SceneParts& p) {
     c.masses = r.numbers(chain["masses"], "model.chain.masses", -1, "one mass per degree of freedom");
     n = static_cast<long>(c.masses.size());
     if (n == 0) r.fail(chain["masses"], "model.chain.masses", "expected at least one mass, found an empty list");
+    try {
+      require_memory(least_engine_bytes(static_cast<double>(n)),
+                     "a chain of " + std::to_string(n) + " masses (every engine holds n × n modes or matrices)");
+    } catch (const ResourceError& e) {
+      r.fail(chain["masses"], "model.chain.masses", e.what());
+    }
     for (long i = 0; i < n; ++i)
       if (!(c.masses[static_cast<std::size_t>(i)] > 0.0))
         r.fail(Reader::entry(chain["masses"], static_cast<std::size_t>(i)), "model.chain.masses[" + std::to_string(i) + "]",

@@ -36,6 +36,12 @@ std::uint64_t available_memory();
 /// `bytes` is a double so that products of huge counts saturate instead of wrapping.
 void require_memory(double bytes, const std::string& what);
 
+/// The least memory any engine's set-up takes for n degrees of freedom: the modal engine's n × n
+/// modes (the smallest of the per-n² constants of estimate_run_memory). The scene reader checks it
+/// as soon as a model's size is known, before its links and matrices are built (at ~200 bytes per
+/// mass, a filled list of 10⁸ masses would take 20 GB and minutes before the run's own check).
+double least_engine_bytes(double n);
+
 /// "1.5 GB", "312 MB", "4.0 kB" (decimal units), "1.2e+15 GB" for absurd sizes.
 std::string bytes_text(double bytes);
 
