@@ -143,9 +143,10 @@ void close(Transition& tr, ScanPoint lo, ScanPoint hi) {
   tr.high = std::move(hi);
 }
 
-/// The stop whose sticking fraction differs most between two orbits, and by how much.
+/// The stop whose sticking fraction differs most between two orbits, and by how much (none, 0 for
+/// a scene without stops, where there is no fraction to compare).
 std::pair<int, double> largest_jump(const RunningOrbit& a, const RunningOrbit& b, std::size_t stops) {
-  if (!a.periodic || !b.periodic) return {-1, 0.0};
+  if (!a.periodic || !b.periodic || stops == 0) return {-1, 0.0};
   const Eigen::VectorXd d = b.sticking_fraction(stops) - a.sticking_fraction(stops);
   Eigen::Index j = 0;
   const double size = d.cwiseAbs().maxCoeff(&j);

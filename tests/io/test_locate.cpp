@@ -137,6 +137,27 @@ TEST_CASE("the modal engine locates the paper's rising where the dense engine do
   std::filesystem::remove(out);
 }
 
+TEST_CASE("a locate run over a scene without stops compares periodic orbits and finds no transition", "[runner][locate]") {
+  // Found by fuzz_run: both ends of a grid interval periodic and no stop, the largest jump of
+  // the stops' sticking fractions was taken over an empty vector (an Eigen assertion; a read
+  // through a null pointer in a release build).
+  std::string text = kLocate;
+  text.erase(text.find("stops:"), text.find("run:") - text.find("stops:"));
+  const SceneDocument doc = SceneDocument::parse(text, "locate.yaml");
+  const Scene scene = doc.build();
+  REQUIRE(scene.stops.empty());
+  const std::string out = temp_path("no_stops.h5");
+  std::filesystem::remove(out);
+  const RunReport report = run_scene(doc, scene, {out, 1, false, false, 0});
+  CAPTURE(report.summary);
+  REQUIRE(report.exit_code == 0);
+  const ResultReader r(out);
+  CHECK(r.attribute_string("/meta", "status") == "completed");
+  CHECK(r.read("/scan/periodic") == std::vector<double>{1, 1});
+  CHECK(r.read_integers("/transitions/kind").empty());
+  std::filesystem::remove(out);
+}
+
 TEST_CASE("a locate grid value that makes the scene invalid is refused before any file exists", "[runner][locate]") {
   std::string text = kLocate;
   text.replace(text.find("values: [0.2559, 0.2561]"), 24, "values: [0.2559, -0.25]");
