@@ -1,5 +1,6 @@
 #include "vibro/contact.hpp"
 
+#include "engaged_system.hpp"
 #include "event_resolution.hpp"
 
 #include "vibro/bounded_wait.hpp"
@@ -131,6 +132,32 @@ bool spd_solve(const Eigen::Ref<const Eigen::MatrixXd>& G, const Eigen::Ref<cons
 
 }  // namespace detail
 
+namespace detail {
+
+EngagedSystem engaged_system(const ImpactSystem& scene, const ContactSet& engaged) {
+  const LinearSystem& sys = scene.system();
+  const double omega = sys.forcing().frequency;
+  EngagedSystem out{sys.damping(), sys.stiffness(), sys.forcing()};
+  for (int j : engaged) {
+    const Stop& st = scene.stops()[static_cast<std::size_t>(j)];
+    const Eigen::VectorXd w = scene.normals().col(j);
+    out.stiffness += st.stiffness * w * w.transpose();
+    out.damping += st.damping * w * w.transpose();
+    out.forcing.constant += (st.stiffness * st.s0() - st.preload) * w;
+    out.forcing.cosine += (st.stiffness * st.s_cos() + st.damping * omega * st.s_sin()) * w;
+    out.forcing.sine += (st.stiffness * st.s_sin() - st.damping * omega * st.s_cos()) * w;
+    for (std::size_t i = 0; i < st.harmonics.size(); ++i) {
+      ForcingHarmonic& fh = out.forcing.harmonics[forcing_slot(out.forcing, st.harmonics[i].order)];
+      const double wh = fh.rate(omega), hc = st.h_cos(i), hs = st.h_sin(i);
+      fh.cosine += (st.stiffness * hc + st.damping * wh * hs) * w;
+      fh.sine += (st.stiffness * hs - st.damping * wh * hc) * w;
+    }
+  }
+  return out;
+}
+
+}  // namespace detail
+
 ContactMode::ContactMode(const ImpactSystem& scene, ContactSet active, FlowOptions flow_options,
                          const std::atomic<bool>* interrupt)
     : scene_(&scene), active_(std::move(active)), flow_options_(flow_options), interrupt_(interrupt) {
@@ -232,32 +259,12 @@ void ContactMode::build_reduced() const {
   }
   // Engaged compliant stops: their springs and dashpots join K and C, their s(t), s'(t) and
   // preload f (stops.hpp): force −w (k g + c g' + F_p) with g = wᵀx − s, g' = wᵀv − s'.
-  Eigen::MatrixXd engaged_damping, engaged_stiffness;
-  HarmonicForcing engaged_forcing;
-  if (!engaged_.empty()) {
-    engaged_damping = sys.damping();
-    engaged_stiffness = sys.stiffness();
-    engaged_forcing = sys.forcing();
-    for (int j : engaged_) {
-      const Stop& st = scene.stops()[static_cast<std::size_t>(j)];
-      const Eigen::VectorXd w = scene.normals().col(j);
-      engaged_stiffness += st.stiffness * w * w.transpose();
-      engaged_damping += st.damping * w * w.transpose();
-      engaged_forcing.constant += (st.stiffness * st.s0() - st.preload) * w;
-      engaged_forcing.cosine += (st.stiffness * st.s_cos() + st.damping * omega * st.s_sin()) * w;
-      engaged_forcing.sine += (st.stiffness * st.s_sin() - st.damping * omega * st.s_cos()) * w;
-      for (std::size_t i = 0; i < st.harmonics.size(); ++i) {
-        ForcingHarmonic& fh = engaged_forcing.harmonics[forcing_slot(engaged_forcing, st.harmonics[i].order)];
-        const double wh = fh.rate(omega), hc = st.h_cos(i), hs = st.h_sin(i);
-        fh.cosine += (st.stiffness * hc + st.damping * wh * hs) * w;
-        fh.sine += (st.stiffness * hs - st.damping * wh * hc) * w;
-      }
-    }
-  }
+  detail::EngagedSystem engaged;
+  if (!engaged_.empty()) engaged = detail::engaged_system(scene, engaged_);
   const Eigen::MatrixXd& M = sys.mass();
-  const Eigen::MatrixXd& C = engaged_.empty() ? sys.damping() : engaged_damping;
-  const Eigen::MatrixXd& K = engaged_.empty() ? sys.stiffness() : engaged_stiffness;
-  const HarmonicForcing& f = engaged_.empty() ? sys.forcing() : engaged_forcing;
+  const Eigen::MatrixXd& C = engaged_.empty() ? sys.damping() : engaged.damping;
+  const Eigen::MatrixXd& K = engaged_.empty() ? sys.stiffness() : engaged.stiffness;
+  const HarmonicForcing& f = engaged_.empty() ? sys.forcing() : engaged.forcing;
   red->mass = symmetric(N.transpose() * M * N);
   red->damping = symmetric(N.transpose() * C * N);
   red->stiffness = symmetric(N.transpose() * K * N);

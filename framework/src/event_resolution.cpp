@@ -378,4 +378,35 @@ bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, cons
   return true;
 }
 
+bool compliant_switches(const ContactAlgebra& algebra, const std::vector<Stop>& stops, double t,
+                        const Eigen::VectorXd& x, const Eigen::VectorXd& v, const ContactSet& impacting,
+                        const ContactSet& releasing, ContactSet& engaged, ContactSet& rigid_impacts,
+                        ContactSet& rigid_releases, Eigen::VectorXd& rates,
+                        const std::function<void(const Event&)>& emit) {
+  rigid_impacts.clear();
+  rigid_releases.clear();
+  bool switched = false;
+  for (const auto* list : {&impacting, &releasing}) {
+    const bool engage = list == &impacting;
+    for (int j : *list) {
+      const Stop& st = stops[static_cast<std::size_t>(j)];
+      if (!st.is_compliant()) {
+        (engage ? rigid_impacts : rigid_releases).push_back(j);
+        continue;
+      }
+      const auto at = std::lower_bound(engaged.begin(), engaged.end(), j);
+      const bool is_engaged = at != engaged.end() && *at == j;
+      if (engage == is_engaged) continue;  // already in that state
+      if (engage) engaged.insert(at, j);
+      else engaged.erase(at);
+      algebra.gap_rates(t, v, rates);
+      const double rate = rates(j);
+      emit({t, j, engage ? EventKind::engage : EventKind::disengage, rate, rate,
+            engage ? st.stiffness * algebra.gap(j, t, x) + st.damping * rate + st.preload : 0.0});
+      switched = true;
+    }
+  }
+  return switched;
+}
+
 }  // namespace vibro::detail

@@ -137,4 +137,17 @@ bool resolve_event(ContactAlgebra& algebra, const std::vector<Stop>& stops, cons
                    const std::function<void(const Event&)>& emit, RunSummary& summary, std::string* why,
                    EventWorkspace& work, const std::function<void(const ContactSet&)>& impact_set = {});
 
+/// The compliant stops' switches of an event (contact_law.hpp, CompliantStopLaw): of the stops
+/// the frame put in `impacting` and `releasing`, each compliant one engages (joins `engaged`) or
+/// disengages (leaves it) unless it is in that state already, and is emitted as an event with
+/// its normal rate g' before and after and, on engaging, its force N = k_s g + c_s g' + F_p
+/// (stops.hpp); the state is unchanged. The rigid stops are copied into `rigid_impacts` and
+/// `rigid_releases` (cleared first) for resolve_event. `rates` (size m) is scratch. Returns
+/// whether a compliant stop switched. Allocates nothing once the sets have capacity m.
+bool compliant_switches(const ContactAlgebra& algebra, const std::vector<Stop>& stops, double t,
+                        const Eigen::VectorXd& x, const Eigen::VectorXd& v, const ContactSet& impacting,
+                        const ContactSet& releasing, ContactSet& engaged, ContactSet& rigid_impacts,
+                        ContactSet& rigid_releases, Eigen::VectorXd& rates,
+                        const std::function<void(const Event&)>& emit);
+
 }  // namespace vibro::detail

@@ -374,28 +374,8 @@ class Simulator::Loop {
   /// that sets in may pull a held stop open).
   bool event(detail::RunState& st, const ContactSet& impacts, const ContactSet& releases, std::string* why) {
     if (!compliant_) return resolve(st, impacts, releases, {}, why);
-    rigid_impacts_.clear();
-    rigid_releases_.clear();
-    bool switched = false;
-    for (const auto* list : {&impacts, &releases}) {
-      const bool engage = list == &impacts;
-      for (int j : *list) {
-        if (!scene_.stops()[static_cast<std::size_t>(j)].is_compliant()) {
-          (engage ? rigid_impacts_ : rigid_releases_).push_back(j);
-          continue;
-        }
-        const auto at = std::lower_bound(engaged_.begin(), engaged_.end(), j);
-        const bool is_engaged = at != engaged_.end() && *at == j;
-        if (engage == is_engaged) continue;  // already in that state
-        if (engage) engaged_.insert(at, j);
-        else engaged_.erase(at);
-        algebra_->gap_rates(st.t, st.v, rates_);
-        const double rate = rates_(j);
-        emit_({st.t, j, engage ? EventKind::engage : EventKind::disengage, rate, rate,
-               engage ? algebra_->compliant_force(j, st.t, st.x, st.v) : 0.0});
-        switched = true;
-      }
-    }
+    const bool switched = detail::compliant_switches(*algebra_, scene_.stops(), st.t, st.x, st.v, impacts, releases,
+                                                     engaged_, rigid_impacts_, rigid_releases_, rates_, emit_);
     if (rigid_impacts_.empty() && rigid_releases_.empty() && !(switched && !st.stuck.empty())) return true;
     return resolve(st, rigid_impacts_, rigid_releases_, {}, why);
   }

@@ -1,5 +1,6 @@
 #include "vibro/taylor_simulator.hpp"
 
+#include "engaged_system.hpp"
 #include "event_loop.hpp"
 
 #include "vibro/taylor/guard_roots.hpp"
@@ -89,6 +90,29 @@ struct HeldSet {
   Eigen::MatrixXd stop_acceleration, probe_stop_acceleration;  // p̈'s series (k × (p + 1)): the run's, an event's
 };
 
+/// An engaged set of compliant stops (stops.hpp): the linear part and the drive with their springs,
+/// dashpots, motion and preloads in force (engaged_system.hpp), for StepTerms.
+struct EngagedSet {
+  ContactSet key;
+  Eigen::MatrixXd position, velocity;  // A_x = −M⁻¹K_E, A_v = −M⁻¹C_E
+  HarmonicForcing forcing;             // f_E
+  Eigen::MatrixXd drive;               // M⁻¹ times f_E's parts (drive_matrix)
+};
+
+/// M⁻¹ times the parts of a drive, by columns: the constant, cosine and sine parts, then each
+/// harmonic's cosine and sine (the Taylor engine's time_series).
+Eigen::MatrixXd drive_matrix(const Eigen::MatrixXd& minv, const HarmonicForcing& f) {
+  Eigen::MatrixXd drive(minv.rows(), 3 + 2 * static_cast<Eigen::Index>(f.harmonics.size()));
+  drive.col(0) = minv * f.constant;
+  drive.col(1) = minv * f.cosine;
+  drive.col(2) = minv * f.sine;
+  for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
+    drive.col(3 + 2 * static_cast<Eigen::Index>(h)) = minv * f.harmonics[h].cosine;
+    drive.col(4 + 2 * static_cast<Eigen::Index>(h)) = minv * f.harmonics[h].sine;
+  }
+  return drive;
+}
+
 /// One Taylor step of a segment, kept for the observers, the event's root and the state.
 struct StepRecord {
   double offset = 0.0, length = 0.0, t = 0.0;  // from the segment's start; its length; t0 + offset
@@ -125,18 +149,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
         roots_(step_.order()), p_(step_.order()), n_(sys_.dof()), tab_(scene_) {
     const auto m = static_cast<Eigen::Index>(scene_.stop_count());
     forcing_.setZero(n_, p_ + 1);
-    {  // M⁻¹ times the drive's parts (time_series)
-      const HarmonicForcing& f = sys_.forcing();
-      const Eigen::MatrixXd& minv = sim.system_->inverse_mass();
-      drive_.resize(n_, 3 + 2 * static_cast<Eigen::Index>(f.harmonics.size()));
-      drive_.col(0) = minv * f.constant;
-      drive_.col(1) = minv * f.cosine;
-      drive_.col(2) = minv * f.sine;
-      for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
-        drive_.col(3 + 2 * static_cast<Eigen::Index>(h)) = minv * f.harmonics[h].cosine;
-        drive_.col(4 + 2 * static_cast<Eigen::Index>(h)) = minv * f.harmonics[h].sine;
-      }
-    }
+    drive_ = drive_matrix(sim.system_->inverse_mass(), sys_.forcing());  // time_series
     probe_forcing_.setZero(n_, p_ + 1);
     cos_.resize(static_cast<std::size_t>(p_) + 3);
     sin_.resize(static_cast<std::size_t>(p_) + 3);
@@ -184,12 +197,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
     for (const ForcingHarmonic& h : f.harmonics) in.fmax += h.cosine.cwiseAbs().maxCoeff() + h.sine.cwiseAbs().maxCoeff();
     return in;
   }
-  void check_scene(const detail::RunScales& /*sc*/, std::vector<std::string>& /*warnings*/) const {
-    for (std::size_t j = 0; j < scene_.stop_count(); ++j)
-      if (scene_.stops()[j].is_compliant())
-        throw InvalidInput("stop " + std::to_string(j) +
-                           " is compliant: the Taylor engine (nonlinear forces) runs rigid stops only");
-  }
+  void check_scene(const detail::RunScales& /*sc*/, std::vector<std::string>& /*warnings*/) const {}
   void start(const detail::RunScales& sc, detail::RunState& st) {
     eps_gap_ = sc.eps_gap;
     eps_force_ = sc.eps_force;
@@ -200,6 +208,21 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
     emit_ = [this](const Event& e) {
       for (Observer* o : observers_) o->event(e);
     };
+    // Compliant stops (stops.hpp): those penetrated at t0 start engaged (CompliantStopLaw), as
+    // on the dense engine.
+    compliant_ = has_compliant(scene_.stops());
+    engaged_.clear();
+    engaged_set_ = nullptr;
+    if (compliant_) {
+      const auto m = static_cast<std::size_t>(scene_.stop_count());
+      for (ContactSet* set : {&engaged_, &rigid_impacts_, &rigid_releases_}) set->reserve(m);
+      rates_.resize(static_cast<Eigen::Index>(m));
+      const Eigen::VectorXd g = scene_.gaps(st.t, st.x);
+      for (std::size_t j = 0; j < m; ++j)
+        if (scene_.stops()[j].is_compliant() && CompliantStopLaw::engaged_at_start(g(static_cast<Eigen::Index>(j))))
+          engaged_.push_back(static_cast<int>(j));
+      if (!engaged_.empty()) engaged_set_ = &engaged_set(engaged_);
+    }
     // The initial state's forces must be finite (an expression may be singular there).
     z_ << st.x, st.v;
     rate_at(st.t, z_, rate_);
@@ -215,8 +238,16 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
                           summary_, &unused, work_);
     return true;
   }
+  /// Compliant stops' switches first (the state unchanged, the engaged set changes:
+  /// compliant_switches, as the dense engine), then the rigid stops' impacts and releases with
+  /// the new engaged set's forces acting; held rigid stops are settled again after a switch.
   bool event(detail::RunState& st, const ContactSet& impacts, const ContactSet& releases, std::string* why) {
-    return resolve(st, impacts, releases, {}, why);
+    if (!compliant_) return resolve(st, impacts, releases, {}, why);
+    const bool switched = detail::compliant_switches(*this, scene_.stops(), st.t, st.x, st.v, impacts, releases,
+                                                     engaged_, rigid_impacts_, rigid_releases_, rates_, emit_);
+    if (switched) engaged_set_ = engaged_.empty() ? nullptr : &engaged_set(engaged_);
+    if (rigid_impacts_.empty() && rigid_releases_.empty() && !(switched && !st.stuck.empty())) return true;
+    return resolve(st, rigid_impacts_, rigid_releases_, {}, why);
   }
   double stiffness(const detail::RunState& /*st*/, double /*T*/) const { return 0.0; }
 
@@ -226,21 +257,24 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
     cursor_ = 0.0;
     used_ = 0;
     z_ << st.x, st.v;
-    // Rows: the gap of every stop not held, then −λ of every held one (the dense engine's order).
+    // Rows: the gap of every stop neither held nor engaged, then −λ of every held one, then −g
+    // of every engaged compliant one (the dense engine's order, contact.hpp).
     row_stop_.clear();
     for (int j = 0; j < static_cast<int>(scene_.stop_count()); ++j)
-      if (!std::binary_search(st.stuck.begin(), st.stuck.end(), j)) row_stop_.push_back(j);
+      if (!std::binary_search(st.stuck.begin(), st.stuck.end(), j) &&
+          !std::binary_search(engaged_.begin(), engaged_.end(), j))
+        row_stop_.push_back(j);
     opening_rows_ = static_cast<Eigen::Index>(row_stop_.size());
     for (int j : st.stuck) row_stop_.push_back(j);
+    engaged_rows_from_ = static_cast<Eigen::Index>(row_stop_.size());
+    for (int j : engaged_) row_stop_.push_back(j);
     const auto rows = static_cast<Eigen::Index>(row_stop_.size());
     triggers_.resize(rows);
-    for (Eigen::Index i = 0; i < rows; ++i) triggers_(i) = i < opening_rows_ ? eps_gap_ : eps_force_;
+    for (Eigen::Index i = 0; i < rows; ++i) triggers_(i) = is_gap_row(i) ? eps_gap_ : eps_force_;
     armed_ = false;
     h_.resize(rows);
     d_.resize(rows);
-    step_.set_terms(held_ ? taylor::StepTerms{&forcing_, &held_->normals, &held_->minv_normals,
-                                              &held_->delassus_inverse, &held_->stop_acceleration}
-                          : taylor::StepTerms{&forcing_});
+    step_.set_terms(terms(&forcing_, held_, held_ ? &held_->stop_acceleration : nullptr));
     const double reach = t_end - st.t;
     reach_ = reach;
     return {std::max(scale_T_, 1e-300), reach};
@@ -288,7 +322,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
           guard_coefficients(r, i, guard_.data());
           double rounding = 0.0, truncation = 0.0;
           step_.remainder_parts(guard_.data(), length, &rounding, &truncation);
-          if (i < opening_rows_) truncation += motion_tail(row_stop_[static_cast<std::size_t>(i)], std::min(length, step_.step_size()));
+          if (is_gap_row(i)) truncation += motion_tail(row_stop_[static_cast<std::size_t>(i)], std::min(length, step_.step_size()));
           const taylor::GuardCrossing c = roots_.first_crossing(guard_.data(), p_, length, triggers_(i), rounding,
                                                                 truncation, /*rounding_scales=*/true);
           if (c.kind == taylor::CrossingKind::crossing || c.kind == taylor::CrossingKind::at_start) {
@@ -309,7 +343,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
         if (halving == kHalvings || !(r.t + 0.5 * length > r.t)) {
           const int j = row_stop_[static_cast<std::size_t>(stalled_row)];
           std::string why = "Taylor engine: the ";
-          why += stalled_row < opening_rows_ ? "gap" : "contact force";
+          why += is_gap_row(stalled_row) ? "gap" : "contact force";
           why += " guard of stop '";
           why += scene_.stops()[static_cast<std::size_t>(j)].name;
           why += "' stays within its remainder band of the trigger level at the step's start at t = ";
@@ -424,7 +458,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
                    double* slope, double* curvature) override {
     HeldSet& set = held_set(held);
     time_series(t, probe_forcing_, &set.probe_stop_acceleration, &set);
-    probe_.set_terms({&probe_forcing_, &set.normals, &set.minv_normals, &set.delassus_inverse, &set.probe_stop_acceleration});
+    probe_.set_terms(terms(&probe_forcing_, &set, &set.probe_stop_acceleration));
     z_probe_.resize(2 * n_);
     z_probe_ << x, v;
     if (probe_.expand(t, z_probe_) != taylor::StepStatus::ok) throw std::runtime_error("Taylor step: " + probe_.trouble());
@@ -519,15 +553,17 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
   }
   /// The drive's acceleration series M⁻¹ f(t0 + τ) and, for a held set, its stops' p̈ series.
   void time_series(double t0, Eigen::MatrixXd& acceleration, Eigen::MatrixXd* stop_acc, const HeldSet* held) {
-    // Columns of drive_: M⁻¹ times the constant, cosine and sine parts, then each harmonic's two.
-    const HarmonicForcing& f = sys_.forcing();
+    // Columns of the drive (drive_matrix): M⁻¹ times the constant, cosine and sine parts, then
+    // each harmonic's two; with compliant stops engaged, theirs (EngagedSet).
+    const HarmonicForcing& f = engaged_set_ ? engaged_set_->forcing : sys_.forcing();
+    const Eigen::MatrixXd& drive = engaged_set_ ? engaged_set_->drive : drive_;
     const Eigen::Index n = n_;
     double* out = acceleration.data();  // n × (p + 1), column-major
-    const double* constant = drive_.col(0).data();
+    const double* constant = drive.col(0).data();
     auto add_harmonic = [&](double rate, Eigen::Index column, bool first) {
       harmonic_series(rate, t0, p_, cos_.data(), sin_.data());
-      const double* cosine = drive_.col(column).data();
-      const double* sine = drive_.col(column + 1).data();
+      const double* cosine = drive.col(column).data();
+      const double* sine = drive.col(column + 1).data();
       const double* cs = cos_.data();
       const double* sn = sin_.data();
       // Coordinate by coordinate (each entry is its own closed form: the order of the loops does
@@ -598,7 +634,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
   /// z'(t) of the free system (the drive and the nonlinear forces at (t, z)).
   void rate_at(double t, const Eigen::VectorXd& z, Eigen::VectorXd& out) {
     time_series(t, probe_forcing_, nullptr, nullptr);
-    probe_.set_terms({&probe_forcing_});
+    probe_.set_terms(terms(&probe_forcing_, nullptr, nullptr));
     const taylor::StepStatus s = probe_.rate(t, z, out);
     if (s == taylor::StepStatus::domain_error) throw InvalidInput("the forces at t = " + number_text(t) + ": " + probe_.trouble());
     if (s != taylor::StepStatus::ok)
@@ -624,10 +660,44 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
     sets_.push_back(std::move(h));
     return *sets_.back();
   }
-  /// Row i's guard series over record r: a gap wᵀx − p(t), or −λ of a held stop.
+  /// The StepTerms of the current mode: the drive's series `acceleration`, a held set (with its
+  /// p̈ series `stop_acceleration`) and the engaged compliant stops' linear part.
+  taylor::StepTerms terms(const Eigen::MatrixXd* acceleration, const HeldSet* held,
+                          const Eigen::MatrixXd* stop_acceleration) const {
+    taylor::StepTerms out{acceleration};
+    if (held) {
+      out.normals = &held->normals;
+      out.minv_normals = &held->minv_normals;
+      out.delassus_inverse = &held->delassus_inverse;
+      out.stop_acceleration = stop_acceleration;
+    }
+    if (engaged_set_) {
+      out.position_matrix = &engaged_set_->position;
+      out.velocity_matrix = &engaged_set_->velocity;
+    }
+    return out;
+  }
+  EngagedSet& engaged_set(const ContactSet& key) {
+    for (const auto& e : engaged_sets_)
+      if (e->key == key) return *e;
+    auto e = std::make_unique<EngagedSet>();
+    e->key = key;
+    detail::EngagedSystem sys = detail::engaged_system(scene_, key);
+    const Eigen::MatrixXd& minv = sim_.system_->inverse_mass();
+    e->position = -minv * sys.stiffness;  // as taylor_system.cpp's A_x, A_v
+    e->velocity = -minv * sys.damping;
+    e->drive = drive_matrix(minv, sys.forcing);
+    e->forcing = std::move(sys.forcing);
+    engaged_sets_.push_back(std::move(e));
+    return *engaged_sets_.back();
+  }
+  /// Whether row i watches a gap (an open stop's g, an engaged compliant stop's −g), not a force.
+  bool is_gap_row(Eigen::Index i) const { return i < opening_rows_ || i >= engaged_rows_from_; }
+  /// Row i's guard series over record r: a gap wᵀx − p(t), −λ of a held stop, or −(wᵀx − p(t))
+  /// of an engaged compliant one.
   void guard_coefficients(const StepRecord& r, Eigen::Index i, double* g) {
     const int j = row_stop_[static_cast<std::size_t>(i)];
-    if (i >= opening_rows_) {
+    if (!is_gap_row(i)) {
       const auto a = static_cast<std::size_t>(i - opening_rows_);
       for (int k = 0; k <= p_; ++k) g[k] = -r.lambda[a * (static_cast<std::size_t>(p_) + 1) + static_cast<std::size_t>(k)];
       return;
@@ -640,6 +710,8 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
       for (int k = 0; k <= p_; ++k) g[k] += w * x[k];
     }
     for (int k = 0; k <= p_; ++k) g[k] -= stop_pos_[static_cast<std::size_t>(k)];
+    if (i >= engaged_rows_from_)
+      for (int k = 0; k <= p_; ++k) g[k] = -g[k];
   }
   /// At the segment's first step: a row starting inside its band (0 < h ≤ ε) and moving away is
   /// re-armed at ε + h(0), as the dense engine's finder does (events.hpp), so that rounding
@@ -694,6 +766,11 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
   std::function<void(const Event&)> emit_;
   std::vector<std::unique_ptr<HeldSet>> sets_;
   HeldSet* held_ = nullptr;
+  bool compliant_ = false;  // the scene has compliant stops
+  ContactSet engaged_, rigid_impacts_, rigid_releases_;  // engaged compliant stops; scratch
+  std::vector<std::unique_ptr<EngagedSet>> engaged_sets_;
+  const EngagedSet* engaged_set_ = nullptr;  // engaged_'s (none engaged: nullptr)
+  Eigen::VectorXd rates_;
   ContactSet empty_;
   Eigen::MatrixXd forcing_, probe_forcing_, drive_;
   std::vector<double> cos_, sin_, stop_pos_, guard_, harmonic_cos_, harmonic_sin_;
@@ -702,7 +779,7 @@ class TaylorSimulator::Loop final : public detail::ContactAlgebra, public Taylor
   Eigen::MatrixXd G_;
   LcpWorkspace lcp_;
   std::vector<int> row_stop_;
-  Eigen::Index opening_rows_ = 0;
+  Eigen::Index opening_rows_ = 0, engaged_rows_from_ = 0;
   bool armed_ = false;
   double seg_t_ = 0.0, cursor_ = 0.0, reach_ = 0.0, hit_tau_ = 0.0, at_tau_ = 0.0;
   std::vector<StepRecord> records_;

@@ -26,7 +26,7 @@
 /// Usage:
 ///     vibro::test::ReferenceDuffingImpact ref{.m = 1, .c = 0.05, .k = 1, .beta = 0.5, ...};
 ///     ref.run(0.0L, x0, v0, t_end);   // ref.impacts, ref.x, ref.v
-#include "support/reference_integrator.hpp"
+#include "support/reference_rk8_step.hpp"
 
 #include <cmath>
 #include <stdexcept>
@@ -69,20 +69,8 @@ struct ReferenceDuffingImpact {
 
   /// One RK8 step of length h from (time, x0, v0).
   void step(long double time, long double h, long double& x0, long double& v0) const {
-    std::array<long double, CooperVerner8::stages> kx{}, kv{};
-    for (int i = 0; i < CooperVerner8::stages; ++i) {
-      long double xs = x0, vs = v0;
-      for (int j = 0; j < i; ++j) {
-        xs += h * tableau_.a[i][j] * kx[j];
-        vs += h * tableau_.a[i][j] * kv[j];
-      }
-      kx[i] = vs;
-      kv[i] = acceleration(time + tableau_.c[i] * h, xs, vs);
-    }
-    for (int i = 0; i < CooperVerner8::stages; ++i) {
-      x0 += h * tableau_.b[i] * kx[i];
-      v0 += h * tableau_.b[i] * kv[i];
-    }
+    rk8_step(tableau_, [this](long double s, long double p, long double u) { return acceleration(s, p, u); }, time, h,
+             x0, v0);
   }
 
   void run(long double t0, long double x0, long double v0, long double t_end) {

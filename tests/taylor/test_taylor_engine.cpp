@@ -4,6 +4,7 @@
 #include "vibro/observers.hpp"
 #include "vibro/simulator.hpp"
 #include "vibro/taylor_simulator.hpp"
+#include "support/reference_compliant_duffing.hpp"
 #include "support/reference_duffing_impact.hpp"
 
 #include <catch2/catch.hpp>
@@ -147,6 +148,25 @@ vibro::ImpactSystem duffing_system(double c, double k, double amplitude, double 
 
 constexpr double kDuffingStop = 0.6;
 
+/// x'' + c x' + x + β x³ = A cos Ωt (m = 1) with `stop` on the mass, through the Taylor engine
+/// from rest to t_end (its events into `log`); `steps` gets the Taylor steps taken.
+vibro::RunSummary taylor_duffing(double c, double beta, double A, double omega, const vibro::Stop& stop, double t_end,
+                                 vibro::EventLog& log, long* steps) {
+  vibro::HarmonicForcing f{.constant = Eigen::VectorXd::Zero(1), .cosine = Eigen::VectorXd::Constant(1, A),
+                           .sine = Eigen::VectorXd::Zero(1), .frequency = omega};
+  vibro::LinearSystem sys(Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Constant(1, 1, c),
+                          Eigen::MatrixXd::Identity(1, 1), f);
+  const vibro::ImpactSystem system(sys, {stop});
+  vibro::NonlinearForces forces;
+  forces.parameters = {{"beta", beta}};
+  forces.forces = {"-beta*x0^3"};
+  vibro::TaylorSimulator taylor(system, forces);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(1);
+  const vibro::RunSummary run = taylor.run(0.0, zero, zero, t_end, {&log});
+  *steps = taylor.steps();
+  return run;
+}
+
 /// How far the Taylor engine's run lies from the long-double reference's.
 struct ReferenceGap {
   std::size_t impacts = 0;
@@ -162,18 +182,9 @@ ReferenceGap duffing_against_reference(const vibro::Stop& stop,
                                        const std::vector<vibro::test::ReferenceDuffingImpact::Harmonic>& motion) {
   const double c = 0.05, k = 1.0, beta = 0.5, A = 0.8, omega = 1.3;
   const double T = 2.0 * std::acos(-1.0) / omega, t_end = 10.0 * T;
-  vibro::HarmonicForcing f{.constant = Eigen::VectorXd::Zero(1), .cosine = Eigen::VectorXd::Constant(1, A),
-                           .sine = Eigen::VectorXd::Zero(1), .frequency = omega};
-  vibro::LinearSystem sys(Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Constant(1, 1, c),
-                          Eigen::MatrixXd::Constant(1, 1, k), f);
-  const vibro::ImpactSystem system(sys, {stop});
-  vibro::NonlinearForces forces;
-  forces.parameters = {{"beta", beta}};
-  forces.forces = {"-beta*x0^3"};
-  vibro::TaylorSimulator taylor(system, forces);
   vibro::EventLog log;
-  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(1);
-  const vibro::RunSummary run = taylor.run(0.0, zero, zero, t_end, {&log});
+  long steps = 0;
+  const vibro::RunSummary run = taylor_duffing(c, beta, A, omega, stop, t_end, log, &steps);
   INFO(run.message);
   REQUIRE(run.status == vibro::RunStatus::completed);
 
@@ -191,7 +202,7 @@ ReferenceGap duffing_against_reference(const vibro::Stop& stop,
   REQUIRE(log.events.size() == ref.impacts.size());
   ReferenceGap g;
   g.impacts = log.events.size();
-  g.steps = taylor.steps();
+  g.steps = steps;
   for (std::size_t i = 0; i < log.events.size(); ++i) {
     REQUIRE(log.events[i].kind == vibro::EventKind::impact);
     g.dt = std::max(g.dt, std::abs(log.events[i].t - static_cast<double>(ref.impacts[i].t)) / T);
@@ -378,8 +389,9 @@ namespace {
 /// time difference weighted by the speed (|dt||g'|/L), at rest (|dt|/T), and the end state's.
 struct EngineGap {
   vibro::RunSummary dense, taylor;
-  std::size_t events = 0;
+  std::size_t events = 0, engagements = 0;
   double dt_gap = 0.0, dt_rest = 0.0, dx = 0.0, dv = 0.0;
+  double dforce = 0.0;  ///< max |ΔN|/(k_s L + c_s V) over the compliant stops' engagements (their recorded force)
 };
 
 EngineGap dense_against_taylor(const vibro::io::Scene& scene, double periods) {
@@ -404,6 +416,12 @@ EngineGap dense_against_taylor(const vibro::io::Scene& scene, double periods) {
     const double speed = std::max(std::abs(de.events[i].v_before), std::abs(de.events[i].v_after));
     if (speed > 0.0) g.dt_gap = std::max(g.dt_gap, dt * speed / L);
     else g.dt_rest = std::max(g.dt_rest, dt / T);
+    if (de.events[i].kind == vibro::EventKind::engage) {
+      ++g.engagements;
+      const vibro::Stop& st = system.stops()[static_cast<std::size_t>(de.events[i].stop)];
+      const double scale = st.stiffness * L + st.damping * V + st.preload;
+      g.dforce = std::max(g.dforce, std::abs(de.events[i].force - te.events[i].force) / scale);
+    }
   }
   g.dx = (g.dense.x - g.taylor.x).cwiseAbs().maxCoeff() / L;
   g.dv = (g.dense.v - g.taylor.v).cwiseAbs().maxCoeff() / V;
@@ -482,4 +500,162 @@ TEST_CASE("a Duffing impact oscillator on a stop moving with several harmonics a
   WARN("Duffing on a stop of three harmonics vs reference: " << g.impacts << " impacts, max |dt|/T = " << g.dt
                                                              << ", |du| = " << g.du << ", end |dx|/s = " << g.dx
                                                              << ", |dv| = " << g.dv << ", " << g.steps << " steps");
+}
+
+// ---- compliant stops (stops.hpp, Law::compliant) ------------------------------------------
+
+// Compliant stops forced through the Taylor engine against the exact dense engine: the
+// soft-impact example (one mass, a spring-dashpot stop, c_s > 0: the vector field jumps by
+// c_s g' at each switch), and two masses with a two-stage stop (a preloaded spring-dashpot with a
+// rigid stop behind it, which takes impacts and holds the mass while the spring is engaged), a
+// compliant stop between the masses and one along a general normal. Both engines place a switch
+// at the gap's zero as they place an impact, and their flows carry rounding only, so the
+// tolerances and their reasons are the first test's: event times through the gap they imply
+// (|dt||g'|/L) and the states to 1e-12, events at rest to 1e-13 T. The force recorded at an
+// engagement, N = k_s g + c_s g' + F_p, differs by k_s Δg + c_s Δg' with Δg/L and Δg'/V of the
+// states' size: 1e-12 of k_s L + c_s V + F_p (|dN| below).
+TEST_CASE("compliant stops through the Taylor engine agree with the dense engine", "[taylor][engine][compliant]") {
+  SECTION("the soft-impact oscillator (c_s > 0)") {
+    vibro::io::SceneDocument doc =
+        vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/examples/soft_impact.yaml");
+    doc.replace("run", "{kind: simulate}");
+    const EngineGap g = dense_against_taylor(doc.build(), 30.0);
+    INFO(g.events << " events (" << g.engagements << " engagements): |dt||g'|/L = " << g.dt_gap << ", end |dx|/L = "
+                  << g.dx << ", |dv|/V = " << g.dv << ", |dN| = " << g.dforce);
+    REQUIRE(g.engagements >= 10);
+    CHECK(g.dt_gap < 1e-12);
+    CHECK(g.dx < 1e-12);
+    CHECK(g.dv < 1e-12);
+    CHECK(g.dforce < 1e-12);
+    WARN("soft impact, Taylor vs dense: " << g.events << " events, |dt||g'|/L = " << g.dt_gap << ", end |dx|/L = "
+                                          << g.dx << ", |dv|/V = " << g.dv << ", |dN| = " << g.dforce);
+  }
+  SECTION("a two-stage stop, a stop between masses and one along a general normal") {
+    const std::string text = R"yaml(model:
+  chain:
+    masses: [1, 1.5]
+    springs: [2]
+    dampers: [0.02]
+    left_wall: {spring: 1, damper: 0.02}
+forcing: {frequency: 0.8, cosine: [0.6, 0]}
+stops:
+  - {mass: 0, side: upper, position: 0.5, law: compliant, stiffness: 15, damping: 0.2, preload: 0.1}
+  - {mass: 0, side: upper, position: 0.6, restitution: 0.5}
+  - {between: [1, 0], gap: 0.4, law: compliant, stiffness: 10, damping: 0.05}
+  - {normal: [0.5, 1], position: 0.7, law: compliant, stiffness: 8}
+initial: {x: [0, 0], v: [0, 0]}
+)yaml";
+    const EngineGap g = dense_against_taylor(vibro::io::SceneDocument::parse(text).build(), 30.0);
+    INFO(g.events << " events (" << g.engagements << " engagements, " << g.dense.impacts << " impacts, "
+                  << g.dense.sticks << " sticks): |dt||g'|/L = " << g.dt_gap << ", at rest |dt|/T = " << g.dt_rest
+                  << ", end |dx|/L = " << g.dx << ", |dv|/V = " << g.dv << ", |dN| = " << g.dforce);
+    REQUIRE(g.engagements >= 10);
+    REQUIRE(g.dense.impacts >= 5);
+    CHECK(g.dt_gap < 1e-12);
+    CHECK(g.dt_rest < 1e-13);
+    CHECK(g.dx < 1e-12);
+    CHECK(g.dv < 1e-12);
+    CHECK(g.dforce < 1e-12);
+    WARN("two-stage, between, normal compliant stops, Taylor vs dense: "
+         << g.events << " events (" << g.engagements << " engagements, " << g.dense.impacts << " impacts, "
+         << g.dense.sticks << " sticks), |dt||g'|/L = " << g.dt_gap << ", end |dx|/L = " << g.dx << ", |dv|/V = "
+         << g.dv);
+  }
+}
+
+// A forced, damped Duffing oscillator (β = 0.5) against a preloaded spring-dashpot stop at 0.6
+// (k_s = 20, c_s = 0.3, F_p = 0.2) over 10 forcing periods, against the independent long-double
+// RK8 reference that writes the piecewise-linear contact force out and bisects its switches
+// (tests/support/reference_compliant_duffing.hpp, ~1e-16 of the state). Both start at rest. The
+// Taylor engine carries rounding only, so the switch times and velocities and the end state are
+// held to 1e-12 of the scales (T, the speed scale 1, the stop's position), as the rigid stop's
+// test above; a missed switch, a switch at the wrong root or a wrong contact force (a spring
+// without its dashpot or preload) differ by far more.
+TEST_CASE("a Duffing oscillator with a compliant stop agrees with an independent long-double reference",
+          "[taylor][engine][compliant]") {
+  const double c = 0.05, beta = 0.5, A = 0.8, omega = 1.3, s = 0.6, ks = 20.0, cs = 0.3, fp = 0.2;
+  const double T = 2.0 * std::acos(-1.0) / omega, t_end = 10.0 * T;
+  vibro::EventLog log;
+  long steps = 0;
+  const vibro::RunSummary run =
+      taylor_duffing(c, beta, A, omega, vibro::Stop::upper(0, s, 1.0).compliant(ks, cs, fp), t_end, log, &steps);
+  INFO(run.message);
+  REQUIRE(run.status == vibro::RunStatus::completed);
+
+  vibro::test::ReferenceCompliantDuffing ref;
+  ref.c = c;
+  ref.beta = beta;
+  ref.amplitude = A;
+  ref.omega = omega;
+  ref.stop = s;
+  ref.k_s = ks;
+  ref.c_s = cs;
+  ref.preload = fp;
+  ref.run(0.0L, 0.0L, 0.0L, t_end);
+  REQUIRE(ref.switches.size() >= 10);
+  REQUIRE(log.events.size() == ref.switches.size());
+  double dt = 0.0, du = 0.0;
+  for (std::size_t i = 0; i < log.events.size(); ++i) {
+    const vibro::Event& e = log.events[i];
+    REQUIRE(e.kind == (ref.switches[i].engage ? vibro::EventKind::engage : vibro::EventKind::disengage));
+    dt = std::max(dt, std::abs(e.t - static_cast<double>(ref.switches[i].t)) / T);
+    du = std::max(du, std::abs(e.v_before - static_cast<double>(ref.switches[i].v)));
+    // The force recorded at an engagement is the law's at the switch, c_s g' + F_p (g = 0).
+    if (e.kind == vibro::EventKind::engage) CHECK(std::abs(e.force - (cs * e.v_before + fp)) < 1e-12);
+  }
+  const double dx = std::abs(run.x(0) - static_cast<double>(ref.x)) / s, dv = std::abs(run.v(0) - static_cast<double>(ref.v));
+  INFO(log.events.size() << " switches: max |dt|/T = " << dt << ", |du| = " << du << "; end |dx|/s = " << dx
+                         << ", |dv| = " << dv << "; " << steps << " Taylor steps");
+  CHECK(dt < 1e-12);
+  CHECK(du < 1e-12);
+  CHECK(dx < 1e-12);
+  CHECK(dv < 1e-12);
+  WARN("compliant Duffing vs reference: " << log.events.size() << " switches, max |dt|/T = " << dt << ", |du| = " << du
+                                          << ", end |dx|/s = " << dx << ", |dv| = " << dv);
+}
+
+// A conservative Duffing oscillator (no damping, no drive, β = 1) against an undamped compliant
+// stop at 0.5 (k_s = 20, c_s = 0), without and with a preload F_p = 0.3, from x0 = 0, v0 = 1.2:
+// the stop's potential k_s g²/2 + F_p g (g > 0) is continuous at g = 0, so the energy
+// E = v²/2 + x²/2 + x⁴/4 (+ the stop's potential while engaged) is a constant of the motion
+// across every switch, and at a switch g = 0, so E there is read from the speed alone. Over
+// t = 1000 (~600 switches, a few thousand steps) rounding moves E by ~ε per step and switch: the
+// first bound on a sum of ~10⁴ roundings of one sign is 2e-12, 1e-12 is met by their random walk
+// (~2e-14) with room; a switch placed 1e-10 off in time (the series truncated at 1e-10), or a
+// missing preload, changes E by far more.
+TEST_CASE("a conservative Duffing oscillator against an undamped compliant stop keeps its energy to rounding",
+          "[taylor][engine][compliant]") {
+  const double s = 0.5, ks = 20.0;
+  for (const double fp : {0.0, 0.3}) {
+    const vibro::LinearSystem sys(Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Zero(1, 1),
+                                  Eigen::MatrixXd::Identity(1, 1), vibro::HarmonicForcing::zero(1));
+    const vibro::ImpactSystem system(sys, {vibro::Stop::upper(0, s, 1.0).compliant(ks, 0.0, fp)});
+    vibro::NonlinearForces forces;
+    forces.forces = {"-x0^3"};
+    vibro::SimulatorOptions options;
+    options.max_events = 1000000;
+    vibro::TaylorSimulator taylor(system, forces, options);
+    vibro::EventLog log;
+    const Eigen::VectorXd x0 = Eigen::VectorXd::Zero(1), v0 = Eigen::VectorXd::Constant(1, 1.2);
+    auto energy = [&](double x, double v) {
+      const double g = x - s;
+      return 0.5 * v * v + 0.5 * x * x + 0.25 * x * x * x * x + (g > 0.0 ? 0.5 * ks * g * g + fp * g : 0.0);
+    };
+    const double e0 = energy(0.0, 1.2);
+    const vibro::RunSummary run = taylor.run(0.0, x0, v0, 1000.0, {&log});
+    INFO("F_p = " << fp << ": " << run.message);
+    REQUIRE(run.status == vibro::RunStatus::completed);
+    REQUIRE(log.events.size() >= 300);
+    double drift = 0.0;
+    for (const vibro::Event& e : log.events) {
+      REQUIRE((e.kind == vibro::EventKind::engage || e.kind == vibro::EventKind::disengage));
+      drift = std::max(drift, std::abs(energy(s, e.v_before) - e0) / e0);
+    }
+    drift = std::max(drift, std::abs(energy(run.x(0), run.v(0)) - e0) / e0);
+    INFO(log.events.size() << " switches, max |E - E0|/E0 = " << drift << ", " << taylor.steps() << " steps");
+    CHECK(drift < 1e-12);
+    WARN("energy against a compliant stop, F_p = " << fp << ": " << log.events.size()
+                                                    << " switches over t = 1000, max |E - E0|/E0 = " << drift << ", "
+                                                    << taylor.steps() << " steps");
+  }
 }

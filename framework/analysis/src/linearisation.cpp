@@ -6,6 +6,7 @@
 #include "transition.hpp"
 #include "vibro/bounded_wait.hpp"
 #include "vibro/contact.hpp"
+#include "vibro/contact_law.hpp"
 #include "vibro/flow.hpp"
 
 #include <Eigen/QR>
@@ -230,6 +231,12 @@ class TangentRecorder final : public Observer {
   void event(const Event& e) override {
     events_.push_back(e);
     out_.events.push_back(e);
+    if (e.kind == EventKind::engage || e.kind == EventKind::disengage) {  // mode_key's engaged set
+      const auto at = std::lower_bound(engaged_.begin(), engaged_.end(), e.stop);
+      const bool in = at != engaged_.end() && *at == e.stop;
+      if (e.kind == EventKind::engage && !in) engaged_.insert(at, e.stop);
+      if (e.kind == EventKind::disengage && in) engaged_.erase(at);
+    }
   }
 
   void end(double t) override {
@@ -275,14 +282,22 @@ class TangentRecorder final : public Observer {
 
  private:
   /// The mode of a segment: its held rigid stops (view.active()) and, in a scene with compliant
-  /// stops, the engaged ones (the dense engine's ContactMode::engaged()), as the engine keys it.
+  /// stops, the engaged ones, as the engine keys it: the dense engine's ContactMode::engaged();
+  /// on another engine (the Taylor engine's view) those followed through the run: penetrated at
+  /// its start (CompliantStopLaw::engaged_at_start), then each engage and disengage event.
   const ContactSet& mode_key(const SegmentView& view) {
     if (!mech_.any_compliant()) return view.active();
-    const auto* dense = dynamic_cast<const DenseSegmentView*>(&view);
-    if (!dense) throw std::logic_error("linearisation: compliant stops need the dense engine's segments");
     key_.clear();
-    const ContactSet& held = dense->mode().active();
-    const ContactSet& engaged = dense->mode().engaged();
+    const ContactSet& held = view.active();
+    const auto* dense = dynamic_cast<const DenseSegmentView*>(&view);
+    if (!dense && first_) {
+      VectorXd x(n_), v(n_);
+      view.state(view.t_begin(), x, v);
+      for (int j = 0; j < static_cast<int>(system_.stop_count()); ++j)
+        if (mech_.compliant(j) && CompliantStopLaw::engaged_at_start(mech_.gap(j, x, view.t_begin())))
+          engaged_.push_back(j);
+    }
+    const ContactSet& engaged = dense ? dense->mode().engaged() : engaged_;
     std::set_union(held.begin(), held.end(), engaged.begin(), engaged.end(), std::back_inserter(key_));
     return key_;
   }
@@ -431,7 +446,7 @@ class TangentRecorder final : public Observer {
     const Index dim = mode.basis.cols();
     if (nonlinear_) {
       if (tau > 0.0 && (carries() || mechp_)) {
-        const MatrixXd T = nonlinear_->transition(mode.held, tb, zb.head(n_), zb.segment(n_, n_), tb + tau);
+        const MatrixXd T = nonlinear_->transition(mode.set, tb, zb.head(n_), zb.segment(n_, n_), tb + tau);
         if (mechp_) zeta_ = T.leftCols(N2) * zeta_ + T.col(N2);
         if (carries()) K_ = T.leftCols(N2) * K_;
       }
@@ -519,7 +534,8 @@ class TangentRecorder final : public Observer {
       const ContactSet& S = before.held;
       const auto a = static_cast<Index>(std::lower_bound(S.begin(), S.end(), guard) - S.begin());
       if (nonlinear_) {  // λ_a with the forces' part (nonlinear_part.hpp)
-        const detail::NonlinearPart::HeldForce lambda = nonlinear_->held_force(S, static_cast<int>(a), t, x, vm);
+        const detail::NonlinearPart::HeldForce lambda =
+            nonlinear_->held_force(before.set, static_cast<int>(a), t, x, vm);
         hz = -lambda.gradient;
         hdot = -lambda.rate;
         hp = -lambda.dp;
@@ -661,13 +677,15 @@ class TangentRecorder final : public Observer {
 
   void features(Mode& mode, double tb, double te, const VectorXd& zb) {
     if (nonlinear_) {  // the gaps' peaks and the held forces' minima from the Taylor steps
+      // Held rigid stops have no gap peaks; an engaged compliant stop's are its penetration's
+      // maxima, as below.
       std::vector<int> free;
       for (int j = 0; j < static_cast<int>(system_.stop_count()); ++j)
-        if (!contains(mode.set, j)) free.push_back(j);
+        if (!contains(mode.held, j)) free.push_back(j);
       const double tau = te - tb;
       const VectorXd x = zb.head(n_), v = zb.segment(n_, n_);
-      for (const ForceDip& dip : nonlinear_->force_minima(mode.held, tb, x, v, te)) out_.force_dips.push_back(dip);
-      const std::vector<GapPeak> peaks = nonlinear_->gap_peaks(mode.held, tb, x, v, te, free);
+      for (const ForceDip& dip : nonlinear_->force_minima(mode.set, tb, x, v, te)) out_.force_dips.push_back(dip);
+      const std::vector<GapPeak> peaks = nonlinear_->gap_peaks(mode.set, tb, x, v, te, free);
       for (const GapPeak& pk : peaks) {
         const double g_start = mech_.gap(pk.stop, x, tb);
         const double size = std::max(std::abs(g_start), std::abs(pk.value));
@@ -709,7 +727,7 @@ class TangentRecorder final : public Observer {
     if (nonlinear_) {  // the held flow continued by the Taylor steps: its first minimum after te_
       const double omega = mech_.frequency();
       const double T = omega > 0.0 ? 2.0 * std::numbers::pi / omega : 1.0;
-      const std::vector<ForceDip> dips = nonlinear_->force_minima(mode.held, last_tb_, last_zb_.head(n_),
+      const std::vector<ForceDip> dips = nonlinear_->force_minima(mode.set, last_tb_, last_zb_.head(n_),
                                                                   last_zb_.segment(n_, n_),
                                                                   te_ + options_.past_release_window * T);
       for (int j : released)
@@ -771,7 +789,7 @@ class TangentRecorder final : public Observer {
 
   double t0_ = 0.0, te_ = 0.0;
   bool first_ = true, pending_ = false;
-  ContactSet held_, key_;
+  ContactSet held_, key_, engaged_;
   VectorXd xe_, ve_;
   std::vector<Event> events_;
   MatrixXd K_, Jmid_, basis_;
@@ -840,12 +858,6 @@ CarriedFrame carry_orthonormal_frame(const ImpactSystem& system, const Simulator
 TangentMap linearise_nonlinear(const ImpactSystem& system, const SimulatorOptions& solver, NonlinearPart& part,
                                const ObservedRun& run, double t0, const VectorXd& x0, const VectorXd& v0,
                                const LinearisationOptions& options, VectorXd* log_growth) {
-  // The Taylor engine runs rigid stops only (a scene with forces and a compliant stop is refused
-  // when it is read); the nonlinear part's tangent map is derived for those.
-  for (std::size_t j = 0; j < system.stop_count(); ++j)
-    if (system.stops()[j].is_compliant())
-      throw InvalidInput("linearisation: stop " + std::to_string(j) +
-                         " is compliant; with nonlinear forces the tangent map handles rigid stops only");
   if (options.directions.size() > 0 && options.directions.rows() != 2 * system.dof())
     throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +
                        " rows, expected 2n = " + std::to_string(2 * system.dof()));

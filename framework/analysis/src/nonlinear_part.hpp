@@ -19,6 +19,10 @@
 /// The rest of the tangent map — the reset R of every impact and its derivatives, the guards —
 /// is the linear engines' code (mechanics.hpp): the Newton impact law depends on M, the normals
 /// and the restitutions only, not on the forces.
+///
+/// A mode is named by its key S (contact.hpp): its held rigid stops and its engaged compliant
+/// stops. The engaged stops' forces −w N, N = k_s g + c_s g' + F_p, are linear and enter the
+/// linear engines' generator of S (mechanics.hpp); the flows below carry them too.
 #include "vibro/contact.hpp"
 #include "vibro/linearisation.hpp"
 #include "vibro/observers.hpp"
@@ -35,27 +39,28 @@ class NonlinearPart {
   virtual ~NonlinearPart() = default;
   /// M⁻¹F(x, v, t).
   virtual Eigen::VectorXd acceleration(double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) = 0;
-  /// ∂z(t1)/∂z(t0) (2n × 2n) of the flow with the rigid stops `held` held (none: free flight) from
+  /// ∂z(t1)/∂z(t0) (2n × 2n) of the flow of the mode `key` (its rigid stops held, its compliant
+  /// stops engaged; none: free flight) from
   /// (t0, x, v); with a parameter derivative (the part was made with one) a last column
   /// ∂z(t1)/∂p at fixed z(t0), t0, t1.
-  virtual Eigen::MatrixXd transition(const ContactSet& held, double t0, const Eigen::VectorXd& x,
+  virtual Eigen::MatrixXd transition(const ContactSet& key, double t0, const Eigen::VectorXd& x,
                                      const Eigen::VectorXd& v, double t1) = 0;
-  /// The a-th held stop's contact force λ_a (held[a]; a = a_free − M⁻¹W λ) at (t, x, v):
+  /// The a-th held rigid stop's contact force λ_a (a = a_free − M⁻¹W λ) of the mode `key` at (t, x, v):
   /// ∂λ_a/∂z (2n), dλ_a/dt along the held flow, and ∂λ_a/∂p at fixed z, t (0 without a
   /// parameter derivative).
   struct HeldForce {
     Eigen::VectorXd gradient;
     double rate = 0.0, dp = 0.0;
   };
-  virtual HeldForce held_force(const ContactSet& held, int a, double t, const Eigen::VectorXd& x,
+  virtual HeldForce held_force(const ContactSet& key, int a, double t, const Eigen::VectorXd& x,
                                const Eigen::VectorXd& v) = 0;
-  /// Interior local maxima of the gaps of `stops` along the flow with `held` held from
+  /// Interior local maxima of the gaps of `stops` along the flow of the mode `key` from
   /// (t0, x, v) to t1.
-  virtual std::vector<GapPeak> gap_peaks(const ContactSet& held, double t0, const Eigen::VectorXd& x,
+  virtual std::vector<GapPeak> gap_peaks(const ContactSet& key, double t0, const Eigen::VectorXd& x,
                                          const Eigen::VectorXd& v, double t1, const std::vector<int>& stops) = 0;
-  /// Interior local minima of the held stops' contact forces along the held flow from (t0, x, v)
-  /// to t1 (ForceDip::past false).
-  virtual std::vector<ForceDip> force_minima(const ContactSet& held, double t0, const Eigen::VectorXd& x,
+  /// Interior local minima of the held rigid stops' contact forces along the flow of the mode
+  /// `key` from (t0, x, v) to t1 (ForceDip::past false).
+  virtual std::vector<ForceDip> force_minima(const ContactSet& key, double t0, const Eigen::VectorXd& x,
                                              const Eigen::VectorXd& v, double t1) = 0;
 };
 

@@ -160,8 +160,8 @@ class TaylorPart final : public detail::NonlinearPart {
     return out_.tail(n_);
   }
 
-  MatrixXd transition(const ContactSet& held, double t0, const VectorXd& x, const VectorXd& v, double t1) override {
-    Flow& flow = flow_for(held);
+  MatrixXd transition(const ContactSet& key, double t0, const VectorXd& x, const VectorXd& v, double t1) override {
+    Flow& flow = flow_for(key);
     MatrixXd phi;
     if (!flow.lifted) {
       z_ << x, v;
@@ -184,8 +184,8 @@ class TaylorPart final : public detail::NonlinearPart {
     return phi;
   }
 
-  HeldForce held_force(const ContactSet& held, int a, double t, const VectorXd& x, const VectorXd& v) override {
-    Flow& flow = flow_for(held);
+  HeldForce held_force(const ContactSet& key, int a, double t, const VectorXd& x, const VectorXd& v) override {
+    Flow& flow = flow_for(key);
     z_ << x, v;
     check(flow.variational->expand(t, z_), *flow.variational, t);
     HeldForce out;
@@ -198,20 +198,20 @@ class TaylorPart final : public detail::NonlinearPart {
       out.dp = flow.lifted->guard_gradient(a, static_cast<int>(n_));
     }
     if (!out.gradient.allFinite() || !std::isfinite(out.rate) || !std::isfinite(out.dp))
-      throw InvalidInput("linearisation: the contact force of stop " + std::to_string(held[static_cast<std::size_t>(a)]) +
+      throw InvalidInput("linearisation: the contact force of stop " + std::to_string(flow.held[static_cast<std::size_t>(a)]) +
                          " at t = " + number_text(t) + " has a derivative that is not finite");
     return out;
   }
 
-  /// Interior local maxima of the gaps of `stops` over (t0, t1) of the flow from (t0, x, v)
-  /// with `held` held (maxima(): the gaps' series from the steps' state and the stops' motion).
-  std::vector<GapPeak> gap_peaks(const ContactSet& held, double t0, const VectorXd& x, const VectorXd& v, double t1,
+  /// Interior local maxima of the gaps of `stops` over (t0, t1) of the flow of the mode `key`
+  /// from (t0, x, v) (maxima(): the gaps' series from the steps' state and the stops' motion).
+  std::vector<GapPeak> gap_peaks(const ContactSet& key, double t0, const VectorXd& x, const VectorXd& v, double t1,
                                  const std::vector<int>& stops) override {
     std::vector<GapPeak> out;
     if (stops.empty()) return out;
     const MatrixXd& W = scene_.normals();
     const double omega = scene_.system().forcing().frequency;
-    taylor::TaylorStep& step = *flow_for(held).plain;
+    taylor::TaylorStep& step = *flow_for(key).plain;
     const int p = step.order();
     const auto width = static_cast<std::size_t>(p) + 1;
     std::vector<double> cs(width + 1), sn(width + 1), hc(width), hs(width);
@@ -241,11 +241,13 @@ class TaylorPart final : public detail::NonlinearPart {
   }
 
   /// The held stops' force minima: the maxima of −λ_a, λ_a's series the held system's guards.
-  std::vector<ForceDip> force_minima(const ContactSet& held, double t0, const VectorXd& x, const VectorXd& v,
+  std::vector<ForceDip> force_minima(const ContactSet& key, double t0, const VectorXd& x, const VectorXd& v,
                                      double t1) override {
     std::vector<ForceDip> out;
+    const Flow& flow = flow_for(key);
+    const ContactSet& held = flow.held;
     if (held.empty()) return out;
-    taylor::TaylorStep& step = *flow_for(held).plain;
+    taylor::TaylorStep& step = *flow.plain;
     const auto width = static_cast<std::size_t>(step.order()) + 1;
     auto fill = [&](int row, double /*t*/, double* g) {
       const double* lambda = step.guard_coefficients(row);
@@ -258,15 +260,20 @@ class TaylorPart final : public detail::NonlinearPart {
   }
 
  private:
-  /// The systems of one held set (Flow: none for free flight), built on first use.
+  /// The systems of one mode (Flow: none for free flight), built on first use: its held rigid
+  /// stops and its engaged compliant ones.
   struct Flow {
+    ContactSet held, engaged;
     std::unique_ptr<taylor::TaylorSystem> system, lifted_system;
     std::unique_ptr<taylor::TaylorStep> variational, plain, lifted;
   };
 
-  Flow& flow_for(const ContactSet& held) {
-    const auto it = flows_.find(held);
+  Flow& flow_for(const ContactSet& key) {
+    const auto it = flows_.find(key);
     if (it != flows_.end()) return *it->second;
+    auto f = std::make_unique<Flow>();
+    for (int j : key) (scene_.stops()[static_cast<std::size_t>(j)].is_compliant() ? f->engaged : f->held).push_back(j);
+    const ContactSet& held = f->held;
     const LinearSystem& sys = scene_.system();
     const auto k = static_cast<Index>(held.size());
     MatrixXd W(n_, k);
@@ -280,13 +287,12 @@ class TaylorPart final : public detail::NonlinearPart {
       Pi -= W * R;
       WG = W * Ginv;
     }
-    auto f = std::make_unique<Flow>();
     const taylor::TaylorSettings plain{.tolerance = tolerance_};
     const taylor::TaylorSettings variational{.tolerance = tolerance_, .variational = true};
     taylor::TaylorSystemSpec spec = base_;
     spec.damping = Pi * sys.damping();
     spec.stiffness = Pi * sys.stiffness();
-    constrained(spec, held, Pi, R, Ginv, WG, driven_, nullptr, "Omega", "");
+    constrained(spec, held, Pi, R, Ginv, WG, with_engaged(driven_, f->engaged, nullptr, "Omega", ""), nullptr, "Omega", "");
     f->system = std::make_unique<taylor::TaylorSystem>(spec);
     f->variational = std::make_unique<taylor::TaylorStep>(*f->system, variational);
     f->plain = std::make_unique<taylor::TaylorStep>(*f->system, plain);
@@ -299,12 +305,14 @@ class TaylorPart final : public detail::NonlinearPart {
       lifted.damping.topLeftCorner(n_, n_) = spec.damping;
       lifted.stiffness = MatrixXd::Zero(m, m);
       lifted.stiffness.topLeftCorner(n_, n_) = spec.stiffness;
-      constrained(lifted, held, Pi, R, Ginv, WG, lifted_driven_, &*derivative_, omega_, "x" + std::to_string(n_));
+      const std::string s = "x" + std::to_string(n_);
+      constrained(lifted, held, Pi, R, Ginv, WG, with_engaged(lifted_driven_, f->engaged, &*derivative_, omega_, s),
+                  &*derivative_, omega_, s);
       lifted.forces.emplace_back();
       f->lifted_system = std::make_unique<taylor::TaylorSystem>(lifted);
       f->lifted = std::make_unique<taylor::TaylorStep>(*f->lifted_system, variational);
     }
-    return *flows_.emplace(held, std::move(f)).first->second;
+    return *flows_.emplace(key, std::move(f)).first->second;
   }
 
   /// The held set's forces Π r + W G⁻¹ s̈ (n entries) and guards λ = G⁻¹WᵀM⁻¹ r − G⁻¹ s̈ of `spec`,
@@ -350,15 +358,26 @@ class TaylorPart final : public detail::NonlinearPart {
   /// Stop j's acceleration s̈_j(t) as an expression of t ("" for a fixed stop); along a
   /// derivative d (coordinate s) its amplitudes and Ω move.
   std::string stop_acceleration(int j, const SystemDerivative* d, const std::string& omega, const std::string& s) const {
+    return stop_motion(j, d, omega, s, 2);
+  }
+
+  /// Stop j's position s_j(t) (order 0), rate s_j'(t) (1) or acceleration s̈_j(t) (2) as an
+  /// expression of t ("" where it vanishes: a fixed stop's rate); along a derivative d
+  /// (coordinate s) its offset, amplitudes and Ω move.
+  std::string stop_motion(int j, const SystemDerivative* d, const std::string& omega, const std::string& s,
+                          int order) const {
     const Stop& st = scene_.stops()[static_cast<std::size_t>(j)];
     const auto ju = static_cast<std::size_t>(j);
     const StopDerivative sd = d && ju < d->stops.size() ? d->stops[ju] : StopDerivative{};
-    std::string out;
+    std::string out = order == 0 ? moving(st.s0(), sd.offset, s) : "";
     auto harmonic = [&](const std::string& rate, double c, double dc, double sn, double ds) {
       if (c == 0.0 && dc == 0.0 && sn == 0.0 && ds == 0.0) return;
       if (!out.empty()) out += " + ";
-      out += "-(" + rate + ")*(" + rate + ")*(" + moving(c, dc, s) + "*cos(" + rate + "*t) + " + moving(sn, ds, s) +
-             "*sin(" + rate + "*t))";
+      const std::string cosine = moving(c, dc, s), sine = moving(sn, ds, s);
+      const std::string cos_t = "cos(" + rate + "*t)", sin_t = "sin(" + rate + "*t)";
+      if (order == 2) out += "-(" + rate + ")*(" + rate + ")*(" + cosine + "*" + cos_t + " + " + sine + "*" + sin_t + ")";
+      else if (order == 1) out += "(" + rate + ")*(" + sine + "*" + cos_t + " - " + cosine + "*" + sin_t + ")";
+      else out += cosine + "*" + cos_t + " + " + sine + "*" + sin_t;
     };
     harmonic("(" + omega + ")", st.s_cos(), sd.cosine, st.s_sin(), sd.sine);
     for (std::size_t q = 0; q < st.harmonics.size(); ++q) {
@@ -367,6 +386,39 @@ class TaylorPart final : public detail::NonlinearPart {
       };
       harmonic("(" + std::to_string(st.harmonics[q].order) + "*" + omega + ")", st.h_cos(q),
                d ? at(d->stop_harmonic_cosine) : 0.0, st.h_sin(q), d ? at(d->stop_harmonic_sine) : 0.0);
+    }
+    return out;
+  }
+
+  /// The forces of each coordinate `driven` with the engaged compliant stops' −w_j N_j added,
+  /// N_j = k_s g_j + c_s g_j' + F_p (stops.hpp) written out in x, v and t (its law and the stop's
+  /// motion moving along a derivative d, coordinate s); `driven` itself when none is engaged.
+  std::vector<std::string> with_engaged(const std::vector<std::string>& driven, const ContactSet& engaged,
+                                        const SystemDerivative* d, const std::string& omega,
+                                        const std::string& s) const {
+    if (engaged.empty()) return driven;
+    const MatrixXd& W = scene_.normals();
+    std::vector<std::string> force;
+    for (int j : engaged) {
+      const Stop& st = scene_.stops()[static_cast<std::size_t>(j)];
+      const auto ju = static_cast<std::size_t>(j);
+      const StopDerivative sd = d && ju < d->stops.size() ? d->stops[ju] : StopDerivative{};
+      std::vector<std::pair<double, std::string>> gap, rate;
+      for (Index l = 0; l < n_; ++l) {
+        gap.emplace_back(W(l, j), "x" + std::to_string(l));
+        rate.emplace_back(W(l, j), "v" + std::to_string(l));
+      }
+      gap.emplace_back(-1.0, stop_motion(j, d, omega, s, 0));
+      rate.emplace_back(-1.0, stop_motion(j, d, omega, s, 1));
+      force.push_back(moving(st.stiffness, sd.stiffness, s) + "*(" + combination(gap) + ") + " +
+                      moving(st.damping, sd.damping, s) + "*(" + (combination(rate).empty() ? "0" : combination(rate)) +
+                      ") + " + moving(st.preload, sd.preload, s));
+    }
+    std::vector<std::string> out(static_cast<std::size_t>(n_));
+    for (Index i = 0; i < n_; ++i) {
+      std::vector<std::pair<double, std::string>> terms{{1.0, driven[static_cast<std::size_t>(i)]}};
+      for (std::size_t e = 0; e < engaged.size(); ++e) terms.emplace_back(-W(i, engaged[e]), force[e]);
+      out[static_cast<std::size_t>(i)] = combination(terms);
     }
     return out;
   }

@@ -1,6 +1,7 @@
 #pragma once
 /// \file taylor_simulator.hpp
-/// The Taylor-series engine: an ImpactSystem (linear M, C, K, harmonic drive, rigid stops) with
+/// The Taylor-series engine: an ImpactSystem (linear M, C, K, harmonic drive, rigid and compliant
+/// stops) with
 /// nonlinear forces F(x, v, t) added to its equations,
 ///
 ///     M x'' + C x' + K x = f(t) + F(x, v, t),
@@ -15,20 +16,25 @@
 /// time series known in closed form. With a set of rigid stops held, the acceleration is the
 /// constrained one a = M⁻¹(F − Wλ), Wᵀa = p̈(t) (taylor_step.hpp, StepTerms): the constant
 /// matrices W, M⁻¹W, (WᵀM⁻¹W)⁻¹ of each held set are built on its first visit, and the contact
-/// forces λ come out of every step as series too.
+/// forces λ come out of every step as series too. An engaged compliant stop (stops.hpp) adds its
+/// spring and dashpot along its normal to K and C and its motion and preload to the drive
+/// (engaged_system.hpp): each engaged set's A_x, A_v and drive are built on its first
+/// visit and replace the system's in the steps (StepTerms), so an engaged set is the same
+/// Taylor system with other linear terms, held rigid stops (a two-stage stop) on top of it.
 ///
-/// Events: each step's guards — the gap wᵀx − p(t) of every stop not held, −λ of every held
-/// one — are polynomials in the step time (their coefficients from the state's and λ's), with
+/// Events: each step's guards — the gap wᵀx − p(t) of every stop neither held nor engaged, −λ of
+/// every held one, −(wᵀx − p(t)) of every engaged compliant one — are polynomials in the step time (their coefficients from the state's and λ's), with
 /// the step's remainder bound; the first rise above the trigger is isolated by guard_roots.hpp
 /// (certified: Bernstein sign changes with the remainder folded in), and the event's time is
-/// the guard's root at zero refined to rounding, as the dense engine places it.
+/// the guard's root at zero refined to rounding, as the dense engine places it. A compliant
+/// stop's engage and disengage change the engaged set only (compliant_switches, shared with
+/// the dense engine), the state is continuous.
 ///
 /// Accuracy: the series is truncated at ~ε of the state's scale per step (TaylorSettings), and
 /// the state is evaluated by compensated Horner, so a linear scene run here agrees with the exact
 /// dense engine to ~1e-13 of its scales (tests/taylor/test_taylor_engine.cpp).
 ///
-/// Limits, refused with a message: compliant stops (InvalidInput at the run's start). The
-/// chatter rule's local coefficients (α_j, β_j and the state correction of
+/// Limits: the chatter rule's local coefficients (α_j, β_j and the state correction of
 /// event_resolution.hpp) are those of the linear part M, C, K: a nonlinear force's Jacobian at
 /// the contact does not enter them (the accumulation point is then located to the order the
 /// rule is exact for the linear part; first_order is unaffected).

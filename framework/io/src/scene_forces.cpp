@@ -160,8 +160,6 @@ bool resolve_taylor_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
                " engine integrates linear flows only; this scene has forces, which run on the Taylor engine "
                "(solver.engine: auto or taylor)");
   if (!forces && p.engine_choice != EngineChoice::taylor) return false;
-  if (has_compliant(p.stops))
-    r.fail(root["stops"], "stops", "compliant stops are not supported by the Taylor engine (forces, or solver.engine: taylor)");
   // Every run kind runs on the Taylor engine: the plain runs (simulate, sweep, diagram, basin,
   // locate) through engine.hpp's interface (make_engine), the analysis (orbit, continue,
   // lyapunov) through the variational equations (vibro/linearisation.hpp, nonlinear forces).

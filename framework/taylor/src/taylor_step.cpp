@@ -193,6 +193,8 @@ void TaylorStep::set_terms(const StepTerms& terms) {
   const int n = system_->coordinates();
   if (terms.acceleration && (terms.acceleration->rows() != n || terms.acceleration->cols() != p_ + 1))
     throw std::invalid_argument("StepTerms.acceleration must be n x (p + 1)");
+  for (const Eigen::MatrixXd* a : {terms.position_matrix, terms.velocity_matrix})
+    if (a && (a->rows() != n || a->cols() != n)) throw std::invalid_argument("StepTerms: A_x and A_v must be n x n");
   if (terms.normals) {
     const Eigen::Index m = terms.normals->cols();
     if (!terms.minv_normals || !terms.delassus_inverse || !terms.stop_acceleration || terms.normals->rows() != n ||
@@ -312,8 +314,8 @@ void TaylorStep::tape_orders() {
   const auto un = static_cast<std::size_t>(n);
   double* z = z_.data();
   const double* c = c_.data();
-  const double* ax = system_->position_matrix().data();  // column-major n × n
-  const double* av = system_->velocity_matrix().data();
+  const double* ax = position_matrix().data();  // column-major n × n
+  const double* av = velocity_matrix().data();
   const double* minv = system_->inverse_mass().data();
   const int* forces = system_->force_nodes().data();
   const double* drive = terms_.acceleration ? terms_.acceleration->data() : nullptr;  // n × (p + 1)
@@ -507,8 +509,8 @@ bool TaylorStep::linear_order(int k) {
   // supplied terms (StepTerms): the time series and the held stops' constraint.
   const bool tangents = settings_.variational;
   const int n = system_->coordinates();
-  const Eigen::MatrixXd& ax = system_->position_matrix();
-  const Eigen::MatrixXd& av = system_->velocity_matrix();
+  const Eigen::MatrixXd& ax = position_matrix();
+  const Eigen::MatrixXd& av = velocity_matrix();
   const Eigen::MatrixXd& minv = system_->inverse_mass();
   const std::vector<int>& forces = system_->force_nodes();
   if (!tangents && terms_.normals == nullptr && (n == 1 || n == 2)) {  // the unrolled loops (the same bits)

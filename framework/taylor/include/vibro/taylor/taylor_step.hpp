@@ -128,13 +128,19 @@ struct TaylorSettings {
 ///     the Gauss principle of a bilateral constraint Wᵀx = p(t) (Wᵀa = p̈ exactly), applied
 ///     order by order: a_free's k-th coefficient is linear in the k-th coefficients of z and of
 ///     the forces, so λ's k-th coefficient follows from it with the same constant matrices. λ
-///     (the contact forces, whose sign change is a release) is kept as a series too.
+///     (the contact forces, whose sign change is a release) is kept as a series too;
+///   - `position_matrix` and `velocity_matrix` (n × n, optional): A_x and A_v in place of the
+///     system's (taylor_system.hpp), for linear terms that hold over a step only (the springs
+///     and dashpots of engaged compliant stops: −M⁻¹(K + Σ k_s w wᵀ), −M⁻¹(C + Σ c_s w wᵀ)).
+///     The variational equations take them too (the linear part's Jacobian is the matrices).
 struct StepTerms {
   const Eigen::MatrixXd* acceleration = nullptr;       ///< n × (p + 1)
   const Eigen::MatrixXd* normals = nullptr;            ///< W, n × k
   const Eigen::MatrixXd* minv_normals = nullptr;       ///< M⁻¹W, n × k
   const Eigen::MatrixXd* delassus_inverse = nullptr;   ///< G⁻¹, k × k
   const Eigen::MatrixXd* stop_acceleration = nullptr;  ///< p̈'s series, k × (p + 1)
+  const Eigen::MatrixXd* position_matrix = nullptr;    ///< A_x, n × n (none: the system's)
+  const Eigen::MatrixXd* velocity_matrix = nullptr;    ///< A_v, n × n (none: the system's)
 };
 
 enum class StepStatus {
@@ -201,6 +207,13 @@ class TaylorStep {
   void tape_order(int k);   // order k ≥ 1 of the tape below
   void tape_orders();       // orders 1 … p without tangents: the tape and the linear part
   bool linear_order(int k); // the linear part and the StepTerms: z_[k+1] from the forces' f_[k]
+  /// A_x and A_v in force: the StepTerms' or the system's.
+  const Eigen::MatrixXd& position_matrix() const {
+    return terms_.position_matrix ? *terms_.position_matrix : system_->position_matrix();
+  }
+  const Eigen::MatrixXd& velocity_matrix() const {
+    return terms_.velocity_matrix ? *terms_.velocity_matrix : system_->velocity_matrix();
+  }
   double* c(int node) { return &c_[static_cast<std::size_t>(node) * (p_ + 1)]; }
   double* aux(int node) { return &aux_[static_cast<std::size_t>(node) * (p_ + 1)]; }
   double* dc(int node, int d) { return &dc_[(static_cast<std::size_t>(node) * dim_ + d) * (p_ + 1)]; }
