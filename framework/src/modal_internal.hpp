@@ -19,32 +19,49 @@ inline double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-/// The nonzero entries of a stop's normal w: (mass, weight) pairs.
+/// The nonzero entries of a stop's normal w: (mass, weight) pairs, or for a stop along a general
+/// normal (Stop::Kind::normal) the whole vector.
 struct Normal {
   Eigen::Index i = 0, k = -1;
   double wi = 1.0, wk = 0.0;
+  Eigen::VectorXd dense;  ///< w itself for a general normal; empty otherwise (i, k, wi, wk unused then)
+
+  bool general() const { return dense.size() > 0; }
+  /// f(l, w_l) for each nonzero entry (the two sparse ones, or the general normal's).
+  template <class F>
+  void for_each(F&& f) const {
+    if (general()) {
+      for (Eigen::Index l = 0; l < dense.size(); ++l)
+        if (dense(l) != 0.0) f(l, dense(l));
+      return;
+    }
+    f(i, wi);
+    if (k >= 0) f(k, wk);
+  }
+  /// w_l.
+  double entry(Eigen::Index l) const {
+    if (general()) return dense(l);
+    return (l == i ? wi : 0.0) + (k >= 0 && l == k ? wk : 0.0);
+  }
 };
 
 inline Normal normal_of(const Stop& s) {
   switch (s.kind) {
-    case Stop::Kind::upper: return {s.mass, -1, 1.0, 0.0};
-    case Stop::Kind::lower: return {s.mass, -1, -1.0, 0.0};
-    case Stop::Kind::between: return {s.mass, s.other, 1.0, -1.0};
-    case Stop::Kind::normal: break;  // refused by ModalChainSimulator (kModalStopsOnly)
+    case Stop::Kind::upper: return {s.mass, -1, 1.0, 0.0, {}};
+    case Stop::Kind::lower: return {s.mass, -1, -1.0, 0.0, {}};
+    case Stop::Kind::between: return {s.mass, s.other, 1.0, -1.0, {}};
+    case Stop::Kind::normal: return {0, -1, 0.0, 0.0, s.direction};
   }
   return {};
 }
 
-/// w_aᵀ M⁻¹ w_b for diagonal M.
+/// w_aᵀ M⁻¹ w_b for diagonal M: O(1) for sparse normals, O(N) with a general one.
 inline double delassus_entry(const Normal& a, const Normal& b, const Eigen::VectorXd& mass) {
   double sum = 0.0;
-  auto add = [&](Eigen::Index ia, double wa) {
-    if (ia < 0) return;
-    if (ia == b.i) sum += wa * b.wi / mass(ia);
-    if (b.k >= 0 && ia == b.k) sum += wa * b.wk / mass(ia);
-  };
-  add(a.i, a.wi);
-  add(a.k, a.wk);
+  if (a.general() && b.general()) return a.dense.dot(b.dense.cwiseQuotient(mass));
+  const Normal& sparse = a.general() ? b : a;
+  const Normal& other = a.general() ? a : b;
+  sparse.for_each([&](Eigen::Index l, double w) { sum += w * other.entry(l) / mass(l); });
   return sum;
 }
 

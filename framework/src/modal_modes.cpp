@@ -120,6 +120,13 @@ std::unique_ptr<ModalContactMode> build_reduction(const ChainModes& free, const 
   } else {
     for (int j : set) {
       const Stop& s = stops[static_cast<std::size_t>(j)];
+      if (s.kind == Stop::Kind::normal) {
+        *why_not = stop_text(stops, j) +
+                   " would be held (the motion comes to rest on it): a stop held along a general normal couples "
+                   "the masses of its normal, and the modal engine reduces a chain only by fixing masses or "
+                   "joining neighbours (use solver.engine: dense)";
+        return nullptr;
+      }
       if (s.kind == Stop::Kind::between) {
         if (std::abs(s.mass - s.other) != 1) {
           *why_not = stop_text(stops, j) + " would hold masses " + std::to_string(s.mass) + " and " +
@@ -334,8 +341,7 @@ std::unique_ptr<ModalContactMode> build_reduction(const ChainModes& free, const 
     for (int j = 0; j < static_cast<int>(stops.size()); ++j) {
       const Normal w = normal_of(stops[static_cast<std::size_t>(j)]);
       if (!contains(set, j)) {
-        masses.insert(w.i);
-        if (w.k >= 0) masses.insert(w.k);
+        if (!w.general()) w.for_each([&](Eigen::Index l, double) { masses.insert(l); });  // (general: gap_row)
       } else {
         for (Eigen::Index l : {w.i, w.k})
           for (Eigen::Index lp = l - 1; l >= 0 && lp <= l + 1; ++lp)
@@ -389,11 +395,32 @@ std::unique_ptr<ModalContactMode> build_reduction(const ChainModes& free, const 
       h.c(slot) -= s.h_cos(i);
       h.s(slot) -= s.h_sin(i);
     }
-    for (const auto& [l, weight] : {std::pair{w.i, w.wi}, std::pair{w.k, w.wk}}) {
-      if (l < 0) continue;
-      const auto& [phi, X] = mass_row(l);
-      if (nr > 0) g.P.row(row) += (sign * weight) * phi.transpose();
-      h += weight * X;
+    if (w.general()) {
+      // wᵀx = wᵀ(T y + o): the row Φᵀ Tᵀw = Φ⁻¹ M_r⁻¹ Tᵀw (one O(N n_r) product, no N × n_r rows
+      // formed), its particular part, and wᵀo of the offsets.
+      std::pair<Eigen::VectorXd, Periodic> entry{Eigen::VectorXd::Zero(nr), Periodic::of({}, H)};
+      Eigen::VectorXd reduced = Eigen::VectorXd::Zero(nr);
+      w.for_each([&](Eigen::Index l, double weight) {
+        const Eigen::Index r = mode->coordinate[static_cast<std::size_t>(l)];
+        if (r >= 0) reduced(r) += weight;
+        entry.second += weight * offset_of(l);
+      });
+      if (nr > 0) {
+        ChainModes::Workspace work;
+        const Eigen::MatrixXd y = reduced.cwiseQuotient(md->chain().mass);
+        Eigen::MatrixXd u(nr, 1);
+        md->tangent_to_modal(y, u, work);
+        entry.first = u.col(0);
+        add_particular(entry);
+        g.P.row(row) += sign * entry.first.transpose();
+      }
+      h += entry.second;
+    } else {
+      w.for_each([&](Eigen::Index l, double weight) {
+        const auto& [phi, X] = mass_row(l);
+        if (nr > 0) g.P.row(row) += (sign * weight) * phi.transpose();
+        h += weight * X;
+      });
     }
     set_harmonic(row, sign * h);
   };

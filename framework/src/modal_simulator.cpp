@@ -178,17 +178,27 @@ class ChainAlgebra final : public detail::ContactAlgebra {
   }
 
  private:
+  // O(1) per stop on one mass or two, O(N) along a general normal.
   double w_dot(int j, const Eigen::VectorXd& z) const {
     const Normal& w = normal_[static_cast<std::size_t>(j)];
+    if (w.general()) return w.dense.dot(z);
     return w.wi * z(w.i) + (w.k >= 0 ? w.wk * z(w.k) : 0.0);
   }
   void add_minv_w(int j, double scale, Eigen::VectorXd& z) const {  // z += scale M⁻¹ w_j
     const Normal& w = normal_[static_cast<std::size_t>(j)];
+    if (w.general()) {
+      z += scale * w.dense.cwiseQuotient(ch_.mass);
+      return;
+    }
     z(w.i) += scale * w.wi / ch_.mass(w.i);
     if (w.k >= 0) z(w.k) += scale * w.wk / ch_.mass(w.k);
   }
   void add_w(int j, double scale, Eigen::VectorXd& z) const {  // z += scale w_j
     const Normal& w = normal_[static_cast<std::size_t>(j)];
+    if (w.general()) {
+      z += scale * w.dense;
+      return;
+    }
     z(w.i) += scale * w.wi;
     if (w.k >= 0) z(w.k) += scale * w.wk;
   }
@@ -222,6 +232,10 @@ std::string compliant_refusal(const Stop& s, const BandedChain& chain) {
       !(s.preload >= 0.0) || !std::isfinite(s.preload))
     return "a compliant stop needs finite k_s > 0, c_s ≥ 0 and F_p ≥ 0 (stiffness " + number_text(s.stiffness) +
            ", damping " + number_text(s.damping) + ", preload " + number_text(s.preload) + ")";
+  if (s.kind == Stop::Kind::normal)
+    return "a compliant stop along a general normal would couple the masses of its normal in the chain's "
+           "stiffness: the modal engine takes compliant stops on one mass or between neighbouring masses (the "
+           "dense engine takes any)";
   if (s.kind == Stop::Kind::between && std::abs(s.mass - s.other) != 1)
     return "a compliant stop between masses " + std::to_string(s.mass) + " and " + std::to_string(s.other) +
            ", which are not neighbours, would break the chain's tridiagonal stiffness: the modal engine takes "
@@ -272,11 +286,14 @@ ModalChainSimulator::ModalChainSimulator(const ChainModes& modes, std::vector<St
   for (std::size_t j = 0; j < stops_.size(); ++j) {
     Stop& s = stops_[j];
     const std::string label = "stops[" + std::to_string(j) + "]";
-    if (s.kind == Stop::Kind::normal)
-      throw InvalidInput(label + ": a stop along a general normal: " + std::string(kModalStopsOnly));
-    if (s.mass < 0 || s.mass >= n)
+    if (s.kind == Stop::Kind::normal) {  // its gap, impacts and chatter in O(N); held, it is refused (modal.hpp)
+      if (s.direction.size() != n || !s.direction.allFinite() || s.direction.lpNorm<Eigen::Infinity>() == 0.0)
+        throw InvalidInput(label + ": a general normal needs " + std::to_string(n) +
+                           " finite entries, not all zero (one per mass)");
+    } else if (s.mass < 0 || s.mass >= n) {
       throw InvalidInput(label + ": mass " + std::to_string(s.mass) + " is not in [0, " +
                          std::to_string(n - 1) + "]");
+    }
     if (s.kind == Stop::Kind::between && (s.other < 0 || s.other >= n || s.other == s.mass))
       throw InvalidInput(label + ": other mass " + std::to_string(s.other) +
                          " must be in [0, " + std::to_string(n - 1) + "] and differ from mass");
@@ -303,7 +320,9 @@ ModalChainSimulator::ModalChainSimulator(const ChainModes& modes, std::vector<St
       const std::string why = compliant_refusal(s, modes.chain());
       if (!why.empty()) throw InvalidInput(label + ": " + why);
     }
-    if (s.name.empty()) {
+    if (s.name.empty() && s.kind == Stop::Kind::normal) {
+      s.name = validated_stops({s}, n, W).front().name;  // "normal 1·x0 + 0.5·x1", as ImpactSystem names it
+    } else if (s.name.empty()) {
       s.name = s.kind == Stop::Kind::upper ? "upper" : (s.kind == Stop::Kind::lower ? "lower" : "between");
       s.name += " x" + std::to_string(s.mass);
       if (s.kind == Stop::Kind::between) s.name += "-x" + std::to_string(s.other);

@@ -97,11 +97,12 @@ namespace {
 /// at t0 (ModalSegmentState::guard_local_maxima). Guards −h' and h' (h = P u + D u' + harmonic; with
 /// u'' = −2σu' − ω²u, h' = (−D∘ω²)·u + (P − 2D∘σ)·u' + harmonic'; gaps have D = 0). A maximum is −h'
 /// crossing 0 upwards, a minimum h' crossing upwards; the search alternates between them, one armed
-/// at a time (the other's trigger is +∞), as DenseSegmentView::force_local_minima.
+/// at a time (the other's trigger is +∞), as DenseSegmentView::force_local_minima. With `minima`,
+/// the interior local minima instead (ModalSegmentState::guard_local_minima).
 std::vector<Minimum> guard_maxima(const ModalChainSimulator& sim, const ModalContactMode& mode, double t0,
                                   const Eigen::Ref<const Eigen::VectorXd>& u0,
                                   const Eigen::Ref<const Eigen::VectorXd>& ud0, Eigen::Index row, double from,
-                                  double to, double tolerance) {
+                                  double to, double tolerance, bool minima = false) {
   const ModalGuards& g = mode.guards;
   const Eigen::Index nr = mode.size(), first_d = g.rows() - g.D.rows();
   const double W = sim.modes().frequency();
@@ -159,7 +160,7 @@ std::vector<Minimum> guard_maxima(const ModalChainSimulator& sim, const ModalCon
     }
     if (!hit || hit->tau >= span) break;
     const double tau = hit->tau;
-    if (seek_max && tau > start) {
+    if (seek_max != minima && tau > start) {
       const double t = t0 + tau;
       double value, rate;
       guard_at(mode, W, t0, u0, ud0, t - t0, row, &value, &rate, buffers);
@@ -183,6 +184,11 @@ std::vector<Minimum> ModalSegmentView::force_local_minima(Eigen::Index a) const 
 std::vector<Minimum> ModalSegmentState::guard_local_maxima(Eigen::Index row, double from, double to,
                                                            double tolerance) const {
   return guard_maxima(*sim_, *mode_, t_begin_, u_, ud_, row, from, to, tolerance);
+}
+
+std::vector<Minimum> ModalSegmentState::guard_local_minima(Eigen::Index row, double from, double to,
+                                                           double tolerance) const {
+  return guard_maxima(*sim_, *mode_, t_begin_, u_, ud_, row, from, to, tolerance, true);
 }
 
 double ModalSegmentState::guard(Eigen::Index row, double t) const {

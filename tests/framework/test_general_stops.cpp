@@ -365,10 +365,3 @@ TEST_CASE("general normals are validated and named", "[general-stops]") {
                     Contains("initial state violates stops[0] (normal 1·x0 - 2·x1 + 0.5·x2) by 0.9"));
 }
 
-TEST_CASE("the modal engine refuses a general normal and says which engine takes it", "[general-stops]") {
-  const vibro::ChainModes modes(vibro::BandedChain::from_links({1.0, 1.0, 1.0}, {1.0, 1.0}, {0.0, 0.0}, 1.0, 0.0, 1.0, 0.0,
-                                                               vibro::HarmonicForcing::zero(3, 0.8)));
-  CHECK_THROWS_WITH(vibro::ModalChainSimulator(modes, {Stop::upper(0, 0.5, 0.8), Stop::general(VectorXd::Ones(3), 0.2, 0.5)}),
-                    "stops[1]: a stop along a general normal: the modal engine takes stops on one mass (upper, lower) or "
-                    "between two masses; the dense engine takes any normal (solver.engine: dense)");
-}

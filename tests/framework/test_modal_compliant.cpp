@@ -2,12 +2,11 @@
 // chain (compliant stops on one mass and between neighbours, a preload, c_s = β k_s, a two-stage
 // stop: a compliant spring with a rigid stop behind it) against the dense Simulator, on both
 // routes to a contact set's modes; a stop that starts engaged; the refusals (c_s ≠ β k_s, a
-// compliant stop between masses that are not neighbours, the modal tangent map).
+// compliant stop between masses that are not neighbours).
 #include "support/chains.hpp"
 #include "support/engine_agreement.hpp"
 #include "vibro/engine.hpp"
 #include "vibro/modal.hpp"
-#include "vibro/modal_tangent.hpp"
 #include "vibro/observers.hpp"
 #include "vibro/simulator.hpp"
 
@@ -114,11 +113,5 @@ TEST_CASE("the modal engine refuses compliant stops that would leave the banded 
   SECTION("a spring between masses that are not neighbours") {
     const std::vector<Stop> stops{Stop::between(1, 3, 0.3, 1.0).compliant(5.0, kBeta * 5.0)};
     REQUIRE_THROWS_WITH(ModalChainSimulator(modes, stops), Catch::Contains("stops[0]") && Catch::Contains("not neighbours"));
-  }
-  SECTION("the modal tangent map") {
-    vibro::ModalEngine engine(soft_chain(), soft_stops(), {});
-    const VectorXd zero = VectorXd::Zero(6);
-    REQUIRE_THROWS_WITH(vibro::ModalTangent(engine, 0.0, zero, zero, 1.0),
-                        Catch::Contains("stops[0] is compliant") && Catch::Contains("solver.engine: dense"));
   }
 }

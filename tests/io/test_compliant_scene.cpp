@@ -104,8 +104,9 @@ stops:
 
 // The modal engine's share of compliant stops (docs/scenes.md, solver.engine): a long chain
 // (64 masses, C = βK, β = 0.05) with compliant stops on one mass and between neighbours whose
-// dashpots are β k_s runs on the modal engine under auto; a dashpot that is not β k_s, or a run
-// kind that needs the tangent map (orbit), sends auto to the dense engine and says why.
+// dashpots are β k_s runs on the modal engine under auto, for every run kind (orbit included: the
+// modal tangent map takes compliant switches); a dashpot that is not β k_s sends auto to the dense
+// engine and says why. Continuation in such a stop's stiffness is an error on the modal engine.
 TEST_CASE("auto runs proportional compliant stops of a long chain on the modal engine", "[compliant][modal]") {
   auto scene = [](const std::string& damping, const std::string& run) {
     std::string masses, springs, dampers, cosine;
@@ -131,7 +132,14 @@ TEST_CASE("auto runs proportional compliant stops of a long chain on the modal e
   const vibro::io::Scene other = scene("0.3", "");
   CHECK(other.engine == vibro::io::EngineKind::dense);
   CHECK_THAT(other.engine_reason, Catch::Contains("stops[1]") && Catch::Contains("is not β k_s = 0.1"));
-  const vibro::io::Scene orbit = scene("0.1", "run:\n  kind: orbit\n");
-  CHECK(orbit.engine == vibro::io::EngineKind::dense);
-  CHECK_THAT(orbit.engine_reason, Catch::Contains("stops[0]") && Catch::Contains("tangent map"));
+  for (const char* kind : {"orbit", "lyapunov"}) {
+    const vibro::io::Scene run = scene("0.1", std::string("run:\n  kind: ") + kind + "\n");
+    CHECK(run.engine == vibro::io::EngineKind::modal);
+  }
+  const vibro::io::Scene preload =
+      scene("0.1", "run:\n  kind: continue\n  continue:\n    path: stops[0].preload\n    range: [0.1, 0.3]\n");
+  CHECK(preload.engine == vibro::io::EngineKind::modal);
+  CHECK_THROWS_WITH(scene("0.1", "run:\n  kind: continue\n  continue:\n    path: stops[0].stiffness\n    range: [4, 6]\n"),
+                    Catch::Contains("run.continue.path") && Catch::Contains("stiffness or damping of compliant stops[0]") &&
+                        Catch::Contains("solver.engine: dense"));
 }

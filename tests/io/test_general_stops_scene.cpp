@@ -82,11 +82,16 @@ TEST_CASE("a chain with a general stop runs on the dense engine", "[general-stop
   const SceneDocument plain = SceneDocument::parse(chain + text);
   const Scene s = plain.build();
   CHECK(s.engine == EngineKind::dense);
-  CHECK_THAT(s.engine_reason, Contains("auto: stops[0] has a general normal (the modal engine takes stops on one mass"));
-  const SceneError e = scene_error(chain + text + "solver: {engine: modal}\n");
-  CHECK(e.path() == "solver.engine");
-  CHECK_THAT(e.problem(), Contains("stops[0] has a general normal: the modal engine takes stops on one mass (upper, "
-                                   "lower) or between two masses; the dense engine takes any normal"));
+  CHECK_THAT(s.engine_reason, Contains("auto: stops[0] has a general normal (the modal engine runs a stop along a "
+                                       "general normal through free flight, impacts and chatter but does not hold one"));
+  // Given explicitly, the modal engine runs it (a rigid one; a compliant one is refused at its law).
+  const Scene modal = SceneDocument::parse(chain + text + "solver: {engine: modal}\n").build();
+  CHECK(modal.engine == EngineKind::modal);
+  std::string soft = text;
+  soft.replace(soft.find("restitution: 0.5"), 16, "law: compliant, stiffness: 2, damping: 0.02");
+  const SceneError e = scene_error(chain + soft + "solver: {engine: modal}\n");
+  CHECK(e.path() == "stops[0].law");
+  CHECK_THAT(e.problem(), Contains("compliant stop along a general normal"));
 }
 
 TEST_CASE("bad normals in a scene name the file, the line, the column and the key", "[general-stops]") {

@@ -133,7 +133,8 @@ class Mechanics {
 
   /// A chain of the modal engine (modal.hpp) in its banded form: M diagonal, K tridiagonal,
   /// C = αM + βK, so that every operation the resets and the contact forces need is O(n) and
-  /// nothing n × n is stored (chains of 10 000 masses). The generator and the force rows, which
+  /// nothing n × n is stored (chains of 10 000 masses); compliant stops as on the dense form
+  /// (engaged sets' a_free,E, forces, resets). The generator and the force rows, which
   /// are dense by nature, are not available on this form (the modal tangent map does not use them).
   /// `direction` (T = Dual) seeds the forcing, Ω and the stops' data; it must not move M, C or K
   /// (their derivatives have no banded form here; the caller refuses them).
@@ -317,6 +318,11 @@ class Mechanics {
       if (compliant(j)) out.push_back(j);
     return out;
   }
+
+  /// A compliant stop's law (stops.hpp): k_j, c_j, F_p,j (0 on a rigid stop).
+  const T& compliant_stiffness(int j) const { return ks_[static_cast<std::size_t>(j)]; }
+  const T& compliant_damping(int j) const { return cs_[static_cast<std::size_t>(j)]; }
+  const T& preload(int j) const { return fp_[static_cast<std::size_t>(j)]; }
 
   /// a_free,E: the free acceleration with the compliant stops of S engaged (file comment).
   VecT<T> free_acceleration_in(const ContactSet& S, const VecT<T>& x, const VecT<T>& v, const T& t) const {
@@ -566,8 +572,7 @@ class Mechanics {
       const StopDerivative ds = d.stops.empty() ? StopDerivative{} : d.stops[j];
       SparseNormal w;
       w.i = s.mass;
-      if (s.kind == Stop::Kind::normal) {
-        if (banded_) throw std::logic_error("Mechanics: the banded form takes stops on one mass or two");
+      if (s.kind == Stop::Kind::normal) {  // (on the banded form too: O(N) per product with it)
         w.dense = s.direction;
         w.i = 0;
       } else if (s.kind == Stop::Kind::between) {
@@ -610,10 +615,8 @@ class Mechanics {
           hs_[j].push_back(make(stops[j].h_sin(i), derivative(d.stop_harmonic_sine)));
         }
     }
-    if (has_compliant(stops)) {
-      if (banded_) throw std::logic_error("Mechanics: the banded form takes rigid stops only");
+    if (has_compliant(stops))  // on the banded form too: a_free,E needs only M⁻¹ and the normals
       for (const Stop& s : stops) compliant_.push_back(s.is_compliant());
-    }
   }
 
   Eigen::Index n_;

@@ -41,13 +41,19 @@ VectorXd derivative(const VecD& a) {
 }
 VecD constant(const VectorXd& value) { return value.cast<Dual>(); }
 
-/// Throws InvalidInput for a parameter derivative of the wrong size or one that moves M, C or K:
-/// those move the chain's modes, i.e. the homogeneous flow itself, which the modal map keeps fixed.
-void check_derivative(const SystemDerivative& d, Index n, std::size_t stops) {
-  d.validate(n, stops);
+/// Throws InvalidInput for a parameter derivative of the wrong size or one that moves M, C or K,
+/// or a compliant stop's spring or dashpot: those move the chain's modes (or an engaged set's),
+/// i.e. the homogeneous flow itself, which the modal map keeps fixed. A preload is a force only.
+void check_derivative(const SystemDerivative& d, Index n, const std::vector<Stop>& stops) {
+  d.validate(n, stops.size());
   if (Mechanics<double>::moves_matrices(d))
     throw InvalidInput("linearisation: derivatives of the mass, damping or stiffness matrices are not available on "
                        "the modal engine (they move its modes): use the dense engine");
+  for (std::size_t j = 0; j < d.stops.size(); ++j)
+    if (d.stops[j].stiffness != 0.0 || d.stops[j].damping != 0.0)
+      throw InvalidInput("linearisation: derivatives of stops[" + std::to_string(j) +
+                         "]'s stiffness or damping are not available on the modal engine (they move the modes of "
+                         "the sets where it is engaged): use the dense engine");
 }
 
 /// A segment: the homogeneous flow of one contact set over τ = t_end − t_begin.
@@ -125,6 +131,9 @@ struct ModalTangent::Record {
   std::vector<Op> ops;
   const ChainModes* free = nullptr;      // the free chain's modes (the modal coordinates of FreeImpact)
   bool modal_events = true;              // free-flight impacts as FreeImpact (else the general path)
+  /// Whether the columns of `md`'s flights stay in the free chain's modal coordinates: the free
+  /// set (no stop held or engaged), whose modes are the free chain's.
+  bool free_set(const ModalContactMode& md) const { return md.modes == free && md.stuck.empty(); }
   std::size_t split = 0;                 // ops [0, split) and [split, end): J = J₂ J₁ (see fill_jacobian)
   const ModalContactMode* split_mode = nullptr;
   mutable ChainModes::Workspace work;
@@ -136,7 +145,8 @@ struct ModalTangent::Record {
   }
   static Dual force_of(const Mechanics<Dual>& m, const ContactSet& held, int guard, const VecD& x, const VecD& v,
                        const Dual& t) {
-    const auto a = static_cast<Index>(std::lower_bound(held.begin(), held.end(), guard) - held.begin());
+    const ContactSet R = m.held_part(held);  // the forces are the held rigid stops' (not the engaged ones')
+    const auto a = static_cast<Index>(std::lower_bound(R.begin(), R.end(), guard) - R.begin());
     return m.forces(held, x, v, t)(a);
   }
 
@@ -145,6 +155,7 @@ struct ModalTangent::Record {
     if (s.guard < 0) return 0.0;
     if (s.impact) {
       const detail::SparseNormal& w = mech.normal(s.guard);
+      if (w.dense.size() > 0) return w.dense.dot(dx);  // a general normal
       return w.a * dx(w.i) + (w.k >= 0 ? w.b * dx(w.k) : 0.0);
     }
     return -force_derivative(s.rule.held_before, s.guard, s.x, s.vm, s.t, dx, dv, 0.0);
@@ -284,6 +295,28 @@ struct ModalTangent::Record {
                                               VecD((part == 0 ? r : -r) * other)) +
                          r * r * mine));
       }
+    // The engaged compliant stops' forces −M⁻¹w_j N_j along x = o(t), N_j = k_j g_j + c_j g_j' + F_p,j
+    // with g_j = w_jᵀo − s_j(t) (mechanics.hpp): on harmonic (cos, sin) amplitudes (g_c, g_s) at
+    // rate r, N's are (k g_c + c r g_s, k g_s − c r g_c); the constant one is k g_0 + F_p.
+    for (int j : md.engaged) {
+      VecD w = VecD::Zero(n);
+      m.normal(j).scatter(w);
+      const VecD Mw = m.mass_inverse(w);
+      const Dual k = m.compliant_stiffness(j), c = m.compliant_damping(j);
+      auto gap = [&](const VecD& offset, const Dual& s) { return Dual(m.normal_dot(j, offset) - s); };
+      auto push = [&](std::size_t cos_slot, std::size_t sin_slot, const Dual& rate, const Dual& gc, const Dual& gs) {
+        a[cos_slot] -= Mw * Dual(k * gc + c * rate * gs);
+        a[sin_slot] -= Mw * Dual(k * gs - c * rate * gc);
+      };
+      a[0] -= Mw * Dual(k * gap(o[0], m.stop_amplitude(j, 0)) + m.preload(j));
+      push(1, 2, W, gap(o[1], m.stop_amplitude(j, 1)), gap(o[2], m.stop_amplitude(j, 2)));
+      for (Index h = 0; h < H; ++h) {
+        const auto hs = static_cast<std::size_t>(h);
+        push(static_cast<std::size_t>(3 + h), static_cast<std::size_t>(3 + H + h), m.harmonic_rate(hs),
+             gap(oh[hs], m.stop_harmonic_amplitude(j, hs, 0)),
+             gap(oh[static_cast<std::size_t>(H + h)], m.stop_harmonic_amplitude(j, hs, 1)));
+      }
+    }
     Particular out;
     out.hc.assign(oh.begin(), oh.begin() + H);
     out.hs.assign(oh.begin() + H, oh.end());
@@ -325,7 +358,7 @@ struct ModalTangent::Record {
         }
       }
       MatrixXd X = C;  // the free set stays in modal coordinates (o = 0 there)
-      if (!md.stuck.empty()) {
+      if (!free_set(md)) {
         MatrixXd Yp(nr, 2 * K);
         modes.tangent_to_physical(C, Yp, work);
         X.resize(n, 2 * K);
@@ -418,14 +451,16 @@ class Recorder final : public Observer {
     if (sim_.modes_dropped() != dropped_) broken_ = true;
     if (broken_) return;
     const double tb = view.t_begin(), te = view.t_end();
-    const ContactSet& S = view.active();
+    // The set's key, as the dense map keys it: the held rigid stops and the engaged compliant ones.
+    const ContactSet S = mv->mode().engaged.empty() ? mv->mode().stuck
+                                                    : detail::set_union(mv->mode().stuck, mv->mode().engaged);
     if (first_) {
       first_ = false;
       VectorXd xb(n_), vb(n_);
       view.state(tb, xb, vb);
-      out_.starts_held = !S.empty();
+      out_.starts_held = !mv->mode().stuck.empty();
       held_ = S;
-      for (int j : S) phases_.open(j, tb);
+      for (int j : mv->mode().stuck) phases_.open(j, tb);
       out_.rate_start = rate(S, tb, xb, vb);
     } else if (pending_) {
       finish_transition(view, S);
@@ -471,19 +506,27 @@ class Recorder final : public Observer {
   }
 
   /// The features of the kept segment over [tb, te] (linearisation.hpp, as the dense recorder finds
-  /// them): the interior maxima of the gaps of the stops not held, the interior minima of the held
-  /// stops' forces (maxima of their guards −λ), each by the certified search on the modal guards.
+  /// them): the interior maxima of the gaps of the stops not held (for an engaged compliant stop,
+  /// of its penetration: minima of its guard −g), the interior minima of the held stops' forces
+  /// (maxima of their guards −λ), each by the certified search on the modal guards.
   void features(double tb, double te) {
     const ModalContactMode& md = last_.mode();
     const double tau = te - tb;
-    for (Index row = 0; row < md.gap_rows; ++row) {
+    const auto rows = static_cast<Index>(md.watched.size());
+    for (Index row = 0; row < rows; ++row) {
+      const bool engaged = row >= md.engaged_rows_from;
+      if (row >= md.gap_rows && !engaged) continue;  // −λ of a held stop
+      const double sign = engaged ? -1.0 : 1.0;      // the gap g from the guard (g, or −g engaged)
       const int j = md.watched[static_cast<std::size_t>(row)];
-      const double g_start = last_.guard(row, tb);
+      const double g_start = sign * last_.guard(row, tb);
       const double size =
           std::max({std::abs(g_start), std::abs(last_.guard(row, tb + 0.5 * tau)), std::abs(last_.guard(row, te))});
-      for (const Minimum& peak : last_.guard_local_maxima(row, tb, te, sim_.gap_tolerance())) {
-        if (detail::flight_start_artifact(peak.tau - tb, tau, peak.value, g_start, size)) continue;
-        out_.gap_peaks.push_back({j, peak.tau, peak.value});
+      const std::vector<Minimum> peaks = engaged ? last_.guard_local_minima(row, tb, te, sim_.gap_tolerance())
+                                                 : last_.guard_local_maxima(row, tb, te, sim_.gap_tolerance());
+      for (const Minimum& peak : peaks) {
+        const double g = sign * peak.value;
+        if (detail::flight_start_artifact(peak.tau - tb, tau, g, g_start, size)) continue;
+        out_.gap_peaks.push_back({j, peak.tau, g});
       }
     }
     for (std::size_t a = 0; a < md.stuck.size(); ++a)
@@ -540,10 +583,11 @@ class Recorder final : public Observer {
     const ContactSet& caught = tr.caught;
     const ContactSet& released = tr.released;
     SaltationRecord record = detail::record_of(t, held_, tr, held_after);
-    phases_.change(t, held_, held_after);
+    phases_.change(t, rec_.mech.held_part(held_), rec_.mech.held_part(held_after));
 
     const bool free_flight_impact = held_.empty() && held_after.empty() && impacting.size() == 1 && caught.empty() &&
-                                    released.empty();
+                                    released.empty() && tr.switched.empty() &&
+                                    rec_.mech.normal(impacting.front()).dense.size() == 0;  // (general: below)
     if (rec_.modal_events && free_flight_impact) {
       record.guard_stop = impacting.front();
       record.impact = true;
@@ -568,23 +612,51 @@ class Recorder final : public Observer {
     VectorXd xb(n_), vp(n_);
     next.state(next.t_begin(), xb, vp);
     Jump jump;
+    // Compliant stops' engagements and disengagements first (the engine resolves them before the
+    // rigid stops' events at one instant), one at a time in index order, as the dense map takes
+    // them: each the saltation of linearisation.hpp with the guard g_j and no reset but the held
+    // rigid stops' projection (the identity when c_j = 0; with c_j > 0 the acceleration jumps by
+    // ∓M⁻¹w_j c_j ġ_j, f⁺ − f⁻ in the salt's jump). held_ moves along to the key the rigid part starts from.
+    double least_switch = std::numeric_limits<double>::infinity();
+    for (int j : tr.switched) {
+      ContactSet after = held_;
+      const auto at = std::lower_bound(after.begin(), after.end(), j);
+      if (at != after.end() && *at == j) after.erase(at);
+      else after.insert(at, j);
+      const ResetRule rule{held_, {}, {}, {}, after, rule_};
+      jump.salts.push_back(salt(rule, j, true, xe_, ve_, ve_, t));
+      least_switch = std::min(least_switch, std::abs(jump.salts.back().rate));
+      held_ = std::move(after);
+    }
+    if (!tr.switched.empty()) {
+      record.guard_stop = tr.switched.front();
+      record.guard_rate = least_switch;
+      if (impacting.empty() && released.empty() && rec_.mech.held_part(held_) == rec_.mech.held_part(held_after)) {
+        out_.saltations.push_back(record);
+        rec_.ops.emplace_back(std::move(jump));
+        held_ = held_after;
+        return;
+      }
+    }
     if (impacting.size() <= 1) {
       const ResetRule rule{held_, impacting, caught,
                            detail::impulse_set(rec_.mech, held_, impacting, caught, ve_, t), held_after,
                            rule_};
       const bool impact = !impacting.empty();
       const int guard = impact ? impacting.front() : (released.empty() ? -1 : released.front());
-      record.guard_stop = guard;
       record.impact = impact;
       jump.salts.push_back(salt(rule, guard, impact, xe_, ve_, vp, t));
-      record.guard_rate = jump.salts.back().rate;
+      if (guard >= 0 || tr.switched.empty()) {  // else the switches' guard and rate stand
+        record.guard_stop = guard;
+        record.guard_rate = jump.salts.back().rate;
+      }
     } else {
       record.simultaneous = true;
       record.guard_stop = impacting.front();
       record.impact = true;
-      jump = in_sequence(tr, held_after, vp, t, false);
+      const Jump forward = in_sequence(tr, held_after, vp, t, false);
       const Jump backward = in_sequence(tr, held_after, vp, t, true);
-      record.order_spread = spread(jump, backward);
+      record.order_spread = spread(forward, backward);
       if (record.order_spread > 1e-8 && !out_.non_smooth) {
         out_.non_smooth = true;
         out_.non_smooth_reason = "simultaneous impacts at t = " + number_text(t) +
@@ -592,7 +664,8 @@ class Recorder final : public Observer {
                                  number_text(record.order_spread) + ")";
       }
       record.guard_rate = std::numeric_limits<double>::infinity();
-      for (const Salt& s : jump.salts) record.guard_rate = std::min(record.guard_rate, s.rate);
+      for (const Salt& s : forward.salts) record.guard_rate = std::min(record.guard_rate, s.rate);
+      jump.salts.insert(jump.salts.end(), forward.salts.begin(), forward.salts.end());
     }
     if (record.impact) least_rate_ = std::min(least_rate_, record.guard_rate);
     out_.saltations.push_back(record);
@@ -704,11 +777,6 @@ ModalTangent::ModalTangent(ModalEngine& engine, double t0, const VectorXd& x0, c
                            const LinearisationOptions& options, bool modal_events)
     : sim_(&engine.simulator()), n_(engine.simulator().modes().dof()) {
   ModalChainSimulator& sim = engine.simulator();
-  for (std::size_t j = 0; j < sim.stops().size(); ++j)
-    if (sim.stops()[j].is_compliant())
-      throw InvalidInput("modal tangent: stops[" + std::to_string(j) + "] is compliant; the modal engine's tangent map "
-                         "(shooting, multipliers, continuation, Lyapunov exponents) takes rigid stops only: "
-                         "use solver.engine: dense for the analysis of compliant stops");
   record_ = std::make_unique<Record>(sim.modes().chain(), sim.stops());
   record_->mass_of_chain = sim.modes().chain().mass;
   record_->free = &sim.modes();
@@ -761,7 +829,7 @@ void ModalTangent::apply_range(std::size_t from, std::size_t to, MatrixXd& D, bo
       // A flight maps z to z_p(t_end) + J_h (z − z_p(t_begin)), z_p the set's particular solution
       // and J_h its homogeneous flow (independent of Ω, the forcing and the stops' data): along
       // dD, ζ ← J_h (ζ − ∂z_p(t_begin)/∂p) + ∂z_p(t_end)/∂p.
-      const bool free_set = f->mode->stuck.empty();
+      const bool free_set = r.free_set(*f->mode);
       want(free_set);
       const Particular* pt = p ? &r.particular(*p, *f->mode) : nullptr;
       if (pt) Record::add_particular(*pt, p->data.frequency(), f->t_begin, -1.0, D.col(p->column));
@@ -793,7 +861,7 @@ MatrixXd ModalTangent::apply(const MatrixXd& directions) const {
 }
 
 VectorXd ModalTangent::parameter(const SystemDerivative& derivative) const {
-  check_derivative(derivative, n_, sim_->stops().size());
+  check_derivative(derivative, n_, sim_->stops());
   Sensitivity p(sim_->modes().chain(), sim_->stops(), derivative, 0);
   MatrixXd zeta = MatrixXd::Zero(2 * n_, 1);  // ζ(t0) = 0: the start is fixed
   apply_range(0, record_->ops.size(), zeta, false, false, &p);
@@ -860,7 +928,7 @@ void ModalTangent::fill_jacobian(TangentMap& out) const {
 TangentMap linearise(ModalEngine& engine, double t0, const VectorXd& x0, const VectorXd& v0, double t1,
                      const LinearisationOptions& options) {
   if (options.parameter)
-    check_derivative(*options.parameter, engine.simulator().modes().dof(), engine.simulator().stops().size());
+    check_derivative(*options.parameter, engine.simulator().modes().dof(), engine.simulator().stops());
   const Index n2 = 2 * engine.simulator().modes().dof();
   if (options.directions.size() > 0 && options.directions.rows() != n2)
     throw InvalidInput("linearisation: directions have " + std::to_string(options.directions.rows()) +

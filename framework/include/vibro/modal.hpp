@@ -82,6 +82,14 @@
 /// forces), would break the tridiagonal form: the run then ends with RunStatus::unsupported
 /// and says which stops (the dense Simulator handles those).
 ///
+/// **General normals** (Stop::Kind::normal, nᵀx ≤ p with any n): the guard row is nᵀ written in
+/// each set's modes, Φ_Sᵀ Tᵀn (one O(N n_r) product when the set is first built, as
+/// ModalSegmentView::plane_crossings writes a section's plane), searched and bounded as any other
+/// row; an impact's impulse acts along M⁻¹n, O(N) per event (the rank-1 update of the modal
+/// velocities in free flight, event_resolution.cpp's rules otherwise). A stop held along a
+/// general normal would couple the masses of n in the reduced chain, which is then no chain: a
+/// run in which one would stick ends with RunStatus::unsupported, naming the stop (the dense
+/// Simulator holds it).
 /// **Contact forces in O(n_r).** With the residual ρ_l = m_l x_l'' + (C x')_l + (K x)_l - f_l of
 /// mass l, the held stops of a group G satisfy W_G λ_G = -ρ_G (W_G the normals restricted to G,
 /// full column rank), so -λ_G = W_G⁺ ρ_G. Each ρ_l involves masses l-1, l, l+1 only, and in the
@@ -486,6 +494,9 @@ class ModalSegmentState {
   /// at max(1e-13 |h'(from)|, 1e-3 × `tolerance` × the fastest rate): {value h, absolute time}.
   /// O(n_r) per evaluation.
   std::vector<Minimum> guard_local_maxima(Eigen::Index row, double from, double to, double tolerance) const;
+  /// Its interior local minima, the same way (an engaged compliant stop's guard −g: the maxima of
+  /// its penetration g).
+  std::vector<Minimum> guard_local_minima(Eigen::Index row, double from, double to, double tolerance) const;
   /// Guard `row`'s value at t (as above, t may lie beyond the segment's end). O(n_r).
   double guard(Eigen::Index row, double t) const;
 
@@ -525,11 +536,13 @@ class ModalSegmentView final : public SegmentView {
   const ModalContactMode* mode_;
 };
 
-/// What the modal engine says of a stop along a general normal (Stop::Kind::normal), which it
-/// refuses: its reductions fix masses or join neighbours.
+/// What the modal engine says of a stop along a general normal (Stop::Kind::normal): it runs
+/// one through free flight, impacts and chatter, but does not hold one (its reductions fix
+/// masses or join neighbours; see "General normals" above).
 inline constexpr const char* kModalStopsOnly =
-    "the modal engine takes stops on one mass (upper, lower) or between two masses; the dense "
-    "engine takes any normal (solver.engine: dense)";
+    "the modal engine runs a stop along a general normal through free flight, impacts and chatter but "
+    "does not hold one (a run in which it would stick ends unsupported); the dense engine holds any "
+    "(solver.engine: dense)";
 
 /// Why the modal engine cannot run compliant stop `s` on `chain` (empty: it can). It takes a
 /// compliant stop on one mass or between neighbouring masses (k_s then stays on K's band) whose
@@ -546,7 +559,7 @@ BandedChain with_stop_orders(BandedChain chain, const std::vector<Stop>& stops);
 
 /// Free flight, impacts, chatter and sticking of a proportionally damped chain with stops, in
 /// modal coordinates. Stops are validated here (mass indices, r ∈ [0, 1], finite values, moving
-/// stops need Ω > 0; a general normal is refused with kModalStopsOnly; a compliant stop
+/// stops need Ω > 0; a general normal needs N finite entries, not all zero; a compliant stop
 /// compliant_refusal refuses, with its reason). Not thread-safe: one simulator per thread (they may share one const
 /// ChainModes). A stop may move with higher harmonics (Stop::harmonics): its motion enters the
 /// guards, the held sets' offsets and the crossing search's bounds as the drive's extra

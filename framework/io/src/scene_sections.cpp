@@ -580,16 +580,10 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
   int refused_stop = -1;
   std::string refused_why;
   YAML::Node refused_at;
-  // Shooting, continuation and Lyapunov exponents need the tangent map, whose modal form
-  // (modal_tangent.hpp) takes rigid stops only.
-  const bool tangent_run = p.run.kind == RunSpec::Kind::orbit || p.run.kind == RunSpec::Kind::continuation ||
-                           p.run.kind == RunSpec::Kind::lyapunov;
   if (banded)
     for (std::size_t j = 0; j < p.stops.size() && refused_stop < 0; ++j) {
       if (!p.stops[j].is_compliant()) continue;
       std::string why = compliant_refusal(p.stops[j], *banded);
-      if (why.empty() && tangent_run)
-        why = "the modal engine's tangent map (shooting, continuation, Lyapunov exponents) takes rigid stops only";
       if (!why.empty()) {
         refused_stop = static_cast<int>(j);
         refused_why = std::move(why);
@@ -597,7 +591,9 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
         if (list && list.IsSequence() && j < list.size()) refused_at = list[j]["law"] ? list[j]["law"] : list[j];
       }
     }
-  int general_stop = -1;  // the first stop along a general normal, which the modal engine refuses
+  // The first stop along a general normal: the modal engine runs it (given explicitly) but does not
+  // hold it, so auto leaves such scenes to the dense engine.
+  int general_stop = -1;
   for (std::size_t j = 0; j < p.stops.size() && general_stop < 0; ++j)
     if (p.stops[j].kind == Stop::Kind::normal) general_stop = static_cast<int>(j);
   if (resolve_taylor_engine(r, root, p)) {
@@ -616,7 +612,6 @@ void resolve_engine(Reader& r, const YAML::Node& root, SceneParts& p) {
              "the modal engine (solver.engine: modal) cannot run " + path + ": " + refused_why +
                  " (use solver.engine: dense or auto)");
     }
-    if (general_stop >= 0) refuse("stops[" + std::to_string(general_stop) + "] has a general normal: " + kModalStopsOnly);
     engine = EngineKind::modal;
     reason = "solver.engine: modal";
   } else if (engine_choice == EngineChoice::dense) {

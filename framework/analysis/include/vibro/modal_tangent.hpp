@@ -20,6 +20,11 @@
 /// the guard's derivative (w_jᵀδx for an impact, −δλ_j for a release) and f∓ = (v, a_S) the vector
 /// fields of the sets before and after. Simultaneous impacts are taken one at a time (index
 /// order); their order's effect is measured on fixed test vectors (TangentMap::non_smooth).
+/// A compliant stop engaging or disengaging (modal.hpp, "Compliant stops") is such a saltation
+/// with the guard g_j and no reset but the held rigid stops' projection: f⁺ − f⁻ = ∓(0, M⁻¹w_j
+/// c_j ġ_j) at g_j = 0 (the spring's force k_j g_j vanishes there), so the map is continuous
+/// through it when c_j = 0 and jumps by (f⁺ − f⁻) w_jᵀδx / ġ_j otherwise. The sets with engaged
+/// stops are flown in their own modes, as the engine flies them.
 ///
 /// **Parameter derivatives** (parameter(): ζ = ∂z/∂p at fixed t0, t1 along a SystemDerivative dD
 /// that moves Ω, the forcing (any of its harmonics) or the stops' data). None of these moves the homogeneous flow J_h of a
@@ -31,7 +36,9 @@
 /// harmonic_response) in dual numbers: O(N) per flight once a set's amplitudes are known (O(N n_r)
 /// per set and parameter). An event adds s_p = R_p + (f⁺ − R_z f⁻ − R_t) h_p / ḣ⁻ (linearisation.hpp),
 /// h_p and R_p again by dual numbers through the same reset and guard code, seeded along dD.
-/// M, C or K derivatives would move the modes themselves and are refused (InvalidInput).
+/// M, C or K derivatives would move the modes themselves and are refused (InvalidInput), and so
+/// are those of a compliant stop's k_s or c_s (they move its engaged sets' modes); its preload
+/// F_p is a force and enters the engaged sets' particular solutions.
 ///
 /// **Differences from the dense linearisation.** (1) A run that starts with a stop held has a
 /// one-sided map at t0: here directions off the constraint manifold are projected onto it at t0
@@ -39,7 +46,7 @@
 /// (tests/analysis/test_modal_tangent.cpp); the parameter derivative of a run starting held
 /// likewise includes the projection of the start onto the moved manifold. (2) Parameter
 /// derivatives only along Ω, the forcing and the stops' data (offsets, harmonic motion,
-/// restitution), equal to the dense ones to rounding (≤ 7e-13 relative in the tests); mass,
+/// restitution, a compliant stop's preload), equal to the dense ones to rounding (≤ 7e-13 relative in the tests); mass,
 /// damping and stiffness derivatives are refused (dense engine). (3) Features (options.features:
 /// gap peaks, force dips with those past a release, impacts; phases always) are found by the
 /// engine's certified search on the modal guards' slopes (ModalSegmentState::guard_local_maxima)
@@ -68,8 +75,9 @@ namespace vibro {
 class ModalTangent {
  public:
   /// Runs `engine` from (t0, x0, v0) to t1 and records the tangent map. Throws InvalidInput as
-  /// the engine's run does (sizes, an inadmissible start), and for a compliant stop (the map
-  /// takes rigid stops only; the dense linearisation takes compliant ones). If the run does not complete, map()
+  /// the engine's run does (sizes, an inadmissible start). Compliant stops' engagements and
+  /// disengagements are switches of the vector field with their saltation matrices, as on the
+  /// dense map (linearisation.hpp). If the run does not complete, map()
   /// says so in its summary and apply() throws std::logic_error.
   /// `modal_events` false takes every event through physical coordinates (the general path; for
   /// tests of the free-flight fast path, see below).

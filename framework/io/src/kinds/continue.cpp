@@ -865,6 +865,17 @@ void parse_continue_section(RunSection& s) {
                    "), whose continuation differentiates only along the forcing frequency, the forcing and the stops' "
                    "data (M, C and K fix its modes): set solver.engine: dense, or continue in one of those");
       }
+    if (engine == EngineKind::modal)  // a compliant stop's spring or dashpot moves its engaged sets' modes
+      for (const ContinuationPath& c : *paths)
+        for (std::size_t j = 0; j < c.derivative.stops.size(); ++j)
+          if (c.derivative.stops[j].stiffness != 0.0 || c.derivative.stops[j].damping != 0.0) {
+            r.fail(c.at, c.key,
+                   "'" + c.path + "' moves the stiffness or damping of compliant stops[" + std::to_string(j) +
+                       "], and this scene resolves to the modal engine (" + reason +
+                       "), which keeps the modes of the contact sets it is engaged in fixed: set solver.engine: dense, "
+                       "or continue in its preload, its position or another parameter");
+            break;
+          }
     if (engine == EngineKind::taylor)  // the lifted variational equation does not move M (taylor_tangent.cpp)
       for (const ContinuationPath& c : *paths)
         if (c.derivative.mass.size() > 0 && !c.derivative.mass.isZero(0.0))
