@@ -17,66 +17,128 @@ namespace vibro {
 using detail::FrictionTables;
 using detail::sign_of;
 
-/// A mode's exact flow and guards (friction_stops.hpp): rows [0, opening) the open stops' gaps,
-/// [opening, stop_rows) the held rigid stops' −λ and the engaged compliant stops' −g (in stop
-/// order), then the friction guards.
+namespace {
+
+/// A mode's rows (friction_stops.hpp), written once for the engine's modes and for
+/// friction_stop_mode_rows: the friction forces and the held stops' forces (F = −λ), the
+/// generator, and the guard rows: [0, opening) the open stops' gaps, [opening, stop_rows) the held
+/// rigid stops' −λ and the engaged compliant stops' −g (in stop order), then the friction guards.
+struct ModeRows {
+  Eigen::MatrixXd force, held, generator, guards;
+  Eigen::Index opening = 0, stop_rows = 0;
+  std::vector<int> row_stop, contact;
+  std::vector<char> gap_guard, force_guard;
+};
+
+void build_mode_rows(const Eigen::MatrixXd& M, const Eigen::MatrixXd& C, const Eigen::MatrixXd& K,
+                     const HarmonicForcing& forcing, const std::vector<Stop>& stops, const FrictionTables& tab,
+                     const ContactSet& key, const ContactSet& held, const std::vector<FrictionState>& states,
+                     ModeRows& out) {
+  Eigen::MatrixXd accel;
+  tab.mode_rows(states, out.force, accel, &out.held);
+  out.generator = augmented_generator(M, C, K, forcing);
+  out.generator.middleRows(tab.n, tab.n) = accel;
+  const Eigen::Index n = tab.n, N = tab.N, off = tab.off;
+  std::vector<Eigen::VectorXd> rows;
+  auto gap_row = [&](int j) {
+    const Stop& st = stops[static_cast<std::size_t>(j)];
+    Eigen::VectorXd row = Eigen::VectorXd::Zero(N);
+    row.head(n) = st.normal(n);
+    row(off) = -st.s_cos();
+    row(off + 1) = -st.s_sin();
+    row(off + 2) = -st.s0();
+    for (std::size_t i = 0; i < st.harmonics.size(); ++i) {  // on the forcing's slot of its order
+      const Eigen::Index col = augmented_size(n, forcing_slot(forcing, st.harmonics[i].order));
+      row(col) = -st.h_cos(i);
+      row(col + 1) = -st.h_sin(i);
+    }
+    return row;
+  };
+  for (int j = 0; j < static_cast<int>(stops.size()); ++j)
+    if (!std::binary_search(key.begin(), key.end(), j)) {
+      rows.push_back(gap_row(j));
+      out.row_stop.push_back(j);
+    }
+  out.opening = static_cast<Eigen::Index>(rows.size());
+  for (int j : key) {
+    if (stops[static_cast<std::size_t>(j)].is_compliant()) {
+      rows.push_back(-gap_row(j));
+      out.gap_guard.push_back(true);
+    } else {
+      const auto a = std::lower_bound(held.begin(), held.end(), j) - held.begin();
+      rows.push_back(out.held.row(a).transpose());  // −λ = F
+      out.gap_guard.push_back(false);
+    }
+    out.row_stop.push_back(j);
+  }
+  out.stop_rows = static_cast<Eigen::Index>(rows.size());
+  const Eigen::MatrixXd friction = detail::friction_guard_rows(tab, states, out.force, &out.contact, &out.force_guard);
+  out.guards.resize(out.stop_rows + friction.rows(), N);
+  for (Eigen::Index i = 0; i < out.stop_rows; ++i) out.guards.row(i) = rows[static_cast<std::size_t>(i)].transpose();
+  out.guards.bottomRows(friction.rows()) = friction;
+}
+
+/// The stops' part of a mode: which stops of `key` are held (rigid) and engaged (compliant).
+detail::FrictionStopPart stop_part(const std::vector<Stop>& stops, const ContactSet& key) {
+  detail::FrictionStopPart part;
+  part.stops = &stops;
+  for (int j : key) (stops[static_cast<std::size_t>(j)].is_compliant() ? part.engaged : part.held).push_back(j);
+  return part;
+}
+
+}  // namespace
+
+FrictionStopModeRows friction_stop_mode_rows(const Eigen::MatrixXd& M, const Eigen::MatrixXd& C,
+                                             const Eigen::MatrixXd& K, const HarmonicForcing& forcing,
+                                             const std::vector<Stop>& stops,
+                                             const std::vector<FrictionContact>& contacts, const ContactSet& key,
+                                             const std::vector<FrictionState>& states) {
+  const detail::FrictionStopPart part = stop_part(stops, key);
+  const FrictionTables tab(M, C, K, forcing, contacts, &part);
+  ModeRows rows;
+  build_mode_rows(M, C, K, forcing, stops, tab, key, part.held, states, rows);
+  FrictionStopModeRows out;
+  out.held = part.held;
+  out.generator = std::move(rows.generator);
+  out.guards = std::move(rows.guards);
+  out.opening_rows = rows.opening;
+  out.stop_rows = rows.stop_rows;
+  out.force = std::move(rows.force);
+  out.held_force = std::move(rows.held);
+  out.relative = tab.u_rows;
+  out.held_rates = tab.uc_rows;
+  out.locked = tab.locked;
+  if (out.locked.empty()) out.locked.assign(contacts.size(), 0);
+  return out;
+}
+
+/// A mode's exact flow and guards (friction_stops.hpp; the rows of build_mode_rows).
 class FrictionStopSimulator::Mode {
  public:
   Mode(const ImpactSystem& scene, const std::vector<FrictionContact>& contacts, const ContactSet& key,
-       const std::vector<FrictionState>& states, FlowOptions options) {
+       const std::vector<FrictionState>& states, FlowOptions options)
+      : key_(key) {
     const LinearSystem& sys = scene.system();
-    const std::vector<Stop>& stops = scene.stops();
-    detail::FrictionStopPart part;
-    part.stops = &stops;
-    for (int j : key) (stops[static_cast<std::size_t>(j)].is_compliant() ? part.engaged : part.held).push_back(j);
+    const detail::FrictionStopPart part = stop_part(scene.stops(), key);
     held_ = part.held;
     tab_ = std::make_unique<FrictionTables>(sys, contacts, &part);
-    Eigen::MatrixXd accel;
-    tab_->mode_rows(states, force_rows_, accel, &held_rows_);
-    generator_ = augmented_generator(sys.mass(), sys.damping(), sys.stiffness(), sys.forcing());
-    generator_.middleRows(tab_->n, tab_->n) = accel;
+    ModeRows rows;
+    build_mode_rows(sys.mass(), sys.damping(), sys.stiffness(), sys.forcing(), scene.stops(), *tab_, key, held_, states,
+                    rows);
+    force_rows_ = std::move(rows.force);
+    held_rows_ = std::move(rows.held);
+    generator_ = std::move(rows.generator);
     flow_ = std::make_unique<LinearFlow>(generator_, tab_->n, sys.forcing().frequency, options);
-    const Eigen::Index n = tab_->n, N = tab_->N, off = tab_->off;
-    std::vector<Eigen::VectorXd> rows;
-    auto gap_row = [&](int j) {
-      const Stop& st = stops[static_cast<std::size_t>(j)];
-      Eigen::VectorXd row = Eigen::VectorXd::Zero(N);
-      row.head(n) = st.normal(n);
-      row(off) = -st.s_cos();
-      row(off + 1) = -st.s_sin();
-      row(off + 2) = -st.s0();
-      for (std::size_t i = 0; i < st.harmonics.size(); ++i) {  // on the forcing's slot of its order
-        const Eigen::Index col = augmented_size(n, forcing_slot(sys.forcing(), st.harmonics[i].order));
-        row(col) = -st.h_cos(i);
-        row(col + 1) = -st.h_sin(i);
-      }
-      return row;
-    };
-    for (int j = 0; j < static_cast<int>(stops.size()); ++j)
-      if (!std::binary_search(key.begin(), key.end(), j)) {
-        rows.push_back(gap_row(j));
-        row_stop_.push_back(j);
-      }
-    opening_rows_ = static_cast<Eigen::Index>(rows.size());
-    for (int j : key) {
-      if (stops[static_cast<std::size_t>(j)].is_compliant()) {
-        rows.push_back(-gap_row(j));
-        gap_guard_.push_back(true);
-      } else {
-        const auto a = std::lower_bound(held_.begin(), held_.end(), j) - held_.begin();
-        rows.push_back(held_rows_.row(a).transpose());  // −λ = F
-        gap_guard_.push_back(false);
-      }
-      row_stop_.push_back(j);
-    }
-    stop_rows_ = static_cast<Eigen::Index>(rows.size());
-    const Eigen::MatrixXd friction = detail::friction_guard_rows(*tab_, states, force_rows_, &contact_, &force_guard_);
-    Eigen::MatrixXd all(stop_rows_ + friction.rows(), N);
-    for (Eigen::Index i = 0; i < stop_rows_; ++i) all.row(i) = rows[static_cast<std::size_t>(i)].transpose();
-    all.bottomRows(friction.rows()) = friction;
-    guards_ = std::make_unique<Functionals>(*flow_, std::move(all));
+    opening_rows_ = rows.opening;
+    stop_rows_ = rows.stop_rows;
+    row_stop_ = std::move(rows.row_stop);
+    contact_ = std::move(rows.contact);
+    gap_guard_ = std::move(rows.gap_guard);
+    force_guard_ = std::move(rows.force_guard);
+    guards_ = std::make_unique<Functionals>(*flow_, std::move(rows.guards));
   }
 
+  const ContactSet& key() const { return key_; }
   const LinearFlow& flow() const { return *flow_; }
   const Functionals& guards() const { return *guards_; }
   const FrictionTables& tables() const { return *tab_; }
@@ -108,7 +170,7 @@ class FrictionStopSimulator::Mode {
   CrossingFinder& finder() const { return finder_; }
 
  private:
-  ContactSet held_;
+  ContactSet key_, held_;
   std::unique_ptr<FrictionTables> tab_;
   Eigen::MatrixXd force_rows_, held_rows_, generator_;
   std::unique_ptr<LinearFlow> flow_;
@@ -156,9 +218,10 @@ class FrictionStopView final : public SegmentView {
 /// object: the algebra's settle and force rates read the current friction states and modes).
 class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
  public:
-  Loop(FrictionStopSimulator& sim, const std::vector<Observer*>& observers, RunSummary& summary, double t_end)
+  Loop(FrictionStopSimulator& sim, const std::vector<Observer*>& observers,
+       const std::vector<FrictionStopObserver*>& mode_observers, RunSummary& summary, double t_end)
       : sim_(sim), scene_(*sim.scene_), sys_(scene_.system()), stops_(scene_.stops()), observers_(observers),
-        summary_(summary), t_end_(t_end), omega_(sys_.forcing().frequency) {
+        mode_observers_(mode_observers), summary_(summary), t_end_(t_end), omega_(sys_.forcing().frequency) {
     const Eigen::Index n = sys_.dof();
     const auto m = static_cast<Eigen::Index>(stops_.size());
     const Eigen::LLT<Eigen::MatrixXd> llt(sys_.mass());
@@ -248,6 +311,26 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
   /// Simulator::Loop::event), then the rigid stops' impacts and releases and the friction
   /// switch, resolved together (resolve_all).
   bool event(detail::RunState& st, const ContactSet& impacts, const ContactSet& releases, std::string* why) {
+    FrictionStopSwitch sw;
+    if (!mode_observers_.empty()) {
+      sw.t = st.t;
+      sw.guard_row = crossing_row_;
+      sw.guards_fired = static_cast<int>(impacts.size() + releases.size()) + (crossing_row_ >= mode_->stop_rows() ? 1 : 0);
+      sw.key_before = mode_->key();
+      sw.before = states_;
+      sw.z_before = detail::augmented_state(sys_, st.t, st.x, st.v);
+    }
+    if (!event_resolved(st, impacts, releases, why)) return false;
+    if (!mode_observers_.empty()) {
+      std::set_union(st.stuck.begin(), st.stuck.end(), engaged_.begin(), engaged_.end(), std::back_inserter(sw.key_after));
+      sw.held_by_stops = held_by_stops_;
+      sw.after = states_;
+      sw.z_after = detail::augmented_state(sys_, st.t, st.x, st.v);
+      for (FrictionStopObserver* o : mode_observers_) o->mode_switch(sw);
+    }
+    return true;
+  }
+  bool event_resolved(detail::RunState& st, const ContactSet& impacts, const ContactSet& releases, std::string* why) {
     ContactSet rigid_impacts, rigid_releases;
     for (const auto* list : {&impacts, &releases}) {
       const bool engage = list == &impacts;
@@ -298,6 +381,8 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
     const double elapsed = t_next - st.t;
     if (hit && elapsed == hit->tau) segment_->state(mode_->finder().crossing_sample(), z);
     else segment_->state(elapsed, z);
+    for (FrictionStopObserver* o : mode_observers_)
+      o->mode_segment(st.t, t_next, mode_->key(), states_, segment_->initial_state());
     st.x = z.head(n);
     st.v = z.segment(n, n);
     return st.x.allFinite() && st.v.allFinite();
@@ -448,6 +533,7 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
                                  summary_, why, work_))
         return false;
     }
+    held_by_stops_ = st.stuck;
     Eigen::VectorXd z = detail::augmented_state(sys_, st.t, st.x, st.v);
     {  // An impulse may have moved a relative velocity off zero: that contact slips with it.
       const Eigen::VectorXd u = mode(st.stuck).tables().u_rows * z;
@@ -521,6 +607,7 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
   const LinearSystem& sys_;
   const std::vector<Stop>& stops_;
   const std::vector<Observer*>& observers_;
+  const std::vector<FrictionStopObserver*>& mode_observers_;
   RunSummary& summary_;
   double t_end_, omega_;
   Eigen::MatrixXd normals_, minv_, minv_normals_, delassus_, minv_damping_, damped_normals_, stiff_normals_;
@@ -530,7 +617,7 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
   detail::EventRules rules_;
   detail::EventWorkspace work_;
   std::function<void(const Event&)> emit_;
-  ContactSet engaged_;
+  ContactSet engaged_, held_by_stops_;
   std::vector<FrictionState> states_;
   const Mode* mode_ = nullptr;
   Segment* segment_ = nullptr;
@@ -546,10 +633,11 @@ FrictionStopSimulator::FrictionStopSimulator(const ImpactSystem& scene, std::vec
 FrictionStopSimulator::~FrictionStopSimulator() = default;
 
 RunSummary FrictionStopSimulator::run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t_end,
-                                      const std::vector<Observer*>& observers) {
+                                      const std::vector<Observer*>& observers,
+                                      const std::vector<FrictionStopObserver*>& mode_observers) {
   sticks_ = slips_ = reversals_ = 0;
   RunSummary summary;
-  Loop loop(*this, observers, summary, t_end);
+  Loop loop(*this, observers, mode_observers, summary, t_end);
   detail::run_event_loop(loop, options_, t0, x0, v0, t_end, observers, summary);
   return summary;
 }

@@ -5,8 +5,7 @@
 ///     events, named in /events/kind, with the friction force, and the contacts in /scene;
 ///  3. a scene without friction writes no friction datasets and the four rigid event kinds.
 /// The refusals (μ_s < μ_k, negative or infinite loads, NaN, indices out of range, unknown keys,
-/// nonlinear forces or the modal engine with friction, the tangent-map run kinds with friction
-/// and stops) are files of
+/// nonlinear forces or the modal engine with friction) are files of
 /// tests/io/malformed/friction_*.yaml.
 #include "vibro/io/result_file.hpp"
 #include "vibro/io/results.hpp"
@@ -121,6 +120,29 @@ TEST_CASE("friction scenes run as orbits and continuations: structural zeros and
       CHECK(std::abs(p[i] - 0.6007) < 1e-3);
     }
   CHECK(onsets == 1);
+}
+
+TEST_CASE("a scene with friction and a rigid stop runs as an orbit: impacts, stick-slip, a structural zero",
+          "[friction]") {
+  // The stick-slip example with a rigid stop at x = 1 (r = 0.7): each period it sticks to the
+  // belt twice and strikes the stop once (tests/analysis/test_friction_stops_analysis.cpp checks
+  // the tangent map of this orbit against differences of the map).
+  const vibro::test::TempDir dir;
+  vibro::io::SceneDocument doc = vibro::io::SceneDocument::load(kStickSlip);
+  doc.replace("stops", "[{mass: 0, side: upper, position: 1, restitution: 0.7}]");
+  doc.replace("run", "{kind: orbit, transient_periods: 200}");
+  doc.replace("record", "");
+  const vibro::io::Scene scene = doc.build();
+  vibro::io::RunRequest request;
+  request.output = dir / "orbit.h5";
+  request.threads = 1;
+  const vibro::io::RunReport report = vibro::io::run_scene(doc, scene, request);
+  CAPTURE(report.summary);
+  REQUIRE(report.exit_code == 0);
+  const vibro::io::ResultReader o(dir / "orbit.h5");
+  CHECK(o.attribute_string("/orbit", "status") == "converged");
+  CHECK(o.attribute_string("/orbit", "structural_zeros") == "1");
+  CHECK(o.attribute_string("/orbit", "stability") == "stable");
 }
 
 TEST_CASE("a scene with friction and a compliant stop runs on the friction engine with stops", "[friction]") {

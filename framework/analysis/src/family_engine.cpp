@@ -11,14 +11,7 @@ namespace {
 
 using Eigen::VectorXd;
 
-/// w_j and −(1 + r_j) M⁻¹w_j / (w_jᵀM⁻¹w_j) from the engine's own mechanics; for a compliant
-/// stop (no impulse) w_j and an empty jump.
-std::pair<VectorXd, VectorXd> lone_impact(const detail::Mechanics<double>& mech, int j) {
-  const VectorXd w = mech.normals(ContactSet{j}).col(0);
-  if (mech.compliant(j)) return {w, VectorXd()};
-  const VectorXd q = mech.mass_inverse(w);
-  return {w, -(1.0 + mech.restitution(j)) / w.dot(q) * q};
-}
+using detail::lone_impact;
 
 class DenseFamilyEngine final : public FamilyEngine {
  public:

@@ -5,6 +5,9 @@
 /// friction scenes is in shooting.cpp, beside the other engines' backends.)
 #include "vibro/friction_tangent.hpp"
 
+#include "friction_parts.hpp"
+#include "mechanics.hpp"
+
 #include <Eigen/QR>
 #include <unsupported/Eigen/MatrixFunctions>
 
@@ -31,37 +34,10 @@ struct ModeData {
   int stuck = 0;
 };
 
-/// The data D moved by h along dD (M fixed): C, K, the forcing, Ω, the contacts' N, μ_s, μ_k.
-struct MovedData {
-  MatrixXd C, K;
-  HarmonicForcing f;
-  std::vector<FrictionContact> contacts;
-};
-MovedData moved(const LinearSystem& s, const std::vector<FrictionContact>& contacts, const SystemDerivative& d,
-                double h) {
-  MovedData out{s.damping(), s.stiffness(), s.forcing(), contacts};
-  for (std::size_t j = 0; j < d.friction.size(); ++j) {
-    out.contacts[j].normal_load += h * d.friction[j].normal_load;
-    out.contacts[j].static_coefficient += h * d.friction[j].static_coefficient;
-    out.contacts[j].kinetic_coefficient += h * d.friction[j].kinetic_coefficient;
-  }
-  if (d.damping.size()) out.C += h * d.damping;
-  if (d.stiffness.size()) out.K += h * d.stiffness;
-  if (d.constant.size()) out.f.constant += h * d.constant;
-  if (d.cosine.size()) out.f.cosine += h * d.cosine;
-  if (d.sine.size()) out.f.sine += h * d.sine;
-  for (std::size_t i = 0; i < out.f.harmonics.size(); ++i) {
-    if (i < d.harmonic_cosine.size() && d.harmonic_cosine[i].size()) out.f.harmonics[i].cosine += h * d.harmonic_cosine[i];
-    if (i < d.harmonic_sine.size() && d.harmonic_sine[i].size()) out.f.harmonics[i].sine += h * d.harmonic_sine[i];
-  }
-  out.f.frequency += h * d.frequency;
-  return out;
-}
-
-template <class Derived>
-double max_abs(const Eigen::MatrixBase<Derived>& a) {
-  return a.size() ? a.cwiseAbs().maxCoeff() : 0.0;
-}
+using detail::max_abs;
+using detail::MovedData;
+using detail::moved;
+using detail::SlipMinimum;
 
 class FrictionTangentRecorder final : public FrictionObserver {
  public:
@@ -88,18 +64,8 @@ class FrictionTangentRecorder final : public FrictionObserver {
       // their accelerations, a slip's force μ_k N and a stuck contact's limit μ_s N are bilinear in
       // (N, μ); M⁻¹ and W_SᵀM⁻¹W_S do not move), so the central difference below is their exact
       // derivative up to rounding, about ε‖rows‖/h: h moves the data by 1e-3 of its size.
-      const HarmonicForcing& f = system.forcing();
-      double size = std::max({max_abs(system.damping()), max_abs(system.stiffness()), max_abs(f.constant),
-                              max_abs(f.cosine), max_abs(f.sine), std::abs(f.frequency), 1e-300});
-      double move = std::max({max_abs(d.damping), max_abs(d.stiffness), max_abs(d.constant), max_abs(d.cosine),
-                              max_abs(d.sine), std::abs(d.frequency)});
-      for (const auto& v : d.harmonic_cosine) move = std::max(move, max_abs(v));
-      for (const auto& v : d.harmonic_sine) move = std::max(move, max_abs(v));
-      for (const ForcingHarmonic& hh : f.harmonics) size = std::max({size, max_abs(hh.cosine), max_abs(hh.sine)});
-      for (const FrictionContact& c : contacts)
-        size = std::max({size, c.normal_load, c.static_coefficient, c.kinetic_coefficient});
-      for (const FrictionDerivative& c : d.friction)
-        move = std::max({move, std::abs(c.normal_load), std::abs(c.static_coefficient), std::abs(c.kinetic_coefficient)});
+      double size = 0.0, move = 0.0;
+      detail::data_and_move(system, contacts, d, size, move);
       step_ = move > 0.0 ? 1e-3 * size / move : 0.0;
       if (step_ > 0.0) {
         plus_ = moved(system, contacts, d, step_);
@@ -115,11 +81,7 @@ class FrictionTangentRecorder final : public FrictionObserver {
     const Index N2 = 2 * n_;
     if (first_) {
       first_ = false;
-      if (frame_) K_ = options_.directions;
-      else K_ = MatrixXd::Identity(N2, N2);
-      Jmid_ = MatrixXd::Identity(N2, N2);
-      basis_ = MatrixXd::Identity(N2, N2);
-      min_dim_ = N2;
+      map_.start(N2, frame_, options_.directions);
       zeta_ = VectorXd::Zero(N_);
       if (options_.parameter) zeta_.segment(N2, N_ - N2) = oscillator_sensitivity(tb);
       for (std::size_t j = 0; j < states.size(); ++j)
@@ -147,16 +109,9 @@ class FrictionTangentRecorder final : public FrictionObserver {
     }
     // The least tangent dimension (friction_tangent.hpp): a contact stuck since the start has not
     // lost its direction (no stick's saltation yet).
-    const Index dim = switched_ ? mode.basis.cols() : N2;
-    if (dim < min_dim_) {
-      min_dim_ = dim;
-      if (options_.jacobian && !frame_) {
-        Jmid_ = K_ * Jmid_;
-        K_.setIdentity();
-        basis_ = mode.basis;
-      }
-    }
-    if (options_.features && tau > 0.0) slip_minima(mode, states, tb, tau, zb);
+    map_.reached(switched_ ? mode.basis.cols() : N2, mode.basis, options_.jacobian && !frame_);
+    if (options_.features && tau > 0.0)
+      detail::slip_minima(mode.rows.generator, mode.rows.relative, states, tb, tau, zb, minima_);
     last_ = &mode;
   }
 
@@ -242,25 +197,7 @@ class FrictionTangentRecorder final : public FrictionObserver {
     if (last_) out_.rate_end = (last_->rows.generator * augmented(f.t, f.x, f.v)).head(N2);
     for (const auto& open : open_)
       if (open.second >= 0) out_.phases[static_cast<std::size_t>(open.second)].t_end = f.t;
-    out_.free_dimension = first_ ? N2 : min_dim_;
-    if (!first_) {
-      if (frame_) {
-        out_.products = K_;
-      } else if (options_.jacobian) {
-        out_.jacobian = K_ * Jmid_;
-        if (min_dim_ < N2) {
-          out_.reduced = basis_.transpose() * Jmid_ * K_ * basis_;
-          out_.lift = K_ * basis_;
-        } else {
-          out_.reduced = out_.jacobian;
-          out_.lift = MatrixXd::Identity(N2, N2);
-        }
-      }
-    } else if (options_.jacobian && !frame_) {  // an empty run: the identity
-      out_.jacobian = out_.reduced = out_.lift = MatrixXd::Identity(N2, N2);
-    } else if (frame_) {
-      out_.products = options_.directions;
-    }
+    map_.write(!first_, frame_, options_.jacobian, options_.directions, N2, out_);
     if (options_.parameter) out_.parameter = first_ ? VectorXd::Zero(N2) : VectorXd(zeta_.head(N2));
     const double V = f.velocity_scale, Fs = f.force_scale, L = f.length_scale;
     const double omega = L > 0.0 ? V / L : 1.0;
@@ -278,10 +215,6 @@ class FrictionTangentRecorder final : public FrictionObserver {
     int contact;
     double t, value;
     bool stuck;
-  };
-  struct SlipMinimum {
-    int contact;
-    double t, value;
   };
 
   ModeData& mode_for(const std::vector<FrictionState>& states) {
@@ -313,43 +246,20 @@ class FrictionTangentRecorder final : public FrictionObserver {
     } else {
       MatrixXd Ws(n_, static_cast<Index>(stuck.size()));
       for (std::size_t a = 0; a < stuck.size(); ++a) Ws.col(static_cast<Index>(a)) = W_.col(stuck[a]);
-      const Eigen::ColPivHouseholderQR<MatrixXd> qr(Ws);
-      const MatrixXd Q = qr.householderQ() * MatrixXd::Identity(n_, n_);
-      const Index r = qr.rank();
-      d.basis.block(n_, n_, n_, n_ - r) = Q.rightCols(n_ - r);
+      Index r = 0;
+      const MatrixXd Q = detail::complement_basis(Ws, n_, &r);
+      d.basis.block(n_, n_, n_, n_ - r) = Q;
       cols = 2 * n_ - r;
     }
     d.basis.conservativeResize(2 * n_, cols);
     return modes_.emplace(states, std::move(d)).first->second;
   }
 
-  /// z = [x; v; cos Ωt; sin Ωt; 1; cos k_hΩt; sin k_hΩt; …] (flow.hpp's layout).
   VectorXd augmented(double t, const VectorXd& x, const VectorXd& v) const {
-    const HarmonicForcing& f = system_.forcing();
-    VectorXd z = VectorXd::Zero(N_);
-    z << x, v, std::cos(f.frequency * t), std::sin(f.frequency * t), 1.0,
-        VectorXd::Zero(2 * static_cast<Index>(f.harmonics.size()));
-    for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
-      const double rate = f.harmonics[h].rate(f.frequency);
-      z(2 * n_ + 3 + 2 * static_cast<Index>(h)) = std::cos(rate * t);
-      z(2 * n_ + 4 + 2 * static_cast<Index>(h)) = std::sin(rate * t);
-    }
-    return z;
+    return detail::augmented_of(system_.forcing(), n_, N_, t, x, v);
   }
-
-  /// d/dp of (cos Ωt, sin Ωt, 1, cos k_hΩt, sin k_hΩt, …) at t: k t dΩ/dp (−sin, cos).
   VectorXd oscillator_sensitivity(double t) const {
-    const HarmonicForcing& f = system_.forcing();
-    const double dw = options_.parameter->frequency, w = f.frequency;
-    VectorXd out = VectorXd::Zero(N_ - 2 * n_);
-    out(0) = -t * std::sin(w * t) * dw;
-    out(1) = t * std::cos(w * t) * dw;
-    for (std::size_t h = 0; h < f.harmonics.size(); ++h) {
-      const double rate = f.harmonics[h].rate(w), k = rate / w;
-      out(3 + 2 * static_cast<Index>(h)) = -k * t * std::sin(rate * t) * dw;
-      out(4 + 2 * static_cast<Index>(h)) = k * t * std::cos(rate * t) * dw;
-    }
-    return out;
+    return detail::oscillator_sensitivity_of(system_.forcing(), options_.parameter->frequency, N_ - 2 * n_, t);
   }
 
   /// |F_j^hold| − μ_s N_j at z: the force that holds contact j (the others as in `states`).
@@ -358,37 +268,6 @@ class FrictionTangentRecorder final : public FrictionObserver {
     const ModeData& held = mode_for(states);
     const FrictionContact& c = contacts_[static_cast<std::size_t>(j)];
     return std::abs(held.rows.force.row(j).dot(z)) - c.static_coefficient * c.normal_load;
-  }
-
-  /// Interior local minima of σ_j u_j over a segment, for every slipping contact (features).
-  void slip_minima(const ModeData& mode, const std::vector<FrictionState>& states, double tb, double tau,
-                   const VectorXd& zb) {
-    constexpr int samples = 64;
-    const MatrixXd& A = mode.rows.generator;
-    const MatrixXd step = (A * (tau / samples)).exp();
-    std::vector<VectorXd> z(samples + 1);
-    z[0] = zb;
-    for (int i = 0; i < samples; ++i) z[static_cast<std::size_t>(i + 1)] = step * z[static_cast<std::size_t>(i)];
-    for (std::size_t j = 0; j < states.size(); ++j) {
-      if (states[j] == FrictionState::stuck) continue;
-      const double sigma = states[j] == FrictionState::slip_positive ? 1.0 : -1.0;
-      const VectorXd u_row = sigma * mode.rows.relative.row(static_cast<Index>(j)).transpose();
-      const VectorXd du_row = A.transpose() * u_row;  // (σu)' = σ ℓ_u Â z
-      for (int i = 0; i < samples; ++i) {
-        const double a = du_row.dot(z[static_cast<std::size_t>(i)]), b = du_row.dot(z[static_cast<std::size_t>(i + 1)]);
-        if (!(a < 0.0 && b >= 0.0)) continue;
-        // Bisection on (σu)' over [i, i + 1] samples.
-        double lo = i * tau / samples, hi = (i + 1) * tau / samples;
-        for (int it = 0; it < 60 && hi - lo > 1e-15 * std::max(1.0, std::abs(tb) + tau); ++it) {
-          const double mid = 0.5 * (lo + hi);
-          const VectorXd zm = (A * mid).exp() * zb;
-          (du_row.dot(zm) < 0.0 ? lo : hi) = mid;
-        }
-        const double s = 0.5 * (lo + hi);
-        if (s <= 1e-9 * tau || s >= (1.0 - 1e-9) * tau) continue;  // an end, not an interior minimum
-        minima_.push_back({static_cast<int>(j), tb + s, u_row.dot((A * s).exp() * zb)});
-      }
-    }
   }
 
   void open_phase(int j, double t) {
@@ -415,8 +294,8 @@ class FrictionTangentRecorder final : public FrictionObserver {
   double step_ = 0.0;
   MovedData plus_, minus_;
   std::map<std::vector<FrictionState>, ModeData> modes_;
-  MatrixXd K_, Jmid_, basis_;
-  Index min_dim_ = 0;
+  detail::CarriedMap map_;
+  MatrixXd& K_ = map_.K;
   VectorXd zeta_;
   const ModeData* last_ = nullptr;
   std::map<int, long> open_;
@@ -445,12 +324,16 @@ TangentMap linearise(const LinearSystem& system, const std::vector<FrictionConta
   return out;
 }
 
-LyapunovResult lyapunov_spectrum(const LinearSystem& system, const std::vector<FrictionContact>& contacts,
-                                 const SimulatorOptions& solver, double t0, const VectorXd& x0, const VectorXd& v0,
-                                 const LyapunovOptions& options) {
+namespace {
+
+/// lyapunov.hpp's QR method on a friction run, once per forcing period (friction's saltations
+/// are bounded: no impact speed divides them; with stops those of impacts enter as for stops
+/// alone): `run(t, x, v, t1)` a plain run, `map(t, x, v, t1, options)` the tangent map.
+template <class Run, class Map>
+LyapunovResult friction_lyapunov(Index n, double omega, double t0, const VectorXd& x0, const VectorXd& v0,
+                                 const LyapunovOptions& options, Run run, Map map) {
   options.validate();
-  const Index n = system.dof(), n2 = 2 * n;
-  const double omega = system.forcing().frequency;
+  const Index n2 = 2 * n;
   if (!(omega > 0.0)) throw InvalidInput("lyapunov: the forcing frequency must be > 0 (exponents are averaged per period)");
   if (options.count > n2)
     throw InvalidInput("lyapunov.count = " + std::to_string(options.count) + ": at most 2n = " + std::to_string(n2));
@@ -460,9 +343,8 @@ LyapunovResult lyapunov_spectrum(const LinearSystem& system, const std::vector<F
   out.period = T;
   double t = t0;
   VectorXd x = x0, v = v0;
-  FrictionSimulator sim(system, contacts, solver);
   if (options.transient > 0) {
-    const FrictionSummary s = sim.run(t, x, v, t + options.transient * T);
+    const RunSummary s = run(t, x, v, t + options.transient * T);
     if (s.status != RunStatus::completed) {
       out.status = s.status;
       out.message = "transient: " + s.message;
@@ -470,8 +352,6 @@ LyapunovResult lyapunov_spectrum(const LinearSystem& system, const std::vector<F
     }
     t = s.t, x = s.x, v = s.v;
   }
-  // The QR method of lyapunov.hpp, once per period (friction's saltations are bounded: no
-  // impact speed divides them).
   MatrixXd Q = MatrixXd::Identity(n2, p);
   VectorXd sums = VectorXd::Zero(p);
   Index least = n2;
@@ -480,7 +360,7 @@ LyapunovResult lyapunov_spectrum(const LinearSystem& system, const std::vector<F
   const long total = options.align + options.periods;
   for (long k = 0; k < total; ++k) {
     lo.directions = Q;
-    const TangentMap m = linearise(system, contacts, solver, t, x, v, t + T, lo);
+    const TangentMap m = map(t, x, v, t + T, lo);
     if (m.summary.status != RunStatus::completed) {
       out.status = m.summary.status;
       out.message = m.summary.message;
@@ -507,6 +387,32 @@ LyapunovResult lyapunov_spectrum(const LinearSystem& system, const std::vector<F
   out.x_end = x;
   out.v_end = v;
   return out;
+}
+
+}  // namespace
+
+LyapunovResult lyapunov_spectrum(const LinearSystem& system, const std::vector<FrictionContact>& contacts,
+                                 const SimulatorOptions& solver, double t0, const VectorXd& x0, const VectorXd& v0,
+                                 const LyapunovOptions& options) {
+  FrictionSimulator sim(system, contacts, solver);
+  return friction_lyapunov(
+      system.dof(), system.forcing().frequency, t0, x0, v0, options,
+      [&](double t, const VectorXd& x, const VectorXd& v, double t1) { return run_summary(sim.run(t, x, v, t1)); },
+      [&](double t, const VectorXd& x, const VectorXd& v, double t1, const LinearisationOptions& lo) {
+        return linearise(system, contacts, solver, t, x, v, t1, lo);
+      });
+}
+
+LyapunovResult lyapunov_spectrum(const ImpactSystem& scene, const std::vector<FrictionContact>& contacts,
+                                 const SimulatorOptions& solver, double t0, const VectorXd& x0, const VectorXd& v0,
+                                 const LyapunovOptions& options) {
+  FrictionStopSimulator sim(scene, contacts, solver);
+  return friction_lyapunov(
+      scene.dof(), scene.system().forcing().frequency, t0, x0, v0, options,
+      [&](double t, const VectorXd& x, const VectorXd& v, double t1) { return sim.run(t, x, v, t1); },
+      [&](double t, const VectorXd& x, const VectorXd& v, double t1, const LinearisationOptions& lo) {
+        return linearise(scene, contacts, solver, t, x, v, t1, lo);
+      });
 }
 
 namespace {
@@ -548,7 +454,57 @@ class FrictionFamilyEngine final : public FamilyEngine {
   SimulatorOptions solver_;
 };
 
+/// Friction with stops: the family's "stops" are the stops, then the contacts (stop_count() +
+/// j for contact j, as the tangent maps number them).
+class FrictionStopFamilyEngine final : public FamilyEngine {
+ public:
+  FrictionStopFamilyEngine(ImpactSystem scene, std::vector<FrictionContact> contacts, SystemDerivative d,
+                           const SimulatorOptions& solver)
+      : FamilyEngine(std::move(d)), scene_(std::move(scene)),
+        contacts_(validated_friction(std::move(contacts), scene_.dof())), solver_(solver), mechanics_(scene_) {
+    derivative.validate(scene_.dof(), scene_.stop_count());
+    if (derivative.mass.size() && !derivative.mass.isZero(0.0))
+      throw InvalidInput("continuation with friction: the parameter moves the mass matrix; continue in Ω, the "
+                         "forcing, C, K, a stop's data or a contact's");
+    if (!derivative.friction.empty() && derivative.friction.size() != contacts_.size())
+      throw InvalidInput("continuation with friction: " + std::to_string(derivative.friction.size()) +
+                         " contact derivatives for " + std::to_string(contacts_.size()) + " frictional contacts");
+  }
+  Eigen::Index dof() const override { return scene_.dof(); }
+  std::size_t stop_count() const override { return scene_.stop_count() + contacts_.size(); }
+  double frequency() const override { return scene_.system().forcing().frequency; }
+  TangentMap linearise(double t0, const VectorXd& x0, const VectorXd& v0, double t1,
+                       const LinearisationOptions& options) override {
+    return vibro::linearise(scene_, contacts_, solver_, t0, x0, v0, t1, options);
+  }
+  RunSummary run(double t0, const VectorXd& x0, const VectorXd& v0, double t1) override {
+    FrictionStopSimulator sim(scene_, contacts_, solver_);
+    return sim.run(t0, x0, v0, t1);
+  }
+  ShootingResult shoot(const ShootingOptions& options, double t_guess, const VectorXd& x, const VectorXd& v) override {
+    return vibro::shoot(scene_, contacts_, options, t_guess, x, v);
+  }
+  /// A stop's as the dense engine's (mechanics.hpp); a contact's tangent and no jump.
+  std::pair<VectorXd, VectorXd> impact_direction(int j) const override {
+    const auto ms = static_cast<int>(scene_.stop_count());
+    if (j < ms) return detail::lone_impact(mechanics_, j);
+    return {contacts_[static_cast<std::size_t>(j - ms)].tangent(scene_.dof()), VectorXd()};
+  }
+
+ private:
+  ImpactSystem scene_;
+  std::vector<FrictionContact> contacts_;
+  SimulatorOptions solver_;
+  detail::Mechanics<double> mechanics_;
+};
+
 }  // namespace
+
+std::unique_ptr<FamilyEngine> friction_stop_family_engine(ImpactSystem scene, std::vector<FrictionContact> contacts,
+                                                          SystemDerivative derivative, const SimulatorOptions& solver) {
+  return std::make_unique<FrictionStopFamilyEngine>(std::move(scene), std::move(contacts), std::move(derivative),
+                                                    solver);
+}
 
 std::unique_ptr<FamilyEngine> friction_family_engine(LinearSystem system, std::vector<FrictionContact> contacts,
                                                      SystemDerivative derivative, const SimulatorOptions& solver) {

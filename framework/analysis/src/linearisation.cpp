@@ -3,6 +3,8 @@
 #include "mechanics.hpp"
 #include "nonlinear_part.hpp"
 #include "orthonormal_frame.hpp"
+#include "reset_derivative.hpp"
+#include "sign_changes.hpp"
 #include "transition.hpp"
 #include "vibro/bounded_wait.hpp"
 #include "vibro/contact.hpp"
@@ -41,102 +43,12 @@ using Eigen::VectorXd;
 using VecD = detail::VecT<Dual>;
 using MatD = detail::MatT<Dual>;
 
-VecD seeded(const VectorXd& value, const VectorXd& direction) {
-  VecD out(value.size());
-  for (Index i = 0; i < value.size(); ++i) out(i) = Dual(value(i), direction.size() ? direction(i) : 0.0);
-  return out;
-}
-VectorXd derivative(const VecD& a) {
-  VectorXd out(a.size());
-  for (Index i = 0; i < a.size(); ++i) out(i) = a(i).d;
-  return out;
-}
-MatrixXd derivative(const MatD& a) {
-  MatrixXd out(a.rows(), a.cols());
-  for (Index i = 0; i < a.rows(); ++i)
-    for (Index k = 0; k < a.cols(); ++k) out(i, k) = a(i, k).d;
-  return out;
-}
+using detail::derivative;
+using detail::seeded;
 
 bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
 
-/// Upper bound of h over [a, b] from its ends, its end slopes and B ≥ |h''| (Taylor, as in
-/// events.hpp), and the matching lower bound.
-double upper_bound(double ha, double da, double hb, double db, double B, double L) {
-  const double chord = std::max(ha, hb) + B * L * L / 8.0;
-  const double from_a = std::max(ha, ha + da * L + 0.5 * B * L * L);
-  const double from_b = std::max(hb, hb - db * L + 0.5 * B * L * L);
-  return std::min({chord, from_a, from_b});
-}
-double lower_bound(double ha, double da, double hb, double db, double B, double L) {
-  return -upper_bound(-ha, -da, -hb, -db, B, L);
-}
-
-/// The points of (a, b) where sign·(row `slope` of the segment) changes from > 0 to ≤ 0: the
-/// interior local maxima (sign = +1) or minima (sign = −1) of the quantity whose derivative the
-/// row is. Certified with the row's second-derivative bound: an interval is passed over only
-/// when the Taylor bounds show no such change in it, and a root is accepted when the row is
-/// monotone around it; intervals shorter than `resolution` are not split further. A scan can
-/// take seconds on a large system (each value is O(N)): it looks at `stop` every 1024 intervals
-/// and throws Interrupted once it is raised (the engine's event loop ends the run there).
-class SignChanges {
- public:
-  SignChanges(const Segment& segment, Index slope, double sign, double resolution, const std::atomic<bool>* stop)
-      : seg_(segment), row_(slope), sign_(sign), resolution_(resolution), stop_(stop) {}
-
-  std::vector<double> in(double a, double b) {
-    out_.clear();
-    if (b > a) scan(a, b, h(a), dh(a), h(b), dh(b), 0);
-    return out_;
-  }
-
- private:
-  double h(double tau) const { return sign_ * seg_.value(row_, tau); }
-  double dh(double tau) const { return sign_ * seg_.value(row_, tau, 1); }
-
-  void scan(double a, double b, double ha, double da, double hb, double db, int depth) {
-    if (stop_ && (++intervals_ & 1023) == 0 && stop_->load(std::memory_order_relaxed)) throw Interrupted();
-    const double L = b - a;
-    if (L <= resolution_ || depth > 60) {
-      if (ha > 0.0 && hb <= 0.0) out_.push_back(refine(a, b));
-      return;
-    }
-    const double B = seg_.second_derivative_bound(row_, a, b);
-    if (ha > 0.0 && hb <= 0.0 && std::max(da, db) + B * L < 0.0) {  // monotone: exactly one
-      out_.push_back(refine(a, b));
-      return;
-    }
-    if (ha > 0.0 && hb > 0.0 && lower_bound(ha, da, hb, db, B, L) > 0.0) return;
-    if (ha <= 0.0 && hb <= 0.0 && upper_bound(ha, da, hb, db, B, L) <= 0.0) return;
-    if (ha <= 0.0 && hb > 0.0 && std::min(da, db) - B * L > 0.0) return;  // monotone rise
-    const double m = 0.5 * (a + b);
-    const double hm = h(m), dm = dh(m);
-    scan(a, m, ha, da, hm, dm, depth + 1);
-    scan(m, b, hm, dm, hb, db, depth + 1);
-  }
-
-  /// h(a) > 0 ≥ h(b): safeguarded Newton / bisection to a few ulps.
-  double refine(double a, double b) const {
-    for (int it = 0; it < 200; ++it) {
-      const double ulp = 4.0 * std::numeric_limits<double>::epsilon() *
-                         std::max({std::abs(seg_.t0() + a), std::abs(seg_.t0() + b), 1e-300});
-      if (b - a <= ulp) break;
-      const double hb = h(b), db = dh(b);
-      double x = db < 0.0 ? b - hb / db : 0.5 * (a + b);
-      if (!(x > a && x < b) || it % 3 == 2) x = 0.5 * (a + b);
-      if (h(x) > 0.0) a = x;
-      else b = x;
-    }
-    return 0.5 * (a + b);
-  }
-
-  const Segment& seg_;
-  Index row_;
-  double sign_, resolution_;
-  const std::atomic<bool>* stop_;
-  unsigned long intervals_ = 0;
-  std::vector<double> out_;
-};
+using detail::SignChanges;
 
 /// Orthonormal basis (2n × d) of {(δx, δv) : Wᵀδx = 0, Wᵀδv = 0}.
 MatrixXd tangent_basis(const MatrixXd& W, Index n) {
@@ -510,19 +422,12 @@ class TangentRecorder final : public Observer {
     // x⁺: moved only by the chatter rule (mechanics.hpp, step 2).
     const VectorXd xp = mech_.reset(rule, x, vm, t).head(n);
     const VectorXd fp = rate(after, t, xp, vp);
-    auto reset_along = [&](const VectorXd& dx, const VectorXd& dv, double dt) {
-      return derivative(mech0_.reset(rule, seeded(x, dx), seeded(vm, dv), Dual(t, dt)));
-    };
     Jump out;
     out.v_after = vp;
     // R_z column by column, and c = R_z f⁻ + R_t along the flow.
-    MatrixXd Rz(N2, N2);
-    for (Index i = 0; i < N2; ++i) {
-      VectorXd dx = VectorXd::Zero(n), dv = VectorXd::Zero(n);
-      (i < n ? dx(i) : dv(i - n)) = 1.0;
-      Rz.col(i) = reset_along(dx, dv, 0.0);
-    }
-    const VectorXd c = reset_along(fm.head(n), fm.tail(n), 1.0);
+    const detail::ResetDerivative rd = detail::reset_derivative(mech0_, rule, x, vm, t, fm);
+    const MatrixXd& Rz = rd.state;
+    const VectorXd& c = rd.along_flow;
     // The guard: h_z, ḣ⁻, h_p.
     VectorXd hz = VectorXd::Zero(N2);
     double hdot = 0.0, hp = 0.0;
@@ -550,7 +455,7 @@ class TangentRecorder final : public Observer {
     out.S = Rz;
     if (guard >= 0 && hdot != 0.0) out.S += (fp - c) * hz.transpose() / hdot;
     if (mechp_) {
-      out.sp = derivative(mechp_->reset(rule, seeded(x, VectorXd()), seeded(vm, VectorXd()), Dual(t)));
+      out.sp = detail::reset_parameter(*mechp_, rule, x, vm, t);
       if (guard >= 0 && hdot != 0.0) out.sp += (fp - c) * (hp / hdot);
     }
     return out;

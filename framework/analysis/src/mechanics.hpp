@@ -484,7 +484,8 @@ class Mechanics {
     VecT<T> v2 = v1;
     const ContactSet N = held_part(rule.held_after);
     if (rule.rule != ChatterRule::first_order && !rule.caught.empty() && !N.empty()) {
-      const VecT<T> lambda = forces(rule.held_after, x, v1, t);
+      const VecT<T> lambda = friction_.active() ? forces_with_friction(rule.held_after, x, v1, t)
+                                                : forces(rule.held_after, x, v1, t);
       const MatT<T> WN = normals(N);
       const MatT<T> QN = mass_inverse(WN);
       const auto GN = (WN.transpose() * QN).eval().partialPivLu();
@@ -520,6 +521,20 @@ class Mechanics {
 
   static bool contains(const ContactSet& s, int j) { return std::binary_search(s.begin(), s.end(), j); }
 
+  /// The frictional contacts of a run with friction and stops (friction_stops.hpp), in the
+  /// states they have while the stops' event is resolved: the slipping contacts' forces (one
+  /// constant force) and the stuck contacts' constraints w_kᵀx'' = s_k''(t), s_k = a_k cos(Ωt + φ_k).
+  /// The held stops' forces that the chatter rule reads (reset, step 2) are then those of the
+  /// Delassus system over the held stops and the stuck contacts together, with the slipping
+  /// forces in the free acceleration, as that engine computes them. Empty (the default): none.
+  struct FrictionPart {
+    VecT<T> slip_force;               ///< Σ_slipping w_k F_k (n), or empty
+    MatT<T> stuck;                    ///< the stuck contacts' tangents (n × s)
+    std::vector<T> amplitude, phase;  ///< their surfaces' a_k, φ_k
+    bool active() const { return slip_force.size() > 0 || stuck.cols() > 0; }
+  };
+  void set_friction(FrictionPart part) { friction_ = std::move(part); }
+
   /// True when `d` moves M, C or K (a non-zero entry in one of them).
   static bool moves_matrices(const SystemDerivative& d) {
     for (const Eigen::MatrixXd* m : {&d.mass, &d.damping, &d.stiffness})
@@ -547,6 +562,26 @@ class Mechanics {
     VecT<T> out(value.size());
     for (Eigen::Index i = 0; i < value.size(); ++i) out(i) = make(value(i), derivative.size() ? derivative(i) : 0.0);
     return out;
+  }
+
+  /// λ of the held rigid stops of `key` with the frictional contacts of friction_ (FrictionPart).
+  VecT<T> forces_with_friction(const ContactSet& key, const VecT<T>& x, const VecT<T>& v, const T& t) const {
+    using std::cos;
+    const ContactSet R = held_part(key);
+    VecT<T> a = free_acceleration_in(key, x, v, t);
+    if (friction_.slip_force.size() > 0) a += mass_inverse(friction_.slip_force);
+    const auto h = static_cast<Eigen::Index>(R.size()), s = friction_.stuck.cols();
+    MatT<T> B(n_, h + s);
+    B.leftCols(h) = normals(R);
+    B.rightCols(s) = friction_.stuck;
+    const MatT<T> G = B.transpose() * mass_inverse(B);
+    VecT<T> q = B.transpose() * a;
+    for (Eigen::Index k = 0; k < h; ++k) q(k) -= stop_position(R[static_cast<std::size_t>(k)], t, 2);
+    for (Eigen::Index k = 0; k < s; ++k) {
+      const auto K = static_cast<std::size_t>(k);
+      q(h + k) += friction_.amplitude[K] * omega_ * omega_ * cos(omega_ * t + friction_.phase[K]);  // − s_k''
+    }
+    return VecT<T>(G.partialPivLu().solve(q)).head(h);
   }
 
   VecT<T> held_forces(const ContactSet& S, const VecT<T>& a_free, const T& t) const {
@@ -638,12 +673,22 @@ class Mechanics {
   std::vector<std::vector<T>> hc_, hs_;
   std::vector<T> ks_, cs_, fp_;  // k_s, c_s, F_p of compliant stops (k_s, c_s, F_p: stops.hpp)
   std::vector<char> compliant_;  // per stop; empty when every stop is rigid
+  FrictionPart friction_;        // friction with stops (set_friction); empty otherwise
 };
 
 inline ContactSet set_union(const ContactSet& a, const ContactSet& b) {
   ContactSet out;
   std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(out));
   return out;
+}
+
+/// w_j and −(1 + r_j) M⁻¹w_j / (w_jᵀM⁻¹w_j) from the engine's own mechanics; for a compliant
+/// stop (no impulse) w_j and an empty jump.
+inline std::pair<Eigen::VectorXd, Eigen::VectorXd> lone_impact(const detail::Mechanics<double>& mech, int j) {
+  const Eigen::VectorXd w = mech.normals(ContactSet{j}).col(0);
+  if (mech.compliant(j)) return {w, Eigen::VectorXd()};
+  const Eigen::VectorXd q = mech.mass_inverse(w);
+  return {w, -(1.0 + mech.restitution(j)) / w.dot(q) * q};
 }
 
 /// The impulse LCP's active set A ⊂ S ∪ I at (v, t), as the engine solves it (the ResetRule's

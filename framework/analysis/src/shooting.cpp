@@ -254,6 +254,40 @@ class FrictionBackend final : public FullJacobianBackend {
   LinearisationOptions options_;
 };
 
+/// A scene with friction and stops (friction_stops.hpp): maps from linearise(scene, contacts, …)
+/// (friction_tangent.hpp).
+class FrictionStopBackend final : public FullJacobianBackend {
+ public:
+  FrictionStopBackend(const ImpactSystem& scene, const std::vector<FrictionContact>& contacts,
+                      const SimulatorOptions& solver, const LinearisationOptions& o)
+      : FullJacobianBackend(solver.interrupt), scene_(scene), contacts_(contacts), solver_(solver), options_(o) {
+    options_.jacobian = true;
+  }
+  Index dof() const override { return scene_.dof(); }
+  double frequency() const override { return scene_.system().forcing().frequency; }
+  TangentMap probe(double t0, const VectorXd& z, double t1) override {
+    LinearisationOptions probe;
+    probe.jacobian = false;
+    return linearise(scene_, contacts_, solver_, t0, z.head(dof()), z.tail(dof()), t1, probe);
+  }
+  Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
+    return evaluate_with(
+        [&] { return linearise(scene_, contacts_, solver_, t0, z.head(dof()), z.tail(dof()), t1, options_); });
+  }
+
+ protected:
+  RunSummary run(double from, const VectorXd& z, double to) override {
+    FrictionStopSimulator sim(scene_, contacts_, solver_);
+    return sim.run(from, z.head(dof()), z.tail(dof()), to);
+  }
+
+ private:
+  const ImpactSystem& scene_;
+  const std::vector<FrictionContact>& contacts_;
+  SimulatorOptions solver_;
+  LinearisationOptions options_;
+};
+
 /// What every backend on the modal engine shares: its size and frequency, plain runs, probes.
 template <class Base>
 class OnModalEngine : public Base {
@@ -454,6 +488,14 @@ ShootingResult shoot(const LinearSystem& system, const std::vector<FrictionConta
                      const LinearisationOptions& options_map) {
   options.validate();
   FrictionBackend backend(system, contacts, options.solver, options_map);
+  return shoot_with(backend, options, t_guess, x, v);
+}
+
+ShootingResult shoot(const ImpactSystem& scene, const std::vector<FrictionContact>& contacts,
+                     const ShootingOptions& options, double t_guess, const VectorXd& x, const VectorXd& v,
+                     const LinearisationOptions& options_map) {
+  options.validate();
+  FrictionStopBackend backend(scene, contacts, options.solver, options_map);
   return shoot_with(backend, options, t_guess, x, v);
 }
 

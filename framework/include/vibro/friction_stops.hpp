@@ -48,9 +48,9 @@
 /// (ContactLog then records each held interval's least force at segment starts).
 ///
 /// Scales (run_scales): the friction limits Σ μ_s N_j join the forcing amplitudes (fmax).
-/// Limits: the analysis layer's tangent maps do not cover friction together with stops (the
-/// scene reader refuses orbit, continue and lyapunov for such scenes); one harmonic surface
-/// motion per contact, at the fundamental.
+/// The analysis layer's tangent maps (friction_tangent.hpp) are built from the modes and events
+/// this simulator reports to its FrictionStopObservers.
+/// Limits: one harmonic surface motion per contact, at the fundamental.
 #include "vibro/engine.hpp"
 #include "vibro/friction.hpp"
 #include "vibro/stops.hpp"
@@ -61,6 +61,58 @@
 #include <vector>
 
 namespace vibro {
+
+/// A mode's rows for the data (M, C, K, f, the stops, the frictional contacts), computed as the
+/// simulator computes them (the law above), for the analysis layer (friction_tangent.hpp): the
+/// mode of the stops `key` (held rigid and engaged compliant) and the frictional contacts'
+/// `states`. All rows act on the augmented state z (N = augmented_size(n, f)).
+struct FrictionStopModeRows {
+  ContactSet held;             ///< the key's held rigid stops, in order
+  Eigen::MatrixXd generator;   ///< Â (N × N)
+  /// The guards (rows ℓᵀ): the open stops' gaps (the first `opening_rows`), the held rigid stops'
+  /// −λ and the engaged compliant stops' −g in stop order (up to `stop_rows`), then the friction
+  /// guards of friction.hpp; FrictionStopSwitch::guard_row indexes them.
+  Eigen::MatrixXd guards;
+  Eigen::Index opening_rows = 0, stop_rows = 0;
+  Eigen::MatrixXd force;       ///< the contacts' friction forces F_j (m × N)
+  Eigen::MatrixXd held_force;  ///< the held stops' forces along their normals, F = −λ (h × N)
+  Eigen::MatrixXd relative;    ///< the contacts' relative velocities u_j (m × N)
+  Eigen::MatrixXd held_rates;  ///< the held stops' normal rates g' = nᵀv − p'(t) (h × N)
+  /// Per contact: its tangent lies in the span of the held stops' normals (a stuck contact is
+  /// then no constraint of its own, and the settling of the relative velocities skips it).
+  std::vector<char> locked;
+};
+FrictionStopModeRows friction_stop_mode_rows(const Eigen::MatrixXd& M, const Eigen::MatrixXd& C,
+                                             const Eigen::MatrixXd& K, const HarmonicForcing& forcing,
+                                             const std::vector<Stop>& stops,
+                                             const std::vector<FrictionContact>& contacts, const ContactSet& key,
+                                             const std::vector<FrictionState>& states);
+
+/// One event of a run as a whole (every stop and contact that changed at that instant), with
+/// what its saltation matrix needs (friction_tangent.hpp): the guard that fired (a row of the
+/// old mode's FrictionStopModeRows::guards), the modes before and after, and the augmented
+/// state before the event and after its whole resolution.
+struct FrictionStopSwitch {
+  double t = 0.0;
+  Eigen::Index guard_row = -1;
+  int guards_fired = 1;              ///< guards that fired together (> 1: a simultaneous event)
+  ContactSet key_before, key_after;  ///< held rigid ∪ engaged compliant stops
+  /// The held rigid stops as the stops' resolution (Newton's law, the chatter rule, the
+  /// acceleration LCP) left them, before the frictional contacts' re-decision released any.
+  ContactSet held_by_stops;
+  std::vector<FrictionState> before, after;
+  Eigen::VectorXd z_before, z_after;
+};
+
+/// Observes a run's modes: every segment's mode and start state and every event (called, when
+/// given to run(), after the Observer calls of the same segment or event).
+class FrictionStopObserver {
+ public:
+  virtual ~FrictionStopObserver() = default;
+  virtual void mode_segment(double /*t_begin*/, double /*t_end*/, const ContactSet& /*key*/,
+                            const std::vector<FrictionState>& /*states*/, const Eigen::VectorXd& /*z_begin*/) {}
+  virtual void mode_switch(const FrictionStopSwitch& /*s*/) {}
+};
 
 class FrictionStopSimulator {
  public:
@@ -76,7 +128,8 @@ class FrictionStopSimulator {
   /// counts impacts and chatters as the stop engines do; sticks and releases count both the
   /// stops' and the frictional contacts' (a slip or a reversal as a release).
   RunSummary run(double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t_end,
-                 const std::vector<Observer*>& observers = {});
+                 const std::vector<Observer*>& observers = {},
+                 const std::vector<FrictionStopObserver*>& mode_observers = {});
 
   const ImpactSystem& scene() const { return *scene_; }
   const std::vector<FrictionContact>& contacts() const { return contacts_; }

@@ -70,17 +70,8 @@ void read_friction(Reader& r, const YAML::Node& root, SceneParts& p) {
 void check_friction(Reader& r, const YAML::Node& root, SceneParts& p) {
   if (p.friction.empty()) return;
   const YAML::Node fn = root["friction"];
-  // Every run kind takes friction: the tangent-map kinds (orbit, continue, lyapunov) through the
-  // friction saltations of the analysis layer (friction_tangent.hpp), which cover friction
-  // without stops only: with stops (friction_stops.hpp) those kinds are refused.
-  if (!p.stops.empty()) {
-    const RunSpec::Kind kind = p.run.kind;
-    if (kind == RunSpec::Kind::orbit || kind == RunSpec::Kind::continuation || kind == RunSpec::Kind::lyapunov)
-      r.fail(root["run"] ? root["run"]["kind"] : fn, root["run"] ? "run.kind" : "friction",
-             std::string("run.kind: ") + to_string(kind) +
-                 " needs the tangent maps of the analysis layer, which cover friction without stops only; a scene "
-                 "with friction and stops runs as simulate, sweep, locate, basin or diagram");
-  }
+  // Every run kind takes friction, with or without stops: the tangent-map kinds (orbit, continue,
+  // lyapunov) through the friction saltations of the analysis layer (friction_tangent.hpp).
   if (p.engine == EngineKind::taylor)
     r.fail(root["forces"] ? root["forces"] : fn, root["forces"] ? "forces" : "friction",
            "friction and nonlinear forces cannot be combined: the friction engine's flows are exact and linear, the "

@@ -60,11 +60,42 @@
 /// as its contact phases, and a stick phase born at a reversal is located as a `rising` of that
 /// contact (test_functions.hpp: the least margin, from the side without sticking).
 ///
+/// **Friction with stops** (friction_stops.hpp; the overloads taking an ImpactSystem). A mode is
+/// (the held rigid stops, the engaged compliant stops, every contact's state); its generator Â
+/// (FrictionStopModeRows) solves one Delassus system over the held stops and the stuck contacts,
+/// and a segment's tangent map is again the state block of exp(Â τ), the parameter column the
+/// block exponential above. An event is resolved by the engine in two steps, the stops' (Newton's
+/// law through the impulse LCP, the chatter rule, the acceleration LCP: z₁ = R₁(z⁻)) and then the
+/// frictional contacts' (re-decided, their relative velocities and the held stops' normal rates
+/// settled: z⁺ = R₂(z₁) = z₁ − B U z₁, U the rows of u_S and g'_H of the contacts S stuck before or
+/// after and the held stops H, B = [0; M⁻¹[W_S N_H] D⁻¹; 0], D = [W_S N_H]ᵀM⁻¹[W_S N_H]). Its
+/// saltation matrix is linearisation.hpp's for the composite reset R = R₂ ∘ R₁ and the one guard
+/// that fired (a gap for an impact or a compliant engage, −λ for a release, −g for a disengage,
+/// friction.hpp's rows for stick, slip and reversal):
+///
+///     S = R_z + (f⁺ − R_z f⁻ − R_t) h_zᵀ / ḣ⁻,   R_z = P₂ R₁_z,   R_t = P₂ (R₁_t; ω̇),   P₂ = I − B U,
+///
+/// with R₁'s derivatives those of linearisation.hpp (mechanics.hpp's reset, differentiated exactly;
+/// the chatter rule's approach acceleration with the contacts' forces in their states before the
+/// event, as the engine reads it) and f∓ the modes' fields. So every event kind of such a run —
+/// impact, chatter capture, a stop's stick and release, a compliant engage and disengage, slip →
+/// stick, stick → slip, reversal — and every combination one guard causes (an impact that makes a
+/// stuck contact slip, a slip that pulls a held stop open) is one formula: each part of it is
+/// the same code as for stops alone or friction alone. The parameter column adds
+/// R_p = P₂ (R₁_p; ∂ω/∂p) − B (dU/dp) z⁺ and h_p. Several guards firing together (simultaneous
+/// impacts among them) are taken as one event with the guard that fired first, and `non_smooth`
+/// says so. Held stops and stuck contacts are the structural zeros: the tangent space of a mode is
+/// {N_Hᵀδx = 0, [N_H W_S]ᵀδv = 0}. In the map's events, phases and features a frictional contact j
+/// is numbered stop_count + j (after the stops), so that a continuation's event signature has both;
+/// gap peaks, held stops' force dips, impacts and the sliding margins are the features (the held
+/// flow past a release is not continued).
+///
 /// Usage:
 ///     vibro::TangentMap m = vibro::linearise(system, contacts, solver, t0, x0, v0, t0 + T);
 ///     vibro::ShootingResult r = vibro::shoot(system, contacts, options, t_guess, x, v);
 #include "vibro/family_engine.hpp"
 #include "vibro/friction.hpp"
+#include "vibro/friction_stops.hpp"
 #include "vibro/linearisation.hpp"
 #include "vibro/lyapunov.hpp"
 #include "vibro/shooting.hpp"
@@ -100,5 +131,22 @@ LyapunovResult lyapunov_spectrum(const LinearSystem& system, const std::vector<F
 /// InvalidInput for a derivative that moves M (or has the wrong size) or bad contacts.
 std::unique_ptr<FamilyEngine> friction_family_engine(LinearSystem system, std::vector<FrictionContact> contacts,
                                                      SystemDerivative derivative, const SimulatorOptions& solver);
+
+/// Friction with stops (friction_stops.hpp, FrictionStopSimulator): the tangent map, shooting,
+/// the Lyapunov spectrum and the continuation engine of the scene `scene` (rigid and compliant
+/// stops) with the frictional contacts `contacts`, as above. A parameter derivative may move C,
+/// K, the forcing, Ω, the stops' data (parameter.hpp) and the contacts' N, μ_s, μ_k (not M). The
+/// family engine's "stops" are the stops then the contacts (stop_count() = their sum).
+TangentMap linearise(const ImpactSystem& scene, const std::vector<FrictionContact>& contacts,
+                     const SimulatorOptions& solver, double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                     double t1, const LinearisationOptions& options = {});
+ShootingResult shoot(const ImpactSystem& scene, const std::vector<FrictionContact>& contacts,
+                     const ShootingOptions& options, double t_guess, const Eigen::VectorXd& x,
+                     const Eigen::VectorXd& v, const LinearisationOptions& options_map = {});
+LyapunovResult lyapunov_spectrum(const ImpactSystem& scene, const std::vector<FrictionContact>& contacts,
+                                 const SimulatorOptions& solver, double t0, const Eigen::VectorXd& x0,
+                                 const Eigen::VectorXd& v0, const LyapunovOptions& options = {});
+std::unique_ptr<FamilyEngine> friction_stop_family_engine(ImpactSystem scene, std::vector<FrictionContact> contacts,
+                                                          SystemDerivative derivative, const SimulatorOptions& solver);
 
 }  // namespace vibro

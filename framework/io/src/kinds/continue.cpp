@@ -283,10 +283,14 @@ std::unique_ptr<FamilyEngine> engine_at(const Scene& s, EngineKind engine, Syste
     return run_bounded(large ? solver.interrupt : nullptr,
                        [dense = s.dense, stops = s.stops, forces = s.forces, friction = s.friction, engine,
                         d = std::move(d), solver]() mutable -> std::unique_ptr<FamilyEngine> {
-                         // A friction scene's contacts are the family's "stops" (friction_tangent.hpp).
-                         if (!friction.empty())
+                         // A friction scene's contacts are the family's "stops", after the stops
+                         // if it has any (friction_tangent.hpp).
+                         if (!friction.empty() && stops.empty())
                            return friction_family_engine(dense.get(), std::move(friction), std::move(d), solver);
                          ImpactSystem system(dense.get(), std::move(stops));
+                         if (!friction.empty())
+                           return friction_stop_family_engine(std::move(system), std::move(friction), std::move(d),
+                                                              solver);
                          if (engine == EngineKind::taylor)
                            return taylor_family_engine(std::move(system), std::move(forces), std::move(d), solver);
                          return dense_family_engine(std::move(system), std::move(d), solver);

@@ -72,6 +72,8 @@ RunReport run_lyapunov(const SceneDocument& doc, const Scene& scene, const RunRe
         return false;
       }
       r = lyapunov_spectrum(dynamic_cast<ModalEngine&>(*engine), built.t0, x, v, options);
+    } else if (!built.friction.empty() && !built.stops.empty()) {  // friction with stops (friction_tangent.hpp)
+      r = lyapunov_spectrum(built.impact_system(), built.friction, built.solver, built.t0, x, v, options);
     } else if (!built.friction.empty()) {  // dry friction (friction_tangent.hpp)
       r = lyapunov_spectrum(built.system(), built.friction, built.solver, built.t0, x, v, options);
     } else if (built.engine == EngineKind::taylor) {  // nonlinear forces

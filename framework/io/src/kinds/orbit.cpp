@@ -59,6 +59,8 @@ RunReport run_orbit(const SceneDocument& /*doc*/, const Scene& scene, const RunR
         KrylovOptions k;
         k.multipliers = spec.multipliers;
         r = shoot(*modal, o, guess.t, guess.x, guess.v, k);
+      } else if (!scene.friction.empty() && !scene.stops.empty()) {  // friction with stops
+        r = shoot(scene.impact_system(), scene.friction, o, guess.t, guess.x, guess.v);
       } else if (!scene.friction.empty()) {
         r = shoot(scene.system(), scene.friction, o, guess.t, guess.x, guess.v);
       } else if (scene.engine == EngineKind::taylor) {

@@ -246,9 +246,9 @@ struct Scene {
   /// `parameters` and `forces` (docs/scenes.md): nonlinear forces, run by the Taylor engine
   /// (taylor_simulator.hpp); empty forces for a linear scene.
   NonlinearForces forces;
-  /// The frictional contacts (friction.hpp), validated; empty: none. A scene with friction has no
-  /// stops and runs on the dense engine's FrictionSimulator, in every run kind (the analysis kinds
-  /// through friction_tangent.hpp).
+  /// The frictional contacts (friction.hpp), validated; empty: none. A scene with friction runs on
+  /// the dense engine's FrictionSimulator (with stops: FrictionStopSimulator, friction_stops.hpp),
+  /// in every run kind (the analysis kinds through friction_tangent.hpp).
   std::vector<FrictionContact> friction;
   /// `initial.from`: the saved orbit the scene was put on ("FILE: branch B, point I …"), else "".
   std::string restart;
