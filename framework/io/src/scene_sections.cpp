@@ -33,11 +33,12 @@ void read_model(Reader& r, const YAML::Node& root, SceneParts& p) {
     c.masses = r.numbers(chain["masses"], "model.chain.masses", -1, "one mass per degree of freedom");
     n = static_cast<long>(c.masses.size());
     if (n == 0) r.fail(chain["masses"], "model.chain.masses", "expected at least one mass, found an empty list");
-    try {
-      require_memory(least_engine_bytes(static_cast<double>(n)),
-                     "a chain of " + std::to_string(n) + " masses (every engine holds n × n modes or matrices)");
-    } catch (const ResourceError& e) {
-      r.fail(chain["masses"], "model.chain.masses", e.what());
+    if (const double least = least_engine_bytes(static_cast<double>(n)); least > kEarlyCheckBytes) {
+      try {
+        require_memory(least, "a chain of " + std::to_string(n) + " masses (every engine holds n × n modes or matrices)");
+      } catch (const ResourceError& e) {
+        r.fail(chain["masses"], "model.chain.masses", e.what());
+      }
     }
     for (long i = 0; i < n; ++i)
       if (!(c.masses[static_cast<std::size_t>(i)] > 0.0))

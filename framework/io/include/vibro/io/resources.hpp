@@ -42,6 +42,12 @@ void require_memory(double bytes, const std::string& what);
 /// mass, a filled list of 10⁸ masses would take 20 GB and minutes before the run's own check).
 double least_engine_bytes(double n);
 
+/// The reader's early check (least_engine_bytes) runs only above this size, 10⁸ bytes, a chain of
+/// 2000 masses: reading the available memory (three /proc and cgroup files) costs ~20 µs, as much
+/// as building a small scene, and a sweep or basin builds its scene once per point. Smaller
+/// chains are covered by the run's own check (check_run_resources), made once per run.
+inline constexpr double kEarlyCheckBytes = 1e8;
+
 /// "1.5 GB", "312 MB", "4.0 kB" (decimal units), "1.2e+15 GB" for absurd sizes.
 std::string bytes_text(double bytes);
 
