@@ -332,23 +332,9 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
   }
   bool event_resolved(detail::RunState& st, const ContactSet& impacts, const ContactSet& releases, std::string* why) {
     ContactSet rigid_impacts, rigid_releases;
-    for (const auto* list : {&impacts, &releases}) {
-      const bool engage = list == &impacts;
-      for (int j : *list) {
-        if (!stops_[static_cast<std::size_t>(j)].is_compliant()) {
-          (engage ? rigid_impacts : rigid_releases).push_back(j);
-          continue;
-        }
-        const auto at = std::lower_bound(engaged_.begin(), engaged_.end(), j);
-        const bool is_engaged = at != engaged_.end() && *at == j;
-        if (engage == is_engaged) continue;
-        if (engage) engaged_.insert(at, j);
-        else engaged_.erase(at);
-        const double rate = scene_.gap_rates(st.t, st.v)(j);
-        emit_({st.t, j, engage ? EventKind::engage : EventKind::disengage, rate, rate,
-               engage ? compliant_force(j, st.t, st.x, st.v) : 0.0});
-      }
-    }
+    Eigen::VectorXd rates(static_cast<Eigen::Index>(stops_.size()));
+    detail::compliant_switches(*this, stops_, st.t, st.x, st.v, impacts, releases, engaged_, rigid_impacts,
+                               rigid_releases, rates, emit_);
     const int fired = crossing_row_ >= mode_->stop_rows() ? mode_->contact_of(crossing_row_) : -1;
     return resolve_all(st, rigid_impacts, rigid_releases, {}, fired, why);
   }
@@ -503,10 +489,6 @@ class FrictionStopSimulator::Loop final : public detail::ContactAlgebra {
     const Stop& st = stops_[static_cast<std::size_t>(j)];
     const double p = st.s0() + st.s_cos() * std::cos(omega_ * t) + st.s_sin() * std::sin(omega_ * t);
     return st.has_higher_harmonics() ? p + stop_higher_motion(st, omega_, t, 0) : p;
-  }
-  double compliant_force(int j, double t, const Eigen::VectorXd& x, const Eigen::VectorXd& v) const {
-    const Stop& st = stops_[static_cast<std::size_t>(j)];
-    return st.stiffness * gap(j, t, x) + st.damping * scene_.gap_rates(t, v)(j) + st.preload;
   }
   /// The mode of the held rigid stops `held` with the engaged compliant stops and the current
   /// friction states, built on first use.

@@ -28,15 +28,16 @@
 ///     manifold (ContactModes, flow.hpp; ModalContactMode, modal.hpp), and its force row −λ_j is a
 ///     functional of the reduced state. An engaged compliant stop adds k_s n nᵀ to K, c_s n nᵀ to
 ///     C and n (k_s p(t) + c_s p'(t) − F_p) to f (stops.hpp; contact.cpp): a linear flow again,
-///     built like any other mode (the dense engine's; the chain engine refuses them). A
+///     built like any other mode (engaged_system.hpp for the dense and the Taylor engine; the
+///     modal engine's own modes when the dashpot keeps the damping proportional, modal.hpp). A
 ///     stuck frictional contact is a held constraint on the tangential velocity; a slipping one
 ///     adds the constant force −μ_k N sign(v_t) along its tangent.
 ///  4. Saltation. The jump of the linearised flow across the event, S = ∂(x⁺, v⁺)/∂(x⁻, v⁻)
 ///     + (f⁺ − S f⁻) ∂τ/∂(x⁻, v⁻) (di Bernardo et al. 2008, ch. 7): for the rigid impact
 ///     S = I − (1 + r) M⁻¹n nᵀ/(nᵀM⁻¹n) on v plus the time-shift term (the analysis layer,
-///     linearisation.hpp); for a compliant stop without dashpot or preload S = I (continuous
-///     vector field), with either S = I + (f⁺ − f⁻) ∂τ/∂z (not derived yet: the analysis layer
-///     refuses compliant stops).
+///     linearisation.hpp); for a compliant stop's engagement or disengagement S = I + (f⁺ − f⁻)
+///     wᵀ/ġ at g = 0 (the identity without dashpot or preload, where the vector field is
+///     continuous), on every engine's tangent map.
 ///
 /// The event loop does not know which law it handles: it asks the law of each fired guard what
 /// its crossing means (transition), which stops touching at the start are impacts and which are
@@ -48,7 +49,8 @@
 /// engine tells them from impacts and releases by the stop's law (Stop::is_compliant).
 ///
 /// Where a new law plugs in: its guards and mode pieces where each engine builds a mode's flow
-/// (flow.cpp's ContactModes for the dense engine, modal_modes.cpp for the chain engine), its
+/// (flow.cpp's ContactModes for the dense engine, modal_modes.cpp for the modal engine,
+/// taylor_simulator.cpp's step terms for the Taylor engine), its
 /// resolution in event_resolution.cpp, its transitions here, its saltation in the analysis layer.
 #include "vibro/contact.hpp"
 
