@@ -92,6 +92,11 @@ class TangentRecorder final : public Observer {
         mech_(system), mech0_(system), frame_(options.directions.size() > 0),
         phases_(out.phases, system.stop_count()) {
     if (options.parameter) mechp_ = std::make_unique<Mechanics<Dual>>(system, &*options.parameter);
+    if (nonlinear_) {  // the chatter rule's capture reads the contact force with the forces' part
+      mech_.set_chatter_forces(detail::chatter_forces(mech_, *nonlinear_, false));
+      mech0_.set_chatter_forces(detail::chatter_forces(mech0_, *nonlinear_, false));
+      if (mechp_) mechp_->set_chatter_forces(detail::chatter_forces(*mechp_, *nonlinear_, true));
+    }
   }
 
   /// Re-orthonormalise the carried directions after every event, adding log|R_ii| to *log_growth

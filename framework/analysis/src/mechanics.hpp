@@ -33,7 +33,8 @@
 //        d_j = P_N M⁻¹ C M⁻¹ w_j (P_N y = y − Q_N G_NN⁻¹ W_Nᵀ y),
 //        D_j = −(2/3) w0³ / (A_j² (1 − r_j³)),
 //        w0 = r_j (w_jᵀ v − s'_j(t)) (the rebound speed, from the velocity before the impact),
-//        A_j = G_jj λ_j with λ = λ_N(x, v1, t) the forces of the held set N after the event;
+//        A_j = G_jj λ_j with λ = λ_N(x, v1, t) the forces of the held set N after the event
+//        (with forces beyond M, C, K and the drive, those of set_chatter_forces);
 //   3. the held set's residual normal velocity removed:
 //        v3 = v2 − Q_N G_NN⁻¹ (W_Nᵀ v2 − s'_N(t)).
 // Otherwise the position is not reset (the engine's placement of the gap exactly at zero
@@ -62,6 +63,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <iterator>
 #include <stdexcept>
 #include <string>
@@ -485,6 +487,7 @@ class Mechanics {
     const ContactSet N = held_part(rule.held_after);
     if (rule.rule != ChatterRule::first_order && !rule.caught.empty() && !N.empty()) {
       const VecT<T> lambda = friction_.active() ? forces_with_friction(rule.held_after, x, v1, t)
+                             : chatter_forces_  ? chatter_forces_(rule.held_after, x, v1, t)
                                                 : forces(rule.held_after, x, v1, t);
       const MatT<T> WN = normals(N);
       const MatT<T> QN = mass_inverse(WN);
@@ -534,6 +537,13 @@ class Mechanics {
     bool active() const { return slip_force.size() > 0 || stuck.cols() > 0; }
   };
   void set_friction(FrictionPart part) { friction_ = std::move(part); }
+
+  /// The held rigid stops' forces λ of the mode `key` at (x, v, t) of a system with forces beyond
+  /// M, C, K and the drive (the nonlinear forces of the Taylor engine, nonlinear_part.hpp): the
+  /// chatter rule (reset, step 2) reads them instead of forces(), as that engine's capture does.
+  /// Empty (the default): forces().
+  using ChatterForces = std::function<VecT<T>(const ContactSet& key, const VecT<T>& x, const VecT<T>& v, const T& t)>;
+  void set_chatter_forces(ChatterForces forces) { chatter_forces_ = std::move(forces); }
 
   /// True when `d` moves M, C or K (a non-zero entry in one of them).
   static bool moves_matrices(const SystemDerivative& d) {
@@ -674,6 +684,7 @@ class Mechanics {
   std::vector<T> ks_, cs_, fp_;  // k_s, c_s, F_p of compliant stops (k_s, c_s, F_p: stops.hpp)
   std::vector<char> compliant_;  // per stop; empty when every stop is rigid
   FrictionPart friction_;        // friction with stops (set_friction); empty otherwise
+  ChatterForces chatter_forces_;  // nonlinear forces (set_chatter_forces); empty otherwise
 };
 
 inline ContactSet set_union(const ContactSet& a, const ContactSet& b) {

@@ -12,17 +12,21 @@
 ///    held vector field f_S is defined on the whole state space, as the linear engines' generator
 ///    Â_S is (mechanics.hpp): its flow keeps the constraint manifold invariant, and the saltation
 ///    at the start of sticking projects onto it;
-///  * a held stop's contact force λ_a (its −λ_a is the release guard): its gradient, its rate
-///    along the held flow and its parameter derivative, which the linear engines read off their
-///    force rows L (λ = L z) and which here carry the forces' part G⁻¹WᵀM⁻¹F.
+///  * a held stop's contact force λ_a (its −λ_a is the release guard): its value, its gradient,
+///    its rate along the held flow and its parameter derivative, which the linear engines read
+///    off their force rows L (λ = L z) and which here carry the forces' part G⁻¹WᵀM⁻¹F.
 ///
 /// The rest of the tangent map — the reset R of every impact and its derivatives, the guards —
 /// is the linear engines' code (mechanics.hpp): the Newton impact law depends on M, the normals
-/// and the restitutions only, not on the forces.
+/// and the restitutions only, not on the forces. One part of a reset reads a force: the second-
+/// and third-order chatter rules' capture scales the skipped bounces' displacement by the held
+/// stop's contact acceleration A = G_jj λ_j (mechanics.hpp, reset step 2), which the Taylor
+/// engine takes with the forces in it; chatter_forces() gives the reset that λ, from held_force.
 ///
 /// A mode is named by its key S (contact.hpp): its held rigid stops and its engaged compliant
 /// stops. The engaged stops' forces −w N, N = k_s g + c_s g' + F_p, are linear and enter the
 /// linear engines' generator of S (mechanics.hpp); the flows below carry them too.
+#include "mechanics.hpp"
 #include "vibro/contact.hpp"
 #include "vibro/linearisation.hpp"
 #include "vibro/observers.hpp"
@@ -30,6 +34,7 @@
 #include <Eigen/Dense>
 
 #include <functional>
+#include <type_traits>
 #include <vector>
 
 namespace vibro::detail {
@@ -46,11 +51,12 @@ class NonlinearPart {
   virtual Eigen::MatrixXd transition(const ContactSet& key, double t0, const Eigen::VectorXd& x,
                                      const Eigen::VectorXd& v, double t1) = 0;
   /// The a-th held rigid stop's contact force λ_a (a = a_free − M⁻¹W λ) of the mode `key` at (t, x, v):
-  /// ∂λ_a/∂z (2n), dλ_a/dt along the held flow, and ∂λ_a/∂p at fixed z, t (0 without a
-  /// parameter derivative).
+  /// its value, ∂λ_a/∂z (2n), ∂λ_a/∂t at fixed z, dλ_a/dt along the held flow, and ∂λ_a/∂p at
+  /// fixed z, t (0 without a parameter derivative).
   struct HeldForce {
+    double value = 0.0;
     Eigen::VectorXd gradient;
-    double rate = 0.0, dp = 0.0;
+    double time = 0.0, rate = 0.0, dp = 0.0;
   };
   virtual HeldForce held_force(const ContactSet& key, int a, double t, const Eigen::VectorXd& x,
                                const Eigen::VectorXd& v) = 0;
@@ -63,6 +69,38 @@ class NonlinearPart {
   virtual std::vector<ForceDip> force_minima(const ContactSet& key, double t0, const Eigen::VectorXd& x,
                                              const Eigen::VectorXd& v, double t1) = 0;
 };
+
+/// The held rigid stops' forces λ of a mode with the forces' part, for Mechanics<T>::
+/// set_chatter_forces on the Mechanics `mech` (its held_part): part.held_force's values for
+/// T = double; for T = Dual along the seeds' direction ∂λ/∂z δz + ∂λ/∂t δt, plus ∂λ/∂p when
+/// `parameter` (mech carries the parameter direction the part was made with). `mech` and `part`
+/// must outlive the function.
+template <class T>
+typename Mechanics<T>::ChatterForces chatter_forces(const Mechanics<T>& mech, NonlinearPart& part, bool parameter) {
+  return [&mech, &part, parameter](const ContactSet& key, const VecT<T>& x, const VecT<T>& v, const T& t) {
+    const ContactSet held = mech.held_part(key);
+    const Eigen::Index n = x.size();
+    Eigen::VectorXd xv(n), vv(n), dz(2 * n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      xv(i) = value_of(x(i));
+      vv(i) = value_of(v(i));
+      if constexpr (!std::is_same_v<T, double>) {
+        dz(i) = x(i).d;
+        dz(n + i) = v(i).d;
+      }
+    }
+    VecT<T> out(static_cast<Eigen::Index>(held.size()));
+    for (std::size_t a = 0; a < held.size(); ++a) {
+      const NonlinearPart::HeldForce f = part.held_force(key, static_cast<int>(a), value_of(t), xv, vv);
+      if constexpr (std::is_same_v<T, double>) {
+        out(static_cast<Eigen::Index>(a)) = f.value;
+      } else {
+        out(static_cast<Eigen::Index>(a)) = T(f.value, f.gradient.dot(dz) + f.time * t.d + (parameter ? f.dp : 0.0));
+      }
+    }
+    return out;
+  };
+}
 
 /// Runs `run` with the tangent recorder of linearisation.cpp as its observer, the vector fields
 /// and the segments' tangent maps completed by `part`.

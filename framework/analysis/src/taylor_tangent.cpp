@@ -189,15 +189,22 @@ class TaylorPart final : public detail::NonlinearPart {
     z_ << x, v;
     check(flow.variational->expand(t, z_), *flow.variational, t);
     HeldForce out;
+    out.value = flow.variational->guard_coefficients(a)[0];
     out.gradient.resize(2 * n_);
     for (Index d = 0; d < 2 * n_; ++d) out.gradient(d) = flow.variational->guard_gradient(a, static_cast<int>(d));
     out.rate = flow.variational->guard_coefficients(a)[1];
+    // ∂λ/∂t at fixed z: the rate along the held flow less ∂λ/∂z · ż (ż the held system's rate,
+    // its state series' first coefficients).
+    out.time = out.rate;
+    for (Index d = 0; d < 2 * n_; ++d)
+      out.time -= out.gradient(d) * flow.variational->state_coefficients(static_cast<int>(d))[1];
     if (flow.lifted) {
       lift(x, v);
       check(flow.lifted->expand(t, lifted_z_), *flow.lifted, t);
       out.dp = flow.lifted->guard_gradient(a, static_cast<int>(n_));
     }
-    if (!out.gradient.allFinite() || !std::isfinite(out.rate) || !std::isfinite(out.dp))
+    if (!std::isfinite(out.value) || !out.gradient.allFinite() || !std::isfinite(out.time) || !std::isfinite(out.rate) ||
+        !std::isfinite(out.dp))
       throw InvalidInput("linearisation: the contact force of stop " + std::to_string(flow.held[static_cast<std::size_t>(a)]) +
                          " at t = " + number_text(t) + " has a derivative that is not finite");
     return out;
