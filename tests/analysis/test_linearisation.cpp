@@ -454,7 +454,7 @@ TEST_CASE("linearisation: on a 32-mass chain (eigen-decomposition path of the fl
   // (its cond(V) ≤ 1e4 makes that path's rounding ~1e-12) and the parameter sensitivity the
   // divided differences of its eigenvalues instead of a 134 × 134 block exponential.
   const int n = 32;
-  auto chain_at = [n](double omega, double amplitude) {
+  auto chain_at = [](double omega, double amplitude) {
     vibro::models::Chain c;
     c.masses.assign(n, 1.0);
     c.springs.assign(n - 1, 1.0);

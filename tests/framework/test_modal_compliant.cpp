@@ -39,12 +39,6 @@ std::vector<Stop> soft_stops() {
           Stop::between(2, 3, 0.3, 1.0).compliant(5.0, kBeta * 5.0), Stop::lower(5, -0.7, 0.7)};
 }
 
-long count(const vibro::EventLog& log, EventKind kind) {
-  long c = 0;
-  for (const vibro::Event& e : log.events) c += e.kind == kind ? 1 : 0;
-  return c;
-}
-
 }  // namespace
 
 // Both engines locate the same guards' zeros (the certified search of events.hpp) to a few ulps

@@ -202,8 +202,8 @@ TangentMap linearise(const ImpactSystem& system, const SimulatorOptions& solver,
 /// variational equation of a lifted system (taylor_tangent.cpp); `options.features` come from the
 /// Taylor steps (the gaps' peaks, the held forces' minima).
 ///
-/// Refused with InvalidInput: compliant stops, a parameter that moves M. Throws as
-/// TaylorSimulator does for bad forces.
+/// Compliant stops are handled (their switches' saltation (f⁺ − f⁻) wᵀ/ġ). Refused with
+/// InvalidInput: a parameter that moves M. Throws as TaylorSimulator does for bad forces.
 TangentMap linearise(const ImpactSystem& system, const NonlinearForces& forces, const SimulatorOptions& solver,
                      double t0, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0, double t1,
                      const LinearisationOptions& options = {});

@@ -156,7 +156,7 @@ int catalogue_index(std::vector<Attractor>& catalogue, const Attractor& a, const
 }
 
 /// A point's result as numbers (for MPI): outcome, periods, attractor, status, k, then k states.
-std::vector<double> encode(const PointResult& r) {
+[[maybe_unused]] std::vector<double> encode(const PointResult& r) {
   std::vector<double> out{static_cast<double>(r.outcome), static_cast<double>(r.periods),
                           static_cast<double>(r.attractor), static_cast<double>(r.status),
                           static_cast<double>(r.orbit.k)};
@@ -164,7 +164,7 @@ std::vector<double> encode(const PointResult& r) {
   return out;
 }
 
-PointResult decode(const double* in, Eigen::Index n, std::size_t& used) {
+[[maybe_unused]] PointResult decode(const double* in, Eigen::Index n, std::size_t& used) {
   PointResult r;
   r.outcome = static_cast<PointResult::Outcome>(static_cast<std::int64_t>(in[0]));
   r.periods = static_cast<long>(in[1]);

@@ -41,7 +41,7 @@ struct Data {
 Data data_of(const Scene& s) {
   const LinearSystem& sys = s.system();
   Data d{sys.mass(), sys.damping(), sys.stiffness(), sys.forcing().constant, sys.forcing().cosine, sys.forcing().sine,
-         sys.forcing().frequency, {}, {}, {}};
+         sys.forcing().frequency, {}, {}, {}, {}, {}, {}};
   for (const Stop& st : s.stops) {
     d.stops.push_back({st.s0(), st.s_cos(), st.s_sin(), st.restitution, st.stiffness, st.damping, st.preload});
     const auto H = static_cast<Eigen::Index>(st.harmonics.size());

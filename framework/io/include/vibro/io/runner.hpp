@@ -64,7 +64,7 @@ class ProcessGroup {
 
  private:
   int rank_ = 0, size_ = 1;
-  bool started_ = false;  ///< this object started MPI and ends it
+  [[maybe_unused]] bool started_ = false;  ///< this object started MPI and ends it (used with MPI only)
 };
 
 }  // namespace vibro::io
