@@ -105,8 +105,14 @@ std::optional<Crossing> CrossingFinder::first(double a, double b) {
     for (Eigen::Index i = 0; i < rows; ++i) {
       if (rearm_ && A.h(i) > 0.0 && A.d(i) <= 0.0) triggers_(i) += A.h(i);
       // A guard on its surface (within ε) and moving away does not bracket a root from there:
-      // the root finder could return the surface just left.
-      leaving_[static_cast<std::size_t>(i)] = A.h(i) >= -triggers_(i) && A.d(i) < 0.0;
+      // the root finder could return the surface just left. Moving away: h' < 0, or h' > 0 by
+      // no more than rounding while h'' < 0 turns it back below ε (its quadratic model peaks
+      // at h + h'²/(2|h''|) < ε) — a slip that starts where μ_s = μ_k has u' = 0 up to rounding
+      // and u'' carrying it on, and a root bracketed from there would be the model's second
+      // zero 2h'/|h''| after the start: a slip ended as soon as it began, for ever.
+      const double h = A.h(i), d = A.d(i), c = A.c(i);
+      leaving_[static_cast<std::size_t>(i)] =
+          h >= -triggers_(i) && (d < 0.0 || (d > 0.0 && c < 0.0 && h + d * d / (-2.0 * c) < triggers_(i)));
     }
   } else if (pool_[1].tau == a && pool_[1].h.size() == rows) {
     std::swap(pool_[0], pool_[1]);

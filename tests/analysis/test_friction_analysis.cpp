@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <iomanip>
 #include <numbers>
 
 using namespace vibro;
@@ -322,6 +323,105 @@ TEST_CASE("continuation locates a stick phase born inside a slip (grazing-slidin
                                << "), smooth " << onset->smooth);
   CHECK(onset->smooth);
   CHECK(std::abs(onset->p - omega_g) < 1e-8);
+}
+
+namespace {
+
+/// Counts a friction run's switches (the start's decision, at t0, not counted).
+struct SwitchCounter final : FrictionObserver {
+  double t0 = 0.0;
+  int switches = 0;
+  void friction_event(const FrictionEvent& e, const Eigen::VectorXd&, const Eigen::VectorXd&) override {
+    switches += e.t > t0;
+  }
+};
+
+/// The switches per forcing period of Den Hartog's oscillator (m = k = F0 = 1, c = 0.05,
+/// μ_s = μ_k = 1, N = 0.5) in its steady state at Ω: 120 periods from rest (its multipliers are
+/// ≤ 0.31 in modulus there, so the transient has decayed far below rounding), then one period
+/// counted from a crest of the forcing (Ωt ≡ 0).
+int switches_per_period(double omega) {
+  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, 0.5, 0.5)};
+  const LinearSystem sys = one_mass(1.0, 0.05, 1.0, 1.0, omega);
+  const double T = 2.0 * std::numbers::pi / omega;
+  FrictionSimulator sim(sys, contacts);
+  const FrictionSummary settle = sim.run(0.0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), 120 * T);
+  INFO(settle.message);
+  REQUIRE(settle.status == RunStatus::completed);
+  SwitchCounter counter;
+  counter.t0 = settle.t;
+  FrictionSimulator again(sys, contacts);
+  REQUIRE(again.run(settle.t, settle.x, settle.v, settle.t + T, {}, {&counter}).status == RunStatus::completed);
+  return counter.switches;
+}
+
+ContinuationResult den_hartog_in_omega(double from, double to) {
+  const double m = 1.0, c = 0.05, k = 1.0, F0 = 1.0, Ff = 0.5;
+  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, Ff, Ff)};
+  const ContinuationFamily family = [&](double omega) {
+    return friction_family_engine(one_mass(m, c, k, F0, omega), contacts, SystemDerivative::frequency_only(), {});
+  };
+  ContinuationOptions o;
+  o.p_min = std::min(from, to);
+  o.p_max = std::max(from, to);
+  o.direction = to < from ? -1 : 1;
+  o.max_points = 300;
+  const LinearSystem start = one_mass(m, c, k, F0, from);
+  FrictionSimulator sim(start, contacts);
+  const double T = 2.0 * std::numbers::pi / from;
+  const FrictionSummary settle = sim.run(0.0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), 120 * T);
+  REQUIRE(settle.status == RunStatus::completed);
+  return continue_orbits(family, from, settle.t, settle.x, settle.v, o);
+}
+
+}  // namespace
+
+TEST_CASE("continuation locates a slip born inside a stick (adding-sliding) against bracketing simulations",
+          "[friction][analysis]") {
+  // Den Hartog's oscillator at F_f = 0.5 sticks at both turning points below Ω ≈ 0.6007 (four
+  // switches per period). Lower, one stick phase spans a crest of the forcing: the holding force
+  // F0 cos Ωt − k x_s has an interior maximum F0 − k x_s there, which reaches the limit
+  // μ_s N at Ω_a ≈ 0.18496 (where x_s = (F0 − μ_s N)/k): below it a slip is born inside the stick,
+  // and each half period gains a slip and a stick (eight switches per period). The reference
+  // brackets Ω_a by the engine's own switch counts of the steady motion (no analysis layer).
+  double lo = 0.18, hi = 0.19;
+  REQUIRE(switches_per_period(lo) == 8);
+  REQUIRE(switches_per_period(hi) == 4);
+  for (int i = 0; i < 40; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (switches_per_period(mid) == 4 ? hi : lo) = mid;
+  }
+  const ContinuationResult r = den_hartog_in_omega(0.3, 0.17);
+  REQUIRE(!r.branches.empty());
+  const Bifurcation* adding = nullptr;
+  for (const Bifurcation& b : r.bifurcations)
+    if (b.p > 0.17 && b.p < 0.2) adding = &b;
+  REQUIRE(adding != nullptr);
+  WARN(std::setprecision(15) << "adding-sliding: Ω = " << adding->p << " (simulations' bracket [" << lo << ", " << hi
+                              << "], difference " << adding->p - 0.5 * (lo + hi) << "), smooth " << adding->smooth);
+  CHECK(adding->kind == BifurcationKind::rising);
+  CHECK(adding->stop == 0);
+  CHECK(adding->smooth);
+  // The bracket is 1e-14 wide after 40 halvings; the engine decides a slip where the margin
+  // crosses its trigger (1e-13 of the force scale), and the margin moves by O(1) per unit of Ω,
+  // so the simulations place Ω_a to ~1e-13. 1e-11 leaves a factor 100 for the location itself.
+  CHECK(std::abs(adding->p - 0.5 * (lo + hi)) < 1e-11);
+  // Each side of it: four and eight switches per period on the branch.
+  const Branch& b = r.branches.front();
+  CHECK(b.points.back().signature.phases.at(0) == 8);
+}
+
+TEST_CASE("continuation reports no bifurcation where a stick phase's start crosses the Poincaré section",
+          "[friction][analysis]") {
+  // Between Ω = 0.5 and 0.4 the orbit keeps its four switches per period, while the start of one
+  // stick phase passes the section t ≡ 0 (mod T) at Ω ≈ 0.43844: an orbit that starts inside a
+  // stick phase is the same orbit, and its signature (the switches inside the period) does not
+  // change there.
+  const ContinuationResult r = den_hartog_in_omega(0.5, 0.4);
+  REQUIRE(!r.branches.empty());
+  CHECK(r.bifurcations.empty());
+  for (const BranchPoint& p : r.branches.front().points) CHECK(p.signature.phases.at(0) == 4);
+  CHECK(r.branches.front().points.back().p < 0.41);
 }
 
 TEST_CASE("two masses with a surface contact and a rubbing pair: the tangent map against central differences",

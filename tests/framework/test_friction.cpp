@@ -162,6 +162,30 @@ TEST_CASE("stick-slip with equal static and kinetic coefficients breaks away onc
   }
 }
 
+TEST_CASE("a slip that starts with u' = 0 to rounding is not ended where it starts", "[friction]") {
+  // Den Hartog's system at Ω = 0.18485, F_f/F0 = 0.5, from rest: at t ≈ 135.82 the stuck mass
+  // breaks away with the holding force at μN to rounding. The slip's guard −σu starts at 0 with
+  // a slope of +1e-16 (rounding) and h'' < 0 (the slip accelerating): taken for a guard that
+  // rises from its surface, the search's root from the start was its quadratic model's second
+  // zero 2h'/|h''| ≈ 6e-14 later, so the slip ended at once, the mass stuck with the force at the
+  // limit, broke away at once, and so on to the event cap (10⁵ events at one instant).
+  const double W = 0.18485, T = 2 * std::numbers::pi / W;
+  const LinearSystem sys = one_mass(1.0, 0.05, 1.0, 1.0, W);
+  FrictionSimulator sim(sys, {FrictionContact::on_surface(0, 0.5, 1.0, 1.0)});
+  FrictionLog log;
+  const FrictionSummary s = sim.run(0.0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), 120 * T, {}, {&log});
+  INFO(s.message);
+  REQUIRE(s.status == RunStatus::completed);
+  // Every slip lasts (the shortest here, near the crests of the forcing, ~0.4 time units).
+  REQUIRE(log.events.size() > 100);
+  CHECK(log.events.size() < 8 * 121);
+  for (std::size_t i = 1; i + 1 < log.events.size(); ++i)
+    if (log.events[i].kind == FrictionEventKind::slip) {
+      CAPTURE(i, log.events[i].t);
+      CHECK(log.events[i + 1].t - log.events[i].t > 1e-3 * T);
+    }
+}
+
 TEST_CASE("friction never gains energy: two masses, a fixed surface and a rubbing pair, no forcing", "[friction]") {
   Eigen::MatrixXd M(2, 2), K(2, 2);
   M << 1.0, 0.0, 0.0, 2.0;

@@ -3,7 +3,8 @@
 // (friction_tangent.cpp, friction_stops_tangent.cpp) both need, written once: the data moved
 // along a parameter derivative (the modes' rows are differentiated by differences of them), the
 // augmented state and its oscillator's sensitivity to Ω, the basis of a mode's tangent space, and
-// the interior minima of a slipping contact's σu (the grazing-sliding feature).
+// the sliding features: the interior minima of a slipping contact's σu (grazing-sliding) and of a
+// stuck contact's margin μ_s N − |F| (adding-sliding).
 #include "vibro/friction.hpp"
 #include "vibro/linearisation.hpp"
 #include "vibro/parameter.hpp"
@@ -13,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 #include <vector>
 
 namespace vibro::detail {
@@ -157,41 +159,78 @@ struct CarriedMap {
   }
 };
 
-/// An interior local minimum of σ_j u_j of a slipping contact over a segment.
-struct SlipMinimum {
+/// An interior local minimum, at t, of a row value ℓᵀz(t) of frictional contact `contact` over a
+/// segment.
+struct InteriorMinimum {
   int contact;
   double t, value;
 };
 
-/// The interior local minima of σ_j u_j over a segment of length τ from z_b at t_b, for every
-/// slipping contact, in the mode of generator A (u = relative z): 64 samples refined by
-/// bisection on (σu)' (not certified: two minima within one sample are seen as none).
-inline void slip_minima(const Eigen::MatrixXd& A, const Eigen::MatrixXd& relative, const std::vector<FrictionState>& states,
-                        double tb, double tau, const Eigen::VectorXd& zb, std::vector<SlipMinimum>& out) {
+/// The interior local minima of ℓᵀz(t) over a segment of length τ from z_b at t_b, for every
+/// (contact, ℓ) of `rows`, on the exact flow z(t) = exp(A (t − t_b)) z_b of the mode of generator
+/// A: 64 samples, each sign change of (ℓᵀz)' = ℓᵀA z from − to + refined by bisection (not
+/// certified: two minima within one sample are seen as none; one at an end is not interior).
+inline void interior_minima(const Eigen::MatrixXd& A, const std::vector<std::pair<int, Eigen::VectorXd>>& rows,
+                            double tb, double tau, const Eigen::VectorXd& zb, std::vector<InteriorMinimum>& out) {
+  if (rows.empty()) return;
   constexpr int samples = 64;
   const Eigen::MatrixXd step = (A * (tau / samples)).exp();
   std::vector<Eigen::VectorXd> z(samples + 1);
   z[0] = zb;
   for (int i = 0; i < samples; ++i) z[static_cast<std::size_t>(i + 1)] = step * z[static_cast<std::size_t>(i)];
-  for (std::size_t j = 0; j < states.size(); ++j) {
-    if (states[j] == FrictionState::stuck) continue;
-    const double sigma = states[j] == FrictionState::slip_positive ? 1.0 : -1.0;
-    const Eigen::VectorXd u_row = sigma * relative.row(static_cast<Eigen::Index>(j)).transpose();
-    const Eigen::VectorXd du_row = A.transpose() * u_row;  // (σu)' = σ ℓ_u Â z
+  for (const auto& [contact, row] : rows) {
+    const Eigen::VectorXd rate = A.transpose() * row;  // (ℓᵀz)' = ℓᵀ A z
     for (int i = 0; i < samples; ++i) {
-      const double a = du_row.dot(z[static_cast<std::size_t>(i)]), b = du_row.dot(z[static_cast<std::size_t>(i + 1)]);
+      const double a = rate.dot(z[static_cast<std::size_t>(i)]), b = rate.dot(z[static_cast<std::size_t>(i + 1)]);
       if (!(a < 0.0 && b >= 0.0)) continue;
-      // Bisection on (σu)' over [i, i + 1] samples.
       double lo = i * tau / samples, hi = (i + 1) * tau / samples;
       for (int it = 0; it < 60 && hi - lo > 1e-15 * std::max(1.0, std::abs(tb) + tau); ++it) {
         const double mid = 0.5 * (lo + hi);
         const Eigen::VectorXd zm = (A * mid).exp() * zb;
-        (du_row.dot(zm) < 0.0 ? lo : hi) = mid;
+        (rate.dot(zm) < 0.0 ? lo : hi) = mid;
       }
       const double s = 0.5 * (lo + hi);
       if (s <= 1e-9 * tau || s >= (1.0 - 1e-9) * tau) continue;  // an end, not an interior minimum
-      out.push_back({static_cast<int>(j), tb + s, u_row.dot((A * s).exp() * zb)});
+      out.push_back({contact, tb + s, row.dot((A * s).exp() * zb)});
     }
+  }
+}
+
+/// The interior local minima of σ_j u_j of every slipping contact (u = relative z): → 0 at a
+/// grazing-sliding bifurcation, where a stick phase is born inside a slip.
+inline void slip_minima(const Eigen::MatrixXd& A, const Eigen::MatrixXd& relative, const std::vector<FrictionState>& states,
+                        double tb, double tau, const Eigen::VectorXd& zb, std::vector<InteriorMinimum>& out) {
+  std::vector<std::pair<int, Eigen::VectorXd>> rows;
+  for (std::size_t j = 0; j < states.size(); ++j) {
+    if (states[j] == FrictionState::stuck) continue;
+    const double sigma = states[j] == FrictionState::slip_positive ? 1.0 : -1.0;
+    rows.emplace_back(static_cast<int>(j), sigma * relative.row(static_cast<Eigen::Index>(j)).transpose());
+  }
+  interior_minima(A, rows, tb, tau, zb, out);
+}
+
+/// The margins μ_s N_j − |F_j| of every stuck contact (F = force z, the force holding it) at the
+/// interior local maxima of |F_j|: → 0 at an adding-sliding bifurcation, where a slip is born
+/// inside a stick phase (the sliding flow touches the boundary of the sliding region; di Bernardo
+/// et al. 2008, ch. 8), the counterpart of a held stop's contact force dipping to zero. A contact
+/// whose tangent the held stops already fix (`locked`, with stops) holds nothing of its own and
+/// is skipped.
+inline void stick_margins(const Eigen::MatrixXd& A, const Eigen::MatrixXd& force, const std::vector<FrictionState>& states,
+                          const std::vector<FrictionContact>& contacts, const std::vector<char>* locked, double tb,
+                          double tau, const Eigen::VectorXd& zb, std::vector<InteriorMinimum>& out) {
+  std::vector<std::pair<int, Eigen::VectorXd>> rows;
+  for (std::size_t j = 0; j < states.size(); ++j) {
+    if (states[j] != FrictionState::stuck || (locked && (*locked)[j])) continue;
+    const Eigen::VectorXd F = force.row(static_cast<Eigen::Index>(j)).transpose();
+    rows.emplace_back(static_cast<int>(j), F);   // minima of F: |F| maxima where F < 0
+    rows.emplace_back(static_cast<int>(j), -F);  // minima of −F: |F| maxima where F > 0
+  }
+  std::vector<InteriorMinimum> found;
+  interior_minima(A, rows, tb, tau, zb, found);
+  for (const InteriorMinimum& m : found) {
+    if (!(m.value < 0.0)) continue;  // an extremum of F that is no maximum of |F|
+    const FrictionContact& c = contacts[static_cast<std::size_t>(m.contact)];
+    out.push_back({m.contact, m.t, c.static_coefficient * c.normal_load + m.value});  // μ_s N − |F|
   }
 }
 

@@ -129,6 +129,11 @@ class FrictionStopRecorder final : public Observer, public FrictionStopObserver 
 
   // ---- Observer: the events (friction events of contact j as index stop_count + j) ----
   void event(const Event& e) override {
+    // Before the first segment a frictional contact's event is the start's decision of the
+    // contacts at u = 0 (friction_stops.cpp reports it at t0), not a switch: skipped, as in
+    // friction_tangent.cpp, so that an orbit's signature does not change where a switch crosses
+    // the section.
+    if (first_ && is_friction(e.kind)) return;
     events_.push_back(e);
     Event out = e;
     if (is_friction(e.kind)) out.stop += ms_;
@@ -325,8 +330,9 @@ class FrictionStopRecorder final : public Observer, public FrictionStopObserver 
     out_.least_guard_rate = least;
     if (options_.features) {
       for (const Margin& m : margins_) out_.force_dips.push_back({m.contact, m.t, m.value, m.stuck});
-      for (const detail::SlipMinimum& m : minima_)
+      for (const detail::InteriorMinimum& m : minima_)
         out_.force_dips.push_back({ms_ + m.contact, m.t, m.value * Fs / V, false});
+      for (const detail::InteriorMinimum& m : stick_dips_) out_.force_dips.push_back({ms_ + m.contact, m.t, m.value, false});
     }
   }
 
@@ -481,6 +487,8 @@ class FrictionStopRecorder final : public Observer, public FrictionStopObserver 
   void features(const ModeData& mode, const std::vector<FrictionState>& states, double tb, double tau,
                 const VectorXd& zb) {
     detail::slip_minima(mode.rows.generator, mode.rows.relative, states, tb, tau, zb, minima_);
+    detail::stick_margins(mode.rows.generator, mode.rows.force, states, contacts_, &mode.rows.locked, tb, tau, zb,
+                          stick_dips_);
     const Segment seg(*mode.scan, tb, zb);
     const double resolution = 16.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(tb + tau), 1.0);
     for (int j = 0; j < ms_; ++j) {
@@ -525,7 +533,8 @@ class FrictionStopRecorder final : public Observer, public FrictionStopObserver 
   std::vector<Event> events_;
   std::vector<Rate> rates_;
   std::vector<Margin> margins_;
-  std::vector<detail::SlipMinimum> minima_;
+  std::vector<detail::InteriorMinimum> minima_;      // slipping contacts' σu minima (grazing-sliding)
+  std::vector<detail::InteriorMinimum> stick_dips_;  // stuck contacts' μ_s N − |F| minima (adding-sliding)
 };
 
 }  // namespace

@@ -37,7 +37,7 @@ struct ModeData {
 using detail::max_abs;
 using detail::MovedData;
 using detail::moved;
-using detail::SlipMinimum;
+using detail::InteriorMinimum;
 
 class FrictionTangentRecorder final : public FrictionObserver {
  public:
@@ -110,8 +110,10 @@ class FrictionTangentRecorder final : public FrictionObserver {
     // The least tangent dimension (friction_tangent.hpp): a contact stuck since the start has not
     // lost its direction (no stick's saltation yet).
     map_.reached(switched_ ? mode.basis.cols() : N2, mode.basis, options_.jacobian && !frame_);
-    if (options_.features && tau > 0.0)
+    if (options_.features && tau > 0.0) {
       detail::slip_minima(mode.rows.generator, mode.rows.relative, states, tb, tau, zb, minima_);
+      detail::stick_margins(mode.rows.generator, mode.rows.force, states, contacts_, nullptr, tb, tau, zb, stick_dips_);
+    }
     last_ = &mode;
   }
 
@@ -180,6 +182,11 @@ class FrictionTangentRecorder final : public FrictionObserver {
   }
 
   void friction_event(const FrictionEvent& e, const Eigen::VectorXd& /*x*/, const Eigen::VectorXd& v) override {
+    // Before the first segment: the start's decision of the contacts at u = 0 (friction.cpp
+    // reports it as an event at t0), not a switch of the map. A stick phase that straddles t0 is
+    // counted once, by its switches inside the run: the event signature of an orbit must not
+    // change where a switch crosses the section.
+    if (first_) return;
     const EventKind kind = e.kind == FrictionEventKind::stick  ? EventKind::friction_stick
                            : e.kind == FrictionEventKind::slip ? EventKind::friction_slip
                                                                : EventKind::friction_reversal;
@@ -206,7 +213,8 @@ class FrictionTangentRecorder final : public FrictionObserver {
     out_.least_guard_rate = least;
     if (options_.features) {
       for (const Margin& m : margins_) out_.force_dips.push_back({m.contact, m.t, m.value, m.stuck});
-      for (const SlipMinimum& m : minima_) out_.force_dips.push_back({m.contact, m.t, m.value * Fs / V, false});
+      for (const InteriorMinimum& m : minima_) out_.force_dips.push_back({m.contact, m.t, m.value * Fs / V, false});
+      for (const InteriorMinimum& m : stick_dips_) out_.force_dips.push_back({m.contact, m.t, m.value, false});
     }
   }
 
@@ -301,7 +309,8 @@ class FrictionTangentRecorder final : public FrictionObserver {
   std::map<int, long> open_;
   std::vector<std::pair<double, bool>> rates_;
   std::vector<Margin> margins_;
-  std::vector<SlipMinimum> minima_;
+  std::vector<InteriorMinimum> minima_;      // slipping contacts' σu minima (grazing-sliding)
+  std::vector<InteriorMinimum> stick_dips_;  // stuck contacts' μ_s N − |F| minima (adding-sliding)
 };
 
 }  // namespace

@@ -53,8 +53,13 @@
 /// ForceDip with past_release = true; and every interior local minimum of σ_j u_j of a slipping
 /// contact (→ 0 at a grazing-sliding bifurcation, where a stick phase is born inside a slip) a
 /// ForceDip (past_release = false) with the value σ_j u_j F/V (F, V the run's force and velocity
-/// scales). Those minima are found on 64 samples per segment refined by bisection on u_j'
-/// (not certified: two minima within one sample are seen as none). The contact's stuck phases
+/// scales); and every interior local maximum of |F_j| of a stuck contact, with the value
+/// μ_s N_j − |F_j| (→ 0 at an adding-sliding bifurcation, where a slip is born inside a stick
+/// phase: the sliding flow touches the boundary of the sliding region), a ForceDip (past_release
+/// = false) in force units. Those extrema are found on 64 samples per segment refined by
+/// bisection on the derivative (not certified: two within one sample are seen as none). A phase
+/// born inside a slip or a stick changes the contact's switch count by two and is located as a
+/// `rising` of that contact like the crossing-sliding one. The contact's stuck phases
 /// are HeldPhases; the switches are Events (friction_stick, friction_slip, friction_reversal,
 /// `stop` the contact), so continuation's event signature counts a contact's switches per orbit
 /// as its contact phases, and a stick phase born at a reversal is located as a `rising` of that
