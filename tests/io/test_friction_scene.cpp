@@ -105,21 +105,24 @@ TEST_CASE("friction scenes run as orbits and continuations: structural zeros and
   CHECK(o.attribute_string("/orbit", "status") == "converged");
   CHECK(o.attribute_string("/orbit", "structural_zeros") == "1");
   CHECK(o.attribute_string("/orbit", "stability") == "stable");
-  // Den Hartog's oscillator continued in Ω through the onset of sticking (the number is checked
-  // against his closed form in tests/analysis/test_friction_analysis.cpp).
+  // Den Hartog's oscillator continued in Ω through the onset of sticking and, lower, the birth of a
+  // slip inside a stick (the numbers are checked against his closed form and against the engine's
+  // switch counts in tests/analysis/test_friction_analysis.cpp).
   const vibro::io::ResultReader c =
       run(vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/friction/den_hartog_continuation.yaml"),
           "continuation.h5");
   const std::vector<std::string> names = c.attribute_strings("/bifurcations/kind", "names");
   const std::vector<std::int64_t> kinds = c.read_integers("/bifurcations/kind");
   const std::vector<double> p = c.read("/bifurcations/p");
-  int onsets = 0;
-  for (std::size_t i = 0; i < kinds.size(); ++i)
-    if (names.at(static_cast<std::size_t>(kinds[i])) == "rising") {
-      ++onsets;
-      CHECK(std::abs(p[i] - 0.6007) < 1e-3);
-    }
+  int onsets = 0, adding = 0;
+  for (std::size_t i = 0; i < kinds.size(); ++i) {
+    CHECK(names.at(static_cast<std::size_t>(kinds[i])) == "rising");
+    onsets += std::abs(p[i] - 0.6007) < 1e-3;
+    adding += std::abs(p[i] - 0.18496) < 1e-4;
+  }
+  CHECK(kinds.size() == 2);
   CHECK(onsets == 1);
+  CHECK(adding == 1);
 }
 
 TEST_CASE("a scene with friction and a rigid stop runs as an orbit: impacts, stick-slip, a structural zero",
