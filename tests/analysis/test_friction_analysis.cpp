@@ -337,11 +337,11 @@ struct SwitchCounter final : FrictionObserver {
 };
 
 /// The switches per forcing period of Den Hartog's oscillator (m = k = F0 = 1, c = 0.05,
-/// μ_s = μ_k = 1, N = 0.5) in its steady state at Ω: 120 periods from rest (its multipliers are
-/// ≤ 0.31 in modulus there, so the transient has decayed far below rounding), then one period
-/// counted from a crest of the forcing (Ωt ≡ 0).
-int switches_per_period(double omega) {
-  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, 0.5, 0.5)};
+/// μ_s = μ_k = 1, normal load N) in its steady state at Ω: 120 periods from rest (where it is
+/// used its multipliers are ≤ 0.63 in modulus: 0.63¹²⁰ ≈ 1e-24, the transient far below rounding),
+/// then one period counted from a crest of the forcing (Ωt ≡ 0).
+int switches_per_period(double omega, double load = 0.5) {
+  const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, load, load)};
   const LinearSystem sys = one_mass(1.0, 0.05, 1.0, 1.0, omega);
   const double T = 2.0 * std::numbers::pi / omega;
   FrictionSimulator sim(sys, contacts);
@@ -355,8 +355,8 @@ int switches_per_period(double omega) {
   return counter.switches;
 }
 
-ContinuationResult den_hartog_in_omega(double from, double to) {
-  const double m = 1.0, c = 0.05, k = 1.0, F0 = 1.0, Ff = 0.5;
+ContinuationResult den_hartog_in_omega(double from, double to, double Ff = 0.5) {
+  const double m = 1.0, c = 0.05, k = 1.0, F0 = 1.0;
   const std::vector<FrictionContact> contacts{FrictionContact::on_surface(0, 1.0, Ff, Ff)};
   const ContinuationFamily family = [&](double omega) {
     return friction_family_engine(one_mass(m, c, k, F0, omega), contacts, SystemDerivative::frequency_only(), {});
@@ -409,6 +409,37 @@ TEST_CASE("continuation locates a slip born inside a stick (adding-sliding) agai
   // Each side of it: four and eight switches per period on the branch.
   const Branch& b = r.branches.front();
   CHECK(b.points.back().signature.phases.at(0) == 8);
+}
+
+TEST_CASE("continuation locates a reversal turning into a stick (crossing-sliding from the sticking side)",
+          "[friction][analysis]") {
+  // F_f = 0.1, below the grazing-sliding of the test above: each half period slips, stops inside
+  // the slip, slips on, and reverses at the turning point, where a short slip back ends in a
+  // stick (six switches per period). Lower, at Ω_c ≈ 0.36003, the turning point's arrival reaches
+  // the boundary |F_hold| = μ_s N and the reversal with its short slip becomes a stick (four
+  // switches): the side with fewer switches is the one that sticks, so the arrival's margin
+  // (≤ 0 at its stick, > 0 at the reversal) locates it. Reference: the engine's switch counts.
+  double lo = 0.355, hi = 0.365;
+  REQUIRE(switches_per_period(lo, 0.1) == 4);
+  REQUIRE(switches_per_period(hi, 0.1) == 6);
+  for (int i = 0; i < 40; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (switches_per_period(mid, 0.1) == 6 ? hi : lo) = mid;
+  }
+  const ContinuationResult r = den_hartog_in_omega(0.375, 0.35, 0.1);
+  REQUIRE(!r.branches.empty());
+  const Bifurcation* located = nullptr;
+  for (const Bifurcation& b : r.bifurcations)
+    if (b.p > 0.355 && b.p < 0.365) located = &b;
+  REQUIRE(located != nullptr);
+  WARN(std::setprecision(15) << "reversal to stick: Ω = " << located->p << " (simulations' bracket [" << lo << ", "
+                             << hi << "], difference " << located->p - 0.5 * (lo + hi) << "), smooth "
+                             << located->smooth);
+  CHECK(located->kind == BifurcationKind::rising);
+  CHECK(located->smooth);
+  // As for the adding-sliding above: the simulations place Ω_c to ~1e-13.
+  CHECK(std::abs(located->p - 0.5 * (lo + hi)) < 1e-11);
+  CHECK(r.branches.front().points.back().signature.phases.at(0) == 4);
 }
 
 TEST_CASE("continuation reports no bifurcation where a stick phase's start crosses the Poincaré section",

@@ -122,10 +122,19 @@ bool BranchRunner::examine(const Node& a, Node& b, int branch_index, int depth,
       // the held flow continued past the release needs a negative force. (The new part of the
       // split phase usually starts with a chatter, so the chatter count moves with it.)
       const bool rising = std::isfinite(f(good)) && f(good) > 0.0 && std::isfinite(f(other)) && f(other) < 0.0;
+      // A frictional contact whose side with fewer switches is the sticking one: a reversal
+      // (then a short slip and a stick) turned into a stick, located by the arrival's margin,
+      // ≤ 0 at the stick of the fewer side, > 0 at the reversal of the other.
+      const TestFunction g = [j, fewer](const Node& n) { return arrival_function(n, j, fewer); };
+      const bool arrival = !rising && frictional(a, j) && frictional(b, j) && std::isfinite(g(good)) &&
+                           g(good) < 0.0 && std::isfinite(g(other)) && g(other) > 0.0;
       const std::string how = sa.chatters[j] != sb.chatters[j] ? "entered by chatter" : "entered by an impact";
-      record(rising ? BifurcationKind::rising : BifurcationKind::phase_change, stop, a, b, branch_index, f,
-             rising ? Mode::one_sided : Mode::bisection, rising ? fewer_side : same_counts(sa, j, &Signature::phases),
-             rising ? "" : "a contact phase (" + how + ") appears or vanishes; not smooth in p (it depends on the chatter rule): bracketed by bisection");
+      if (arrival)
+        record(BifurcationKind::rising, stop, a, b, branch_index, g, Mode::one_sided, fewer_side, "");
+      else
+        record(rising ? BifurcationKind::rising : BifurcationKind::phase_change, stop, a, b, branch_index, f,
+               rising ? Mode::one_sided : Mode::bisection, rising ? fewer_side : same_counts(sa, j, &Signature::phases),
+               rising ? "" : "a contact phase (" + how + ") appears or vanishes; not smooth in p (it depends on the chatter rule): bracketed by bisection");
     } else if (sa.chatters[j] != sb.chatters[j]) {
       explained = true;
       record(BifurcationKind::chatter_change, stop, a, b, branch_index, {}, Mode::bisection,

@@ -75,4 +75,21 @@ double rising_function(const Node& n, std::size_t j, int fewer) {
   return std::isfinite(best) ? best : kNaN;
 }
 
+double arrival_function(const Node& n, std::size_t j, int fewer) {
+  const bool sticking_side = n.b.signature.phases[j] == fewer;
+  double best = sticking_side ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
+  for (const ForceDip& d : n.e.map.force_dips)
+    if (d.stop == static_cast<int>(j) && d.past_release == sticking_side)
+      best = sticking_side ? std::max(best, d.value) : std::min(best, d.value);
+  return std::isfinite(best) ? best : kNaN;
+}
+
+bool frictional(const Node& n, std::size_t j) {
+  for (const Event& e : n.e.map.events)
+    if (e.stop == static_cast<int>(j) && (e.kind == EventKind::friction_stick || e.kind == EventKind::friction_slip ||
+                                          e.kind == EventKind::friction_reversal))
+      return true;
+  return false;
+}
+
 }  // namespace vibro::detail

@@ -22,7 +22,12 @@
 ///    dashpot or a preload it is of order 1. Located from the side without the contact either way;
 ///  * rising of stop j (Wagg 2004): with `fewer` contact phases the least interior minimum of
 ///    its contact force (> 0), with more the least force the held flow continued past a
-///    release would need (< 0).
+///    release would need (< 0);
+///  * a frictional contact j whose arrival at u = 0 turns from a reversal (followed by a short
+///    slip and a stick) into a stick (a crossing-sliding bifurcation where the side with fewer
+///    switches is the sticking one): the margin |F_hold| − μ_s N at the arrival, with `fewer`
+///    switches the largest margin of a stick (≤ 0), with more the least margin of a reversal or
+///    sliding feature (> 0; friction_tangent.hpp's force dips).
 /// The fold's test function, the tangent's p component, is read off the node directly.
 /// NaN where the function is not defined at a point (location then falls back to bisection).
 #include "corrector.hpp"
@@ -39,5 +44,9 @@ bool has_unit_pair(const FloquetMultipliers& f, double tol);
 double grazing_function(const Node& n, std::size_t stops, std::size_t j, int fewer, int more);
 /// Rising of stop j (see above).
 double rising_function(const Node& n, std::size_t j, int fewer);
+/// A frictional contact's arrival turning from a reversal into a stick (see above).
+double arrival_function(const Node& n, std::size_t j, int fewer);
+/// Whether signature index j is a frictional contact (its events are friction switches).
+bool frictional(const Node& n, std::size_t j);
 
 }  // namespace vibro::detail
