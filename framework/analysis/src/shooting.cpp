@@ -188,105 +188,51 @@ class DenseBackend final : public FullJacobianBackend {
   LinearisationOptions options_;
 };
 
-/// The Taylor engine (nonlinear forces): maps from linearise(system, forces, …).
-class TaylorBackend final : public FullJacobianBackend {
+/// The engine's run summary as shooting reads it (a friction run's, converted).
+inline RunSummary summary_of(RunSummary s) { return s; }
+inline RunSummary summary_of(const FrictionSummary& f) { return run_summary(f); }
+/// The forcing of a model: a LinearSystem's own, an ImpactSystem's through its system.
+inline const HarmonicForcing& forcing_of(const LinearSystem& s) { return s.forcing(); }
+inline const HarmonicForcing& forcing_of(const ImpactSystem& s) { return s.system().forcing(); }
+
+/// A scene whose tangent maps come from linearise(model, extra, …) and whose runs from
+/// Engine(model, extra, solver): the Taylor engine (an ImpactSystem and its NonlinearForces), a
+/// friction scene (a LinearSystem and its contacts), friction with stops (an ImpactSystem and its
+/// contacts). The probe asks for the events only (no held phases: the maps refuse them).
+template <class Model, class Extra, class Engine>
+class EngineBackend final : public FullJacobianBackend {
  public:
-  TaylorBackend(const ImpactSystem& system, const NonlinearForces& forces, const SimulatorOptions& solver,
-                const LinearisationOptions& o)
-      : FullJacobianBackend(solver.interrupt), system_(system), forces_(forces), solver_(solver), options_(o) {
+  EngineBackend(const Model& model, const Extra& extra, const SimulatorOptions& solver, const LinearisationOptions& o)
+      : FullJacobianBackend(solver.interrupt), model_(model), extra_(extra), solver_(solver), options_(o) {
     options_.jacobian = true;
   }
-  Index dof() const override { return system_.dof(); }
-  double frequency() const override { return system_.system().forcing().frequency; }
-  TangentMap probe(double t0, const VectorXd& z, double t1) override {
-    LinearisationOptions probe;  // the events only (no held phases: the maps refuse them)
-    probe.jacobian = false;
-    return linearise(system_, forces_, solver_, t0, z.head(dof()), z.tail(dof()), t1, probe);
-  }
-  Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
-    return evaluate_with(
-        [&] { return linearise(system_, forces_, solver_, t0, z.head(dof()), z.tail(dof()), t1, options_); });
-  }
-
- protected:
-  RunSummary run(double from, const VectorXd& z, double to) override {
-    TaylorSimulator sim(system_, forces_, solver_);
-    return sim.run(from, z.head(dof()), z.tail(dof()), to);
-  }
-
- private:
-  const ImpactSystem& system_;
-  const NonlinearForces& forces_;
-  SimulatorOptions solver_;
-  LinearisationOptions options_;
-};
-
-/// A friction scene (friction.hpp): maps from linearise(system, contacts, …) (friction_tangent.hpp).
-class FrictionBackend final : public FullJacobianBackend {
- public:
-  FrictionBackend(const LinearSystem& system, const std::vector<FrictionContact>& contacts,
-                  const SimulatorOptions& solver, const LinearisationOptions& o)
-      : FullJacobianBackend(solver.interrupt), system_(system), contacts_(contacts), solver_(solver), options_(o) {
-    options_.jacobian = true;
-  }
-  Index dof() const override { return system_.dof(); }
-  double frequency() const override { return system_.forcing().frequency; }
+  Index dof() const override { return model_.dof(); }
+  double frequency() const override { return forcing_of(model_).frequency; }
   TangentMap probe(double t0, const VectorXd& z, double t1) override {
     LinearisationOptions probe;
     probe.jacobian = false;
-    return linearise(system_, contacts_, solver_, t0, z.head(dof()), z.tail(dof()), t1, probe);
+    return linearise(model_, extra_, solver_, t0, z.head(dof()), z.tail(dof()), t1, probe);
   }
   Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
     return evaluate_with(
-        [&] { return linearise(system_, contacts_, solver_, t0, z.head(dof()), z.tail(dof()), t1, options_); });
+        [&] { return linearise(model_, extra_, solver_, t0, z.head(dof()), z.tail(dof()), t1, options_); });
   }
 
  protected:
   RunSummary run(double from, const VectorXd& z, double to) override {
-    FrictionSimulator sim(system_, contacts_, solver_);
-    return run_summary(sim.run(from, z.head(dof()), z.tail(dof()), to));
+    Engine sim(model_, extra_, solver_);
+    return summary_of(sim.run(from, z.head(dof()), z.tail(dof()), to));
   }
 
  private:
-  const LinearSystem& system_;
-  const std::vector<FrictionContact>& contacts_;
+  const Model& model_;
+  const Extra& extra_;
   SimulatorOptions solver_;
   LinearisationOptions options_;
 };
-
-/// A scene with friction and stops (friction_stops.hpp): maps from linearise(scene, contacts, …)
-/// (friction_tangent.hpp).
-class FrictionStopBackend final : public FullJacobianBackend {
- public:
-  FrictionStopBackend(const ImpactSystem& scene, const std::vector<FrictionContact>& contacts,
-                      const SimulatorOptions& solver, const LinearisationOptions& o)
-      : FullJacobianBackend(solver.interrupt), scene_(scene), contacts_(contacts), solver_(solver), options_(o) {
-    options_.jacobian = true;
-  }
-  Index dof() const override { return scene_.dof(); }
-  double frequency() const override { return scene_.system().forcing().frequency; }
-  TangentMap probe(double t0, const VectorXd& z, double t1) override {
-    LinearisationOptions probe;
-    probe.jacobian = false;
-    return linearise(scene_, contacts_, solver_, t0, z.head(dof()), z.tail(dof()), t1, probe);
-  }
-  Evaluation evaluate(double t0, const VectorXd& z, double t1) override {
-    return evaluate_with(
-        [&] { return linearise(scene_, contacts_, solver_, t0, z.head(dof()), z.tail(dof()), t1, options_); });
-  }
-
- protected:
-  RunSummary run(double from, const VectorXd& z, double to) override {
-    FrictionStopSimulator sim(scene_, contacts_, solver_);
-    return sim.run(from, z.head(dof()), z.tail(dof()), to);
-  }
-
- private:
-  const ImpactSystem& scene_;
-  const std::vector<FrictionContact>& contacts_;
-  SimulatorOptions solver_;
-  LinearisationOptions options_;
-};
+using TaylorBackend = EngineBackend<ImpactSystem, NonlinearForces, TaylorSimulator>;
+using FrictionBackend = EngineBackend<LinearSystem, std::vector<FrictionContact>, FrictionSimulator>;
+using FrictionStopBackend = EngineBackend<ImpactSystem, std::vector<FrictionContact>, FrictionStopSimulator>;
 
 /// What every backend on the modal engine shares: its size and frequency, plain runs, probes.
 template <class Base>
