@@ -15,6 +15,8 @@
 #include <cmath>
 #include <complex>
 #include <iomanip>
+#include <limits>
+#include <tuple>
 #include <numbers>
 
 using namespace vibro;
@@ -453,6 +455,147 @@ TEST_CASE("continuation reports no bifurcation where a stick phase's start cross
   CHECK(r.bifurcations.empty());
   for (const BranchPoint& p : r.branches.front().points) CHECK(p.signature.phases.at(0) == 4);
   CHECK(r.branches.front().points.back().p < 0.41);
+}
+
+namespace {
+
+/// Den Hartog's oscillator with stiction: m = k = F0 = 1, c = 0.05, N = 0.3, μ_s = 1.5, μ_k = 1.
+LinearSystem stiction_system(double omega) { return one_mass(1.0, 0.05, 1.0, 1.0, omega); }
+std::vector<FrictionContact> stiction_contacts() { return {FrictionContact::on_surface(0, 0.3, 1.5, 1.0)}; }
+
+/// The system is unchanged by x → −x, t → t + T/2, so H(z) = −z(T/2) of the run from (0, z)
+/// maps the section t ≡ 0 (mod T) onto itself: a symmetric orbit is a fixed point of H, its
+/// period map is H∘H, and its multipliers are the squares of H's. Where the symmetric orbit
+/// loses its symmetry to a pair of asymmetric ones, a multiplier of H passes −1 (one of the
+/// period map passes +1 without a fold).
+Eigen::VectorXd half_map(double omega, const Eigen::VectorXd& z) {
+  return -map_of(stiction_system(omega), stiction_contacts(), 0.0, z, std::numbers::pi / omega);
+}
+
+/// The symmetric orbit at Ω by Newton on H(z) − z from z, the Jacobians by central differences
+/// of plain runs (no analysis code), and the real multiplier of H nearest −1 there. The step
+/// 1e-7 (the scales are O(1)) puts the differences' truncation error near 1e-14 and their
+/// rounding near 1e-9 (the runs' rounding ~1e-16 over 2e-7).
+std::pair<Eigen::VectorXd, double> symmetric_orbit(double omega, Eigen::VectorXd z) {
+  const auto jacobian = [omega](const Eigen::VectorXd& at) {
+    Eigen::Matrix2d J;
+    for (Eigen::Index i = 0; i < 2; ++i) {
+      Eigen::VectorXd zp = at, zm = at;
+      zp(i) += 1e-7;
+      zm(i) -= 1e-7;
+      J.col(i) = (half_map(omega, zp) - half_map(omega, zm)) / 2e-7;
+    }
+    return J;
+  };
+  for (int it = 0; it < 30; ++it) {
+    const Eigen::VectorXd r = half_map(omega, z) - z;
+    const Eigen::Matrix2d J = jacobian(z);
+    if (r.norm() < 1e-13) {
+      const Eigen::Vector2cd mu = J.eigenvalues();
+      double nearest = std::numeric_limits<double>::infinity();
+      for (const std::complex<double>& m : mu)
+        if (std::abs(m.imag()) < 1e-9 && std::abs(m.real() + 1.0) < std::abs(nearest + 1.0)) nearest = m.real();
+      return {z, nearest};
+    }
+    z -= (J - Eigen::Matrix2d::Identity()).partialPivLu().solve(r);
+  }
+  FAIL("no symmetric orbit at Ω = " << omega);
+  return {};
+}
+
+}  // namespace
+
+TEST_CASE("continuation passes the branch point where a stick-slip orbit loses its symmetry, and locates it",
+          "[friction][analysis]") {
+  // With stiction the symmetric orbit of Den Hartog's oscillator (a stick at each turning point,
+  // four switches per period) loses its stability at Ω_b ≈ 0.52247 to an asymmetric pair that
+  // exists below it (a subcritical pitchfork): a multiplier passes +1 while the branch goes
+  // straight on in Ω. Reference: the half-period map's multiplier passing −1 (symmetric_orbit),
+  // Ω_b bracketed by bisection on its sign; the differences' error (~1e-9) and the multiplier's
+  // slope (~5 per unit of Ω) place it to a few 1e-10; continuation locates it to its tolerance
+  // (1e-10), so 1e-9 bounds the sum with a margin.
+  Eigen::VectorXd z(2);
+  {
+    const double W = 0.5, T = 2.0 * std::numbers::pi / W;
+    const LinearSystem sys = stiction_system(W);
+    FrictionSimulator sim(sys, stiction_contacts());
+    const FrictionSummary settle = sim.run(0.0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), 200 * T);
+    REQUIRE(settle.status == RunStatus::completed);
+    z << settle.x(0), settle.v(0);
+  }
+  double mu = 0.0;
+  for (double W = 0.5; W < 0.5221; W += 0.0055) std::tie(z, mu) = symmetric_orbit(W, z);
+  REQUIRE(mu > -1.0);  // stable at 0.5220
+  double lo = 0.522, hi = 0.523;
+  Eigen::VectorXd z_lo = symmetric_orbit(lo, z).first;
+  REQUIRE(symmetric_orbit(hi, z_lo).second < -1.0);
+  for (int i = 0; i < 22; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    const auto [z_mid, mu_mid] = symmetric_orbit(mid, z_lo);
+    if (mu_mid > -1.0) lo = mid, z_lo = z_mid;
+    else hi = mid;
+  }
+  const double reference = 0.5 * (lo + hi);
+
+  const ContinuationFamily family = [](double omega) {
+    return friction_family_engine(stiction_system(omega), stiction_contacts(), SystemDerivative::frequency_only(), {});
+  };
+  ContinuationOptions o;
+  o.p_min = 0.45;
+  o.p_max = 0.56;
+  o.direction = +1;
+  o.max_points = 300;
+  const double W = 0.5, T = 2.0 * std::numbers::pi / W;
+  const LinearSystem sys = stiction_system(W);
+  FrictionSimulator sim(sys, stiction_contacts());
+  const FrictionSummary settle = sim.run(0.0, Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), 200 * T);
+  REQUIRE(settle.status == RunStatus::completed);
+  const ContinuationResult r = continue_orbits(family, W, settle.t, settle.x, settle.v, o);
+  REQUIRE(!r.branches.empty());
+  const Bifurcation* bp = nullptr;
+  for (const Bifurcation& b : r.bifurcations)
+    if (b.kind == BifurcationKind::branch_point) bp = &b;
+  REQUIRE(bp != nullptr);
+  WARN(std::setprecision(15) << "branch point: Ω = " << bp->p << " (half-period map's bracket [" << lo << ", " << hi
+                             << "], difference " << bp->p - reference << "), smooth " << bp->smooth << ", value "
+                             << bp->value);
+  CHECK(bp->smooth);
+  CHECK(std::abs(bp->p - reference) < 1e-9);
+  // The branch goes on past it, unstable, with the same events (it no longer ends there).
+  const Branch& b = r.branches.front();
+  CHECK(b.points.back().p == Approx(0.56).margin(1e-12));
+  for (const BranchPoint& p : b.points) {
+    if (p.located) continue;
+    CHECK(p.signature.phases.at(0) == 4);
+    if (std::abs(p.p - reference) > 1e-6) CHECK(p.multipliers.stable == (p.p < reference));
+  }
+  // The crossing branch is switched onto, both ways: asymmetric orbits below Ω_b, each checked
+  // by plain runs — periodic (one period returns to its state), and not symmetric (H moves it).
+  int switched = 0;
+  for (std::size_t i = 1; i < r.branches.size(); ++i) {
+    const Branch& s = r.branches[i];
+    INFO("branch " << i << ": " << s.start << " … " << s.end);
+    CHECK(s.parent == 0);
+    REQUIRE(s.bifurcation >= 0);
+    CHECK(r.bifurcations[static_cast<std::size_t>(s.bifurcation)].kind == BifurcationKind::branch_point);
+    REQUIRE(s.points.size() > 4);
+    ++switched;
+    const BranchPoint& q = s.points[3];
+    CHECK(q.p < reference);
+    const double Tq = 2.0 * std::numbers::pi / q.p;
+    const LinearSystem sq = stiction_system(q.p);
+    FrictionSimulator run(sq, stiction_contacts());
+    const FrictionSummary one = run.run(q.t0, q.x, q.v, q.t0 + Tq);
+    REQUIRE(one.status == RunStatus::completed);
+    // The corrector's tolerance is 1e-11 of the scales (O(1) here); 1e-9 leaves the runs' rounding.
+    CHECK(std::max(std::abs(one.x(0) - q.x(0)), std::abs(one.v(0) - q.v(0))) < 1e-9);
+    // The section of branch points is at phase q.phase; H is taken from t0 = q.t0 likewise.
+    const LinearSystem sh = stiction_system(q.p);
+    const Eigen::VectorXd zq = stacked(q.x, q.v);
+    const Eigen::VectorXd hz = -map_of(sh, stiction_contacts(), q.t0, zq, q.t0 + Tq / 2);
+    CHECK((hz - zq).norm() > 1e-4);
+  }
+  CHECK(switched == 2);
 }
 
 TEST_CASE("two masses with a surface contact and a rubbing pair: the tangent map against central differences",

@@ -123,6 +123,27 @@ TEST_CASE("friction scenes run as orbits and continuations: structural zeros and
   CHECK(kinds.size() == 2);
   CHECK(onsets == 1);
   CHECK(adding == 1);
+  // With stiction: the symmetric orbit's branch point, located, with the crossing branch switched
+  // onto both ways (checked against the half-period map in tests/analysis/test_friction_analysis.cpp).
+  const vibro::io::ResultReader s = run(
+      vibro::io::SceneDocument::load(std::string(VIBRO_EXPERIMENTS) + "/friction/den_hartog_stiction_continuation.yaml"),
+      "stiction.h5");
+  const std::vector<std::string> s_names = s.attribute_strings("/bifurcations/kind", "names");
+  const std::vector<std::int64_t> s_kinds = s.read_integers("/bifurcations/kind");
+  const std::vector<double> s_p = s.read("/bifurcations/p");
+  const std::vector<std::int64_t> s_smooth = s.read_integers("/bifurcations/smooth");
+  int branch_points = 0;
+  for (std::size_t i = 0; i < s_kinds.size(); ++i)
+    if (s_names.at(static_cast<std::size_t>(s_kinds[i])) == "branch_point") {
+      ++branch_points;
+      CHECK(std::abs(s_p[i] - 0.522467) < 1e-6);
+      CHECK(s_smooth[i] == 1);
+    }
+  CHECK(branch_points == 1);
+  const std::vector<std::int64_t> parents = s.read_integers("/branches/parent");
+  REQUIRE(parents.size() == 3);
+  CHECK(parents[1] == 0);
+  CHECK(parents[2] == 0);
 }
 
 TEST_CASE("a scene with friction and a rigid stop runs as an orbit: impacts, stick-slip, a structural zero",

@@ -25,7 +25,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 MARKERS = {"rising": "^", "grazing": "o", "fold": "D", "period_doubling": "s", "neimark_sacker": "*",
-           "phase_change": "s", "chatter_change": "s", "other": "x"}
+           "phase_change": "s", "chatter_change": "s", "other": "x", "branch_point": "P"}
 
 
 def read(path):

@@ -2,8 +2,9 @@
 /// What changed between two neighbouring branch points a → b, and how each change is located
 /// (continuation.hpp lists the kinds):
 ///  * on a smooth stretch (same event signature): a fold where the tangent's p component
-///    changes sign; period doubling and Neimark–Sacker where their test functions
-///    (test_functions.hpp) change sign — each located by Illinois on the arclength;
+///    changes sign; a branch point where a real multiplier passes +1 while it does not; period
+///    doubling and Neimark–Sacker where their test functions (test_functions.hpp) change sign —
+///    each located by Illinois on the arclength;
 ///  * across a change of the event signature, per stop: a change in free impacts is a grazing
 ///    (located from the side without the impact, where the nearest approach is smooth in p), a
 ///    change in contact phases a rising if the force test function has opposite signs on the
@@ -40,6 +41,20 @@ bool BranchRunner::examine(const Node& a, Node& b, int branch_index, int depth,
       record(BifurcationKind::period_doubling, -1, a, b, branch_index, f, Mode::two_sided, {}, "");
       if (doublings && depth < o_.max_doublings && result_.bifurcations.back().smooth)
         doublings->push_back({last_located_, branch_index});
+    }
+    // A real multiplier through +1 without a fold: another branch crosses this one (the step
+    // that crossed it was taken because its tangent kept pointing along the step's chord).
+    if (!turns && BranchRunner::real_above_one(ma) % 2 != BranchRunner::real_above_one(mb) % 2 &&
+        branch_point_test(ma) * branch_point_test(mb) < 0.0) {
+      const TestFunction f = [](const Node& n) { return branch_point_test(n.b.multipliers); };
+      record(BifurcationKind::branch_point, -1, a, b, branch_index, f, Mode::in_p, {}, "");
+      // With a's tangent: at the branch point itself DF's null space is two-dimensional and the
+      // tangent computed there is any vector of it; a's, one step away, is this branch's.
+      if (branch_points && result_.bifurcations.back().smooth) {
+        Node at = last_located_;
+        at.t = a.t;
+        branch_points->push_back({std::move(at), branch_index});
+      }
     }
     if (torus_test(ma) * torus_test(mb) < 0.0) {
       const TestFunction f = [](const Node& n) { return torus_test(n.b.multipliers); };

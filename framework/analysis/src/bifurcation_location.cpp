@@ -14,7 +14,9 @@
 ///    zero may lie beyond the good point, at a corner where both parts of the branch reach it
 ///    from the same side in p;
 ///  * bisection in p on a discrete property (the event signature) where the condition is not
-///    smooth in p.
+///    smooth in p;
+///  * for a branch point, Illinois in p, each point carried along a neighbour's tangent: the
+///    arclength's hyperplanes contain the crossing branch's direction there.
 /// record() runs the one asked for, falls back to bisection when the smooth one fails, and
 /// appends the Bifurcation with its bracket, its test function's value and the orbit there.
 #include "branch_runner.hpp"
@@ -43,12 +45,25 @@ std::optional<Node> BranchRunner::illinois(const Node& a, const Node& b, const T
   Node lo = a, hi = b;
   int side = 0;
   double s_last = std::numeric_limits<double>::infinity();
+  // A trial whose tangent turns from a's by far more than b's does lies on another branch that
+  // crosses the hyperplane (at a branch point the crossing branch's direction lies in it): taken
+  // as a failed corrector. (Between two neighbours the tangent turns by no more than from a to b,
+  // give or take the curvature's change.)
+  const double least_turn = std::min(a.t.dot(b.t), 1.0) - 0.25;
+  const auto correct = [&](const VectorXd& y) {
+    Eval e = c_.correct(y, a.t);
+    if (e.ok && c_.tangent(e, a.t).dot(a.t) < least_turn) {
+      e.ok = false;
+      e.why = "the corrector found another branch crossing the hyperplane";
+    }
+    return e;
+  };
   for (int it = 0; it < 100; ++it) {
     double s = 0.5 * (s_lo + s_hi);
     if (smooth) s = s_hi - f_hi * (s_hi - s_lo) / (f_hi - f_lo);
     if (!(s > s_lo && s < s_hi)) s = 0.5 * (s_lo + s_hi);
     Node m;
-    m.e = c_.correct(ya + s * a.t, a.t);
+    m.e = correct(ya + s * a.t);
     if (count) ++*count;
     // A corrector that fails from the chord through a (near a grazing the branch bends away from
     // it within the bracket) is tried again from the nearer bracket end's orbit carried to the
@@ -59,14 +74,14 @@ std::optional<Node> BranchRunner::illinois(const Node& a, const Node& b, const T
       if (shrink > 0) {
         const double s_near = s - s_lo <= s_hi - s ? s_lo : s_hi;
         s = s_near + 0.5 * (s - s_near);
-        m.e = c_.correct(ya + s * a.t, a.t);
+        m.e = correct(ya + s * a.t);
         if (count) ++*count;
       }
       const bool lo_nearer = s - s_lo <= s_hi - s;
       for (const Node* end : {lo_nearer ? &lo : &hi, lo_nearer ? &hi : &lo}) {
         if (m.e.ok) break;
         const double s_end = end == &lo ? s_lo : s_hi;
-        m.e = c_.correct(c_.scaled(end->e) + (s - s_end) * a.t, a.t);
+        m.e = correct(c_.scaled(end->e) + (s - s_end) * a.t);
         if (count) ++*count;
       }
     }
@@ -126,6 +141,93 @@ std::optional<Node> BranchRunner::at_p(const Node& from, double p, const VectorX
   m.b = c_.point(m.e, m.t, it);
   m.b.located = true;
   return m;
+}
+
+/// The orbit at p of the branch through `from`: Newton at fixed p from `from`'s point carried
+/// along its tangent to p, so that it starts O(Δp²) from the branch. (Near a branch point the
+/// crossing branch passes within O(√|p − p*|) of this one: Newton from `from`'s own state at the
+/// new p, or in a hyperplane normal to the tangent, which contains the crossing branch's
+/// direction there, may fall onto it.)
+std::optional<Node> BranchRunner::along_to_p(const Node& from, double p) {
+  const Index last = from.t.size() - 1;
+  if (!(std::abs(from.t(last)) > 1e-6)) return at_p(from, p, from.t);  // at a fold p cannot be stepped along t
+  VectorXd y = c_.scaled(from.e) + ((p - from.e.p) / c_.P / from.t(last)) * from.t;
+  y(last) = p / c_.P;
+  VectorXd n = VectorXd::Zero(y.size());
+  n(last) = 1.0;
+  Node m;
+  int it = 0;
+  m.e = c_.correct(y, n, &it);
+  if (!m.e.ok) return std::nullopt;
+  m.t = c_.tangent(m.e, from.t);
+  m.b = c_.point(m.e, m.t, it);
+  m.b.located = true;
+  return m;
+}
+
+/// A zero of f between a and b (f(a) f(b) < 0) by Illinois in p, each trial carried from the
+/// nearer bracket end along its tangent (along_to_p), to |Δp| ≤ locate_tolerance: for a branch
+/// point, where the branch crosses p transversally but the arclength iteration's hyperplanes
+/// contain the crossing branch's direction. The point is kept as located (located_smooth_) only
+/// if f 10 × the tolerance to either side in p (carried from it the same way) has opposite signs
+/// and |f| there at most a tenth of half their difference (the check small_against_scale makes
+/// in σ); `why` says what failed.
+std::optional<Node> BranchRunner::illinois_in_p(const Node& a, const Node& b, const TestFunction& f, int* count,
+                                                std::string* why) {
+  Node lo = a, hi = b;
+  double f_lo = f(a), f_hi = f(b);
+  if (!(f_lo * f_hi < 0.0)) return std::nullopt;
+  int side = 0;
+  double p_last = std::numeric_limits<double>::infinity();
+  for (int it = 0; it < 100; ++it) {
+    double p = hi.e.p - f_hi * (hi.e.p - lo.e.p) / (f_hi - f_lo);
+    if (!(p > std::min(lo.e.p, hi.e.p) && p < std::max(lo.e.p, hi.e.p))) p = 0.5 * (lo.e.p + hi.e.p);
+    const bool lo_nearer = std::abs(p - lo.e.p) <= std::abs(p - hi.e.p);
+    std::optional<Node> m = along_to_p(lo_nearer ? lo : hi, p);
+    if (count) ++*count;
+    if (!m) {
+      m = along_to_p(lo_nearer ? hi : lo, p);
+      if (count) ++*count;
+    }
+    if (!m) return std::nullopt;
+    const double fm = f(*m);
+    if (!std::isfinite(fm)) return std::nullopt;
+    if ((fm < 0.0) == (f_lo < 0.0)) {
+      lo = *m;
+      f_lo = fm;
+      if (side == -1) f_hi *= 0.5;
+      side = -1;
+    } else {
+      hi = *m;
+      f_hi = fm;
+      if (side == +1) f_lo *= 0.5;
+      side = +1;
+    }
+    const double step = std::abs(p - p_last);
+    p_last = p;
+    if (std::abs(hi.e.p - lo.e.p) > o_.locate_tolerance && fm != 0.0 && step > 0.1 * o_.locate_tolerance) continue;
+    bracket_low_ = std::min(lo.e.p, hi.e.p);
+    bracket_high_ = std::max(lo.e.p, hi.e.p);
+    double sides[2];
+    for (int i = 0; i < 2; ++i) {
+      const std::optional<Node> s = along_to_p(*m, m->e.p + (i == 0 ? -10.0 : 10.0) * o_.locate_tolerance);
+      if (count) ++*count;
+      if (!s) {
+        *why = "its test function's change around the point could not be checked (no orbit found 10 × the tolerance away)";
+        located_smooth_ = true;
+        return m;
+      }
+      sides[i] = f(*s);
+    }
+    const double change = 0.5 * std::abs(sides[1] - sides[0]);
+    located_smooth_ = sides[0] * sides[1] < 0.0 && std::abs(fm) <= 0.1 * change;
+    if (!located_smooth_)
+      *why = "its test function at the point found (" + number_text(fm) + ") is not small against its change over " +
+             "10 × the tolerance around it in p (" + number_text(sides[0]) + " … " + number_text(sides[1]) +
+             "): bracketed, not located";
+    return m;
+  }
+  return std::nullopt;
 }
 
 /// A zero of f located from the side of `good` only, where f is defined and smooth (on_good
@@ -371,6 +473,15 @@ void BranchRunner::record(BifurcationKind kind, int stop, const Node& a, const N
     }
   } else if (mode == Mode::bisection) {
     at = bisect(a, b, same_as_a, &count);
+  } else if (mode == Mode::in_p) {
+    std::string why;
+    at = illinois_in_p(a, b, f, &count, &why);
+    if (!why.empty()) bif.note += (bif.note.empty() ? "" : "; ") + why;
+    if (!at) {
+      const double fa = f(a);
+      at = bisect(a, b, [&f, fa](const Node& n) { return f(n) * fa > 0.0; }, &count);
+      bif.note += std::string(bif.note.empty() ? "" : "; ") + "the location in p failed: bracketed by bisection";
+    }
   } else {
     at = illinois(a, b, f, true, &count, same_as_a);
     if (at && located_smooth_) {

@@ -122,11 +122,20 @@ void BranchRunner::follow(Node start, VectorXd t, Branch& branch, int branch_ind
       // along the step in p, and examine() turns it away from the point it locates there.
       next.b = c_.point(next.e, cur.t, iterations);
       // With the same events and without a fold (the tangent, oriented along cur's, keeps the
-      // sign of its p component) no real multiplier crosses +1: a step that changes how many
-      // lie above +1 has gone round a fold onto the part of the branch already followed (where
-      // a fold and a grazing are too close for the steps to see the part between them).
+      // sign of its p component) a real multiplier crosses +1 only at a branch point, where
+      // another branch crosses this one and this one goes straight on: the new point's tangent
+      // then points along the step's chord. A step that changes how many lie above +1 and whose
+      // tangent points back along the chord has gone round a fold onto the part of the branch
+      // already followed (its orientation along cur's is the reverse of the way the branch
+      // runs there; where a fold and a grazing are too close for the steps to see the part
+      // between them).
+      const auto went_round = [&] {
+        const VectorXd tn = c_.tangent(next.e, cur.t);
+        return tn(tn.size() - 1) * cur.t(cur.t.size() - 1) > 0.0 &&
+               tn.dot(c_.scaled(next.e) - c_.scaled(cur.e)) <= 0.0;
+      };
       if (next.b.signature == cur.b.signature && real_above_one(next.b.multipliers) % 2 != real_above_one(cur.b.multipliers) % 2 &&
-          c_.tangent(next.e, cur.t)(cur.t.size() - 1) * cur.t(cur.t.size() - 1) > 0.0) {
+          went_round()) {
         next.e.ok = false;
         next.e.why = "the step went round a fold it did not see";
         h *= 0.5;

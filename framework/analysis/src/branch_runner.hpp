@@ -39,13 +39,17 @@ class BranchRunner {
               std::vector<std::pair<Node, int>>* doublings);
   /// Appends n to the branch and reports it to the progress callback.
   void append(Branch& branch, const Node& n);
+  /// Where set, the branch points located on the branches this runner follows are added to it
+  /// with their branch's index, for branch switching (branch_switching.hpp).
+  std::vector<std::pair<Node, int>>* branch_points = nullptr;
 
  private:
   /// How a bifurcation between two neighbours is located.
   enum class Mode {
     two_sided,   ///< Illinois on the arclength: f smooth through the zero (fold, PD, NS)
     one_sided,   ///< secant in p from the side where f is defined and smooth (grazing, rising)
-    bisection    ///< on the event signature: the condition is not smooth in p
+    bisection,   ///< on the event signature: the condition is not smooth in p
+    in_p         ///< Illinois in p, each point carried along its neighbour's tangent (branch point)
   };
 
   // Stepping (branch_runner.cpp).
@@ -83,6 +87,9 @@ class BranchRunner {
   std::optional<Node> illinois(const Node& a, const Node& b, const TestFunction& f, bool smooth, int* count,
                                const std::function<bool(const Node&)>& same_as_a = {});
   std::optional<Node> at_p(const Node& from, double p, const VectorXd& along);
+  std::optional<Node> along_to_p(const Node& from, double p);
+  std::optional<Node> illinois_in_p(const Node& a, const Node& b, const TestFunction& f, int* count,
+                                    std::string* why);
   std::optional<Node> one_sided(const Node& good, const Node& bad, const TestFunction& f,
                                 const std::function<bool(const Node&)>& on_good, int* count,
                                 double solved = std::numeric_limits<double>::infinity());

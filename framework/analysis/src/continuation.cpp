@@ -39,13 +39,14 @@ const char* to_string(BifurcationKind kind) {
     case BifurcationKind::phase_change: return "phase_change";
     case BifurcationKind::chatter_change: return "chatter_change";
     case BifurcationKind::other: return "other";
+    case BifurcationKind::branch_point: return "branch_point";
   }
   return "?";
 }
 
 std::vector<std::string> bifurcation_kind_names() {
   std::vector<std::string> out;
-  for (int i = 0; i <= static_cast<int>(BifurcationKind::other); ++i)
+  for (int i = 0; i <= static_cast<int>(BifurcationKind::branch_point); ++i)
     out.emplace_back(to_string(static_cast<BifurcationKind>(i)));
   return out;
 }
@@ -172,6 +173,8 @@ ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, 
     for (Bifurcation& b : result.bifurcations) carry_to_phase(family, b.point, options.phase, n);
   };
   std::vector<std::pair<Node, int>> doublings;
+  detail::SwitchPoints branch_points;
+  runner.branch_points = &branch_points;
   if (options.switch_at_start) {
     // Only the doubled branch from the start orbit, a period doubling (a restart at one).
     const FloquetMultipliers& mu = s0.b.multipliers;
@@ -188,7 +191,7 @@ ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, 
     start.end = "not followed (switch: only the doubled branch is followed)";
     result.branches.push_back(std::move(start));
     doublings.emplace_back(s0, 0);
-    detail::switch_at_doublings(family, options, c, doublings, result, progress);
+    detail::switch_at_doublings(family, options, c, doublings, 0, branch_points, result, progress);
     at_fixed_phase();
     return result;
   }
@@ -231,9 +234,18 @@ ContinuationResult continue_orbits(const ContinuationFamily& family, double p0, 
   whole.end = "one end: " + backward.end + "; other end: " + forward.end;
   result.branches.push_back(std::move(whole));
 
-  // Branch switching at period doublings: along the eigenvector of μ = −1, period 2k.
+  // Branch switching at period doublings (along the eigenvector of μ = −1, period 2k) and at
+  // branch points (along the crossing branch), each new branch's own in turn.
   try {
-    detail::switch_at_doublings(family, options, c, doublings, result, progress);
+    // Each call takes its list to the end, the entries its new branches add included (or stops
+    // at the run's budget, saying what it left).
+    std::size_t d = 0, b = 0;
+    do {
+      detail::switch_at_doublings(family, options, c, doublings, d, branch_points, result, progress);
+      d = doublings.size();
+      if (b < branch_points.size()) detail::switch_at_branch_points(family, options, c, branch_points, b, doublings, result, progress);
+      b = branch_points.size();
+    } while (d < doublings.size());
   } catch (const Interrupted&) {
   }
 

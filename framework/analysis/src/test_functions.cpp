@@ -27,6 +27,22 @@ double torus_test(const FloquetMultipliers& f) {
     for (Index j = i + 1; j < d; ++j) p *= f.values(i) * f.values(j) - 1.0;
   return p.real();
 }
+double branch_point_test(const FloquetMultipliers& f) {
+  const Index d = f.values.size() - f.structural_zeros;
+  double nearest = std::numeric_limits<double>::quiet_NaN(), sign = 1.0;
+  for (Index i = 0; i < d; ++i) {
+    const std::complex<double> mu = f.values(i);
+    if (std::abs(mu.imag()) > 1e-12 * std::abs(mu)) continue;  // a pair: |μ − 1|² > 0
+    double g = mu.real() - 1.0;
+    if (std::isnan(nearest)) {
+      nearest = g;
+      continue;
+    }
+    if (std::abs(g) < std::abs(nearest)) std::swap(g, nearest);  // g: the one left out, its sign counts
+    if (g < 0.0) sign = -sign;
+  }
+  return sign * nearest;
+}
 bool has_unit_pair(const FloquetMultipliers& f, double tol) {
   const Index d = f.values.size() - f.structural_zeros;
   for (Index i = 0; i < d; ++i)

@@ -5,6 +5,9 @@
 /// located as their zeros between two neighbours. Over the d non-structural Floquet
 /// multipliers μ_i (the structural zeros of held coordinates left out):
 ///  * period doubling: Π_i (1 + μ_i), zero where a multiplier passes −1;
+///  * branch point: (μ* − 1) Π_{i≠*} sign(μ_i − 1) over the real μ_i, μ* the one nearest +1:
+///    the sign of det(J − I) (complex pairs contribute |μ − 1|² > 0) with the magnitude of the
+///    crossing multiplier's distance, O(1) in any dimension;
 ///  * Neimark–Sacker:  Π_{i<j} (μ_i μ_j − 1), zero where a complex pair crosses the unit circle
 ///    (μ μ̄ = 1), and also at a real pair with μ_i μ_j = 1 (a neutral saddle, told apart by
 ///    has_unit_pair);
@@ -38,6 +41,7 @@ namespace vibro::detail {
 
 double doubling_test(const FloquetMultipliers& f);
 double torus_test(const FloquetMultipliers& f);
+double branch_point_test(const FloquetMultipliers& f);
 /// Whether a complex pair (|Im μ| > tol) lies on the unit circle to tol.
 bool has_unit_pair(const FloquetMultipliers& f, double tol);
 /// Grazing of stop j of a system with `stops` stops (see above).

@@ -32,6 +32,7 @@ KIND_MARKERS = {
     "phase_change": ("x", "0.3"),
     "chatter_change": ("+", "0.3"),
     "other": (".", "0.5"),
+    "branch_point": ("P", "tab:brown"),
 }
 
 

@@ -39,8 +39,10 @@
 ///                 impacting orbit and the grazing). A jump past several changes is brought back
 ///                 to the first by bisection in p
 ///             a step with the same events whose count of real multipliers above +1 changes
-///                 while the tangent's p component keeps its sign has gone round a fold unseen:
-///                 h ← h/2
+///                 while the tangent's p component keeps its sign has either gone round a fold
+///                 unseen (the new point lies on the part already followed: its tangent,
+///                 oriented along the last one, points back along the step's chord): h ← h/2;
+///                 or crossed a branch point (its tangent points along the chord): taken
 ///             a jump, or a step at that floor, from a stable orbit across the grazing of one
 ///                 of its impacts has passed the fold (or doubling) between them: it is located
 ///                 on the impacting orbits by short steps from the last point (steps not kept
@@ -62,6 +64,15 @@
 /// (modified regula falsi) iteration on the arclength between two neighbours, each evaluation a
 /// corrected branch point, to |Δp| ≤ locate_tolerance where the function is smooth:
 ///  * fold (saddle-node): the p-component of the tangent; a multiplier passes through +1;
+///  * branch point: a real multiplier passes through +1 while the tangent's p component keeps
+///    its sign (another branch crosses this one there: a pitchfork where a symmetric orbit
+///    loses its symmetry, or a transcritical point); test function (μ* − 1) times the signs of
+///    the other real multipliers' μ − 1 (μ* the real one nearest +1: the sign of det(J − I) with
+///    an O(1) magnitude), located by Illinois in p (the arclength's hyperplanes contain the
+///    crossing branch's direction there). The branch is followed straight through, and the
+///    crossing branch is continued from the located point along ±e, e the null direction of
+///    DF = [J − I, ∂P/∂p] there orthogonal to the branch's tangent (branch_switching.hpp): two
+///    new branches, within max_branches and max_total_points;
 ///  * period doubling: Π(1 + μ_i) over the non-structural multipliers; a multiplier at −1.
 ///    The doubled branch (period 2k) is then continued from the located point along the
 ///    multiplier's eigenvector (branch switching), recursively up to max_doublings deep. Each
@@ -138,7 +149,8 @@ enum class BifurcationKind {
   rising,
   phase_change,    ///< a contact phase appears or vanishes (not by rising)
   chatter_change,  ///< chatter into sticking appears or vanishes
-  other            ///< another change of the event signature, or of the period
+  other,           ///< another change of the event signature, or of the period
+  branch_point     ///< another branch crosses (a multiplier at +1 without a fold)
 };
 const char* to_string(BifurcationKind kind);
 /// All kinds in enum order (for file attributes).
