@@ -17,12 +17,17 @@
 
 #include <catch2/catch.hpp>
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <complex>
 #include <cstdio>
+#include <iomanip>
 #include <limits>
 #include <numbers>
+#include <utility>
 
 namespace {
 
@@ -804,4 +809,121 @@ TEST_CASE("continuation: a grazing corner whose orbits without the impact are fi
   CHECK(std::abs(graze->p - 0.2574626340) < 1e-9);
   CHECK(std::abs(graze->value) < 1e-9);
   CHECK(graze->point.signature.impacts[0] == 14);
+}
+
+namespace {
+
+/// x'' + 0.05 x' + x = 2 cos Ωt between rigid stops at x = ±1 (r = 0.8): unchanged by x → −x,
+/// t → t + T/2, so H(z) = −z(T/2) of the run from (0, z) maps the section t ≡ 0 (mod T) onto
+/// itself; a symmetric orbit is a fixed point of H, its period map H∘H, and its multipliers
+/// the squares of H's: where it loses its symmetry, a multiplier of H passes −1.
+vibro::ImpactSystem two_sided(double omega) {
+  vibro::HarmonicForcing f = vibro::HarmonicForcing::zero(1, omega);
+  f.cosine(0) = 2.0;
+  return vibro::ImpactSystem(vibro::LinearSystem(Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Constant(1, 1, 0.05),
+                                                 Eigen::MatrixXd::Identity(1, 1), f),
+                             {vibro::Stop::upper(0, 1.0, 0.8), vibro::Stop::lower(0, -1.0, 0.8)});
+}
+
+VectorXd two_sided_half_map(double omega, const VectorXd& z) {
+  const vibro::ImpactSystem sys = two_sided(omega);
+  vibro::Simulator sim(sys);
+  const vibro::RunSummary s = sim.run(0.0, z.head(1), z.tail(1), std::numbers::pi / omega);
+  REQUIRE(s.status == vibro::RunStatus::completed);
+  VectorXd out(2);
+  out << -s.x(0), -s.v(0);
+  return out;
+}
+
+/// The symmetric orbit at Ω by Newton on H(z) − z from z (central differences of plain runs, step
+/// 1e-5: the runs' rounding, ~1e-14 amplified through the impacts, gives ~1e-9 in the
+/// multiplier, the truncation h²|H'''|/6 ~1e-10), and H's real multiplier nearest −1 there.
+std::pair<VectorXd, double> symmetric_impacting_orbit(double omega, VectorXd z) {
+  for (int it = 0; it < 30; ++it) {
+    Eigen::Matrix2d J;
+    for (Eigen::Index i = 0; i < 2; ++i) {
+      VectorXd zp = z, zm = z;
+      zp(i) += 1e-5;
+      zm(i) -= 1e-5;
+      J.col(i) = (two_sided_half_map(omega, zp) - two_sided_half_map(omega, zm)) / 2e-5;
+    }
+    const VectorXd r = two_sided_half_map(omega, z) - z;
+    if (r.norm() < 1e-13) {
+      double nearest = std::numeric_limits<double>::infinity();
+      for (const std::complex<double>& m : Eigen::Vector2cd(J.eigenvalues()))
+        if (std::abs(m.imag()) < 1e-9 && std::abs(m.real() + 1.0) < std::abs(nearest + 1.0)) nearest = m.real();
+      return {z, nearest};
+    }
+    z -= (J - Eigen::Matrix2d::Identity()).partialPivLu().solve(r);
+  }
+  FAIL("no symmetric orbit at Ω = " << omega);
+  return {};
+}
+
+}  // namespace
+
+TEST_CASE("continuation: a branch point where a symmetric impacting orbit loses its symmetry, located against the "
+          "half-period map, and the crossing branch switched onto",
+          "[continuation]") {
+  // The symmetric orbit (one impact on each stop per period) is stable at Ω = 1 and loses its
+  // symmetry at Ω_b ≈ 1.02358: a multiplier passes +1 while its branch goes straight on in Ω.
+  // Reference: H's multiplier passing −1, bracketed by bisection on its sign (the differences'
+  // ~1e-9 over its slope, ≈ −5.9 per unit of Ω, place it to a few 1e-10).
+  const double W = 1.0, T = 2.0 * std::numbers::pi / W;
+  const vibro::ImpactSystem start = two_sided(W);
+  vibro::Simulator sim(start);
+  const vibro::RunSummary warm = sim.run(0.0, VectorXd::Zero(1), VectorXd::Zero(1), 300.0 * T);
+  REQUIRE(warm.status == vibro::RunStatus::completed);
+  VectorXd z(2);
+  z << warm.x(0), warm.v(0);
+  double lo = 1.0, hi = 1.04;
+  auto [z_lo, mu_lo] = symmetric_impacting_orbit(lo, z);
+  REQUIRE(mu_lo > -1.0);
+  REQUIRE(symmetric_impacting_orbit(hi, z_lo).second < -1.0);
+  for (int i = 0; i < 26; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    const auto [z_mid, mu_mid] = symmetric_impacting_orbit(mid, z_lo);
+    if (mu_mid > -1.0) lo = mid, z_lo = z_mid;
+    else hi = mid;
+  }
+  const double reference = 0.5 * (lo + hi);
+
+  vibro::ContinuationOptions o;
+  o.p_min = 0.9;
+  o.p_max = 1.1;
+  o.max_doublings = 0;
+  const vibro::ParameterFamily family = [](double omega) {
+    return vibro::FamilyPoint{two_sided(omega), vibro::SystemDerivative::frequency_only()};
+  };
+  const vibro::ContinuationResult r = vibro::continue_orbits(family, W, 300.0 * T, warm.x, warm.v, o);
+  const vibro::Bifurcation* bp = find(r, vibro::BifurcationKind::branch_point, 1.0236);
+  REQUIRE(bp != nullptr);
+  WARN(std::setprecision(15) << "branch point: Ω = " << bp->p << " (half-period map's bracket [" << lo << ", " << hi
+                             << "], difference " << bp->p - reference << "), smooth " << bp->smooth);
+  CHECK(bp->smooth);
+  // The reference to a few 1e-10, the location to its tolerance 1e-10.
+  CHECK(std::abs(bp->p - reference) < 1e-9);
+  CHECK(r.branches.front().points.front().p == Approx(0.9).margin(1e-12));
+  CHECK(r.branches.front().points.back().p == Approx(1.1).margin(1e-12));
+  // A branch switched onto there whose orbits, checked by plain runs, are periodic and not
+  // symmetric.
+  int asymmetric = 0;
+  for (std::size_t i = 1; i < r.branches.size(); ++i) {
+    const vibro::Branch& s = r.branches[i];
+    INFO("branch " << i << ": " << s.start << " … " << s.end);
+    CHECK(s.parent == 0);
+    if (s.points.size() < 5) continue;
+    const vibro::BranchPoint& q = s.points[4];
+    const double Tq = 2.0 * std::numbers::pi / q.p;
+    const vibro::ImpactSystem sq = two_sided(q.p);
+    vibro::Simulator run(sq);
+    const vibro::RunSummary one = run.run(q.t0, q.x, q.v, q.t0 + Tq);
+    REQUIRE(one.status == vibro::RunStatus::completed);
+    CHECK(std::max(std::abs(one.x(0) - q.x(0)), std::abs(one.v(0) - q.v(0))) < 1e-9);
+    vibro::Simulator half(sq);
+    const vibro::RunSummary h = half.run(q.t0, q.x, q.v, q.t0 + Tq / 2);
+    REQUIRE(h.status == vibro::RunStatus::completed);
+    asymmetric += std::abs(h.x(0) + q.x(0)) + std::abs(h.v(0) + q.v(0)) > 1e-4;
+  }
+  CHECK(asymmetric >= 1);
 }

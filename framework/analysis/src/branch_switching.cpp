@@ -200,7 +200,7 @@ void switch_at_branch_points(const ContinuationFamily& family, const Continuatio
         const VectorXd y_pred = child.scaled(s.e) + h * dir;
         Node m;
         m.e = child.correct(y_pred, dir);
-        if (!m.e.ok || (child.scaled(m.e) - y_pred).norm() > 0.5 * h) continue;
+        if (!m.e.ok || (child.scaled(m.e) - y_pred).norm() > 5.0 * h) continue;
         m.t = child.tangent(m.e, dir);
         m.b = child.point(m.e, m.t, 0);
         // Back on the branch of the branch point (where it curves into the hyperplane): a
@@ -233,7 +233,7 @@ void switch_at_branch_points(const ContinuationFamily& family, const Continuatio
       s.b.located = true;
       runner.append(b, s);
       if (!first_point) {
-        b.end = "branch switching failed: no orbit found within h/2 of the predictor along the crossing direction";
+        b.end = "branch switching failed: no orbit off the branch found within 5h of the predictor along the crossing direction";
         result.branches.push_back(std::move(b));
         continue;
       }

@@ -30,8 +30,10 @@ void switch_at_doublings(const ContinuationFamily& family, const ContinuationOpt
 /// entered along +e and along −e (at a symmetry-breaking pitchfork the two are the mirror
 /// images of one another, at a transcritical point the two halves of one branch), each by the
 /// corrector from the branch point + h e in the hyperplane normal to e, h = 1e-2, 3e-3, …
-/// 3e-5 until it lands within h/2 of its predictor (the followed branch, tangent to t, crosses
-/// that hyperplane only O(√h) away, if at all), and followed away from the branch point.
+/// 3e-5 until it lands within 5h of its predictor and off the branch followed (which, tangent
+/// to t, crosses that hyperplane only O(√h) away, if at all; the crossing branch's tangent lies
+/// in span{t, e} at any angle to e, so it crosses there at h/cos of that angle), and followed
+/// away from the branch point.
 /// Doublings and branch points found on the new branches are appended to their lists.
 void switch_at_branch_points(const ContinuationFamily& family, const ContinuationOptions& options, Continuer& c,
                              SwitchPoints& branch_points, std::size_t first, SwitchPoints& doublings,
