@@ -228,8 +228,8 @@ struct Bifurcation {
 
 struct Branch {
   int k = 1;
-  int parent = -1;        ///< the branch it was switched from (period doubling), or −1
-  int bifurcation = -1;   ///< the period doubling (index into bifurcations) it was switched at, or −1
+  int parent = -1;        ///< the branch it was switched from (period doubling, branch point), or −1
+  int bifurcation = -1;   ///< the bifurcation (index into bifurcations) it was switched at, or −1
   int joins = -1;         ///< the branch it ran onto (then it ends there: already followed), or −1
   std::vector<BranchPoint> points;  ///< in arclength order
   std::string start;      ///< how it began
@@ -239,9 +239,9 @@ struct Branch {
 /// A branch switching that found a branch already followed: its first point lies on the orbits
 /// of a known branch of the same period (orbit_on_branch), so it was not followed again.
 struct RecognisedBranch {
-  int parent = -1;        ///< the branch of the period doubling
-  int bifurcation = -1;   ///< the period doubling (index into bifurcations)
-  int k = 1;              ///< the period of the doubled branch
+  int parent = -1;        ///< the branch of the period doubling or branch point
+  int bifurcation = -1;   ///< that bifurcation (index into bifurcations)
+  int k = 1;              ///< the period of the new branch (doubled at a period doubling)
   double p = 0.0;         ///< the parameter of its first point
   int known = -1;         ///< the branch it lies on
   int shift = 0;          ///< forcing periods between its state and the known orbit's
