@@ -12,17 +12,15 @@
 /// 0.99021, then doubles again.
 #include "support/analysis_helpers.hpp"
 #include "support/designed_orbit.hpp"
+#include "support/symmetric_orbit.hpp"
 #include "vibro/continuation.hpp"
 #include "vibro/models/chain.hpp"
 
 #include <catch2/catch.hpp>
 
-#include <Eigen/Eigenvalues>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <complex>
 #include <cstdio>
 #include <iomanip>
 #include <limits>
@@ -835,29 +833,12 @@ VectorXd two_sided_half_map(double omega, const VectorXd& z) {
   return out;
 }
 
-/// The symmetric orbit at Ω by Newton on H(z) − z from z (central differences of plain runs, step
-/// 1e-5: the runs' rounding, ~1e-14 amplified through the impacts, gives ~1e-9 in the
-/// multiplier, the truncation h²|H'''|/6 ~1e-10), and H's real multiplier nearest −1 there.
-std::pair<VectorXd, double> symmetric_impacting_orbit(double omega, VectorXd z) {
-  for (int it = 0; it < 30; ++it) {
-    Eigen::Matrix2d J;
-    for (Eigen::Index i = 0; i < 2; ++i) {
-      VectorXd zp = z, zm = z;
-      zp(i) += 1e-5;
-      zm(i) -= 1e-5;
-      J.col(i) = (two_sided_half_map(omega, zp) - two_sided_half_map(omega, zm)) / 2e-5;
-    }
-    const VectorXd r = two_sided_half_map(omega, z) - z;
-    if (r.norm() < 1e-13) {
-      double nearest = std::numeric_limits<double>::infinity();
-      for (const std::complex<double>& m : Eigen::Vector2cd(J.eigenvalues()))
-        if (std::abs(m.imag()) < 1e-9 && std::abs(m.real() + 1.0) < std::abs(nearest + 1.0)) nearest = m.real();
-      return {z, nearest};
-    }
-    z -= (J - Eigen::Matrix2d::Identity()).partialPivLu().solve(r);
-  }
-  FAIL("no symmetric orbit at Ω = " << omega);
-  return {};
+/// The symmetric orbit at Ω and H's multiplier nearest −1 (symmetric_orbit.hpp), step 1e-5: the
+/// runs' rounding, ~1e-14 amplified through the impacts, gives ~1e-9 in the multiplier, the
+/// truncation h²|H'''|/6 ~1e-10.
+std::pair<VectorXd, double> symmetric_impacting_orbit(double omega, const VectorXd& z) {
+  return vibro::test::symmetric_fixed_point([omega](const VectorXd& y) { return two_sided_half_map(omega, y); }, z,
+                                            1e-5);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 // and continuation in Ω locating the onset of sticking against Den Hartog's closed form.
 // Parameter derivatives in N, μ_k, μ_s and continuation in N: at the end of the file.
 #include "support/den_hartog.hpp"
+#include "support/symmetric_orbit.hpp"
 #include "vibro/continuation.hpp"
 #include "vibro/friction_tangent.hpp"
 
@@ -472,35 +473,11 @@ Eigen::VectorXd half_map(double omega, const Eigen::VectorXd& z) {
   return -map_of(stiction_system(omega), stiction_contacts(), 0.0, z, std::numbers::pi / omega);
 }
 
-/// The symmetric orbit at Ω by Newton on H(z) − z from z, the Jacobians by central differences
-/// of plain runs (no analysis code), and the real multiplier of H nearest −1 there. The step
-/// 1e-7 (the scales are O(1)) puts the differences' truncation error near 1e-14 and their
-/// rounding near 1e-9 (the runs' rounding ~1e-16 over 2e-7).
-std::pair<Eigen::VectorXd, double> symmetric_orbit(double omega, Eigen::VectorXd z) {
-  const auto jacobian = [omega](const Eigen::VectorXd& at) {
-    Eigen::Matrix2d J;
-    for (Eigen::Index i = 0; i < 2; ++i) {
-      Eigen::VectorXd zp = at, zm = at;
-      zp(i) += 1e-7;
-      zm(i) -= 1e-7;
-      J.col(i) = (half_map(omega, zp) - half_map(omega, zm)) / 2e-7;
-    }
-    return J;
-  };
-  for (int it = 0; it < 30; ++it) {
-    const Eigen::VectorXd r = half_map(omega, z) - z;
-    const Eigen::Matrix2d J = jacobian(z);
-    if (r.norm() < 1e-13) {
-      const Eigen::Vector2cd mu = J.eigenvalues();
-      double nearest = std::numeric_limits<double>::infinity();
-      for (const std::complex<double>& m : mu)
-        if (std::abs(m.imag()) < 1e-9 && std::abs(m.real() + 1.0) < std::abs(nearest + 1.0)) nearest = m.real();
-      return {z, nearest};
-    }
-    z -= (J - Eigen::Matrix2d::Identity()).partialPivLu().solve(r);
-  }
-  FAIL("no symmetric orbit at Ω = " << omega);
-  return {};
+/// The symmetric orbit at Ω and H's multiplier nearest −1 (symmetric_orbit.hpp). The step 1e-7
+/// (the scales are O(1)) puts the differences' truncation error near 1e-14 and their rounding
+/// near 1e-9 (the runs' rounding ~1e-16 over 2e-7).
+std::pair<Eigen::VectorXd, double> symmetric_orbit(double omega, const Eigen::VectorXd& z) {
+  return test::symmetric_fixed_point([omega](const Eigen::VectorXd& y) { return half_map(omega, y); }, z, 1e-7);
 }
 
 }  // namespace
